@@ -1,0 +1,1 @@
+"""Wrap-format search, policies, reports and the `wrapbench` command line."""

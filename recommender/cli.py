@@ -1,0 +1,141 @@
+"""`wrapbench`: the command line of the virtual bench.
+
+Exit status (CONTRACTS.md): 0 success; 1 the run completed but the load failed the asked test;
+2 bad input or usage, with one line on stderr naming the file and the field.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+
+from wrapenv.bench import BenchRun, run_levels
+from wrapenv.calibrated import Calibration
+from wrapenv.config import InputError, write_atomic
+from wrapenv.eumos import LevelVerdict
+from wrapenv.load import LoadUnit
+from wrapenv.profile import MeasuredProfile, PulseProfile, eumos_levels
+
+EXAMPLE_LOAD = Path(__file__).resolve().parent.parent / "examples" / "pet_2layer_columnar.toml"
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse that reports a usage error in one line and exits with status 2."""
+
+    def error(self, message: str) -> None:  # type: ignore[override]
+        sys.stderr.write(f"{self.prog}: error: {message}\n")
+        sys.exit(2)
+
+
+def _g(text: str) -> float:
+    value = float(text)
+    if not math.isfinite(value):
+        raise argparse.ArgumentTypeError(f"not a finite number: {text!r}")
+    return value
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = _Parser(prog="wrapbench", description=__doc__.splitlines()[0])
+    sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
+    sim = sub.add_parser("simulate", help="run a load unit on the virtual ESTL bench")
+    sim.add_argument("load", type=Path, help="LOAD.toml")
+    sim.add_argument("--calibration", type=Path, help="CAL.json with fitted friction")
+    sim.add_argument("--level", type=_g, action="append", metavar="G",
+                     help="test level in g (repeatable)")
+    sim.add_argument("--eumos", action="store_true",
+                     help="EUMOS sequence from --start up to --target, stopping at the first failure"
+                          " (the default when no level or profile is given)")
+    sim.add_argument("--target", type=_g, default=0.5, metavar="G", help="default 0.5 g")
+    sim.add_argument("--start", type=_g, default=0.2, metavar="G", help="default 0.2 g")
+    sim.add_argument("--profile", type=Path, help="drive the sled by a measured profile.csv")
+    sim.add_argument("--orientation", choices=("long", "short"),
+                     help="pallet side along the motion (default: as the load file lays it out)")
+    sim.add_argument("--json", type=Path, metavar="OUT", help="write the verdict as JSON")
+    sim.add_argument("--plot", type=Path, metavar="OUT.png", help="plot displacement vs time")
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    try:
+        return _simulate(args)
+    except InputError as exc:
+        sys.stderr.write(f"wrapbench {args.command}: {exc}\n")
+        return 2
+    except KeyboardInterrupt:
+        sys.stderr.write(f"wrapbench {args.command}: interrupted, nothing written\n")
+        return 130
+
+
+def _output_dir_ok(path: Path | None, flag: str) -> None:
+    if path is not None and not path.resolve().parent.is_dir():
+        raise InputError(str(path), flag, "the folder to write into does not exist")
+
+
+def _simulate(args: argparse.Namespace) -> int:
+    load = LoadUnit.from_toml(args.load)
+    if args.calibration:
+        load = Calibration.from_json(args.calibration).apply(load)
+    _output_dir_ok(args.json, "--json")
+    _output_dir_ok(args.plot, "--plot")
+    if args.profile and (args.level or args.eumos):
+        raise InputError("arguments", "--profile", "cannot be combined with --level or --eumos")
+    if args.level and args.eumos:
+        raise InputError("arguments", "--level", "cannot be combined with --eumos")
+    if args.profile:
+        levels: list = [MeasuredProfile.from_csv(args.profile)]
+    elif args.level:
+        levels = [PulseProfile(g) for g in args.level]  # validates every level before running
+    else:
+        levels = [PulseProfile(g) for g in eumos_levels(args.target, args.start)]
+    stop = not args.level and not args.profile
+    run = run_levels(load, levels, orientation=args.orientation, stop_at_failure=stop)
+    print(_table(load, run, args.orientation))
+    if args.json:
+        write_atomic(args.json, (json.dumps(run.verdict.to_json(), indent=2) + "\n").encode())
+    if args.plot:
+        from recommender.report import plot_displacements
+
+        plot_displacements(run, args.plot, title=load.name)
+    return 0 if run.verdict.passed else 1
+
+
+def _mm(x: float | None) -> str:
+    return "   n/a" if x is None else f"{x * 1000:6.1f}"
+
+
+def _row(v: LevelVerdict) -> str:
+    result = "PASS" if v.passed else ("INVALID" if not v.valid else "FAIL")
+    failed = [k for k, ok in v.criteria.items() if not ok]
+    note = v.invalid_reason or (", ".join(failed) if failed else "")
+    damage = f"; {len(v.damage)} damaged: {', '.join(v.damage[:4])}" if v.damage else ""
+    if len(v.damage) > 4:
+        damage += ", ..."
+    return (f"{v.level_g:5.2f} g  {result:7s} {_mm(v.elastic_max_m)} mm ({v.elastic_max_pct or 0:5.1f} %)"
+            f"  {_mm(v.permanent_max_m)} mm ({v.permanent_max_pct or 0:5.1f} %)"
+            f"  {_mm(v.permanent_low20_m)} mm  {_mm(v.pallet_slip_m)} mm  {note}{damage}")
+
+
+def _table(load: LoadUnit, run: BenchRun, orientation: str | None) -> str:
+    layout = load.layout(orientation)  # type: ignore[arg-type]
+    v = run.verdict
+    lines = [
+        f"{load.name}: {len(layout.bundles)} bundles, {load.stack.layers} layers "
+        f"({load.stack.pattern}), load height {v.load_height_m:.3f} m, {load.mass_kg:.0f} kg",
+        f"EUMOS 40509 limits: elastic <= {100 * v.load_height_m:.1f} mm, permanent <= "
+        f"{50 * v.load_height_m:.1f} mm, lowest 20 cm < 40 mm, no damage",
+        "level    result    elastic max            permanent max       low 20 cm  pallet slip",
+    ]
+    lines += [_row(level) for level in v.levels]
+    best = v.highest_passed_g
+    lines.append(f"highest level passed: {'none' if best is None else f'{best:.2f} g'}"
+                 + ("" if v.valid else "  (simulation became unphysical: see INVALID rows)"))
+    return "\n".join(lines)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

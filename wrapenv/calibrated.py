@@ -1,0 +1,65 @@
+"""Calibrated parameters (CAL.json): what `wrapbench calibrate` fits and the bench then uses."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+from wrapenv.config import InputError, Table, read_json
+from wrapenv.load import PAIRS, FrictionPair, LoadUnit
+
+
+@dataclass(frozen=True)
+class CalibratedPair:
+    static: float
+    kinetic: float
+    static_std: float = 0.0
+    kinetic_std: float = 0.0
+    #: False when the pair never slipped in the recordings: `static` is then only a lower bound.
+    identified: bool = True
+
+
+@dataclass(frozen=True)
+class Calibration:
+    friction: dict[str, CalibratedPair] = field(default_factory=dict)
+    stiffness_scale: float = 1.0
+    tension_scale: float = 1.0
+
+    def apply(self, load: LoadUnit) -> LoadUnit:
+        """The load with its friction replaced by the calibrated pairs."""
+        pairs = {k: FrictionPair(p.static, p.kinetic) for k, p in self.friction.items()}
+        return load.with_friction(replace(load.friction, **pairs))
+
+    @classmethod
+    def from_json(cls, path: str | Path) -> Calibration:
+        return cls.from_dict(read_json(path), source=str(path))
+
+    @classmethod
+    def from_dict(cls, data: dict, source: str = "calibration") -> Calibration:
+        top = Table(data, source)
+        fr = top.table("friction")
+        pairs = {}
+        for name in PAIRS:
+            if not fr.has(name):
+                continue
+            t = fr.table(name)
+            pair = CalibratedPair(
+                static=t.number("static", positive=True, maximum=2.0),
+                kinetic=t.number("kinetic", positive=True, maximum=2.0),
+                static_std=t.number("static_std", 0.0, minimum=0.0),
+                kinetic_std=t.number("kinetic_std", 0.0, minimum=0.0),
+                identified=t.boolean("identified", True),
+            )
+            t.done()
+            if pair.kinetic > pair.static:
+                raise InputError(source, t.field("kinetic"),
+                                 f"kinetic friction {pair.kinetic} exceeds static {pair.static}")
+            pairs[name] = pair
+        fr.done()
+        wrap = top.table("wrap")
+        stiffness = wrap.number("stiffness_scale", 1.0, positive=True)
+        tension = wrap.number("tension_scale", 1.0, positive=True)
+        wrap.done()
+        top.ignore("residual_rms_m", "simulations", "method")  # fit diagnostics, informative
+        top.done()
+        return cls(pairs, stiffness, tension)

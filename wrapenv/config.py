@@ -1,0 +1,174 @@
+"""Reading and validating the project's input files in one place.
+
+Every user-facing file (LOAD.toml, WRAP.toml, CAL.json, profile.csv) is read through the
+`Table` reader below, so a bad value always produces the same one-line message naming the
+file and the field: ``load.toml: bundle.mass_kg: must be > 0 (got -1.0)``.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import tempfile
+import tomllib
+from collections.abc import Iterable
+from pathlib import Path
+from typing import Any
+
+
+class InputError(ValueError):
+    """Bad user input; ``str()`` is a one-line message naming the file and the field."""
+
+    def __init__(self, source: str, field: str, message: str) -> None:
+        self.source, self.field, self.message = source, field, message
+        where = f"{source}: {field}" if field else source
+        super().__init__(f"{where}: {message}")
+
+
+def read_toml(path: str | Path) -> dict[str, Any]:
+    """Parse a TOML file, turning I/O and syntax errors into `InputError`."""
+    path = Path(path)
+    try:
+        with path.open("rb") as fh:
+            return tomllib.load(fh)
+    except OSError as exc:
+        raise InputError(str(path), "", f"cannot read file ({exc.strerror or exc})") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise InputError(str(path), "", f"malformed TOML ({exc})") from None
+
+
+def read_json(path: str | Path) -> dict[str, Any]:
+    """Parse a JSON object file, turning I/O and syntax errors into `InputError`."""
+    path = Path(path)
+    try:
+        data = json.loads(path.read_text())
+    except OSError as exc:
+        raise InputError(str(path), "", f"cannot read file ({exc.strerror or exc})") from None
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise InputError(str(path), "", f"malformed JSON ({exc})") from None
+    if not isinstance(data, dict):
+        raise InputError(str(path), "", "expected a JSON object at the top level")
+    return data
+
+
+class Table:
+    """A view on one table of a parsed file that validates values as they are taken.
+
+    Call `done()` after taking every known key: leftover keys are reported as unknown, which
+    catches typos such as ``mass_kgs`` instead of silently using a default.
+    """
+
+    def __init__(self, data: Any, source: str, prefix: str = "") -> None:
+        if not isinstance(data, dict):
+            raise InputError(source, prefix or "(top level)", "expected a table")
+        self.data, self.source, self.prefix = data, source, prefix
+        self._taken: set[str] = set()
+
+    def field(self, key: str) -> str:
+        return f"{self.prefix}.{key}" if self.prefix else key
+
+    def error(self, key: str, message: str) -> InputError:
+        return InputError(self.source, self.field(key), message)
+
+    def has(self, key: str) -> bool:
+        return key in self.data
+
+    def _get(self, key: str, default: Any) -> Any:
+        """Take a key (marking it known); `default` is `_REQUIRED` for mandatory keys."""
+        self._taken.add(key)
+        if key in self.data:
+            return self.data[key]
+        if default is _REQUIRED:
+            raise self.error(key, "missing")
+        return default
+
+    def number(
+        self,
+        key: str,
+        default: Any = None,
+        *,
+        positive: bool = False,
+        minimum: float | None = None,
+        maximum: float | None = None,
+    ) -> float:
+        value = self._get(key, _REQUIRED if default is None else default)
+        if isinstance(value, bool) or not isinstance(value, int | float):
+            raise self.error(key, f"must be a number (got {value!r})")
+        value = float(value)
+        if not math.isfinite(value):
+            raise self.error(key, f"must be finite (got {value})")
+        if positive and value <= 0:
+            raise self.error(key, f"must be > 0 (got {value})")
+        if minimum is not None and value < minimum:
+            raise self.error(key, f"must be >= {minimum} (got {value})")
+        if maximum is not None and value > maximum:
+            raise self.error(key, f"must be <= {maximum} (got {value})")
+        return value
+
+    def integer(self, key: str, default: Any = None, *, minimum: int | None = None) -> int:
+        value = self._get(key, _REQUIRED if default is None else default)
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise self.error(key, f"must be a whole number (got {value!r})")
+        if minimum is not None and value < minimum:
+            raise self.error(key, f"must be >= {minimum} (got {value})")
+        return value
+
+    def choice(self, key: str, choices: Iterable[str], default: Any = None) -> str:
+        choices = tuple(choices)
+        value = self._get(key, _REQUIRED if default is None else default)
+        if value not in choices:
+            raise self.error(key, f"must be one of {', '.join(map(repr, choices))} (got {value!r})")
+        return value
+
+    def string(self, key: str, default: Any = None) -> str:
+        value = self._get(key, _REQUIRED if default is None else default)
+        if not isinstance(value, str):
+            raise self.error(key, f"must be a string (got {value!r})")
+        return value
+
+    def boolean(self, key: str, default: Any = None) -> bool:
+        value = self._get(key, _REQUIRED if default is None else default)
+        if not isinstance(value, bool):
+            raise self.error(key, f"must be true or false (got {value!r})")
+        return value
+
+    def table(self, key: str, *, required: bool = False) -> Table:
+        value = self._get(key, _REQUIRED if required else {})
+        return Table(value, self.source, self.field(key))
+
+    def array(self, key: str) -> list[Any]:
+        value = self._get(key, _REQUIRED)
+        if not isinstance(value, list):
+            raise self.error(key, f"must be an array (got {value!r})")
+        return value
+
+    def ignore(self, *keys: str) -> None:
+        """Accept keys that carry information for people, not for the program."""
+        self._taken.update(keys)
+
+    def done(self) -> None:
+        unknown = sorted(set(self.data) - self._taken)
+        if unknown:
+            raise self.error(unknown[0], "unknown key")
+
+
+class _Required:
+    def __repr__(self) -> str:
+        return "<required>"
+
+
+_REQUIRED: Any = _Required()
+
+
+def write_atomic(path: str | Path, data: bytes) -> None:
+    """Write a file so readers see the old content or the whole new one, never a part."""
+    path = Path(path)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "wb") as fh:
+            fh.write(data)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise

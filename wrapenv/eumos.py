@@ -1,0 +1,136 @@
+"""EUMOS 40509 acceptance criteria and the verdict of a bench run.
+
+Per test level (paper, section 2): (i) permanent displacement of every part <= 5 % of the load
+height; (ii) permanent displacement in the lowest 20 cm < 4 cm relative to the pallet;
+(iii) elastic displacement during the test <= 10 % of the load height; (iv) no structural damage:
+here no bundle fallen or toppled (and, with a wrap, no torn wrap).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass, field
+
+import numpy as np
+
+from wrapenv.trace import Trace
+
+PERMANENT_LIMIT_FRACTION = 0.05
+ELASTIC_LIMIT_FRACTION = 0.10
+LOW_ZONE_HEIGHT_M = 0.20
+LOW_ZONE_LIMIT_M = 0.04
+#: A bundle left leaning by more than this is toppled: boxes stacked flat never rest tilted.
+TOPPLE_ANGLE_RAD = math.radians(10.0)
+
+
+@dataclass(frozen=True)
+class BodyResult:
+    name: str
+    permanent_m: float | None
+    elastic_max_m: float | None
+
+
+@dataclass(frozen=True)
+class LevelVerdict:
+    level_g: float
+    passed: bool
+    valid: bool
+    elastic_max_m: float | None
+    elastic_max_pct: float | None
+    permanent_max_m: float | None
+    permanent_max_pct: float | None
+    permanent_low20_m: float | None
+    pallet_slip_m: float | None
+    damage: tuple[str, ...]
+    criteria: dict[str, bool]
+    bodies: tuple[BodyResult, ...]
+    invalid_reason: str = ""
+
+    def to_json(self) -> dict:
+        out = asdict(self)
+        out["damage"] = list(self.damage)
+        out["bodies"] = [asdict(b) for b in self.bodies]
+        if self.valid:
+            del out["invalid_reason"]
+        return out
+
+
+@dataclass(frozen=True)
+class Verdict:
+    load_height_m: float
+    levels: tuple[LevelVerdict, ...] = field(default_factory=tuple)
+
+    @property
+    def valid(self) -> bool:
+        return all(level.valid for level in self.levels)
+
+    @property
+    def passed(self) -> bool:
+        return bool(self.levels) and all(level.passed for level in self.levels)
+
+    @property
+    def highest_passed_g(self) -> float | None:
+        passed = [level.level_g for level in self.levels if level.passed]
+        return max(passed) if passed else None
+
+    def to_json(self) -> dict:
+        return {
+            "valid": self.valid,
+            "load_height_m": round(self.load_height_m, 6),
+            "levels": [level.to_json() for level in self.levels],
+            "highest_passed_g": self.highest_passed_g,
+        }
+
+
+def evaluate(trace: Trace, extra_damage: tuple[str, ...] = ()) -> LevelVerdict:
+    """Judge one level from its trace. `extra_damage` adds damage found elsewhere (torn wrap)."""
+    h = trace.load_height_m
+    disp = trace.bundle_displacement_m()
+    permanent, elastic = disp[-1], disp.max(axis=0)
+    low = trace.bottom_z_m < LOW_ZONE_HEIGHT_M
+    low20 = float(permanent[low].max()) if np.any(low) else 0.0
+    damage = _damage(trace) + tuple(extra_damage)
+    criteria = {
+        "permanent_5pct": bool(permanent.max() <= PERMANENT_LIMIT_FRACTION * h),
+        "low20_4cm": low20 < LOW_ZONE_LIMIT_M,
+        "elastic_10pct": bool(elastic.max() <= ELASTIC_LIMIT_FRACTION * h),
+        "no_damage": not damage,
+    }
+    return LevelVerdict(
+        level_g=round(trace.level_g, 4),
+        passed=trace.valid and all(criteria.values()),
+        valid=trace.valid,
+        elastic_max_m=_r(elastic.max()),
+        elastic_max_pct=_r(100 * elastic.max() / h, 3),
+        permanent_max_m=_r(permanent.max()),
+        permanent_max_pct=_r(100 * permanent.max() / h, 3),
+        permanent_low20_m=_r(low20),
+        pallet_slip_m=_r(trace.pallet_slip_m()),
+        damage=damage,
+        criteria=criteria,
+        bodies=tuple(
+            BodyResult(n, _r(p), _r(e)) for n, p, e in zip(trace.names, permanent, elastic,
+                                                          strict=True)
+        ),
+        invalid_reason=trace.invalid_reason,
+    )
+
+
+def _damage(trace: Trace) -> tuple[str, ...]:
+    start_z = trace.bundle_pos[0, :, 2]
+    height = 2 * (start_z - trace.bottom_z_m)
+    fallen = trace.bundle_pos[-1, :, 2] < start_z - height / 2
+    toppled = trace.tilt_rad() > TOPPLE_ANGLE_RAD
+    out = []
+    for name, f, t in zip(trace.names, fallen, toppled, strict=True):
+        if f:
+            out.append(f"{name} fallen")
+        elif t:
+            out.append(f"{name} toppled")
+    return tuple(out)
+
+
+def _r(x: float, digits: int = 6) -> float | None:
+    """Round for reporting; a non-finite figure (a blown-up run) is reported as null."""
+    x = float(x)
+    return round(x, digits) if math.isfinite(x) else None

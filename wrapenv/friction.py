@@ -1,0 +1,128 @@
+"""Per-pair static and kinetic friction on top of Bullet's single, multiplied coefficient.
+
+Bullet gives each body one friction coefficient and uses the product of the two bodies' values
+for a contact, with no separate static and kinetic values. The load file instead gives a static
+and a kinetic coefficient per contact pair (sled-pallet, pallet-bundle, bundle-bundle). This
+module keeps, for every resting contact (a body on what supports it), whether it sticks or
+slides, and solves for body coefficients m whose products m_i * m_j equal the wanted pair value:
+a linear least-squares problem in log m. Resting contacts form a tree for columnar stacks, so
+they are met exactly; side contacts between neighbours in a layer are met as well as the
+remaining freedom allows. The solve is a fixed matrix times a vector, precomputed once.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from wrapenv.load import Friction, FrictionPair, Layout
+
+#: A sticking contact starts to slide above this relative speed, and a sliding one sticks again
+#: below `STICK_SPEED_MPS` (hysteresis keeps solver jitter from toggling the state).
+SLIP_SPEED_MPS = 2e-3
+STICK_SPEED_MPS = 1e-3
+#: Neighbours in a layer closer than this (face to face) are treated as side contacts.
+SIDE_CONTACT_GAP_M = 0.01
+
+
+@dataclass(frozen=True)
+class Contact:
+    body: int     # the body resting on (or beside) `other`
+    other: int
+    pair: FrictionPair
+    offset_m: tuple[float, float, float]  # from `body`'s centre to the contact, body frame
+
+
+class StickSlip:
+    """Contact states and the body coefficients that realise them.
+
+    Bodies are numbered as the bench adds them: 0 sled, 1 pallet, 2 + k bundle k of the layout.
+    """
+
+    def __init__(self, layout: Layout) -> None:
+        self.n_bodies = 2 + len(layout.bundles)
+        self.resting = _resting_contacts(layout)
+        side = _side_contacts(layout)
+        a_rest = _incidence(self.resting, self.n_bodies)
+        a_side = _incidence(side, self.n_bodies)
+        # x = log m = P_rest @ b_rest + P_side @ b_side: meet resting contacts in least squares,
+        # then use the null space left over to meet side contacts (ridge keeps it well posed).
+        pinv = np.linalg.pinv(a_rest)
+        _, s, vt = np.linalg.svd(a_rest)
+        rank = int(np.sum(s > 1e-9))
+        null = vt[rank:].T
+        if null.shape[1] and a_side.shape[0]:
+            an = a_side @ null
+            z = np.linalg.solve(an.T @ an + 1e-6 * np.eye(an.shape[1]), an.T)
+            self._p_rest = pinv - null @ z @ a_side @ pinv
+            self._p_side = null @ z
+        else:
+            self._p_rest = pinv
+            self._p_side = np.zeros((self.n_bodies, a_side.shape[0]))
+        self._b_side = np.log([c.pair.static for c in side]) if side else np.zeros(0)
+        self._static = np.log([c.pair.static for c in self.resting])
+        self._kinetic = np.log([c.pair.kinetic for c in self.resting])
+        self.sliding = np.zeros(len(self.resting), dtype=bool)
+        self._i = np.array([c.body for c in self.resting])
+        self._j = np.array([c.other for c in self.resting])
+        self._offset = np.array([c.offset_m for c in self.resting])
+
+    def coefficients(self) -> np.ndarray:
+        """Body coefficients (n_bodies,) for the current contact states."""
+        b_rest = np.where(self.sliding, self._kinetic, self._static)
+        return np.exp(self._p_rest @ b_rest + self._p_side @ self._b_side)
+
+    def update(self, pos: np.ndarray, rot: np.ndarray, vel: np.ndarray, omega: np.ndarray) -> bool:
+        """Update contact states from body states (all bodies, sled included, sled frame).
+
+        `rot` holds rotation matrices (n, 3, 3). Returns True when any contact changed state.
+        """
+        i, j = self._i, self._j
+        r_i = np.einsum("nab,nb->na", rot[i], self._offset)  # contact point from i's centre
+        point = pos[i] + r_i
+        v_i = vel[i] + np.cross(omega[i], r_i)
+        v_j = vel[j] + np.cross(omega[j], point - pos[j])
+        rel = np.linalg.norm((v_i - v_j)[:, :2], axis=1)
+        new = np.where(self.sliding, rel > STICK_SPEED_MPS, rel > SLIP_SPEED_MPS)
+        changed = bool(np.any(new != self.sliding))
+        self.sliding = new
+        return changed
+
+
+def _incidence(contacts: list[Contact], n: int) -> np.ndarray:
+    a = np.zeros((len(contacts), n))
+    for row, c in enumerate(contacts):
+        a[row, c.body] += 1.0
+        a[row, c.other] += 1.0
+    return a
+
+
+def _resting_contacts(layout: Layout) -> list[Contact]:
+    f: Friction = layout.friction
+    pallet_h = layout.pallet_size_m[2]
+    out = [Contact(1, 0, f.sled_pallet, (0.0, 0.0, -pallet_h / 2))]
+    for k, (b, below) in enumerate(zip(layout.bundles, layout.supports(), strict=True)):
+        bottom = (0.0, 0.0, -b.size_m[2] / 2)
+        if b.layer == 1:
+            out.append(Contact(2 + k, 1, f.pallet_bundle, bottom))
+        out.extend(Contact(2 + k, 2 + j, f.bundle_bundle, bottom) for j in below)
+    return out
+
+
+def _side_contacts(layout: Layout) -> list[Contact]:
+    out = []
+    bundles = layout.bundles
+    for a in range(len(bundles)):
+        for b in range(a + 1, len(bundles)):
+            p, q = bundles[a], bundles[b]
+            if p.layer != q.layer:
+                continue
+            gaps = [abs(p.centre_m[k] - q.centre_m[k]) - (p.size_m[k] + q.size_m[k]) / 2
+                    for k in (0, 1)]
+            # face to face: touching (small gap) along one axis, overlapping along the other
+            if (gaps[0] < SIDE_CONTACT_GAP_M and gaps[1] < 0) or (
+                gaps[1] < SIDE_CONTACT_GAP_M and gaps[0] < 0
+            ):
+                out.append(Contact(2 + a, 2 + b, layout.friction.bundle_bundle, (0.0, 0.0, 0.0)))
+    return out

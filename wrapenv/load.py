@@ -1,0 +1,305 @@
+"""The load unit: pallet, bundles, stacking pattern, contact friction and fixtures.
+
+A `LoadUnit` is what a LOAD.toml describes. `LoadUnit.layout()` turns it into the boxes the
+bench simulates (`Layout`), laid out in the sled frame: x along the motion, z up, the underside
+of the pallet at z = 0 and the pallet centred on x = y = 0.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Literal
+
+from wrapenv.config import InputError, Table, read_toml
+
+Pattern = Literal["columnar", "interlocked", "explicit"]
+PATTERNS: tuple[str, ...] = ("columnar", "interlocked", "explicit")
+PAIRS: tuple[str, ...] = ("sled_pallet", "pallet_bundle", "bundle_bundle")
+#: Gap left between neighbouring bundles of a generated pattern, so no two boxes start in contact
+#: sideways (real bundles are stacked touching; 2 mm is below what the EUMOS criteria resolve).
+BUNDLE_GAP_M = 0.002
+#: Largest overhang tolerated when checking that bundles stay on the pallet (rounding of layouts).
+OVERHANG_TOLERANCE_M = 0.001
+
+
+@dataclass(frozen=True)
+class Pallet:
+    length_m: float
+    width_m: float
+    height_m: float
+    mass_kg: float
+
+
+@dataclass(frozen=True)
+class Bundle:
+    length_m: float
+    width_m: float
+    height_m: float
+    mass_kg: float
+
+
+#: EUR pallet (EN 13698-1): 1200 x 800 x 144 mm, about 25 kg.
+PALLET_PRESETS = {"EUR": Pallet(1.200, 0.800, 0.144, 25.0)}
+#: Six 1.5 L PET bottles in shrink film, 3 x 2 bottles of ~90 mm diameter and ~330 mm height:
+#: 6 x (1.5 kg water + ~50 g PET and cap).
+BUNDLE_PRESETS = {"PET6x1.5L": Bundle(0.28, 0.19, 0.33, 9.3)}
+
+
+@dataclass(frozen=True)
+class FrictionPair:
+    """Coulomb friction of one contact pair: sticking up to `static`, sliding at `kinetic`."""
+
+    static: float
+    kinetic: float
+
+
+@dataclass(frozen=True)
+class Friction:
+    """Per contact pair coefficients. Defaults (static from the CTU Code, appendix 2, and
+    EN 12195-1; kinetic = 0.75 x static as the CTU Code advises):
+    wooden pallet on a plywood sled deck 0.45, wooden pallet on shrink film 0.30, shrink film
+    on shrink film 0.30."""
+
+    sled_pallet: FrictionPair = FrictionPair(0.45, 0.34)
+    pallet_bundle: FrictionPair = FrictionPair(0.30, 0.23)
+    bundle_bundle: FrictionPair = FrictionPair(0.30, 0.23)
+
+    def pair(self, name: str) -> FrictionPair:
+        return getattr(self, name)
+
+
+@dataclass(frozen=True)
+class Stack:
+    layers: int
+    pattern: Pattern = "columnar"
+    #: Bundle centres (x, y) from the pallet centre, used by the "explicit" pattern.
+    positions: tuple[tuple[float, float], ...] = ()
+
+
+@dataclass(frozen=True)
+class BundlePlacement:
+    """One bundle box as simulated: its name, layer (1 = bottom) and centre in the sled frame."""
+
+    name: str
+    layer: int
+    centre_m: tuple[float, float, float]
+    size_m: tuple[float, float, float]
+    mass_kg: float
+
+
+@dataclass(frozen=True)
+class Layout:
+    """Boxes of a load unit placed in the sled frame, ready to simulate."""
+
+    pallet_size_m: tuple[float, float, float]
+    pallet_mass_kg: float
+    bundles: tuple[BundlePlacement, ...]
+    friction: Friction
+    pallet_stopper: bool
+
+    @property
+    def load_height_m(self) -> float:
+        return max(b.centre_m[2] + b.size_m[2] / 2 for b in self.bundles)
+
+    def supports(self) -> list[list[int]]:
+        """For each bundle, the indices of the bundles it rests on (empty: on the pallet)."""
+        out = []
+        for b in self.bundles:
+            below = [
+                j
+                for j, o in enumerate(self.bundles)
+                if o.layer == b.layer - 1 and _footprints_overlap(b, o)
+            ]
+            out.append(below)
+        return out
+
+
+@dataclass(frozen=True)
+class LoadUnit:
+    name: str
+    pallet: Pallet
+    bundle: Bundle
+    stack: Stack
+    friction: Friction = field(default_factory=Friction)
+    pallet_stopper: bool = False
+
+    @property
+    def load_height_m(self) -> float:
+        """Height of the unit above the sled: pallet plus every layer."""
+        return self.pallet.height_m + self.stack.layers * self.bundle.height_m
+
+    @property
+    def mass_kg(self) -> float:
+        return self.pallet.mass_kg + self.bundle.mass_kg * len(self.layout().bundles)
+
+    def with_friction(self, friction: Friction) -> LoadUnit:
+        return replace(self, friction=friction)
+
+    def layout(self, orientation: Literal["long", "short"] | None = None) -> Layout:
+        """Place the bundles. ``orientation`` puts the pallet's long or short side along the
+        motion (x); None keeps the file's layout (pallet length along x)."""
+        p = self.pallet
+        turn = (orientation == "long" and p.length_m < p.width_m) or (
+            orientation == "short" and p.length_m > p.width_m
+        )
+        bundles = []
+        for layer, (turned, xy_list) in enumerate(_pattern_layers(self), start=1):
+            z = p.height_m + (layer - 0.5) * self.bundle.height_m
+            size = (self.bundle.length_m, self.bundle.width_m, self.bundle.height_m)
+            if turned != turn:
+                size = (size[1], size[0], size[2])
+            if turn:
+                xy_list = [(-y, x) for x, y in xy_list]
+            for name, (x, y) in _names(layer, xy_list):
+                bundles.append(BundlePlacement(name, layer, (x, y, z), size, self.bundle.mass_kg))
+        pallet_size = (p.width_m, p.length_m, p.height_m) if turn else (
+            p.length_m, p.width_m, p.height_m)
+        bundles.sort(key=lambda b: (b.layer, b.centre_m[0], b.centre_m[1]))
+        return Layout(pallet_size, p.mass_kg, tuple(bundles), self.friction, self.pallet_stopper)
+
+    @classmethod
+    def from_toml(cls, path: str | Path) -> LoadUnit:
+        return cls.from_dict(read_toml(path), source=str(path))
+
+    @classmethod
+    def from_dict(cls, data: dict, source: str = "load") -> LoadUnit:
+        top = Table(data, source)
+        name = top.string("name", "load unit")
+        pallet = _sized(top.table("pallet", required=True), Pallet, PALLET_PRESETS)
+        bundle = _sized(top.table("bundle", required=True), Bundle, BUNDLE_PRESETS)
+        stack = _stack(top.table("stack", required=True))
+        friction = _friction(top.table("friction"))
+        fixture = top.table("fixture")
+        stopper = fixture.boolean("pallet_stopper", False)
+        fixture.done()
+        top.done()
+        unit = cls(name, pallet, bundle, stack, friction, stopper)
+        _check_geometry(unit, source)
+        return unit
+
+
+def _sized(t: Table, kind: type, presets: dict) -> Pallet | Bundle:
+    base = None
+    if t.has("preset"):
+        key = t.choice("preset", presets)
+        base = presets[key]
+    values = {}
+    for key in ("length_m", "width_m", "height_m", "mass_kg"):
+        default = getattr(base, key) if base is not None else None
+        values[key] = t.number(key, default, positive=True)
+    t.done()
+    return kind(**values)
+
+
+def _stack(t: Table) -> Stack:
+    layers = t.integer("layers", minimum=1)
+    pattern = t.choice("pattern", PATTERNS, "columnar")
+    positions: tuple[tuple[float, float], ...] = ()
+    if pattern == "explicit":
+        raw = t.array("positions")
+        if not raw:
+            raise t.error("positions", "must list at least one bundle centre")
+        parsed = []
+        for i, item in enumerate(raw):
+            ok = isinstance(item, list) and len(item) == 2 and all(
+                isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)
+                for v in item
+            )
+            if not ok:
+                raise t.error(f"positions[{i}]", f"must be [x, y] in metres (got {item!r})")
+            parsed.append((float(item[0]), float(item[1])))
+        positions = tuple(parsed)
+    t.done()
+    return Stack(layers, pattern, positions)
+
+
+def _friction(t: Table) -> Friction:
+    pairs = {}
+    for name in PAIRS:
+        if not t.has(name):
+            continue
+        p = t.table(name)
+        static = p.number("static", positive=True, maximum=2.0)
+        kinetic = p.number("kinetic", positive=True, maximum=2.0)
+        p.done()
+        if kinetic > static:
+            raise InputError(t.source, p.field("kinetic"),
+                             f"kinetic friction {kinetic} exceeds static {static}")
+        pairs[name] = FrictionPair(static, kinetic)
+    t.done()
+    return replace(Friction(), **pairs)
+
+
+def _grid(length: float, size: float) -> list[float]:
+    """Centres of as many boxes of `size` as fit in `length`, centred, `BUNDLE_GAP_M` apart."""
+    n = int((length + BUNDLE_GAP_M) // (size + BUNDLE_GAP_M))
+    pitch = size + BUNDLE_GAP_M
+    return [(i - (n - 1) / 2) * pitch for i in range(n)]
+
+
+def _pattern_layers(unit: LoadUnit) -> list[tuple[bool, list[tuple[float, float]]]]:
+    """Per layer: whether its bundles are turned 90 degrees, and their centres (x, y)."""
+    p, b, s = unit.pallet, unit.bundle, unit.stack
+    if s.pattern == "explicit":
+        return [(False, list(s.positions)) for _ in range(s.layers)]
+    straight = [(x, y) for x in _grid(p.length_m, b.length_m) for y in _grid(p.width_m, b.width_m)]
+    if s.pattern == "columnar":
+        return [(False, straight) for _ in range(s.layers)]
+    # Interlocked: every second layer is turned 90 degrees, so each of its bundles rests across
+    # the joints of the layer below and ties neighbouring columns together.
+    turned = [(x, y) for x in _grid(p.length_m, b.width_m) for y in _grid(p.width_m, b.length_m)]
+    return [(layer % 2 == 1, turned if layer % 2 == 1 else straight) for layer in range(s.layers)]
+
+
+def _names(layer: int, xy: list[tuple[float, float]]) -> list[tuple[str, tuple[float, float]]]:
+    cols = sorted({round(x, 4) for x, _ in xy})
+    rows = sorted({round(y, 4) for _, y in xy})
+    return [
+        (f"L{layer}C{cols.index(round(x, 4)) + 1}R{rows.index(round(y, 4)) + 1}", (x, y))
+        for x, y in xy
+    ]
+
+
+def _footprints_overlap(a: BundlePlacement, b: BundlePlacement, tol: float = 1e-6) -> bool:
+    return all(
+        abs(a.centre_m[k] - b.centre_m[k]) < (a.size_m[k] + b.size_m[k]) / 2 - tol for k in (0, 1)
+    )
+
+
+def _check_geometry(unit: LoadUnit, source: str) -> None:
+    """Reject layouts that no bench could hold: no bundle fits, overhang, overlapping bundles."""
+    p = unit.pallet
+    layout = unit.layout()
+    if not layout.bundles:
+        raise InputError(source, "bundle", "no bundle fits on the pallet with this pattern")
+    for b in layout.bundles:
+        over = max(
+            abs(b.centre_m[0]) + b.size_m[0] / 2 - p.length_m / 2,
+            abs(b.centre_m[1]) + b.size_m[1] / 2 - p.width_m / 2,
+        )
+        if over > OVERHANG_TOLERANCE_M:
+            field_name = "stack.positions" if unit.stack.pattern == "explicit" else "bundle"
+            raise InputError(source, field_name,
+                             f"bundle {b.name} overhangs the pallet by {over * 1000:.0f} mm")
+    first = [b for b in layout.bundles if b.layer == 1]
+    for i, a in enumerate(first):
+        for b in first[i + 1:]:
+            if _footprints_overlap(a, b):
+                raise InputError(source, "stack.positions", f"bundles {a.name} and {b.name} overlap")
+    for b in layout.bundles:
+        if b.layer > 1 and not _supported(b, layout.bundles):
+            raise InputError(source, "stack.pattern",
+                             f"bundle {b.name} has its centre over no bundle of layer {b.layer - 1}"
+                             " and would fall")
+
+
+def _supported(b: BundlePlacement, bundles: tuple[BundlePlacement, ...]) -> bool:
+    """Whether the centre of `b` lies over a bundle of the layer below (joints count as support)."""
+    reach = BUNDLE_GAP_M + 1e-6
+    return any(
+        o.layer == b.layer - 1
+        and all(abs(b.centre_m[k] - o.centre_m[k]) <= o.size_m[k] / 2 + reach for k in (0, 1))
+        for o in bundles
+    )

@@ -1,0 +1,160 @@
+"""Sled acceleration profiles: the ESTL pulse for a test level, or a measured profile.
+
+A profile is a function of time a(t) (m/s², + along x) that starts and ends with the sled at
+rest. The pulse follows the ESTL bench (paper, section 2) and EUMOS 40509: the level k·g is
+reached within `ramp_s`, held for `dwell_s` (EUMOS asks at least 0.3 s, the ESTL bench holds at
+least 0.5 s), then turns into a constant, gentler deceleration until the sled stops, so the stop
+adds no deformation of its own.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from wrapenv.config import InputError
+
+G = 9.81
+#: The ESTL bench produces 0 to 10 m/s² (paper, section 2): the highest level it can run is 1.0 g.
+BENCH_MAX_ACCEL_MPS2 = 10.0
+LEVEL_STEP_G = 0.1
+MIN_DWELL_S = 0.3
+
+
+@dataclass(frozen=True)
+class PulseProfile:
+    """The bench pulse for one test level."""
+
+    level_g: float
+    ramp_s: float = 0.05
+    dwell_s: float = 0.5
+    #: Deceleration as a fraction of the level: 0.25 stops the sled in about 4 x dwell and stays
+    #: below the lowest friction of a load (0.25 x 1.0 g < 0.3 g).
+    decel_ratio: float = 0.25
+
+    def __post_init__(self) -> None:
+        if not (math.isfinite(self.level_g) and 0 < self.level_g * G <= BENCH_MAX_ACCEL_MPS2 + 1e-9):
+            raise InputError("profile", "level_g",
+                             f"must be in (0, {BENCH_MAX_ACCEL_MPS2 / G:.2f}] g, the bench's range "
+                             f"(got {self.level_g})")
+        if self.dwell_s < MIN_DWELL_S:
+            raise InputError("profile", "dwell_s", f"must be >= {MIN_DWELL_S} s (EUMOS 40509)")
+        if not 0 <= self.ramp_s <= self.dwell_s:
+            raise InputError("profile", "ramp_s", "must be between 0 and dwell_s")
+        if not 0 < self.decel_ratio <= 1:
+            raise InputError("profile", "decel_ratio", "must be in (0, 1]")
+
+    @property
+    def peak_mps2(self) -> float:
+        return self.level_g * G
+
+    def _phases(self) -> tuple[float, float, float, float, float]:
+        """Times: end of ramp up, end of dwell, end of ramp down, stop; and the deceleration."""
+        a, r = self.peak_mps2, self.ramp_s
+        d = self.decel_ratio * a
+        r_down = r * (a + d) / a  # same jerk as the ramp up
+        t1, t2 = r, r + self.dwell_s
+        t3 = t2 + r_down
+        # Velocity at t3: ramps contribute their mean acceleration times their length.
+        v3 = a * r / 2 + a * self.dwell_s + (a - d) / 2 * r_down
+        return t1, t2, t3, t3 + v3 / d, d
+
+    @property
+    def duration_s(self) -> float:
+        return self._phases()[3]
+
+    def accel(self, t: np.ndarray) -> np.ndarray:
+        t1, t2, t3, t4, d = self._phases()
+        a = self.peak_mps2
+        t = np.asarray(t, dtype=float)
+        ramp_up = a * np.clip(t / t1, 0, 1) if t1 > 0 else np.where(t >= 0, a, 0.0)
+        down = np.clip((t - t2) / (t3 - t2), 0, 1) if t3 > t2 else (t >= t2).astype(float)
+        out = ramp_up - down * (a + d)
+        return np.where((t < 0) | (t >= t4), 0.0, out)
+
+
+@dataclass(frozen=True)
+class MeasuredProfile:
+    """A sled acceleration recorded on a bench (`profile.csv`), sampled at `t_s`."""
+
+    t_s: np.ndarray
+    accel_mps2: np.ndarray
+    source: str = "profile.csv"
+
+    @property
+    def peak_mps2(self) -> float:
+        return float(np.max(self.accel_mps2))
+
+    @property
+    def level_g(self) -> float:
+        return self.peak_mps2 / G
+
+    @property
+    def duration_s(self) -> float:
+        return float(self.t_s[-1] - self.t_s[0])
+
+    def accel(self, t: np.ndarray) -> np.ndarray:
+        t = np.asarray(t, dtype=float) + self.t_s[0]
+        inside = (t >= self.t_s[0]) & (t <= self.t_s[-1])
+        return np.where(inside, np.interp(t, self.t_s, self.accel_mps2), 0.0)
+
+    @classmethod
+    def from_csv(cls, path: str | Path) -> MeasuredProfile:
+        path = Path(path)
+        src = str(path)
+        try:
+            with path.open(newline="") as fh:
+                rows = list(csv.reader(fh))
+        except (OSError, UnicodeDecodeError) as exc:
+            raise InputError(src, "", f"cannot read file ({exc})") from None
+        if not rows:
+            raise InputError(src, "", "empty file")
+        header = [h.strip() for h in rows[0]]
+        for col in ("t_s", "accel_mps2"):
+            if col not in header:
+                raise InputError(src, col, "missing column (header must name t_s,accel_mps2)")
+        it, ia = header.index("t_s"), header.index("accel_mps2")
+        t, a = [], []
+        for line, row in enumerate(rows[1:], start=2):
+            if not row:
+                continue
+            try:
+                t.append(float(row[it]))
+                a.append(float(row[ia]))
+            except (ValueError, IndexError):
+                raise InputError(src, f"line {line}", f"not a number row: {row!r}") from None
+        t_arr, a_arr = np.array(t), np.array(a)
+        if len(t_arr) < 2:
+            raise InputError(src, "t_s", "needs at least two samples")
+        if not (np.all(np.isfinite(t_arr)) and np.all(np.isfinite(a_arr))):
+            raise InputError(src, "accel_mps2", "contains NaN or infinite values")
+        if np.any(np.diff(t_arr) <= 0):
+            raise InputError(src, "t_s", "must increase strictly")
+        if np.max(np.abs(a_arr)) > BENCH_MAX_ACCEL_MPS2 * 2:
+            raise InputError(src, "accel_mps2",
+                             f"peak {np.max(np.abs(a_arr)):.1f} m/s² is beyond any bench")
+        if np.max(a_arr) <= 0:
+            raise InputError(src, "accel_mps2", "has no forward acceleration")
+        return cls(t_arr, a_arr, src)
+
+
+Profile = PulseProfile | MeasuredProfile
+
+
+def eumos_levels(target_g: float = 0.5, start_g: float = 0.2) -> list[float]:
+    """The EUMOS 40509 sequence: start (0.2 or 0.3 g), then +0.1 g up to and including target."""
+    if not (math.isfinite(target_g) and 0 < target_g * G <= BENCH_MAX_ACCEL_MPS2 + 1e-9):
+        raise InputError("arguments", "--target",
+                         f"must be in (0, {BENCH_MAX_ACCEL_MPS2 / G:.2f}] g, the bench's range "
+                         f"(got {target_g})")
+    if not (math.isfinite(start_g) and 0 < start_g <= target_g + 1e-9):
+        raise InputError("arguments", "--start", f"must be in (0, target] (got {start_g})")
+    n = math.floor((target_g - start_g) / LEVEL_STEP_G + 1e-9)
+    levels = [round(start_g + i * LEVEL_STEP_G, 3) for i in range(n + 1)]
+    if levels[-1] < target_g - 1e-9:
+        levels.append(round(target_g, 3))
+    return levels

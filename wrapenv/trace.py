@@ -1,0 +1,42 @@
+"""What one simulated bench run records: poses of the pallet and of every bundle over time."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class Trace:
+    """Poses in the sled frame, sampled from the start of the pulse (t = 0) until rest.
+
+    The first sample is the reference state the displacements are measured from (the stack after
+    settling on the still sled).
+    """
+
+    level_g: float
+    load_height_m: float
+    names: tuple[str, ...]
+    bottom_z_m: np.ndarray      # (n,) height of each bundle's underside at rest
+    t_s: np.ndarray             # (T,)
+    sled_accel_mps2: np.ndarray  # (T,)
+    pallet_pos: np.ndarray      # (T, 3)
+    pallet_rot: np.ndarray      # (T, 3, 3) rotation matrices
+    bundle_pos: np.ndarray      # (T, n, 3)
+    bundle_rot: np.ndarray      # (T, n, 3, 3)
+    valid: bool = True
+    invalid_reason: str = ""
+
+    def bundle_displacement_m(self) -> np.ndarray:
+        """(T, n) horizontal displacement of each bundle centre in the pallet's frame."""
+        rel = np.einsum("tba,tnb->tna", self.pallet_rot, self.bundle_pos - self.pallet_pos[:, None])
+        return np.linalg.norm((rel - rel[0])[..., :2], axis=-1)
+
+    def pallet_slip_m(self) -> float:
+        """Permanent horizontal displacement of the pallet on the sled."""
+        return float(np.linalg.norm(self.pallet_pos[-1, :2] - self.pallet_pos[0, :2]))
+
+    def tilt_rad(self) -> np.ndarray:
+        """(n,) final tilt of each bundle: angle between its vertical axis and the world's."""
+        return np.arccos(np.clip(self.bundle_rot[-1, :, 2, 2], -1.0, 1.0))
