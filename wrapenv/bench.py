@@ -26,9 +26,9 @@ class SimSettings:
     (tests/wrapenv/test_bench_mechanics.py) and are the ones the benchmarks report."""
 
     timestep_s: float = 1 / 240
-    solver_iterations: int = 10
+    solver_iterations: int = 20
     #: Contact states are updated and poses recorded every `sample_every` steps.
-    sample_every: int = 2
+    sample_every: int = 1
     settle_s: float = 0.3
     #: The run ends once every body is slower than this (relative to the sled) for `rest_hold_s`
     #: after the sled stopped, or `max_rest_wait_s` after it stopped at the latest.
@@ -127,14 +127,18 @@ class _Run:
         zeros = np.zeros((1, 3))
         full = (np.vstack([zeros, pos]), np.concatenate([np.eye(3)[None], rot]),
                 np.vstack([zeros, vel]), np.vstack([zeros, omega]))
-        if self.stick_slip.update(*full):
-            for index, mu in enumerate(self.stick_slip.coefficients()):
-                self.world.set_friction(index, float(mu))
+        changed = self.stick_slip.update(*full)
+        if not changed:
+            return
+        mu = self.stick_slip.coefficients()
+        for index, value in enumerate(mu):
+            self.world.set_friction(index, float(value))
         if self.layout.pallet_stopper:
-            self.world.set_friction(self.n_bodies, self.world_sled_mu())
-
-    def world_sled_mu(self) -> float:
-        return float(self.stick_slip.coefficients()[0])
+            self.world.set_friction(self.n_bodies, float(mu[0]))  # the stopper is sled
+        sliding = self.stick_slip.sliding_bodies()
+        for index in range(self.n_bodies):
+            self.world.set_anchored(index, index not in sliding)
+        self.world.refresh_contacts(changed)
 
     def _check(self, pos: np.ndarray, vel: np.ndarray, step: int) -> None:
         if not (np.all(np.isfinite(pos)) and np.all(np.isfinite(vel))):

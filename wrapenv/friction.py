@@ -68,15 +68,21 @@ class StickSlip:
         self._j = np.array([c.other for c in self.resting])
         self._offset = np.array([c.offset_m for c in self.resting])
 
+    def sliding_bodies(self) -> set[int]:
+        """Bodies touching a contact that slides now."""
+        return set(self._i[self.sliding].tolist()) | set(self._j[self.sliding].tolist())
+
     def coefficients(self) -> np.ndarray:
         """Body coefficients (n_bodies,) for the current contact states."""
         b_rest = np.where(self.sliding, self._kinetic, self._static)
         return np.exp(self._p_rest @ b_rest + self._p_side @ self._b_side)
 
-    def update(self, pos: np.ndarray, rot: np.ndarray, vel: np.ndarray, omega: np.ndarray) -> bool:
+    def update(self, pos: np.ndarray, rot: np.ndarray, vel: np.ndarray,
+               omega: np.ndarray) -> list[int]:
         """Update contact states from body states (all bodies, sled included, sled frame).
 
-        `rot` holds rotation matrices (n, 3, 3). Returns True when any contact changed state.
+        `rot` holds rotation matrices (n, 3, 3). Returns the bodies of the contacts that changed
+        state (empty when none did).
         """
         i, j = self._i, self._j
         r_i = np.einsum("nab,nb->na", rot[i], self._offset)  # contact point from i's centre
@@ -85,9 +91,9 @@ class StickSlip:
         v_j = vel[j] + np.cross(omega[j], point - pos[j])
         rel = np.linalg.norm((v_i - v_j)[:, :2], axis=1)
         new = np.where(self.sliding, rel > STICK_SPEED_MPS, rel > SLIP_SPEED_MPS)
-        changed = bool(np.any(new != self.sliding))
+        changed = new != self.sliding
         self.sliding = new
-        return changed
+        return sorted(set(i[changed].tolist()) | set(j[changed].tolist()))
 
 
 def _incidence(contacts: list[Contact], n: int) -> np.ndarray:

@@ -1,0 +1,119 @@
+"""The bench against closed-form rigid-body mechanics (issue 2, "Must show").
+
+Each test states the formula it checks. g = 9.81 m/s²; the sled accelerates along +x, so a load
+that slips lags behind, i.e. moves towards -x relative to the sled.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from wrapenv.bench import SimSettings, run_level
+from wrapenv.load import LoadUnit
+from wrapenv.profile import G, MeasuredProfile, PulseProfile
+
+PALLET_GRIP = {"static": 1.0, "kinetic": 1.0}  # sled-pallet pair that never slips in these tests
+
+
+def single_box(size=(0.28, 0.19, 0.33), mass=9.3, static=0.5, kinetic=0.4,
+               sled_pallet=PALLET_GRIP, stopper=False, x=0.4) -> LoadUnit:
+    """One bundle on an EUR pallet, near its front edge (+x) so it has room to slide back."""
+    return LoadUnit.from_dict({
+        "pallet": {"preset": "EUR"},
+        "bundle": dict(zip(("length_m", "width_m", "height_m"), size, strict=True), mass_kg=mass),
+        "stack": {"layers": 1, "pattern": "explicit", "positions": [[x, 0.0]]},
+        "friction": {"sled_pallet": sled_pallet,
+                     "pallet_bundle": {"static": static, "kinetic": kinetic}},
+        "fixture": {"pallet_stopper": stopper},
+    })
+
+
+def slip_closed_form(a: float, mu_k: float, dwell: float, decel: float) -> float:
+    """Permanent slip of a block on a sled pulse with instant ramps.
+
+    During the pulse the block slides at mu_k*g behind the sled accelerating at a:
+        s1 = (a - mu_k g) T² / 2,   relative speed at the end dv = (a - mu_k g) T.
+    When the sled decelerates at d the block keeps sliding, still pulled forward by friction,
+    until the speeds match, closing dv at (d + mu_k g):
+        s2 = dv² / (2 (d + mu_k g)).
+    Afterwards d < mu_s g, so it sticks: total s = s1 + s2.
+    """
+    dv = (a - mu_k * G) * dwell
+    return 0.5 * (a - mu_k * G) * dwell**2 + dv**2 / (2 * (decel + mu_k * G))
+
+
+def permanent_x(trace) -> float:
+    """Final x displacement of the first bundle relative to the pallet (negative: lagging)."""
+    rel = trace.bundle_pos[:, 0, 0] - trace.pallet_pos[:, 0]
+    return float(rel[-1] - rel[0])
+
+
+def max_tilt_deg(trace) -> float:
+    return math.degrees(float(np.max(np.arccos(np.clip(trace.bundle_rot[:, 0, 2, 2], -1, 1)))))
+
+
+def test_bundle_does_not_slip_below_static_friction():
+    # a < mu_s g: the static friction force m a < mu_s m g holds the bundle.
+    load = single_box(static=0.5, kinetic=0.4)
+    trace = run_level(load.layout(), PulseProfile(0.4))
+    assert abs(permanent_x(trace)) < 0.5e-3
+
+
+@pytest.mark.parametrize("level_g", [0.6, 0.8])
+def test_permanent_slip_matches_closed_form_within_3_percent(level_g):
+    mu_s, mu_k = 0.5, 0.4
+    profile = PulseProfile(level_g, ramp_s=0.0)
+    trace = run_level(single_box(static=mu_s, kinetic=mu_k).layout(), profile)
+    expected = slip_closed_form(level_g * G, mu_k, profile.dwell_s,
+                                profile.decel_ratio * level_g * G)
+    assert -permanent_x(trace) == pytest.approx(expected, rel=0.03)
+
+
+def test_kinetic_friction_governs_the_slide_not_static():
+    # With mu_k = mu_s the slide would be shorter: the bench must use mu_k once sliding.
+    profile = PulseProfile(0.6, ramp_s=0.0)
+    slide_kinetic = -permanent_x(run_level(single_box(static=0.5, kinetic=0.4).layout(), profile))
+    slide_static = -permanent_x(run_level(single_box(static=0.5, kinetic=0.5).layout(), profile))
+    assert slide_kinetic > 1.5 * slide_static
+
+
+def test_pallet_slips_on_sled_as_one_block_per_closed_form():
+    # Pallet and bundle stick together (mu 1.0) and the pair slides on the sled at mu_k = 0.25.
+    load = single_box(static=1.0, kinetic=1.0, sled_pallet={"static": 0.3, "kinetic": 0.25})
+    profile = PulseProfile(0.5, ramp_s=0.0)
+    trace = run_level(load.layout(), profile)
+    expected = slip_closed_form(0.5 * G, 0.25, profile.dwell_s, profile.decel_ratio * 0.5 * G)
+    assert trace.pallet_slip_m() == pytest.approx(expected, rel=0.03)
+
+
+def test_pallet_stopper_holds_the_pallet():
+    load = single_box(static=1.0, kinetic=1.0, sled_pallet={"static": 0.3, "kinetic": 0.25},
+                      stopper=True)
+    trace = run_level(load.layout(), PulseProfile(0.5))
+    assert trace.pallet_slip_m() < 2e-3
+
+
+@pytest.mark.parametrize("width,height", [(0.10, 0.40), (0.19, 0.60)])
+def test_tall_bundle_starts_to_tip_at_width_over_height(width, height):
+    # Moments about the rear bottom edge: m a (h/2) > m g (w/2)  <=>  a/g > w/h.
+    # High friction (mu_s = 0.9 > w/h) so it tips before it slides.
+    load = single_box(size=(width, 0.2, height), mass=5.0, static=0.9, kinetic=0.8, x=0.0)
+    threshold = width / height
+    below = run_level(load.layout(), PulseProfile(0.95 * threshold))
+    above = run_level(load.layout(), PulseProfile(1.05 * threshold))
+    assert max_tilt_deg(below) < 0.5
+    assert max_tilt_deg(above) > 2.0
+
+
+def test_stack_at_rest_on_still_sled_drifts_less_than_1_mm_in_10_s():
+    load = LoadUnit.from_toml("examples/pet_3layer_columnar.toml")
+    still = MeasuredProfile(np.array([0.0, 10.0]), np.zeros(2))
+    trace = run_level(load.layout(), still, SimSettings(max_rest_wait_s=0.0))
+    assert trace.t_s[-1] >= 10.0
+    bundles = np.linalg.norm(trace.bundle_pos[-1] - trace.bundle_pos[0], axis=-1)
+    pallet = np.linalg.norm(trace.pallet_pos[-1] - trace.pallet_pos[0])
+    assert bundles.max() < 1e-3
+    assert pallet < 1e-3
