@@ -54,7 +54,8 @@ def slip_error_pct(settings: SimSettings) -> float:
 def main() -> None:
     default = SimSettings()
     cheap = replace(default, sample_every=2, solver_iterations=10)
-    print(f"{'layers':>6} {'bodies':>6} {'setting':>8} {'sim s':>6} {'wall s':>7} {'real-time x':>11}")
+    header = ("layers", "bodies", "setting", "sim s", "wall s", "real-time x")
+    print(" ".join(f"{h:>{w}}" for h, w in zip(header, (6, 6, 8, 6, 7, 11), strict=True)))
     for layers, path in EXAMPLE.items():
         load = LoadUnit.from_toml(path)
         load = LoadUnit(load.name, load.pallet, load.bundle,

@@ -47,8 +47,8 @@ def build_parser() -> argparse.ArgumentParser:
     sim.add_argument("--level", type=_g, action="append", metavar="G",
                      help="test level in g (repeatable)")
     sim.add_argument("--eumos", action="store_true",
-                     help="EUMOS sequence from --start up to --target, stopping at the first failure"
-                          " (the default when no level or profile is given)")
+                     help="EUMOS sequence from --start up to --target, stopping at the first "
+                          "failure (the default when no level or profile is given)")
     sim.add_argument("--target", type=_g, default=0.5, metavar="G", help="default 0.5 g")
     sim.add_argument("--start", type=_g, default=0.2, metavar="G", help="default 0.2 g")
     sim.add_argument("--profile", type=Path, help="drive the sled by a measured profile.csv")
@@ -76,6 +76,13 @@ def _output_dir_ok(path: Path | None, flag: str) -> None:
         raise InputError(str(path), flag, "the folder to write into does not exist")
 
 
+def _level(level_g: float) -> PulseProfile:
+    try:
+        return PulseProfile(level_g)
+    except InputError as exc:
+        raise InputError("arguments", "--level", exc.message) from None
+
+
 def _simulate(args: argparse.Namespace) -> int:
     load = LoadUnit.from_toml(args.load)
     if args.calibration:
@@ -89,7 +96,7 @@ def _simulate(args: argparse.Namespace) -> int:
     if args.profile:
         levels: list = [MeasuredProfile.from_csv(args.profile)]
     elif args.level:
-        levels = [PulseProfile(g) for g in args.level]  # validates every level before running
+        levels = [_level(g) for g in args.level]  # validates every level before running
     else:
         levels = [PulseProfile(g) for g in eumos_levels(args.target, args.start)]
     stop = not args.level and not args.profile
@@ -115,7 +122,8 @@ def _row(v: LevelVerdict) -> str:
     damage = f"; {len(v.damage)} damaged: {', '.join(v.damage[:4])}" if v.damage else ""
     if len(v.damage) > 4:
         damage += ", ..."
-    return (f"{v.level_g:5.2f} g  {result:7s} {_mm(v.elastic_max_m)} mm ({v.elastic_max_pct or 0:5.1f} %)"
+    return (f"{v.level_g:5.2f} g  {result:7s} {_mm(v.elastic_max_m)} mm "
+            f"({v.elastic_max_pct or 0:5.1f} %)"
             f"  {_mm(v.permanent_max_m)} mm ({v.permanent_max_pct or 0:5.1f} %)"
             f"  {_mm(v.permanent_low20_m)} mm  {_mm(v.pallet_slip_m)} mm  {note}{damage}")
 

@@ -34,7 +34,7 @@ def read_toml(path: str | Path) -> dict[str, Any]:
             return tomllib.load(fh)
     except OSError as exc:
         raise InputError(str(path), "", f"cannot read file ({exc.strerror or exc})") from None
-    except tomllib.TOMLDecodeError as exc:
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
         raise InputError(str(path), "", f"malformed TOML ({exc})") from None
 
 

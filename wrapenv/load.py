@@ -272,8 +272,10 @@ def _check_geometry(unit: LoadUnit, source: str) -> None:
     """Reject layouts that no bench could hold: no bundle fits, overhang, overlapping bundles."""
     p = unit.pallet
     layout = unit.layout()
-    if not layout.bundles:
-        raise InputError(source, "bundle", "no bundle fits on the pallet with this pattern")
+    for layer in range(1, unit.stack.layers + 1):
+        if not any(b.layer == layer for b in layout.bundles):
+            raise InputError(source, "bundle",
+                             f"no bundle fits on layer {layer} of the pallet with this pattern")
     for b in layout.bundles:
         over = max(
             abs(b.centre_m[0]) + b.size_m[0] / 2 - p.length_m / 2,
@@ -287,7 +289,8 @@ def _check_geometry(unit: LoadUnit, source: str) -> None:
     for i, a in enumerate(first):
         for b in first[i + 1:]:
             if _footprints_overlap(a, b):
-                raise InputError(source, "stack.positions", f"bundles {a.name} and {b.name} overlap")
+                raise InputError(source, "stack.positions",
+                                 f"bundles {a.name} and {b.name} overlap")
     for b in layout.bundles:
         if b.layer > 1 and not _supported(b, layout.bundles):
             raise InputError(source, "stack.pattern",

@@ -23,6 +23,12 @@ G = 9.81
 BENCH_MAX_ACCEL_MPS2 = 10.0
 LEVEL_STEP_G = 0.1
 MIN_DWELL_S = 0.3
+#: The highest level in g, rounded down so that the quoted bound is itself accepted.
+MAX_LEVEL_TEXT = f"{int(BENCH_MAX_ACCEL_MPS2 / G * 1000) / 1000:.3f}"
+
+
+def _level_ok(level_g: float) -> bool:
+    return math.isfinite(level_g) and 0 < level_g * G <= BENCH_MAX_ACCEL_MPS2 + 1e-9
 
 
 @dataclass(frozen=True)
@@ -37,15 +43,15 @@ class PulseProfile:
     decel_ratio: float = 0.25
 
     def __post_init__(self) -> None:
-        if not (math.isfinite(self.level_g) and 0 < self.level_g * G <= BENCH_MAX_ACCEL_MPS2 + 1e-9):
+        if not _level_ok(self.level_g):
             raise InputError("profile", "level_g",
-                             f"must be in (0, {BENCH_MAX_ACCEL_MPS2 / G:.2f}] g, the bench's range "
+                             f"must be in (0, {MAX_LEVEL_TEXT}] g, the bench's 10 m/s² "
                              f"(got {self.level_g})")
-        if self.dwell_s < MIN_DWELL_S:
+        if not (math.isfinite(self.dwell_s) and self.dwell_s >= MIN_DWELL_S):
             raise InputError("profile", "dwell_s", f"must be >= {MIN_DWELL_S} s (EUMOS 40509)")
-        if not 0 <= self.ramp_s <= self.dwell_s:
+        if not (math.isfinite(self.ramp_s) and 0 <= self.ramp_s <= self.dwell_s):
             raise InputError("profile", "ramp_s", "must be between 0 and dwell_s")
-        if not 0 < self.decel_ratio <= 1:
+        if not (math.isfinite(self.decel_ratio) and 0 < self.decel_ratio <= 1):
             raise InputError("profile", "decel_ratio", "must be in (0, 1]")
 
     @property
@@ -130,8 +136,9 @@ class MeasuredProfile:
         t_arr, a_arr = np.array(t), np.array(a)
         if len(t_arr) < 2:
             raise InputError(src, "t_s", "needs at least two samples")
-        if not (np.all(np.isfinite(t_arr)) and np.all(np.isfinite(a_arr))):
-            raise InputError(src, "accel_mps2", "contains NaN or infinite values")
+        for name, values in (("t_s", t_arr), ("accel_mps2", a_arr)):
+            if not np.all(np.isfinite(values)):
+                raise InputError(src, name, "contains NaN or infinite values")
         if np.any(np.diff(t_arr) <= 0):
             raise InputError(src, "t_s", "must increase strictly")
         if np.max(np.abs(a_arr)) > BENCH_MAX_ACCEL_MPS2 * 2:
@@ -147,9 +154,9 @@ Profile = PulseProfile | MeasuredProfile
 
 def eumos_levels(target_g: float = 0.5, start_g: float = 0.2) -> list[float]:
     """The EUMOS 40509 sequence: start (0.2 or 0.3 g), then +0.1 g up to and including target."""
-    if not (math.isfinite(target_g) and 0 < target_g * G <= BENCH_MAX_ACCEL_MPS2 + 1e-9):
+    if not _level_ok(target_g):
         raise InputError("arguments", "--target",
-                         f"must be in (0, {BENCH_MAX_ACCEL_MPS2 / G:.2f}] g, the bench's range "
+                         f"must be in (0, {MAX_LEVEL_TEXT}] g, the bench's 10 m/s² "
                          f"(got {target_g})")
     if not (math.isfinite(start_g) and 0 < start_g <= target_g + 1e-9):
         raise InputError("arguments", "--start", f"must be in (0, target] (got {start_g})")

@@ -24,7 +24,8 @@ def test_same_inputs_give_identical_json(tmp_path):
     outs = []
     for k in range(2):
         out = tmp_path / f"v{k}.json"
-        main(["simulate", "examples/pet_2layer_columnar.toml", "--level", "0.3", "--json", str(out)])
+        main(["simulate", "examples/pet_2layer_columnar.toml", "--level", "0.3",
+              "--json", str(out)])
         outs.append(out.read_bytes())
     assert outs[0] == outs[1]
     assert json.loads(outs[0])["levels"][0]["level_g"] == 0.3

@@ -1,0 +1,113 @@
+"""Shared helpers for the specification tests: writing input files and checking error messages.
+
+Helpers are handed out as fixtures (there is no ``tests/__init__.py`` to import them from).
+"""
+
+from __future__ import annotations
+
+import copy
+import json
+import math
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from wrapenv.config import InputError
+
+#: A LOAD.toml as a dict: EUR pallet, 2 columnar layers of explicitly sized PET bundles.
+BASE_LOAD: dict[str, Any] = {
+    "name": "spec load",
+    "pallet": {"preset": "EUR"},
+    "bundle": {"length_m": 0.28, "width_m": 0.19, "height_m": 0.33, "mass_kg": 9.3},
+    "stack": {"layers": 2, "pattern": "columnar"},
+}
+
+
+class Raw(str):
+    """TOML text written as is (for values Python cannot express, or broken syntax)."""
+
+
+def toml_value(value: Any) -> str:
+    if isinstance(value, Raw):
+        return str(value)
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, str):
+        return json.dumps(value)
+    if isinstance(value, float) and not math.isfinite(value):
+        return "nan" if math.isnan(value) else ("inf" if value > 0 else "-inf")
+    if isinstance(value, int | float):
+        return repr(value)
+    if isinstance(value, list | tuple):
+        return "[" + ", ".join(toml_value(v) for v in value) + "]"
+    if isinstance(value, dict):
+        return "{ " + ", ".join(f"{k} = {toml_value(v)}" for k, v in value.items()) + " }"
+    raise TypeError(f"cannot write {value!r} as TOML")
+
+
+def to_toml(data: dict[str, Any]) -> str:
+    """Top-level scalars first, then one [table] per dict value (inline tables below that)."""
+    lines = [f"{k} = {toml_value(v)}" for k, v in data.items() if not isinstance(v, dict)]
+    for key, table in data.items():
+        if isinstance(table, dict):
+            lines.append(f"\n[{key}]")
+            lines += [f"{k} = {toml_value(v)}" for k, v in table.items()]
+    return "\n".join(lines) + "\n"
+
+
+def changed(base: dict[str, Any], changes: dict[str, Any] | None) -> dict[str, Any]:
+    """A deep copy of `base` with dotted keys set; a value of None deletes the key."""
+    data = copy.deepcopy(base)
+    for dotted, value in (changes or {}).items():
+        *parents, last = dotted.split(".")
+        node = data
+        for part in parents:
+            node = node.setdefault(part, {})
+        if value is None:
+            node.pop(last, None)
+        else:
+            node[last] = value
+    return data
+
+
+@pytest.fixture
+def load_file(tmp_path: Path) -> Callable[..., Path]:
+    """``load_file({"bundle.mass_kg": -1})`` writes BASE_LOAD with that change to tmp_path;
+    ``load_file(text="...")`` writes the text as is; ``base=`` replaces BASE_LOAD."""
+
+    def write(
+        changes: dict[str, Any] | None = None,
+        *,
+        text: str | bytes | None = None,
+        base: dict[str, Any] | None = None,
+        name: str = "load.toml",
+    ) -> Path:
+        path = tmp_path / name
+        if text is None:
+            text = to_toml(changed(BASE_LOAD if base is None else base, changes))
+        if isinstance(text, bytes):
+            path.write_bytes(text)
+        else:
+            path.write_text(text)
+        return path
+
+    return write
+
+
+@pytest.fixture
+def assert_input_error() -> Callable[[BaseException, str, str], None]:
+    """Check that an error is an `InputError` whose message is one line starting with
+    ``source: field:`` (just ``source:`` when `field` is empty)."""
+
+    def check(exc: BaseException, source: str, field: str) -> None:
+        assert isinstance(exc, InputError), f"{type(exc).__name__}: {exc}"
+        message = str(exc)
+        assert "\n" not in message, f"message spans several lines: {message!r}"
+        prefix = f"{source}: {field}: " if field else f"{source}: "
+        assert message.startswith(prefix), f"{message!r} does not start with {prefix!r}"
+        assert exc.source == source and exc.field == field
+        assert exc.message.strip(), "the message must say what is wrong"
+
+    return check

@@ -1,0 +1,296 @@
+"""Specification of `wrapbench simulate`: exit status, one-line errors, the JSON and the plot."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from recommender.cli import main
+from wrapenv.profile import PulseProfile
+
+PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
+
+#: Two PET bundles side by side on one layer: a load that simulates in a fraction of a second.
+TINY_LOAD = {
+    "name": "tiny",
+    "pallet": {"preset": "EUR"},
+    "bundle": {"preset": "PET6x1.5L"},
+    "stack": {"layers": 1, "pattern": "explicit", "positions": [[-0.2, 0.0], [0.2, 0.0]]},
+}
+
+#: One slender bundle (0.1 x 0.1 x 0.6 m) that cannot slide: it tips over well below 0.5 g
+#: (half width / height = 0.17).
+TALL_LOAD = {
+    "name": "tall",
+    "pallet": {"preset": "EUR"},
+    "bundle": {"length_m": 0.1, "width_m": 0.1, "height_m": 0.6, "mass_kg": 5.0},
+    "stack": {"layers": 1, "pattern": "explicit", "positions": [[0.0, 0.0]]},
+    "friction": {"sled_pallet": {"static": 1.5, "kinetic": 1.4},
+                 "pallet_bundle": {"static": 1.5, "kinetic": 1.4}},
+}
+
+LEVEL_KEYS = {"level_g", "passed", "elastic_max_m", "elastic_max_pct", "permanent_max_m",
+              "permanent_max_pct", "permanent_low20_m", "pallet_slip_m", "damage", "criteria",
+              "bodies"}
+CRITERIA = {"permanent_5pct", "low20_4cm", "elastic_10pct", "no_damage"}
+
+
+def run(argv: list[str]) -> int:
+    """`main` returns the exit status, or argparse exits with it."""
+    try:
+        return main(argv)
+    except SystemExit as exc:
+        return exc.code
+
+
+def one_line(err: str) -> str:
+    lines = err.strip("\n").splitlines()
+    assert len(lines) == 1, f"expected one line on stderr, got: {err!r}"
+    assert "Traceback" not in err
+    return lines[0]
+
+
+def written(tmp_path) -> list[str]:
+    """Every file the run left in tmp_path apart from its inputs."""
+    return sorted(p.name for p in tmp_path.iterdir() if p.suffix not in {".toml", ".csv"})
+
+
+# --- bad input: exit 2, one line naming the file and the field, nothing written ----------------
+
+BAD_LOADS = {
+    # id: (changes to the base load of conftest, field named in the message)
+    "typo mass_kgs": ({"bundle.mass_kgs": 9.3}, "bundle.mass_kgs"),
+    "negative mass": ({"bundle.mass_kg": -1.0}, "bundle.mass_kg"),
+    "layers two": ({"stack.layers": "two"}, "stack.layers"),
+    "missing bundle": ({"bundle": None}, "bundle"),
+    "kinetic above static": (
+        {"friction.sled_pallet": {"static": 0.3, "kinetic": 0.4}}, "friction.sled_pallet.kinetic"),
+    "unknown pattern": ({"stack.pattern": "spiral"}, "stack.pattern"),
+    "overlapping bundles": (
+        {"stack.pattern": "explicit", "stack.positions": [[0.0, 0.0], [0.0, 0.1]]},
+        "stack.positions"),
+}
+
+
+@pytest.mark.parametrize("changes, field", BAD_LOADS.values(), ids=BAD_LOADS.keys())
+def test_bad_load_exits_2_with_one_line_and_writes_nothing(changes, field, load_file, tmp_path,
+                                                           capsys):
+    path = load_file(changes)
+    code = run(["simulate", str(path), "--level", "0.2",
+                "--json", str(tmp_path / "out.json"), "--plot", str(tmp_path / "out.png")])
+    out, err = capsys.readouterr()
+    assert code == 2
+    line = one_line(err)
+    assert str(path) in line
+    assert f": {field}: " in line
+    assert written(tmp_path) == []
+
+
+def test_malformed_load_toml_exits_2_naming_the_file(load_file, tmp_path, capsys):
+    path = load_file(text="[pallet\npreset = 'EUR'\n")
+    code = run(["simulate", str(path), "--json", str(tmp_path / "out.json")])
+    line = one_line(capsys.readouterr().err)
+    assert code == 2
+    assert str(path) in line and "malformed TOML" in line
+    assert written(tmp_path) == []
+
+
+def test_missing_load_file_exits_2_naming_the_file(tmp_path, capsys):
+    path = tmp_path / "absent.toml"
+    assert run(["simulate", str(path), "--level", "0.2"]) == 2
+    assert str(path) in one_line(capsys.readouterr().err)
+
+
+def test_load_file_that_is_not_utf8_exits_2(load_file, capsys):
+    path = load_file(text=b"name = '\xff'\n")
+    assert run(["simulate", str(path), "--level", "0.2"]) == 2
+    assert str(path) in one_line(capsys.readouterr().err)
+
+
+@pytest.mark.parametrize("level", ["nan", "inf", "fast"])
+def test_level_that_is_not_a_finite_number_exits_2(level, load_file, capsys):
+    code = run(["simulate", str(load_file()), "--level", level])
+    assert code == 2
+    assert "--level" in one_line(capsys.readouterr().err)
+
+
+@pytest.mark.parametrize("level", ["5", "1.1", "0", "-0.3"])
+def test_level_outside_the_bench_range_exits_2(level, load_file, tmp_path, capsys):
+    code = run(["simulate", str(load_file()), "--level", level,
+                "--json", str(tmp_path / "out.json")])
+    assert code == 2
+    assert "level" in one_line(capsys.readouterr().err)
+    assert written(tmp_path) == []
+
+
+def test_one_bad_level_among_several_exits_2_before_running_any(load_file, tmp_path, capsys):
+    code = run(["simulate", str(load_file()), "--level", "0.2", "--level", "5",
+                "--json", str(tmp_path / "out.json")])
+    out, err = capsys.readouterr()
+    assert code == 2
+    one_line(err)
+    assert out == ""
+    assert written(tmp_path) == []
+
+
+def test_eumos_target_beyond_the_bench_exits_2(load_file, capsys):
+    assert run(["simulate", str(load_file()), "--eumos", "--target", "2.0"]) == 2
+    assert "--target" in one_line(capsys.readouterr().err)
+
+
+def pulse_csv(tmp_path, level_g: float):
+    pulse = PulseProfile(level_g)
+    t = np.arange(0.0, pulse.duration_s + 0.01, 0.002)
+    path = tmp_path / "profile.csv"
+    path.write_text("t_s,accel_mps2\n" + "".join(
+        f"{ti:.4f},{ai:.6f}\n" for ti, ai in zip(t, pulse.accel(t), strict=True)))
+    return path
+
+
+def test_level_together_with_profile_exits_2(load_file, tmp_path, capsys):
+    profile = pulse_csv(tmp_path, 0.2)
+    code = run(["simulate", str(load_file()), "--level", "0.3", "--profile", str(profile)])
+    assert code == 2
+    assert "--profile" in one_line(capsys.readouterr().err)
+
+
+def test_level_together_with_eumos_exits_2(load_file, capsys):
+    assert run(["simulate", str(load_file()), "--level", "0.3", "--eumos"]) == 2
+    one_line(capsys.readouterr().err)
+
+
+def test_bad_profile_csv_exits_2_naming_the_file(load_file, tmp_path, capsys):
+    profile = tmp_path / "profile.csv"
+    profile.write_text("t_s,accel_mps2\n0,0\n0.1,oops\n")
+    assert run(["simulate", str(load_file()), "--profile", str(profile)]) == 2
+    line = one_line(capsys.readouterr().err)
+    assert str(profile) in line and "line 3" in line
+
+
+def test_bad_calibration_exits_2_naming_the_file_and_field(load_file, tmp_path, capsys):
+    cal = tmp_path / "CAL.json"
+    cal.write_text(json.dumps({"friction": {"sled_pallet": {"static": 0.3, "kinetic": 0.5}}}))
+    assert run(["simulate", str(load_file()), "--calibration", str(cal), "--level", "0.2"]) == 2
+    line = one_line(capsys.readouterr().err)
+    assert str(cal) in line and "friction.sled_pallet.kinetic" in line
+
+
+def test_malformed_calibration_exits_2_naming_the_file(load_file, tmp_path, capsys):
+    cal = tmp_path / "CAL.json"
+    cal.write_text("{not json")
+    assert run(["simulate", str(load_file()), "--calibration", str(cal), "--level", "0.2"]) == 2
+    assert str(cal) in one_line(capsys.readouterr().err)
+
+
+@pytest.mark.parametrize("argv", [
+    ["simulate", "LOAD", "--levle", "0.2"],
+    ["simulate", "LOAD", "--orientation", "diagonal"],
+    ["simulate"],
+    ["simulat", "LOAD"],
+    [],
+], ids=["unknown option", "bad orientation", "missing load", "unknown command", "no command"])
+def test_usage_error_exits_2_with_one_line(argv, load_file, capsys):
+    path = str(load_file())
+    assert run([path if a == "LOAD" else a for a in argv]) == 2
+    assert one_line(capsys.readouterr().err).startswith("wrapbench")
+
+
+@pytest.mark.parametrize("flag, name", [("--json", "out.json"), ("--plot", "out.png")])
+def test_output_into_a_missing_folder_exits_2(flag, name, load_file, tmp_path, capsys):
+    target = tmp_path / "no" / "such" / "folder" / name
+    code = run(["simulate", str(load_file()), "--level", "0.2", flag, str(target)])
+    out, err = capsys.readouterr()
+    assert code == 2
+    line = one_line(err)
+    assert flag in line and name in line
+    assert out == "", "the check must come before any simulation"
+    assert not (tmp_path / "no").exists()
+
+
+def test_bad_input_as_a_separate_process_exits_2_without_traceback(load_file, tmp_path):
+    path = load_file({"bundle.mass_kgs": 9.3})
+    proc = subprocess.run(
+        [sys.executable, "-m", "recommender.cli", "simulate", str(path), "--level", "0.2",
+         "--json", str(tmp_path / "out.json")],
+        capture_output=True, text=True, timeout=120, cwd=tmp_path)
+    assert proc.returncode == 2
+    line = one_line(proc.stderr)
+    assert str(path) in line and "bundle.mass_kgs" in line
+    assert proc.stdout == ""
+    assert written(tmp_path) == []
+
+
+def test_usage_error_as_a_separate_process_exits_2_without_traceback(tmp_path):
+    proc = subprocess.run(
+        [sys.executable, "-m", "recommender.cli", "simulate", "--no-such-option"],
+        capture_output=True, text=True, timeout=120, cwd=tmp_path)
+    assert proc.returncode == 2
+    one_line(proc.stderr)
+
+
+# --- runs that complete: exit 0 on pass, 1 on failure; JSON and PNG as in CONTRACTS.md -----------
+
+
+def test_passing_level_exits_0_and_writes_the_contract_json_and_a_png(load_file, tmp_path,
+                                                                      capsys):
+    path = load_file(base=TINY_LOAD)
+    out_json, out_png = tmp_path / "verdict.json", tmp_path / "plot.png"
+    code = run(["simulate", str(path), "--level", "0.2",
+                "--json", str(out_json), "--plot", str(out_png)])
+    out, err = capsys.readouterr()
+    assert code == 0, err
+    assert "tiny" in out
+
+    verdict = json.loads(out_json.read_text())
+    assert {"valid", "load_height_m", "levels", "highest_passed_g"} <= set(verdict)
+    assert verdict["valid"] is True
+    assert verdict["load_height_m"] == pytest.approx(0.144 + 0.33)
+    assert verdict["highest_passed_g"] == pytest.approx(0.2)
+    assert len(verdict["levels"]) == 1
+    level = verdict["levels"][0]
+    assert LEVEL_KEYS <= set(level)
+    assert level["level_g"] == pytest.approx(0.2)
+    assert level["passed"] is True
+    assert level["damage"] == []
+    assert set(level["criteria"]) == CRITERIA
+    assert all(v is True for v in level["criteria"].values())
+    for key in ("elastic_max_m", "permanent_max_m", "permanent_low20_m", "pallet_slip_m",
+                "elastic_max_pct", "permanent_max_pct"):
+        assert isinstance(level[key], int | float) and level[key] >= 0, key
+    assert level["permanent_max_m"] <= level["elastic_max_m"] + 1e-6
+    assert sorted(b["name"] for b in level["bodies"]) == ["L1C1R1", "L1C2R1"]
+    for body in level["bodies"]:
+        assert {"name", "permanent_m", "elastic_max_m"} <= set(body)
+
+    assert out_png.read_bytes()[:8] == PNG_MAGIC
+    assert sorted(written(tmp_path)) == ["plot.png", "verdict.json"], "no temporary files left"
+
+
+def test_measured_profile_is_reported_at_its_peak_level(load_file, tmp_path, capsys):
+    path = load_file(base=TINY_LOAD)
+    profile = pulse_csv(tmp_path, 0.2)
+    out_json = tmp_path / "verdict.json"
+    code = run(["simulate", str(path), "--profile", str(profile), "--json", str(out_json)])
+    assert code == 0, capsys.readouterr().err
+    levels = json.loads(out_json.read_text())["levels"]
+    assert len(levels) == 1
+    assert levels[0]["level_g"] == pytest.approx(0.2, abs=1e-3)
+
+
+def test_load_that_tips_over_exits_1_and_reports_the_failure(load_file, tmp_path, capsys):
+    path = load_file(base=TALL_LOAD)
+    out_json = tmp_path / "verdict.json"
+    code = run(["simulate", str(path), "--level", "0.5", "--json", str(out_json)])
+    out, err = capsys.readouterr()
+    assert code == 1, err
+    assert err == ""
+    verdict = json.loads(out_json.read_text())
+    level = verdict["levels"][0]
+    assert level["level_g"] == pytest.approx(0.5)
+    assert level["passed"] is False
+    assert not all(level["criteria"].values())
+    assert verdict["highest_passed_g"] is None

@@ -1,0 +1,194 @@
+"""Specification of CAL.json: what `wrapbench calibrate` writes and the bench reads back."""
+
+from __future__ import annotations
+
+import copy
+import json
+
+import pytest
+
+from wrapenv.calibrated import CalibratedPair, Calibration
+from wrapenv.config import InputError
+from wrapenv.load import Friction, FrictionPair, LoadUnit
+
+#: The CAL.json of CONTRACTS.md, with every pair filled in.
+CAL = {
+    "friction": {
+        "sled_pallet": {"static": 0.45, "kinetic": 0.40, "static_std": 0.02, "kinetic_std": 0.01,
+                        "identified": True},
+        "pallet_bundle": {"static": 0.52, "kinetic": 0.44, "static_std": 0.03,
+                          "kinetic_std": 0.02, "identified": True},
+        "bundle_bundle": {"static": 0.60, "kinetic": 0.35, "static_std": 0.0,
+                          "kinetic_std": 0.04, "identified": False},
+    },
+    "wrap": {"stiffness_scale": 1.1, "tension_scale": 0.9},
+    "residual_rms_m": 0.0015,
+    "simulations": 180,
+    "method": "cmaes",
+}
+
+
+def load() -> LoadUnit:
+    return LoadUnit.from_dict({
+        "pallet": {"preset": "EUR"},
+        "bundle": {"preset": "PET6x1.5L"},
+        "stack": {"layers": 1},
+        "friction": {"sled_pallet": {"static": 0.3, "kinetic": 0.2},
+                     "pallet_bundle": {"static": 0.31, "kinetic": 0.21},
+                     "bundle_bundle": {"static": 0.32, "kinetic": 0.22}},
+    })
+
+
+def edited(**changes) -> dict:
+    """CAL with dotted keys (written with '__' for '.') set, or deleted when None."""
+    data = copy.deepcopy(CAL)
+    for dotted, value in changes.items():
+        *parents, last = dotted.split("__")
+        node = data
+        for part in parents:
+            node = node[part]
+        if value is None:
+            del node[last]
+        else:
+            node[last] = value
+    return data
+
+
+def write_json(tmp_path, data, name: str = "CAL.json"):
+    path = tmp_path / name
+    path.write_text(data if isinstance(data, str) else json.dumps(data))
+    return path
+
+
+def test_contracts_calibration_is_parsed():
+    cal = Calibration.from_dict(CAL)
+    assert cal.friction == {
+        "sled_pallet": CalibratedPair(0.45, 0.40, 0.02, 0.01, True),
+        "pallet_bundle": CalibratedPair(0.52, 0.44, 0.03, 0.02, True),
+        "bundle_bundle": CalibratedPair(0.60, 0.35, 0.0, 0.04, False),
+    }
+    assert cal.stiffness_scale == 1.1
+    assert cal.tension_scale == 0.9
+
+
+def test_calibration_json_file_is_read(tmp_path):
+    assert Calibration.from_json(write_json(tmp_path, CAL)) == Calibration.from_dict(CAL)
+
+
+def test_fit_diagnostics_are_accepted_and_not_required():
+    plain = edited(residual_rms_m=None, simulations=None, method=None)
+    assert Calibration.from_dict(plain) == Calibration.from_dict(CAL)
+
+
+def test_std_and_identified_are_optional_with_documented_defaults():
+    cal = Calibration.from_dict({"friction": {"sled_pallet": {"static": 0.5, "kinetic": 0.4}}})
+    assert cal.friction["sled_pallet"] == CalibratedPair(0.5, 0.4, 0.0, 0.0, True)
+
+
+def test_empty_calibration_changes_nothing():
+    cal = Calibration.from_dict({})
+    assert cal.friction == {}
+    assert (cal.stiffness_scale, cal.tension_scale) == (1.0, 1.0)
+    assert cal.apply(load()) == load()
+
+
+def test_apply_replaces_every_calibrated_pair():
+    unit = Calibration.from_dict(CAL).apply(load())
+    assert unit.friction == Friction(
+        FrictionPair(0.45, 0.40), FrictionPair(0.52, 0.44), FrictionPair(0.60, 0.35))
+
+
+def test_apply_replaces_only_the_pairs_present():
+    cal = Calibration.from_dict({"friction": {"pallet_bundle": {"static": 0.7, "kinetic": 0.6}}})
+    before = load()
+    after = cal.apply(before)
+    assert after.friction.pallet_bundle == FrictionPair(0.7, 0.6)
+    assert after.friction.sled_pallet == before.friction.sled_pallet == FrictionPair(0.3, 0.2)
+    assert after.friction.bundle_bundle == before.friction.bundle_bundle
+    # Nothing else of the load changes.
+    assert after.with_friction(before.friction) == before
+
+
+def test_apply_leaves_the_original_load_untouched():
+    before = load()
+    Calibration.from_dict(CAL).apply(before)
+    assert before == load()
+
+
+def test_apply_uses_the_static_lower_bound_of_an_unidentified_pair():
+    unit = Calibration.from_dict(CAL).apply(load())
+    assert unit.friction.bundle_bundle.static == 0.60
+
+
+BAD_CALS = {
+    # id: (CAL.json content, expected dotted field)
+    "kinetic above static": (
+        edited(friction__sled_pallet__kinetic=0.5), "friction.sled_pallet.kinetic"),
+    "missing static": (
+        edited(friction__pallet_bundle__static=None), "friction.pallet_bundle.static"),
+    "zero static": (edited(friction__pallet_bundle__static=0.0), "friction.pallet_bundle.static"),
+    "negative kinetic": (
+        edited(friction__bundle_bundle__kinetic=-0.1), "friction.bundle_bundle.kinetic"),
+    "implausible static": (
+        edited(friction__sled_pallet__static=3.0), "friction.sled_pallet.static"),
+    "string static": (edited(friction__sled_pallet__static="0.4"), "friction.sled_pallet.static"),
+    "negative std": (edited(friction__sled_pallet__static_std=-0.01),
+                     "friction.sled_pallet.static_std"),
+    "identified not boolean": (edited(friction__sled_pallet__identified="yes"),
+                               "friction.sled_pallet.identified"),
+    "unknown pair": (edited(friction__sled_bundle={"static": 0.4, "kinetic": 0.3}),
+                     "friction.sled_bundle"),
+    "typo in pair": (edited(friction__sled_pallet__kinetik=0.3), "friction.sled_pallet.kinetik"),
+    "pair not an object": (edited(friction__sled_pallet=0.4), "friction.sled_pallet"),
+    "zero stiffness scale": (edited(wrap__stiffness_scale=0.0), "wrap.stiffness_scale"),
+    "typo in wrap": (edited(wrap__stiffnes_scale=1.0), "wrap.stiffnes_scale"),
+    "unknown top-level key": (edited(frictions={}), "frictions"),
+}
+
+
+@pytest.mark.parametrize("data, field", BAD_CALS.values(), ids=BAD_CALS.keys())
+def test_bad_calibration_is_rejected_naming_file_and_field(data, field, tmp_path,
+                                                           assert_input_error):
+    path = write_json(tmp_path, data)
+    with pytest.raises(InputError) as info:
+        Calibration.from_json(path)
+    assert_input_error(info.value, str(path), field)
+
+
+def test_nan_in_calibration_json_is_rejected(tmp_path, assert_input_error):
+    text = json.dumps(CAL).replace("0.45", "NaN", 1)
+    path = write_json(tmp_path, text)
+    with pytest.raises(InputError) as info:
+        Calibration.from_json(path)
+    assert_input_error(info.value, str(path), "friction.sled_pallet.static")
+
+
+@pytest.mark.parametrize("text", ['{"friction": {', "", "friction = 1", "\x00\x01"],
+                         ids=["truncated", "empty", "toml not json", "binary"])
+def test_malformed_json_is_rejected_naming_the_file(text, tmp_path, assert_input_error):
+    path = write_json(tmp_path, text)
+    with pytest.raises(InputError, match="malformed JSON") as info:
+        Calibration.from_json(path)
+    assert_input_error(info.value, str(path), "")
+
+
+def test_calibration_that_is_not_utf8_is_rejected_naming_the_file(tmp_path, assert_input_error):
+    path = tmp_path / "CAL.json"
+    path.write_bytes(b'{"method": "\xff"}')
+    with pytest.raises(InputError) as info:
+        Calibration.from_json(path)
+    assert_input_error(info.value, str(path), "")
+
+
+def test_json_array_instead_of_object_is_rejected(tmp_path, assert_input_error):
+    path = write_json(tmp_path, [CAL])
+    with pytest.raises(InputError) as info:
+        Calibration.from_json(path)
+    assert_input_error(info.value, str(path), "")
+
+
+def test_missing_calibration_file_is_rejected_naming_it(tmp_path, assert_input_error):
+    path = tmp_path / "missing.json"
+    with pytest.raises(InputError, match="cannot read") as info:
+        Calibration.from_json(path)
+    assert_input_error(info.value, str(path), "")

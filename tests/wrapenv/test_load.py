@@ -1,0 +1,419 @@
+"""Specification of LOAD.toml: presets, stacking patterns, bundle names, friction, bad input."""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import pytest
+
+from wrapenv.config import InputError
+from wrapenv.load import Bundle, Friction, FrictionPair, LoadUnit, Pallet
+
+EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
+NAME = re.compile(r"^L(\d+)C(\d+)R(\d+)$")
+
+
+def minimal(**tables) -> dict:
+    data = {
+        "pallet": {"preset": "EUR"},
+        "bundle": {"preset": "PET6x1.5L"},
+        "stack": {"layers": 1},
+    }
+    data.update(tables)
+    return data
+
+
+def by_layer(layout) -> dict[int, list]:
+    out: dict[int, list] = {}
+    for b in layout.bundles:
+        out.setdefault(b.layer, []).append(b)
+    return out
+
+
+def inside_pallet(layout, tol: float = 1e-3) -> bool:
+    px, py, _ = layout.pallet_size_m
+    return all(
+        abs(b.centre_m[0]) + b.size_m[0] / 2 <= px / 2 + tol
+        and abs(b.centre_m[1]) + b.size_m[1] / 2 <= py / 2 + tol
+        for b in layout.bundles
+    )
+
+
+# --- presets -----------------------------------------------------------------------------------
+
+
+def test_eur_pallet_preset_is_1200_by_800_by_144_mm_and_25_kg():
+    unit = LoadUnit.from_dict(minimal())
+    assert unit.pallet == Pallet(1.2, 0.8, 0.144, 25.0)
+
+
+def test_pet_bundle_preset_is_280_by_190_by_330_mm_and_9_3_kg():
+    unit = LoadUnit.from_dict(minimal())
+    assert unit.bundle == Bundle(0.28, 0.19, 0.33, 9.3)
+
+
+def test_keys_next_to_a_preset_override_only_those_values():
+    unit = LoadUnit.from_dict(minimal(
+        pallet={"preset": "EUR", "mass_kg": 30.0},
+        bundle={"preset": "PET6x1.5L", "height_m": 0.30},
+    ))
+    assert unit.pallet == Pallet(1.2, 0.8, 0.144, 30.0)
+    assert unit.bundle == Bundle(0.28, 0.19, 0.30, 9.3)
+
+
+def test_dimensions_without_a_preset_are_taken_as_given():
+    unit = LoadUnit.from_dict(minimal(
+        pallet={"length_m": 1.0, "width_m": 1.0, "height_m": 0.15, "mass_kg": 20},
+        bundle={"length_m": 0.3, "width_m": 0.2, "height_m": 0.25, "mass_kg": 5},
+    ))
+    assert unit.pallet == Pallet(1.0, 1.0, 0.15, 20.0)
+    assert unit.bundle == Bundle(0.3, 0.2, 0.25, 5.0)
+
+
+# --- columnar pattern and names ------------------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def columnar2() -> LoadUnit:
+    return LoadUnit.from_toml(EXAMPLES / "pet_2layer_columnar.toml")
+
+
+def test_columnar_eur_pet_layer_holds_16_bundles(columnar2):
+    layers = by_layer(columnar2.layout())
+    assert sorted(layers) == [1, 2]
+    assert [len(layers[k]) for k in (1, 2)] == [16, 16]
+
+
+def test_bundles_are_named_by_layer_column_and_row(columnar2):
+    names = [b.name for b in columnar2.layout().bundles]
+    expected = {f"L{layer}C{c}R{r}" for layer in (1, 2) for c in range(1, 5) for r in range(1, 5)}
+    assert len(names) == len(set(names))
+    assert set(names) == expected
+
+
+def test_column_counts_along_x_and_row_along_y_from_the_smallest(columnar2):
+    for b in columnar2.layout().bundles:
+        layer, col, row = (int(g) for g in NAME.match(b.name).groups())
+        assert layer == b.layer
+    for bundles in by_layer(columnar2.layout()).values():
+        for a in bundles:
+            ca, ra = (int(g) for g in NAME.match(a.name).groups()[1:])
+            for b in bundles:
+                cb, rb = (int(g) for g in NAME.match(b.name).groups()[1:])
+                if ca < cb:
+                    assert a.centre_m[0] < b.centre_m[0] - 0.1, (a.name, b.name)
+                if ca == cb:
+                    assert a.centre_m[0] == pytest.approx(b.centre_m[0])
+                if ra < rb:
+                    assert a.centre_m[1] < b.centre_m[1] - 0.1, (a.name, b.name)
+                if ra == rb:
+                    assert a.centre_m[1] == pytest.approx(b.centre_m[1])
+
+
+def test_c1r1_is_the_bundle_at_smallest_x_and_smallest_y(columnar2):
+    first = [b for b in columnar2.layout().bundles if b.layer == 1]
+    c1r1 = next(b for b in first if b.name == "L1C1R1")
+    assert c1r1.centre_m[0] == min(b.centre_m[0] for b in first)
+    assert c1r1.centre_m[1] == min(b.centre_m[1] for b in first)
+
+
+def test_columnar_layers_stand_exactly_on_top_of_each_other(columnar2):
+    layers = by_layer(columnar2.layout())
+    lower = {b.name[2:]: b for b in layers[1]}
+    for b in layers[2]:
+        below = lower[b.name[2:]]
+        assert b.centre_m[:2] == pytest.approx(below.centre_m[:2])
+        assert b.centre_m[2] == pytest.approx(below.centre_m[2] + 0.33)
+
+
+def test_columnar_bundles_stay_on_the_pallet(columnar2):
+    assert inside_pallet(columnar2.layout())
+
+
+@pytest.mark.parametrize("example, layers", [
+    ("pet_2layer_columnar.toml", 2),
+    ("pet_3layer_columnar.toml", 3),
+])
+def test_load_height_is_pallet_plus_every_layer(example, layers):
+    unit = LoadUnit.from_toml(EXAMPLES / example)
+    expected = 0.144 + layers * 0.33
+    assert unit.load_height_m == pytest.approx(expected)
+    assert unit.layout().load_height_m == pytest.approx(expected)
+
+
+def test_bundles_rest_on_the_pallet_top_at_z_of_pallet_height(columnar2):
+    for b in columnar2.layout().bundles:
+        bottom = b.centre_m[2] - b.size_m[2] / 2
+        assert bottom == pytest.approx(0.144 + (b.layer - 1) * 0.33)
+
+
+def test_mass_is_pallet_plus_every_bundle(columnar2):
+    assert columnar2.mass_kg == pytest.approx(25.0 + 32 * 9.3)
+
+
+# --- interlocked and explicit patterns -------------------------------------------------------
+
+
+def test_interlocked_turns_every_second_layer_90_degrees():
+    unit = LoadUnit.from_toml(EXAMPLES / "pet_3layer_interlocked.toml")
+    layers = by_layer(unit.layout())
+    assert sorted(layers) == [1, 2, 3]
+    for layer, bundles in layers.items():
+        sizes = {b.size_m for b in bundles}
+        turned = (0.18, 0.36, 0.33)
+        straight = (0.36, 0.18, 0.33)
+        assert sizes == ({turned} if layer == 2 else {straight}), layer
+    assert [len(layers[k]) for k in (1, 2, 3)] == [12, 12, 12]
+    assert inside_pallet(unit.layout())
+
+
+def test_interlocked_turned_layer_bridges_the_joints_below():
+    layout = LoadUnit.from_toml(EXAMPLES / "pet_3layer_interlocked.toml").layout()
+    supports = layout.supports()
+    for b, below in zip(layout.bundles, supports, strict=True):
+        if b.layer == 2:
+            assert len(below) >= 2, f"{b.name} rests on {len(below)} bundle(s) only"
+
+
+def test_explicit_positions_are_used_on_every_layer():
+    unit = LoadUnit.from_dict(minimal(
+        stack={"layers": 3, "pattern": "explicit", "positions": [[-0.3, 0.0], [0.3, 0.1]]},
+    ))
+    layers = by_layer(unit.layout())
+    assert sorted(layers) == [1, 2, 3]
+    for layer, bundles in layers.items():
+        assert sorted(b.centre_m[:2] for b in bundles) == [(-0.3, 0.0), (0.3, 0.1)]
+        assert {b.size_m for b in bundles} == {(0.28, 0.19, 0.33)}
+        assert {b.name for b in bundles} == {f"L{layer}C1R1", f"L{layer}C2R2"}
+
+
+def test_explicit_integer_positions_are_accepted():
+    unit = LoadUnit.from_dict(minimal(stack={"layers": 1, "pattern": "explicit",
+                                             "positions": [[0, 0]]}))
+    assert unit.layout().bundles[0].centre_m[:2] == (0.0, 0.0)
+
+
+# --- orientation -------------------------------------------------------------------------------
+
+
+def test_short_orientation_turns_the_pallet_and_keeps_the_bundle_count(columnar2):
+    long, short = columnar2.layout(), columnar2.layout("short")
+    assert long.pallet_size_m == pytest.approx((1.2, 0.8, 0.144))
+    assert short.pallet_size_m == pytest.approx((0.8, 1.2, 0.144))
+    assert len(short.bundles) == len(long.bundles) == 32
+    assert {b.size_m for b in short.bundles} == {(0.19, 0.28, 0.33)}
+    assert inside_pallet(short)
+    assert short.load_height_m == pytest.approx(long.load_height_m)
+
+
+def test_short_orientation_renames_columns_along_the_new_x(columnar2):
+    short = columnar2.layout("short")
+    names = {b.name for b in short.bundles}
+    assert len(names) == 32
+    first = [b for b in short.bundles if b.layer == 1]
+    c1r1 = next(b for b in first if b.name == "L1C1R1")
+    assert c1r1.centre_m[0] == min(b.centre_m[0] for b in first)
+    assert c1r1.centre_m[1] == min(b.centre_m[1] for b in first)
+
+
+def test_long_orientation_of_a_long_pallet_is_the_file_layout(columnar2):
+    assert columnar2.layout("long") == columnar2.layout()
+
+
+# --- friction ------------------------------------------------------------------------------
+
+
+def test_friction_defaults_when_the_table_is_absent():
+    unit = LoadUnit.from_dict(minimal())
+    assert unit.friction == Friction()
+    assert unit.friction.sled_pallet == FrictionPair(0.45, 0.34)
+    assert unit.friction.pallet_bundle == FrictionPair(0.30, 0.23)
+    assert unit.friction.bundle_bundle == FrictionPair(0.30, 0.23)
+    for name in ("sled_pallet", "pallet_bundle", "bundle_bundle"):
+        pair = unit.friction.pair(name)
+        assert pair.kinetic <= pair.static
+
+
+def test_friction_pairs_are_read_per_pair_and_the_rest_keep_defaults():
+    unit = LoadUnit.from_dict(minimal(friction={
+        "pallet_bundle": {"static": 0.5, "kinetic": 0.42},
+    }))
+    assert unit.friction.pallet_bundle == FrictionPair(0.5, 0.42)
+    assert unit.friction.sled_pallet == Friction().sled_pallet
+    assert unit.friction.bundle_bundle == Friction().bundle_bundle
+
+
+def test_example_friction_matches_contracts(columnar2):
+    assert columnar2.friction == Friction(
+        FrictionPair(0.45, 0.40), FrictionPair(0.50, 0.42), FrictionPair(0.40, 0.33))
+
+
+def test_kinetic_equal_to_static_is_accepted():
+    unit = LoadUnit.from_dict(minimal(friction={"sled_pallet": {"static": 0.4, "kinetic": 0.4}}))
+    assert unit.friction.sled_pallet == FrictionPair(0.4, 0.4)
+
+
+def test_pallet_stopper_defaults_to_false_and_can_be_set():
+    assert LoadUnit.from_dict(minimal()).pallet_stopper is False
+    unit = LoadUnit.from_dict(minimal(fixture={"pallet_stopper": True}))
+    assert unit.pallet_stopper is True
+    assert unit.layout().pallet_stopper is True
+
+
+# --- bad input: one line naming the file and the field -----------------------------------------
+
+BAD_LOADS = {
+    # id: (changes to BASE_LOAD, expected dotted field)
+    "missing bundle table": ({"bundle": None}, "bundle"),
+    "missing pallet table": ({"pallet": None}, "pallet"),
+    "missing stack table": ({"stack": None}, "stack"),
+    "missing mass": ({"bundle.mass_kg": None}, "bundle.mass_kg"),
+    "missing length": ({"bundle.length_m": None}, "bundle.length_m"),
+    "zero mass": ({"bundle.mass_kg": 0}, "bundle.mass_kg"),
+    "negative mass": ({"bundle.mass_kg": -9.3}, "bundle.mass_kg"),
+    "nan mass": ({"bundle.mass_kg": float("nan")}, "bundle.mass_kg"),
+    "inf height": ({"bundle.height_m": float("inf")}, "bundle.height_m"),
+    "string mass": ({"bundle.mass_kg": "9.3"}, "bundle.mass_kg"),
+    "boolean width": ({"bundle.width_m": True}, "bundle.width_m"),
+    "zero pallet height": ({"pallet.height_m": 0.0}, "pallet.height_m"),
+    "negative pallet width": ({"pallet.width_m": -0.8}, "pallet.width_m"),
+    "nan pallet mass": ({"pallet.mass_kg": float("nan")}, "pallet.mass_kg"),
+    "unknown pallet preset": ({"pallet.preset": "US"}, "pallet.preset"),
+    "unknown bundle preset": ({"bundle.preset": "PET6x2L"}, "bundle.preset"),
+    "unknown pattern": ({"stack.pattern": "pinwheel"}, "stack.pattern"),
+    "zero layers": ({"stack.layers": 0}, "stack.layers"),
+    "negative layers": ({"stack.layers": -1}, "stack.layers"),
+    "fractional layers": ({"stack.layers": 2.5}, "stack.layers"),
+    "word layers": ({"stack.layers": "two"}, "stack.layers"),
+    "missing layers": ({"stack.layers": None}, "stack.layers"),
+    "kinetic above static": (
+        {"friction.pallet_bundle": {"static": 0.3, "kinetic": 0.4}},
+        "friction.pallet_bundle.kinetic"),
+    "zero static friction": (
+        {"friction.sled_pallet": {"static": 0.0, "kinetic": 0.0}}, "friction.sled_pallet.static"),
+    "nan kinetic friction": (
+        {"friction.bundle_bundle": {"static": 0.3, "kinetic": float("nan")}},
+        "friction.bundle_bundle.kinetic"),
+    "missing kinetic friction": (
+        {"friction.bundle_bundle": {"static": 0.3}}, "friction.bundle_bundle.kinetic"),
+    "friction pair not a table": ({"friction.sled_pallet": 0.4}, "friction.sled_pallet"),
+    "unknown friction pair": (
+        {"friction.sled_bundle": {"static": 0.4, "kinetic": 0.3}}, "friction.sled_bundle"),
+    "typo in friction pair key": (
+        {"friction.sled_pallet": {"static": 0.4, "kinetic": 0.3, "dynamic": 0.3}},
+        "friction.sled_pallet.dynamic"),
+    "typo mass_kgs": ({"bundle.mass_kgs": 9.3}, "bundle.mass_kgs"),
+    "typo in pallet": ({"pallet.lenght_m": 1.2}, "pallet.lenght_m"),
+    "typo in stack": ({"stack.layer": 2}, "stack.layer"),
+    "typo in fixture": ({"fixture.pallet_stoper": True}, "fixture.pallet_stoper"),
+    "unknown top-level key": ({"wrap": "kraft"}, "wrap"),
+    "stopper not a boolean": ({"fixture.pallet_stopper": "yes"}, "fixture.pallet_stopper"),
+    "name not a string": ({"name": 42}, "name"),
+    "explicit without positions": ({"stack.pattern": "explicit"}, "stack.positions"),
+    "explicit with no position": (
+        {"stack.pattern": "explicit", "stack.positions": []}, "stack.positions"),
+    "explicit position of one number": (
+        {"stack.pattern": "explicit", "stack.positions": [[0.0, 0.0], [0.3]]},
+        "stack.positions[1]"),
+    "explicit position not numbers": (
+        {"stack.pattern": "explicit", "stack.positions": [["a", "b"]]}, "stack.positions[0]"),
+    "explicit position nan": (
+        {"stack.pattern": "explicit", "stack.positions": [[float("nan"), 0.0]]},
+        "stack.positions[0]"),
+    "explicit bundle overhangs": (
+        {"stack.pattern": "explicit", "stack.positions": [[0.0, 0.0], [0.55, 0.0]]},
+        "stack.positions"),
+    "explicit bundle overhangs sideways": (
+        {"stack.pattern": "explicit", "stack.positions": [[0.0, -0.35]]}, "stack.positions"),
+    "explicit bundle bigger than the pallet": (
+        {"stack.pattern": "explicit", "stack.positions": [[0.0, 0.0]], "bundle.length_m": 1.5},
+        "stack.positions"),
+    "explicit positions overlap": (
+        {"stack.pattern": "explicit", "stack.positions": [[0.0, 0.0], [0.1, 0.05]]},
+        "stack.positions"),
+    "explicit duplicate positions": (
+        {"stack.pattern": "explicit", "stack.positions": [[0.2, 0.1], [0.2, 0.1]]},
+        "stack.positions"),
+    "bundle bigger than the pallet": ({"bundle.length_m": 1.5}, "bundle"),
+    # An interlocked stack whose turned layer has its outer bundles' centres beyond the
+    # outermost columns below: pallet 1.2 m, straight columns of 0.5 m reach x = 0.501 m,
+    # turned bundles 0.1 m wide are centred up to x = 0.51 m.
+    "upper bundle centred over nothing": (
+        {"stack.pattern": "interlocked", "bundle.length_m": 0.5, "bundle.width_m": 0.1,
+         "bundle.height_m": 0.2, "bundle.mass_kg": 1.0},
+        "stack.pattern"),
+}
+
+
+@pytest.mark.parametrize("changes, field", BAD_LOADS.values(), ids=BAD_LOADS.keys())
+def test_bad_load_is_rejected_with_one_line_naming_file_and_field(
+        changes, field, load_file, assert_input_error):
+    path = load_file(changes)
+    with pytest.raises(InputError) as info:
+        LoadUnit.from_toml(path)
+    assert_input_error(info.value, str(path), field)
+
+
+def test_overlap_message_names_both_bundles(load_file):
+    path = load_file({"stack.pattern": "explicit", "stack.positions": [[0.0, 0.0], [0.1, 0.0]]})
+    with pytest.raises(InputError, match=r"L1C1R1.*L1C2R1.*overlap"):
+        LoadUnit.from_toml(path)
+
+
+def test_overhang_message_names_the_bundle_and_amount(load_file):
+    path = load_file({"stack.pattern": "explicit", "stack.positions": [[0.55, 0.0]]})
+    with pytest.raises(InputError, match=r"L1C1R1 overhangs the pallet by 90 mm"):
+        LoadUnit.from_toml(path)
+
+
+def test_bundles_touching_side_by_side_do_not_overlap(load_file):
+    path = load_file({"stack.pattern": "explicit", "stack.positions": [[-0.14, 0.0], [0.14, 0.0]]})
+    assert len(LoadUnit.from_toml(path).layout().bundles) == 4
+
+
+def test_bundle_flush_with_the_pallet_edge_does_not_overhang(load_file):
+    path = load_file({"stack.pattern": "explicit", "stack.positions": [[0.6 - 0.14, 0.4 - 0.095]]})
+    assert len(LoadUnit.from_toml(path).layout().bundles) == 2
+
+
+def test_malformed_toml_is_rejected_naming_the_file(load_file, assert_input_error):
+    path = load_file(text='name = "unterminated\n[bundle\nmass_kg = 9.3\n')
+    with pytest.raises(InputError, match="malformed TOML") as info:
+        LoadUnit.from_toml(path)
+    assert_input_error(info.value, str(path), "")
+
+
+def test_missing_load_file_is_rejected_naming_the_file(tmp_path, assert_input_error):
+    path = tmp_path / "nowhere.toml"
+    with pytest.raises(InputError, match="cannot read") as info:
+        LoadUnit.from_toml(path)
+    assert_input_error(info.value, str(path), "")
+
+
+def test_a_folder_given_as_load_file_is_rejected(tmp_path, assert_input_error):
+    with pytest.raises(InputError) as info:
+        LoadUnit.from_toml(tmp_path)
+    assert_input_error(info.value, str(tmp_path), "")
+
+
+def test_load_file_that_is_not_utf8_is_rejected_naming_the_file(load_file, assert_input_error):
+    path = load_file(text=b'name = "\xff\xfe caf\xe9"\n')
+    with pytest.raises(InputError) as info:
+        LoadUnit.from_toml(path)
+    assert_input_error(info.value, str(path), "")
+
+
+def test_interlocked_stack_whose_turned_layer_fits_no_bundle_is_rejected(load_file):
+    # A 0.9 m long bundle fits lengthwise on an EUR pallet (1.2 m) but not turned across (0.8 m).
+    path = load_file({"stack.pattern": "interlocked", "bundle.length_m": 0.9,
+                      "bundle.width_m": 0.3, "bundle.height_m": 0.2})
+    with pytest.raises(InputError):
+        LoadUnit.from_toml(path)
+
+
+def test_from_dict_names_its_source_in_errors(assert_input_error):
+    with pytest.raises(InputError) as info:
+        LoadUnit.from_dict(minimal(bundle={"preset": "PET6x1.5L", "mass_kgs": 1}),
+                           source="inline")
+    assert_input_error(info.value, "inline", "bundle.mass_kgs")
