@@ -110,8 +110,11 @@ class _Run:
         self.stick_slip = stick_slip
         self.n_bodies = stick_slip.n_bodies
         self.dynamic = list(range(1, self.n_bodies))  # pallet and bundles
-        t = np.arange(0.0, profile.duration_s + settings.timestep_s, settings.timestep_s)
-        dv = np.cumsum(profile.accel(t)) * settings.timestep_s
+        n_steps = int(np.ceil((profile.duration_s + settings.max_rest_wait_s)
+                              / settings.timestep_s)) + 2
+        # The sled's acceleration at every step, evaluated once instead of inside the step loop.
+        self.accel = profile.accel(np.arange(n_steps) * settings.timestep_s)
+        dv = np.cumsum(self.accel) * settings.timestep_s
         # No body can move relative to the sled faster than the sled's change of speed plus the
         # speed of a fall from the top of the load: beyond that energy came from nowhere.
         self.speed_limit = float(np.max(np.abs(dv))) + math.sqrt(2 * G * layout.load_height_m) + 1.0
@@ -162,8 +165,7 @@ class _Run:
             if step % s.sample_every == 0:
                 pos, quat, vel, omega = self._state()
                 rot = _rotations(quat)
-                a = float(self.profile.accel(np.array([t]))[0])
-                self.samples.append((t, a, pos, rot))
+                self.samples.append((t, float(self.accel[step]), pos, rot))
                 self._check(pos, vel, step)
                 if self.invalid:
                     break
@@ -174,7 +176,7 @@ class _Run:
                     rest_since = (rest_since if rest_since is not None else t) if still else None
                     if (rest_since is not None and t - rest_since >= s.rest_hold_s) or t >= end_cap:
                         break
-            world.set_sled_accel(float(self.profile.accel(np.array([t + dt]))[0]))
+            world.set_sled_accel(float(self.accel[step + 1]))
             world.step()
             step += 1
             t = step * dt
