@@ -10,10 +10,12 @@ import numpy as np
 
 from wrapenv.bullet import BulletWorld, G
 from wrapenv.eumos import LevelVerdict, Verdict, evaluate
-from wrapenv.friction import StickSlip
+from wrapenv.friction import WRAPPED_SLIP_SPEED_MPS, WRAPPED_STICK_SPEED_MPS, StickSlip
 from wrapenv.load import Layout, LoadUnit
 from wrapenv.profile import Profile, PulseProfile
 from wrapenv.trace import Trace
+from wrapenv.wrap import WrapFormat
+from wrapenv.wrap_physics import WrapNet
 
 SLED_MARGIN_M = 2.0          # sled deck beyond the pallet on every side
 STOPPER_SIZE_M = (0.05, 0.08)  # pallet stopper bar: thickness along x, height
@@ -38,17 +40,29 @@ class SimSettings:
 
 
 @dataclass(frozen=True)
+class Push:
+    """A constant horizontal force on one bundle while the sled runs its profile: the lateral
+    push with which a wrap's hold on a layer is measured (tests, containment checks)."""
+
+    bundle: str
+    force_n: tuple[float, float]
+
+
+@dataclass(frozen=True)
 class BenchRun:
     verdict: Verdict
     traces: tuple[Trace, ...]
 
 
-def run_level(layout: Layout, profile: Profile, settings: SimSettings = SimSettings()) -> Trace:
-    """Simulate one pulse on a freshly stacked unit and record it until everything rests."""
+def run_level(layout: Layout, profile: Profile, settings: SimSettings = SimSettings(),
+              wrap: WrapFormat | None = None, push: Push | None = None) -> Trace:
+    """Simulate one pulse on a freshly stacked (and wrapped) unit until everything rests."""
     with BulletWorld(settings.timestep_s, settings.solver_iterations) as world:
-        stick_slip = StickSlip(layout)
+        stick_slip = (StickSlip(layout) if wrap is None else
+                      StickSlip(layout, WRAPPED_SLIP_SPEED_MPS, WRAPPED_STICK_SPEED_MPS))
         _build(world, layout, stick_slip.coefficients())
-        return _Run(world, layout, profile, settings, stick_slip).execute()
+        net = WrapNet(wrap, layout) if wrap is not None else None
+        return _Run(world, layout, profile, settings, stick_slip, net, push).execute()
 
 
 def run_levels(
@@ -57,6 +71,7 @@ def run_levels(
     settings: SimSettings = SimSettings(),
     orientation: str | None = None,
     stop_at_failure: bool = False,
+    wrap: WrapFormat | None = None,
 ) -> BenchRun:
     """Run test levels (in g, or explicit profiles) on fresh copies of the unit."""
     layout = load.layout(orientation)  # type: ignore[arg-type]
@@ -64,7 +79,7 @@ def run_levels(
     traces: list[Trace] = []
     for level in levels:
         profile = PulseProfile(level) if isinstance(level, int | float) else level
-        trace = run_level(layout, profile, settings)
+        trace = run_level(layout, profile, settings, wrap)
         verdict = evaluate(trace)
         traces.append(trace)
         verdicts.append(verdict)
@@ -105,9 +120,16 @@ class _Run:
     """The stepping loop of one level: inertial field, contact states, records, health checks."""
 
     def __init__(self, world: BulletWorld, layout: Layout, profile: Profile,
-                 settings: SimSettings, stick_slip: StickSlip) -> None:
+                 settings: SimSettings, stick_slip: StickSlip, wrap: WrapNet | None,
+                 push: Push | None) -> None:
         self.world, self.layout, self.profile, self.s = world, layout, profile, settings
-        self.stick_slip = stick_slip
+        self.stick_slip, self.wrap = stick_slip, wrap
+        self.push = None
+        if push is not None:
+            names = [b.name for b in layout.bundles]
+            if push.bundle not in names:
+                raise ValueError(f"no bundle {push.bundle!r} to push")
+            self.push = (2 + names.index(push.bundle), (*push.force_n, 0.0))
         self.n_bodies = stick_slip.n_bodies
         self.dynamic = list(range(1, self.n_bodies))  # pallet and bundles
         n_steps = int(np.ceil((profile.duration_s + settings.max_rest_wait_s)
@@ -153,18 +175,40 @@ class _Run:
             if depth > PENETRATION_LIMIT_M:
                 self.invalid = f"bodies interpenetrate by {depth * 1000:.0f} mm"
 
+    def _apply_wrap(self, pos, rot, vel, omega) -> None:
+        force, torque = self.wrap.forces(pos, rot, vel, omega)  # type: ignore[union-attr]
+        bodies = np.flatnonzero(np.any(force != 0, axis=1) | np.any(torque != 0, axis=1))
+        # state index j is world index j + 1 (the sled is 0)
+        self.world.apply_wrenches(bodies + 1, pos[bodies], force[bodies], torque[bodies])
+
+    def _settle(self) -> None:
+        """Let the stack settle on the still sled; a wrap is laid at its wrapping tension."""
+        self.world.set_sled_accel(0.0)
+        for _ in range(round(self.s.settle_s / self.s.timestep_s)):
+            if self.wrap is not None:
+                pos, quat, vel, omega = self._state()
+                self._apply_wrap(pos, _rotations(quat), vel, omega)
+            self.world.step()
+        if self.wrap is not None:
+            pos, quat, _, _ = self._state()
+            self.wrap.freeze(pos, _rotations(quat))
+
     def execute(self) -> Trace:
         s, world = self.s, self.world
         dt = s.timestep_s
-        world.set_sled_accel(0.0)
-        for _ in range(round(s.settle_s / dt)):
-            world.step()
+        self._settle()
         step, t, rest_since = 0, 0.0, None
         end_cap = self.profile.duration_s + s.max_rest_wait_s
         while True:
-            if step % s.sample_every == 0:
+            sample = step % s.sample_every == 0
+            if sample or self.wrap is not None:
                 pos, quat, vel, omega = self._state()
                 rot = _rotations(quat)
+            if self.wrap is not None:
+                self._apply_wrap(pos, rot, vel, omega)
+            if self.push is not None and t < self.profile.duration_s:
+                world.push(self.push[0], self.push[1])
+            if sample:
                 self.samples.append((t, float(self.accel[step]), pos, rot))
                 self._check(pos, vel, step)
                 if self.invalid:
@@ -198,4 +242,5 @@ class _Run:
             bundle_rot=rot_arr[:, 1:],
             valid=not self.invalid,
             invalid_reason=self.invalid,
+            wrap=self.wrap.report() if self.wrap is not None else None,
         )

@@ -110,6 +110,21 @@ class BulletWorld:
         """Apply the sled's acceleration as an inertial field for the next steps."""
         self._client.setGravity(-accel_mps2, 0.0, -G)
 
+    def apply_wrenches(self, indices: Sequence[int], centres: np.ndarray, forces: np.ndarray,
+                       torques: np.ndarray) -> None:
+        """Forces at the bodies' centres and torques (world frame) for the next step only."""
+        c = self._client
+        for index, centre, force, torque in zip(indices, centres, forces, torques, strict=True):
+            body = self._ids[index]
+            c.applyExternalForce(body, -1, force.tolist(), centre.tolist(), pb.WORLD_FRAME)
+            c.applyExternalTorque(body, -1, torque.tolist(), pb.WORLD_FRAME)
+
+    def push(self, index: int, force: Sequence[float]) -> None:
+        """A force at the body's centre (world frame) for the next step only."""
+        body = self._ids[index]
+        centre = self._client.getBasePositionAndOrientation(body)[0]
+        self._client.applyExternalForce(body, -1, list(force), centre, pb.WORLD_FRAME)
+
     def set_friction(self, index: int, coefficient: float) -> None:
         """Set a body's own coefficient; Bullet multiplies the two bodies' values per contact."""
         body = self._ids[index]

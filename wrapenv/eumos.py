@@ -14,6 +14,7 @@ from dataclasses import asdict, dataclass, field
 import numpy as np
 
 from wrapenv.trace import Trace
+from wrapenv.wrap_physics import WrapReport
 
 PERMANENT_LIMIT_FRACTION = 0.05
 ELASTIC_LIMIT_FRACTION = 0.10
@@ -21,6 +22,8 @@ LOW_ZONE_HEIGHT_M = 0.20
 LOW_ZONE_LIMIT_M = 0.04
 #: A bundle left leaning by more than this is toppled: boxes stacked flat never rest tilted.
 TOPPLE_ANGLE_RAD = math.radians(10.0)
+#: The damage entry of a wrap element that reached its breaking force.
+WRAP_TORN = "wrap_torn"
 
 
 @dataclass(frozen=True)
@@ -45,6 +48,7 @@ class LevelVerdict:
     criteria: dict[str, bool]
     bodies: tuple[BodyResult, ...]
     invalid_reason: str = ""
+    wrap: WrapReport | None = None
 
     def to_json(self) -> dict:
         out = asdict(self)
@@ -52,6 +56,10 @@ class LevelVerdict:
         out["bodies"] = [asdict(b) for b in self.bodies]
         if self.valid:
             del out["invalid_reason"]
+        if self.wrap is None:
+            del out["wrap"]
+        else:
+            out["wrap"] = self.wrap.to_json()
         return out
 
 
@@ -90,6 +98,8 @@ def evaluate(trace: Trace, extra_damage: tuple[str, ...] = ()) -> LevelVerdict:
     low = trace.bottom_z_m < LOW_ZONE_HEIGHT_M
     low20 = float(permanent[low].max()) if np.any(low) else 0.0
     damage = _damage(trace) + tuple(extra_damage)
+    if trace.wrap is not None and trace.wrap.torn:
+        damage += (WRAP_TORN,)
     criteria = {
         "permanent_5pct": bool(permanent.max() <= PERMANENT_LIMIT_FRACTION * h),
         "low20_4cm": low20 < LOW_ZONE_LIMIT_M,
@@ -113,6 +123,7 @@ def evaluate(trace: Trace, extra_damage: tuple[str, ...] = ()) -> LevelVerdict:
                                                           strict=True)
         ),
         invalid_reason=trace.invalid_reason,
+        wrap=trace.wrap,
     )
 
 

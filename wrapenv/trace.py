@@ -6,6 +6,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from wrapenv.wrap_physics import WrapReport
+
 
 @dataclass(frozen=True)
 class Trace:
@@ -27,6 +29,7 @@ class Trace:
     bundle_rot: np.ndarray      # (T, n, 3, 3)
     valid: bool = True
     invalid_reason: str = ""
+    wrap: WrapReport | None = None  # None: the unit was not wrapped
 
     def bundle_displacement_m(self) -> np.ndarray:
         """(T, n) horizontal displacement of each bundle centre in the pallet's frame."""

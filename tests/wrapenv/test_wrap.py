@@ -1,0 +1,444 @@
+"""Specification of WRAP.toml and the wrap format: material cards, layers and pretension by
+height, material used, the machine recipe, writing back, calibration scaling, bad input."""
+
+from __future__ import annotations
+
+import copy
+import json
+import math
+import tomllib
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from wrapenv.config import InputError
+from wrapenv.load import LoadUnit
+from wrapenv.wrap import (
+    DEFAULT_TENSION_N,
+    MATERIALS,
+    Band,
+    Material,
+    RecipeRow,
+    WrapFormat,
+)
+
+EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
+
+#: A WRAP.toml as a dict: kraft, two bands.
+BASE_WRAP: dict[str, Any] = {
+    "material": "kraft",
+    "web_width_m": 0.5,
+    "band": [
+        {"from_m": 0.0, "to_m": 0.45, "layers": 3, "tension_n": 250.0},
+        {"from_m": 0.45, "to_m": 0.8, "layers": 1, "tension_n": 250.0},
+    ],
+}
+#: A custom [material] table naming every required value.
+CUSTOM: dict[str, Any] = {
+    "grammage_kg_m2": 0.012,
+    "stiffness_n_per_m": 3000.0,
+    "yield_strain": 0.1,
+    "break_strain": 0.5,
+}
+
+
+def toml_value(value: Any) -> str:
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, str):
+        return json.dumps(value)
+    if isinstance(value, float) and not math.isfinite(value):
+        return "nan" if math.isnan(value) else ("inf" if value > 0 else "-inf")
+    if isinstance(value, int | float):
+        return repr(value)
+    if isinstance(value, list):
+        return "[" + ", ".join(toml_value(v) for v in value) + "]"
+    raise TypeError(f"cannot write {value!r} as TOML")
+
+
+def is_table_array(value: Any) -> bool:
+    return isinstance(value, list) and bool(value) and all(isinstance(v, dict) for v in value)
+
+
+def wrap_toml(data: dict[str, Any]) -> str:
+    """Top-level scalars, then [tables], then [[arrays of tables]]."""
+    lines = [f"{k} = {toml_value(v)}" for k, v in data.items()
+             if not isinstance(v, dict) and not is_table_array(v)]
+    for key, value in data.items():
+        if isinstance(value, dict):
+            lines += [f"\n[{key}]", *(f"{k} = {toml_value(v)}" for k, v in value.items())]
+    for key, value in data.items():
+        if is_table_array(value):
+            for item in value:
+                lines += [f"\n[[{key}]]", *(f"{k} = {toml_value(v)}" for k, v in item.items())]
+    return "\n".join(lines) + "\n"
+
+
+def changed(changes: dict[str, Any] | None) -> dict[str, Any]:
+    """BASE_WRAP with dotted keys set (``band.1.layers``: list index); None deletes the key."""
+    data = copy.deepcopy(BASE_WRAP)
+    for dotted, value in (changes or {}).items():
+        *parents, last = dotted.split(".")
+        node: Any = data
+        for part in parents:
+            node = node[int(part)] if isinstance(node, list) else node[part]
+        if value is None:
+            node.pop(last, None)
+        else:
+            node[last] = value
+    return data
+
+
+@pytest.fixture
+def wrap_file(tmp_path: Path) -> Callable[..., Path]:
+    """``wrap_file({"band.0.layers": 0})`` writes BASE_WRAP with that change; ``text=`` as is."""
+
+    def write(changes: dict[str, Any] | None = None, *, text: str | None = None) -> Path:
+        path = tmp_path / "wrap.toml"
+        path.write_text(wrap_toml(changed(changes)) if text is None else text)
+        return path
+
+    return write
+
+
+def fmt(*bands: Band, material: str = "kraft", web: float = 0.5) -> WrapFormat:
+    return WrapFormat(MATERIALS[material], web, bands, material)
+
+
+# --- material cards ------------------------------------------------------------------------
+
+
+def test_kraft_card_follows_docs_materials_section_1():
+    kraft = MATERIALS["kraft"]
+    assert (kraft.grammage_kg_m2, kraft.stiffness_n_per_m) == (0.090, 4.0e5)
+    assert (kraft.yield_strain, kraft.break_strain) == (0.008, 0.07)
+    assert kraft.yield_force_n_per_m == pytest.approx(3200.0)
+    assert kraft.break_force_n_per_m == pytest.approx(6000.0, rel=0.01)
+    assert kraft.hardening_ratio * kraft.stiffness_n_per_m == pytest.approx(45e3)
+    assert kraft.cd_ratio == 0.6
+
+
+def test_lldpe_card_is_the_applied_film_of_section_2b():
+    film = MATERIALS["lldpe"]
+    assert (film.grammage_kg_m2, film.stiffness_n_per_m) == (0.0098, 2500.0)
+    assert (film.yield_strain, film.break_strain) == (0.15, 0.55)
+    assert film.yield_force_n_per_m == pytest.approx(375.0)
+    assert film.break_force_n_per_m == pytest.approx(1300.0)
+    assert film.cd_ratio == 0.5
+
+
+def test_default_tensions_are_the_cards_per_layer_web_tensions():
+    assert DEFAULT_TENSION_N == {"kraft": 250.0, "lldpe": 70.0}
+
+
+# --- examples ------------------------------------------------------------------------------
+
+
+def test_kraft_example_is_three_bands_of_paper_on_a_half_metre_web():
+    wrap = WrapFormat.from_toml(EXAMPLES / "wrap_kraft_3layer.toml")
+    assert wrap.material == MATERIALS["kraft"] and wrap.material_key == "kraft"
+    assert wrap.web_width_m == 0.5
+    assert wrap.bands == (Band(0.0, 0.45, 3, 250.0), Band(0.45, 0.80, 1, 250.0),
+                          Band(0.80, 1.134, 2, 250.0))
+
+
+def test_lldpe_example_is_three_bands_of_film_on_a_half_metre_web():
+    wrap = WrapFormat.from_toml(EXAMPLES / "wrap_lldpe_3layer.toml")
+    assert wrap.material == MATERIALS["lldpe"] and wrap.material_key == "lldpe"
+    assert wrap.web_width_m == 0.5
+    assert wrap.bands == (Band(0.0, 0.45, 4, 70.0), Band(0.45, 0.80, 2, 70.0),
+                          Band(0.80, 1.134, 3, 70.0))
+
+
+@pytest.mark.parametrize("example", ["wrap_kraft_3layer.toml", "wrap_lldpe_3layer.toml"])
+def test_examples_reach_the_top_of_the_3_layer_load_and_no_higher(example):
+    height = LoadUnit.from_toml(EXAMPLES / "pet_3layer_columnar.toml").load_height_m
+    wrap = WrapFormat.from_toml(EXAMPLES / example, load_height_m=height)
+    assert max(b.to_m for b in wrap.bands) == pytest.approx(height)
+    assert wrap.covers(0.0, height) and not wrap.covers(height + 0.01, height + 0.1)
+
+
+# --- custom material -----------------------------------------------------------------------
+
+
+def test_custom_material_table_is_read_with_defaults():
+    wrap = WrapFormat.from_dict(changed({"material": dict(CUSTOM), "band.0.tension_n": 100.0,
+                                         "band.1.tension_n": 100.0}))
+    assert wrap.material_key == "custom"
+    assert wrap.material == Material("custom", 0.012, 3000.0, 0.1, 0.5, 0.1, 0.5)
+
+
+def test_custom_material_takes_every_value_given():
+    table = {**CUSTOM, "name": "test film", "hardening_ratio": 0.0, "cd_ratio": 1.0}
+    wrap = WrapFormat.from_dict(changed({"material": table, "band.0.tension_n": 100.0,
+                                         "band.1.tension_n": 100.0}))
+    assert wrap.material == Material("test film", 0.012, 3000.0, 0.1, 0.5, 0.0, 1.0)
+    assert wrap.material.break_force_n_per_m == pytest.approx(300.0)
+
+
+def test_contract_layout_of_custom_with_a_material_table_is_malformed_toml(
+        wrap_file, assert_input_error):
+    # `material = "custom"` and a [material] table are one key twice: TOML forbids it.
+    path = wrap_file(text='material = "custom"\nweb_width_m = 0.5\n[material]\nname = "x"\n')
+    with pytest.raises(InputError, match="malformed TOML") as info:
+        WrapFormat.from_toml(path)
+    assert_input_error(info.value, str(path), "")
+
+
+# --- layers and pretension by height -------------------------------------------------------
+
+OVERLAPPING = fmt(Band(0.0, 1.0, 2, 100.0), Band(0.5, 1.5, 1, 50.0))
+
+
+def test_layers_add_up_where_bands_overlap():
+    assert OVERLAPPING.layers_over(0.0, 0.5) == pytest.approx(2.0)
+    assert OVERLAPPING.layers_over(0.5, 1.0) == pytest.approx(3.0)
+    assert OVERLAPPING.layers_over(1.0, 1.5) == pytest.approx(1.0)
+    assert OVERLAPPING.layers_over(1.5, 2.0) == 0.0
+
+
+def test_layers_over_an_interval_is_the_height_weighted_average():
+    assert OVERLAPPING.layers_over(0.0, 1.0) == pytest.approx((2 * 1.0 + 1 * 0.5) / 1.0)
+    assert OVERLAPPING.layers_over(0.25, 1.75) == pytest.approx((2 * 0.75 + 1 * 1.0) / 1.5)
+
+
+def test_line_tension_is_layer_tensions_per_web_width_averaged_over_height():
+    # 0.5 m web: 2 x 100 N -> 400 N/m, 1 x 50 N -> 100 N/m.
+    assert OVERLAPPING.line_tension_n_per_m(0.0, 0.5) == pytest.approx(400.0)
+    assert OVERLAPPING.line_tension_n_per_m(0.5, 1.0) == pytest.approx(500.0)
+    assert OVERLAPPING.line_tension_n_per_m(0.0, 1.0) == pytest.approx((400 + 100 * 0.5) / 1.0)
+    assert OVERLAPPING.line_tension_n_per_m(1.5, 2.0) == 0.0
+
+
+def test_covers_needs_an_overlap_of_positive_length():
+    assert OVERLAPPING.covers(1.4, 1.6)
+    assert not OVERLAPPING.covers(1.5, 2.0)
+    assert not OVERLAPPING.covers(-0.5, 0.0)
+
+
+def test_an_empty_height_interval_is_a_programming_error():
+    with pytest.raises(ValueError, match="empty"):
+        OVERLAPPING.layers_over(1.0, 1.0)
+
+
+# --- material used -------------------------------------------------------------------------
+
+
+def test_material_used_goes_round_the_pallet_below_its_top_and_round_the_load_above():
+    wrap = fmt(Band(0.0, 1.0, 2, 250.0), Band(1.0, 1.5, 1, 250.0))
+    used = wrap.material_used(pallet_top_m=0.2, pallet_perimeter_m=4.0, load_perimeter_m=3.0)
+    area = 2 * (0.2 * 4.0 + 0.8 * 3.0) + 1 * (0.5 * 3.0)  # 7.9 m²
+    assert used.area_m2 == pytest.approx(area)
+    assert used.mass_kg == pytest.approx(area * 0.090)
+    assert used.length_m == pytest.approx(area / 0.5)
+
+
+# --- machine recipe ------------------------------------------------------------------------
+
+
+def test_recipe_parks_the_carriage_for_short_bands_and_passes_over_tall_ones():
+    # Given out of order: the recipe lists zones from the bottom up.
+    wrap = fmt(Band(1.2, 1.5, 2, 90.0), Band(0.3, 1.2, 2, 80.0), Band(0.0, 0.3, 3, 100.0))
+    recipe = wrap.machine_recipe()
+    assert recipe.rows == (
+        RecipeRow("bottom", 0.0, 0.3, 0.0, 3, 0, 100.0),
+        RecipeRow("middle", 0.3, 1.2, 0.3, 4, 2, 80.0),  # 0.9 m: 2 revolutions a pass
+        RecipeRow("top", 1.2, 1.5, 1.2, 2, 0, 90.0),
+    )
+    assert (recipe.bottom_wraps, recipe.top_wraps) == (3, 2)
+    assert (recipe.carriage_passes, recipe.revolutions) == (2, 9)
+
+
+def test_a_band_exactly_one_or_two_web_widths_tall_is_not_rounded_up():
+    recipe = fmt(Band(0.45, 0.95, 1, 250.0), Band(0.1, 1.1, 3, 250.0)).machine_recipe()
+    assert [(r.revolutions, r.passes) for r in recipe.rows] == [(6, 3), (1, 0)]
+
+
+def test_bottom_zone_is_only_a_band_touching_the_pallet():
+    high = fmt(Band(0.3, 0.6, 2, 250.0), Band(0.6, 1.0, 2, 250.0)).machine_recipe()
+    assert [r.zone for r in high.rows] == ["middle", "top"]
+    assert high.bottom_wraps == 0 and high.top_wraps == 2
+    single = fmt(Band(0.0, 1.1, 2, 250.0)).machine_recipe()
+    assert [r.zone for r in single.rows] == ["bottom"]
+    assert single.bottom_wraps == 0 and single.carriage_passes == 2  # too tall to park
+
+
+def test_recipe_table_and_json_carry_the_rows_and_totals():
+    recipe = WrapFormat.from_toml(EXAMPLES / "wrap_kraft_3layer.toml").machine_recipe()
+    text = recipe.table()
+    assert [line.split()[0] for line in text.splitlines()[1:4]] == ["bottom", "middle", "top"]
+    assert "bottom wraps 3" in text and "top wraps 2" in text and "revolutions 6" in text
+    data = json.loads(json.dumps(recipe.to_json()))
+    assert data["rows"][0] == {"zone": "bottom", "from_m": 0.0, "to_m": 0.45, "carriage_m": 0.0,
+                               "revolutions": 3, "passes": 0, "tension_n": 250.0}
+    assert (data["bottom_wraps"], data["top_wraps"]) == (3, 2)
+    assert (data["carriage_passes"], data["revolutions"]) == (0, 6)
+
+
+# --- writing back --------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("example", ["wrap_kraft_3layer.toml", "wrap_lldpe_3layer.toml"])
+def test_to_toml_reads_back_equal(example):
+    wrap = WrapFormat.from_toml(EXAMPLES / example)
+    assert WrapFormat.from_dict(tomllib.loads(wrap.to_toml())) == wrap
+
+
+def test_custom_material_and_awkward_numbers_read_back_equal():
+    material = Material('film "X" — 2½ µm\\', 0.1 + 0.2, 1e-5, 1 / 3, 2.0, 0.0, 1.0)
+    wrap = WrapFormat(material, 0.5, (Band(0.0, 0.1 + 0.2, 7, 1e-6),), "custom")
+    text = wrap.to_toml()
+    assert "[material]" in text
+    assert WrapFormat.from_dict(tomllib.loads(text)) == wrap
+
+
+def test_to_dict_names_a_card_and_writes_a_custom_material_in_full():
+    kraft = WrapFormat.from_dict(BASE_WRAP)
+    assert kraft.to_dict() == BASE_WRAP
+    custom = WrapFormat(Material("m", 0.01, 3000.0, 0.1, 0.5), 0.5, (Band(0, 1, 1, 50.0),))
+    assert custom.to_dict()["material"] == {
+        "name": "m", "grammage_kg_m2": 0.01, "stiffness_n_per_m": 3000.0, "yield_strain": 0.1,
+        "break_strain": 0.5, "hardening_ratio": 0.1, "cd_ratio": 0.5}
+
+
+# --- calibration scaling -------------------------------------------------------------------
+
+
+def test_scaled_scales_stiffness_and_every_band_tension_only():
+    wrap = WrapFormat.from_toml(EXAMPLES / "wrap_lldpe_3layer.toml")
+    scaled = wrap.scaled(stiffness_scale=2.0, tension_scale=0.5)
+    assert scaled.material.stiffness_n_per_m == pytest.approx(5000.0)
+    assert scaled.material.yield_strain == wrap.material.yield_strain
+    assert [b.tension_n for b in scaled.bands] == pytest.approx([35.0, 35.0, 35.0])
+    assert [(b.from_m, b.to_m, b.layers) for b in scaled.bands] == [
+        (b.from_m, b.to_m, b.layers) for b in wrap.bands]
+    assert scaled.material_key == "lldpe" and wrap.material.stiffness_n_per_m == 2500.0
+    assert wrap.scaled() == wrap
+
+
+def test_a_scaled_card_is_written_as_the_material_actually_used():
+    scaled = WrapFormat.from_dict(BASE_WRAP).scaled(stiffness_scale=1.5)
+    back = WrapFormat.from_dict(tomllib.loads(scaled.to_toml()))
+    assert back.material == scaled.material and back.material_key == "custom"
+
+
+def test_with_bands_replaces_the_bands_only():
+    wrap = WrapFormat.from_dict(BASE_WRAP)
+    other = wrap.with_bands([Band(0.0, 0.2, 5, 100.0)])
+    assert other.bands == (Band(0.0, 0.2, 5, 100.0),)
+    assert (other.material, other.web_width_m, other.material_key) == (
+        wrap.material, wrap.web_width_m, wrap.material_key)
+
+
+# --- bad input: one line naming the file and the field -----------------------------------------
+
+BAD_WRAPS = {
+    # id: (changes to BASE_WRAP, expected dotted field)
+    "unknown material": ({"material": "cotton"}, "material"),
+    "custom without a [material] table": ({"material": "custom"}, "material"),
+    "missing material": ({"material": None}, "material"),
+    "material not a string": ({"material": 3}, "material"),
+    "unknown top-level key": ({"colour": "brown"}, "colour"),
+    "missing web width": ({"web_width_m": None}, "web_width_m"),
+    "zero web width": ({"web_width_m": 0.0}, "web_width_m"),
+    "web wider than 2 m": ({"web_width_m": 2.5}, "web_width_m"),
+    "missing band list": ({"band": None}, "band"),
+    "empty band list": ({"band": []}, "band"),
+    "band list of numbers": ({"band": [1, 2]}, "band[0]"),
+    "band a single table": ({"band": {"from_m": 0.0, "to_m": 0.4, "layers": 1,
+                                      "tension_n": 100.0}}, "band"),
+    "unknown band key": ({"band.1.tenson_n": 100.0}, "band[1].tenson_n"),
+    "missing from_m": ({"band.0.from_m": None}, "band[0].from_m"),
+    "negative from_m": ({"band.0.from_m": -0.1}, "band[0].from_m"),
+    "to_m equal to from_m": ({"band.1.to_m": 0.45}, "band[1].to_m"),
+    "to_m below from_m": ({"band.1.to_m": 0.3}, "band[1].to_m"),
+    "missing to_m": ({"band.0.to_m": None}, "band[0].to_m"),
+    "nan to_m": ({"band.0.to_m": float("nan")}, "band[0].to_m"),
+    "fractional layers": ({"band.1.layers": 2.5}, "band[1].layers"),
+    "negative layers": ({"band.1.layers": -1}, "band[1].layers"),
+    "zero layers": ({"band.0.layers": 0}, "band[0].layers"),
+    "boolean layers": ({"band.0.layers": True}, "band[0].layers"),
+    "missing layers": ({"band.0.layers": None}, "band[0].layers"),
+    "zero tension": ({"band.0.tension_n": 0.0}, "band[0].tension_n"),
+    "negative tension": ({"band.1.tension_n": -10.0}, "band[1].tension_n"),
+    "nan tension": ({"band.1.tension_n": float("nan")}, "band[1].tension_n"),
+    "missing tension": ({"band.1.tension_n": None}, "band[1].tension_n"),
+    "tension above the break force": ({"band.1.tension_n": 3000.0}, "band[1].tension_n"),
+    "custom missing grammage": (
+        {"material": {k: v for k, v in CUSTOM.items() if k != "grammage_kg_m2"}},
+        "material.grammage_kg_m2"),
+    "custom zero stiffness": ({"material": {**CUSTOM, "stiffness_n_per_m": 0.0}},
+                              "material.stiffness_n_per_m"),
+    "custom break equal to yield": ({"material": {**CUSTOM, "break_strain": 0.1}},
+                                    "material.break_strain"),
+    "custom break below yield": ({"material": {**CUSTOM, "break_strain": 0.05}},
+                                 "material.break_strain"),
+    "custom yield strain of 1000 %": ({"material": {**CUSTOM, "yield_strain": 10.0}},
+                                      "material.yield_strain"),
+    "custom negative hardening": ({"material": {**CUSTOM, "hardening_ratio": -0.1}},
+                                  "material.hardening_ratio"),
+    "custom cd ratio above 1": ({"material": {**CUSTOM, "cd_ratio": 1.5}}, "material.cd_ratio"),
+    "custom zero cd ratio": ({"material": {**CUSTOM, "cd_ratio": 0.0}}, "material.cd_ratio"),
+    "custom name not a string": ({"material": {**CUSTOM, "name": 7}}, "material.name"),
+    "custom unknown key": ({"material": {**CUSTOM, "colour": "clear"}}, "material.colour"),
+    # The custom film breaks at 300 + 0.1 x 3000 x 0.4 = 420 N/m, 210 N on a 0.5 m web.
+    "tension above a custom material's break force": (
+        {"material": dict(CUSTOM), "band.0.tension_n": 200.0}, "band[1].tension_n"),
+}
+
+
+@pytest.mark.parametrize("changes, field", BAD_WRAPS.values(), ids=BAD_WRAPS.keys())
+def test_bad_wrap_is_rejected_with_one_line_naming_file_and_field(
+        changes, field, wrap_file, assert_input_error):
+    path = wrap_file(changes)
+    with pytest.raises(InputError) as info:
+        WrapFormat.from_toml(path)
+    assert_input_error(info.value, str(path), field)
+
+
+def test_tension_message_says_what_the_web_can_bear(wrap_file):
+    path = wrap_file({"band.0.tension_n": 3000.0})
+    with pytest.raises(InputError, match=r"3000\.0 N is above what the material can bear.*"
+                                         r"0\.5 m web breaks at 2995 N \(5990 N/m\)"):
+        WrapFormat.from_toml(path)
+
+
+def test_tension_at_the_break_force_is_accepted():
+    limit = MATERIALS["lldpe"].break_force_n_per_m * 0.5
+    wrap = WrapFormat.from_dict(changed({"material": "lldpe", "band.0.tension_n": limit,
+                                         "band.1.tension_n": 70.0}))
+    assert wrap.bands[0].tension_n == limit
+
+
+def test_band_above_the_load_is_rejected_naming_its_place_in_the_file(
+        wrap_file, assert_input_error):
+    bands = [*BASE_WRAP["band"], {"from_m": 0.7, "to_m": 0.9, "layers": 1, "tension_n": 50.0}]
+    path = wrap_file({"band": bands})
+    with pytest.raises(InputError, match=r"above the top of the load \(0\.804 m\)") as info:
+        WrapFormat.from_toml(path, load_height_m=0.804)
+    assert_input_error(info.value, str(path), "band[2].to_m")
+    assert WrapFormat.from_toml(path, load_height_m=0.8995).bands[2].to_m == 0.9
+
+
+def test_check_fits_validates_a_format_read_earlier(wrap_file, assert_input_error):
+    wrap = WrapFormat.from_toml(wrap_file())
+    wrap.check_fits(0.8, "wrap.toml")
+    with pytest.raises(InputError) as info:
+        wrap.check_fits(0.6, "wrap.toml")
+    assert_input_error(info.value, "wrap.toml", "band[1].to_m")
+
+
+def test_malformed_toml_is_rejected_naming_the_file(wrap_file, assert_input_error):
+    path = wrap_file(text='material = "kraft\n[[band]\nlayers = 1\n')
+    with pytest.raises(InputError, match="malformed TOML") as info:
+        WrapFormat.from_toml(path)
+    assert_input_error(info.value, str(path), "")
+
+
+def test_missing_wrap_file_is_rejected_naming_the_file(tmp_path, assert_input_error):
+    path = tmp_path / "nowhere.toml"
+    with pytest.raises(InputError, match="cannot read") as info:
+        WrapFormat.from_toml(path)
+    assert_input_error(info.value, str(path), "")
