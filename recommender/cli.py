@@ -11,14 +11,16 @@ import json
 import math
 import sys
 from collections.abc import Sequence
+from dataclasses import asdict
 from pathlib import Path
 
 from wrapenv.bench import BenchRun, run_levels
 from wrapenv.calibrated import Calibration
 from wrapenv.config import InputError, write_atomic
 from wrapenv.eumos import LevelVerdict
-from wrapenv.load import LoadUnit
+from wrapenv.load import Layout, LoadUnit
 from wrapenv.profile import MeasuredProfile, PulseProfile, eumos_levels
+from wrapenv.wrap import WrapFormat
 
 EXAMPLE_LOAD = Path(__file__).resolve().parent.parent / "examples" / "pet_2layer_columnar.toml"
 
@@ -43,7 +45,10 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
     sim = sub.add_parser("simulate", help="run a load unit on the virtual ESTL bench")
     sim.add_argument("load", type=Path, help="LOAD.toml")
-    sim.add_argument("--calibration", type=Path, help="CAL.json with fitted friction")
+    sim.add_argument("--wrap", type=Path, metavar="WRAP.toml",
+                     help="wrap the unit in this format (default: unwrapped)")
+    sim.add_argument("--calibration", type=Path,
+                     help="CAL.json with fitted friction (and wrap stiffness and tension scales)")
     sim.add_argument("--level", type=_g, action="append", metavar="G",
                      help="test level in g (repeatable)")
     sim.add_argument("--eumos", action="store_true",
@@ -85,8 +90,12 @@ def _level(level_g: float) -> PulseProfile:
 
 def _simulate(args: argparse.Namespace) -> int:
     load = LoadUnit.from_toml(args.load)
+    wrap = WrapFormat.from_toml(args.wrap, load.load_height_m) if args.wrap else None
     if args.calibration:
-        load = Calibration.from_json(args.calibration).apply(load)
+        calibration = Calibration.from_json(args.calibration)
+        load = calibration.apply(load)
+        if wrap is not None:
+            wrap = wrap.scaled(calibration.stiffness_scale, calibration.tension_scale)
     _output_dir_ok(args.json, "--json")
     _output_dir_ok(args.plot, "--plot")
     if args.profile and (args.level or args.eumos):
@@ -100,15 +109,32 @@ def _simulate(args: argparse.Namespace) -> int:
     else:
         levels = [PulseProfile(g) for g in eumos_levels(args.target, args.start)]
     stop = not args.level and not args.profile
-    run = run_levels(load, levels, orientation=args.orientation, stop_at_failure=stop)
+    run = run_levels(load, levels, orientation=args.orientation, stop_at_failure=stop, wrap=wrap)
+    layout = load.layout(args.orientation)
     print(_table(load, run, args.orientation))
+    if wrap is not None:
+        print(_wrap_summary(wrap, layout))
     if args.json:
-        write_atomic(args.json, (json.dumps(run.verdict.to_json(), indent=2) + "\n").encode())
+        out = run.verdict.to_json()
+        if wrap is not None:
+            out["format"] = wrap.to_dict()
+            out["material_used"] = asdict(wrap.material_used_on(layout))
+            out["recipe"] = wrap.machine_recipe().to_json()
+        write_atomic(args.json, (json.dumps(out, indent=2) + "\n").encode())
     if args.plot:
         from recommender.report import plot_displacements
 
         plot_displacements(run, args.plot, title=load.name)
     return 0 if run.verdict.passed else 1
+
+
+def _wrap_summary(wrap: WrapFormat, layout: Layout) -> str:
+    used = wrap.material_used_on(layout)
+    lines = [f"wrap: {wrap.material.name}, web {wrap.web_width_m:.2f} m, {len(wrap.bands)} bands;"
+             f" material used {used.area_m2:.2f} m² ({used.mass_kg:.3f} kg, {used.length_m:.1f} m"
+             " of web)",
+             wrap.machine_recipe().table()]
+    return "\n".join(lines)
 
 
 def _mm(x: float | None) -> str:
@@ -139,6 +165,9 @@ def _table(load: LoadUnit, run: BenchRun, orientation: str | None) -> str:
         "level    result    elastic max            permanent max       low 20 cm  pallet slip",
     ]
     lines += [_row(level) for level in v.levels]
+    torn = [f"{level.level_g:.2f} g" for level in v.levels if level.wrap and level.wrap.torn]
+    if torn:
+        lines.append(f"wrap torn at: {', '.join(torn)}")
     best = v.highest_passed_g
     lines.append(f"highest level passed: {'none' if best is None else f'{best:.2f} g'}"
                  + ("" if v.valid else "  (simulation became unphysical: see INVALID rows)"))

@@ -103,6 +103,13 @@ class Layout:
     def load_height_m(self) -> float:
         return max(b.centre_m[2] + b.size_m[2] / 2 for b in self.bundles)
 
+    @property
+    def outline_m(self) -> tuple[float, float]:
+        """Extent (x, y) of the bundles seen from above: the outline a wrap goes round."""
+        xs = [b.centre_m[0] + s * b.size_m[0] / 2 for b in self.bundles for s in (-1, 1)]
+        ys = [b.centre_m[1] + s * b.size_m[1] / 2 for b in self.bundles for s in (-1, 1)]
+        return max(xs) - min(xs), max(ys) - min(ys)
+
     def supports(self) -> list[list[int]]:
         """For each bundle, the indices of the bundles it rests on (empty: on the pallet)."""
         out = []

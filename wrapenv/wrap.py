@@ -20,6 +20,7 @@ from pathlib import Path
 from typing import Any
 
 from wrapenv.config import InputError, Table, read_toml
+from wrapenv.load import Layout
 
 #: Largest web width accepted; machine webs are 0.5 m, wide paper rolls about 1 m.
 MAX_WEB_WIDTH_M = 2.0
@@ -279,6 +280,12 @@ class WrapFormat:
             for b in self.bands
         )
         return MaterialUsed(area, area * self.material.grammage_kg_m2, area / self.web_width_m)
+
+    def material_used_on(self, layout: Layout) -> MaterialUsed:
+        """`material_used` for a laid-out unit: round its pallet, then round its bundles."""
+        px, py, pz = layout.pallet_size_m
+        lx, ly = layout.outline_m
+        return self.material_used(pz, 2 * (px + py), 2 * (lx + ly))
 
     def machine_recipe(self) -> Recipe:
         """One row per band, lowest first. A band no taller than the web is wrapped with the

@@ -106,7 +106,7 @@ class _Elements:
         flow = np.where(over > 0, over / (self.k_elastic + self.plastic_modulus), 0.0)
         self.plastic += flow
         elastic = np.maximum(trial - self.k_elastic * flow, 0.0)
-        self.peak = np.maximum(self.peak, elastic / self.break_force)
+        self.peak = np.maximum(self.peak, np.minimum(elastic / self.break_force, 1.0))
         self.torn |= elastic >= self.break_force
         self.last = np.where(self.torn, 0.0, elastic)
         taut = self.last > 0
