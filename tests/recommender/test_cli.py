@@ -294,3 +294,72 @@ def test_load_that_tips_over_exits_1_and_reports_the_failure(load_file, tmp_path
     assert level["passed"] is False
     assert not all(level["criteria"].values())
     assert verdict["highest_passed_g"] is None
+
+
+# --- wrapped units: simulate --wrap ---------------------------------------------------------
+
+WRAP_TEXT = """material = "kraft"
+web_width_m = 0.5
+[[band]]
+from_m = 0.0
+to_m = 0.45
+layers = {layers}
+tension_n = {tension}
+"""
+
+BAD_WRAPS = {
+    # id: (band values, field named in the message)
+    "band above the load": (dict(to_m=0.9), "band[0].to_m"),
+    "layers not whole": (dict(layers=2.5), "band[0].layers"),
+    "layers negative": (dict(layers=-1), "band[0].layers"),
+    "tension zero": (dict(tension=0.0), "band[0].tension_n"),
+    "tension beyond the web": (dict(tension=5000.0), "band[0].tension_n"),
+}
+
+
+def wrap_file(tmp_path, layers=2, tension=250.0, to_m=0.45):
+    text = WRAP_TEXT.format(layers=layers, tension=tension).replace("to_m = 0.45",
+                                                                    f"to_m = {to_m}")
+    path = tmp_path / "wrap.toml"
+    path.write_text(text)
+    return path
+
+
+@pytest.mark.parametrize("values, field", BAD_WRAPS.values(), ids=BAD_WRAPS.keys())
+def test_bad_wrap_exits_2_with_one_line_and_writes_nothing(values, field, load_file, tmp_path,
+                                                           capsys):
+    load = load_file(base=TINY_LOAD)  # 0.474 m tall
+    wrap = wrap_file(tmp_path, **values)
+    code = run(["simulate", str(load), "--wrap", str(wrap), "--level", "0.2",
+                "--json", str(tmp_path / "out.json")])
+    line = one_line(capsys.readouterr().err)
+    assert code == 2
+    assert str(wrap) in line and f": {field}: " in line
+    assert written(tmp_path) == []
+
+
+def test_missing_wrap_file_exits_2_naming_it(load_file, tmp_path, capsys):
+    code = run(["simulate", str(load_file(base=TINY_LOAD)), "--wrap", str(tmp_path / "no.toml")])
+    assert code == 2
+    assert "no.toml" in one_line(capsys.readouterr().err)
+
+
+def test_wrapped_run_reports_the_wrap_material_and_recipe(load_file, tmp_path, capsys):
+    load = load_file(base=TINY_LOAD)
+    out_json = tmp_path / "verdict.json"
+    code = run(["simulate", str(load), "--wrap", str(wrap_file(tmp_path)), "--level", "0.3",
+                "--json", str(out_json)])
+    out, err = capsys.readouterr()
+    assert code == 0, err
+    assert "material used" in out and "bottom wraps 2" in out
+    verdict = json.loads(out_json.read_text())
+    assert verdict["format"]["material"] == "kraft"
+    assert verdict["format"]["band"][0]["layers"] == 2
+    # 2 layers: 0.144 m round the pallet (perimeter 4.0 m), then 0.306 m round the two bundles
+    # (outline 0.68 x 0.19 m, perimeter 1.74 m); kraft is 0.09 kg/m²
+    used = verdict["material_used"]
+    area = 2 * (0.144 * 4.0 + 0.306 * 1.74)
+    assert used["area_m2"] == pytest.approx(area, rel=1e-3)
+    assert used["mass_kg"] == pytest.approx(area * 0.09, rel=1e-3)
+    wrap = verdict["levels"][0]["wrap"]
+    assert wrap["torn"] is False and 0 < wrap["peak_utilisation"] < 1
