@@ -185,6 +185,37 @@ class BulletWorld:
             return 0.0
         return max(0.0, -min(cp[8] for cp in contacts))
 
+    # -- drawing --------------------------------------------------------------------------
+    def set_pose(self, index: int, position: Sequence[float], quat: Sequence[float]) -> None:
+        """Place a body at a recorded pose (quaternion x y z w): for drawing states, not for
+        simulating (velocities are left as they are)."""
+        self._client.resetBasePositionAndOrientation(self._ids[index], list(position), list(quat))
+
+    def camera_image(
+        self,
+        width: int,
+        height: int,
+        view: Sequence[float],
+        projection: Sequence[float],
+        light_direction: Sequence[float] = (0.3, -1.0, 0.8),
+        ambient: float = 0.6,
+        diffuse: float = 0.4,
+    ) -> np.ndarray:
+        """RGB image (height, width, 3) uint8 from TinyRenderer, the CPU renderer that works
+        headless in DIRECT mode. `view` and `projection` are OpenGL 4x4 matrices, column-major.
+
+        Shadows are off: TinyRenderer computes them with the camera's own projection, which is
+        wrong for anything but a perspective camera; no specular highlight either, so a face's
+        colour depends only on its orientation (steady colours for trackers).
+        """
+        _, _, rgba, _, _ = self._client.getCameraImage(
+            width, height, viewMatrix=[float(v) for v in view],
+            projectionMatrix=[float(p) for p in projection], renderer=pb.ER_TINY_RENDERER,
+            shadow=0, lightDirection=list(light_direction), lightAmbientCoeff=ambient,
+            lightDiffuseCoeff=diffuse, lightSpecularCoeff=0.0, flags=pb.ER_NO_SEGMENTATION_MASK,
+        )
+        return np.asarray(rgba, np.uint8).reshape(height, width, 4)[..., :3].copy()
+
     # -- lifetime -------------------------------------------------------------------------
     def close(self) -> None:
         """Disconnect the client; safe to call more than once."""
