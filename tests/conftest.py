@@ -47,24 +47,36 @@ def toml_value(value: Any) -> str:
     raise TypeError(f"cannot write {value!r} as TOML")
 
 
+def _table_array(value: Any) -> bool:
+    return isinstance(value, list) and bool(value) and all(isinstance(v, dict) for v in value)
+
+
 def to_toml(data: dict[str, Any]) -> str:
-    """Top-level scalars first, then one [table] per dict value (inline tables below that)."""
-    lines = [f"{k} = {toml_value(v)}" for k, v in data.items() if not isinstance(v, dict)]
+    """Top-level scalars first, then one [table] per dict value (inline tables below that),
+    then one [[array]] entry per dict of a list of dicts."""
+    lines = [f"{k} = {toml_value(v)}" for k, v in data.items()
+             if not isinstance(v, dict) and not _table_array(v)]
     for key, table in data.items():
         if isinstance(table, dict):
             lines.append(f"\n[{key}]")
             lines += [f"{k} = {toml_value(v)}" for k, v in table.items()]
+    for key, items in data.items():
+        if _table_array(items):
+            for item in items:
+                lines.append(f"\n[[{key}]]")
+                lines += [f"{k} = {toml_value(v)}" for k, v in item.items()]
     return "\n".join(lines) + "\n"
 
 
 def changed(base: dict[str, Any], changes: dict[str, Any] | None) -> dict[str, Any]:
-    """A deep copy of `base` with dotted keys set; a value of None deletes the key."""
+    """A deep copy of `base` with dotted keys set (a number indexes a list, ``band.0.layers``);
+    a value of None deletes the key."""
     data = copy.deepcopy(base)
     for dotted, value in (changes or {}).items():
         *parents, last = dotted.split(".")
-        node = data
+        node: Any = data
         for part in parents:
-            node = node.setdefault(part, {})
+            node = node[int(part)] if isinstance(node, list) else node.setdefault(part, {})
         if value is None:
             node.pop(last, None)
         else:
@@ -91,6 +103,36 @@ def load_file(tmp_path: Path) -> Callable[..., Path]:
             path.write_bytes(text)
         else:
             path.write_text(text)
+        return path
+
+    return write
+
+
+#: A WRAP.toml as a dict: kraft, two bands.
+BASE_WRAP: dict[str, Any] = {
+    "material": "kraft",
+    "web_width_m": 0.5,
+    "band": [
+        {"from_m": 0.0, "to_m": 0.45, "layers": 3, "tension_n": 250.0},
+        {"from_m": 0.45, "to_m": 0.8, "layers": 1, "tension_n": 250.0},
+    ],
+}
+
+
+@pytest.fixture
+def wrap_data() -> Callable[[dict[str, Any] | None], dict[str, Any]]:
+    """``wrap_data({"band.0.layers": 0})``: BASE_WRAP with that change, as parsed TOML."""
+    return lambda changes=None: changed(BASE_WRAP, changes)
+
+
+@pytest.fixture
+def wrap_file(tmp_path: Path) -> Callable[..., Path]:
+    """``wrap_file({"band.0.layers": 0})`` writes BASE_WRAP with that change to tmp_path;
+    ``wrap_file(text="...")`` writes the text as is."""
+
+    def write(changes: dict[str, Any] | None = None, *, text: str | None = None) -> Path:
+        path = tmp_path / "wrap.toml"
+        path.write_text(to_toml(changed(BASE_WRAP, changes)) if text is None else text)
         return path
 
     return write

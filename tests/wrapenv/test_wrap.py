@@ -3,11 +3,8 @@ height, material used, the machine recipe, writing back, calibration scaling, ba
 
 from __future__ import annotations
 
-import copy
 import json
-import math
 import tomllib
-from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -26,15 +23,6 @@ from wrapenv.wrap import (
 
 EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
 
-#: A WRAP.toml as a dict: kraft, two bands.
-BASE_WRAP: dict[str, Any] = {
-    "material": "kraft",
-    "web_width_m": 0.5,
-    "band": [
-        {"from_m": 0.0, "to_m": 0.45, "layers": 3, "tension_n": 250.0},
-        {"from_m": 0.45, "to_m": 0.8, "layers": 1, "tension_n": 250.0},
-    ],
-}
 #: A custom [material] table naming every required value.
 CUSTOM: dict[str, Any] = {
     "grammage_kg_m2": 0.012,
@@ -42,65 +30,6 @@ CUSTOM: dict[str, Any] = {
     "yield_strain": 0.1,
     "break_strain": 0.5,
 }
-
-
-def toml_value(value: Any) -> str:
-    if isinstance(value, bool):
-        return "true" if value else "false"
-    if isinstance(value, str):
-        return json.dumps(value)
-    if isinstance(value, float) and not math.isfinite(value):
-        return "nan" if math.isnan(value) else ("inf" if value > 0 else "-inf")
-    if isinstance(value, int | float):
-        return repr(value)
-    if isinstance(value, list):
-        return "[" + ", ".join(toml_value(v) for v in value) + "]"
-    raise TypeError(f"cannot write {value!r} as TOML")
-
-
-def is_table_array(value: Any) -> bool:
-    return isinstance(value, list) and bool(value) and all(isinstance(v, dict) for v in value)
-
-
-def wrap_toml(data: dict[str, Any]) -> str:
-    """Top-level scalars, then [tables], then [[arrays of tables]]."""
-    lines = [f"{k} = {toml_value(v)}" for k, v in data.items()
-             if not isinstance(v, dict) and not is_table_array(v)]
-    for key, value in data.items():
-        if isinstance(value, dict):
-            lines += [f"\n[{key}]", *(f"{k} = {toml_value(v)}" for k, v in value.items())]
-    for key, value in data.items():
-        if is_table_array(value):
-            for item in value:
-                lines += [f"\n[[{key}]]", *(f"{k} = {toml_value(v)}" for k, v in item.items())]
-    return "\n".join(lines) + "\n"
-
-
-def changed(changes: dict[str, Any] | None) -> dict[str, Any]:
-    """BASE_WRAP with dotted keys set (``band.1.layers``: list index); None deletes the key."""
-    data = copy.deepcopy(BASE_WRAP)
-    for dotted, value in (changes or {}).items():
-        *parents, last = dotted.split(".")
-        node: Any = data
-        for part in parents:
-            node = node[int(part)] if isinstance(node, list) else node[part]
-        if value is None:
-            node.pop(last, None)
-        else:
-            node[last] = value
-    return data
-
-
-@pytest.fixture
-def wrap_file(tmp_path: Path) -> Callable[..., Path]:
-    """``wrap_file({"band.0.layers": 0})`` writes BASE_WRAP with that change; ``text=`` as is."""
-
-    def write(changes: dict[str, Any] | None = None, *, text: str | None = None) -> Path:
-        path = tmp_path / "wrap.toml"
-        path.write_text(wrap_toml(changed(changes)) if text is None else text)
-        return path
-
-    return write
 
 
 def fmt(*bands: Band, material: str = "kraft", web: float = 0.5) -> WrapFormat:
@@ -136,20 +65,15 @@ def test_default_tensions_are_the_cards_per_layer_web_tensions():
 # --- examples ------------------------------------------------------------------------------
 
 
-def test_kraft_example_is_three_bands_of_paper_on_a_half_metre_web():
-    wrap = WrapFormat.from_toml(EXAMPLES / "wrap_kraft_3layer.toml")
-    assert wrap.material == MATERIALS["kraft"] and wrap.material_key == "kraft"
+@pytest.mark.parametrize("material, bands", [
+    ("kraft", (Band(0.0, 0.45, 3, 250.0), Band(0.45, 0.80, 1, 250.0), Band(0.80, 1.134, 2, 250.0))),
+    ("lldpe", (Band(0.0, 0.45, 4, 70.0), Band(0.45, 0.80, 2, 70.0), Band(0.80, 1.134, 3, 70.0))),
+])
+def test_3_layer_examples_are_three_bands_on_a_half_metre_web(material, bands):
+    wrap = WrapFormat.from_toml(EXAMPLES / f"wrap_{material}_3layer.toml")
+    assert wrap.material == MATERIALS[material] and wrap.material_key == material
     assert wrap.web_width_m == 0.5
-    assert wrap.bands == (Band(0.0, 0.45, 3, 250.0), Band(0.45, 0.80, 1, 250.0),
-                          Band(0.80, 1.134, 2, 250.0))
-
-
-def test_lldpe_example_is_three_bands_of_film_on_a_half_metre_web():
-    wrap = WrapFormat.from_toml(EXAMPLES / "wrap_lldpe_3layer.toml")
-    assert wrap.material == MATERIALS["lldpe"] and wrap.material_key == "lldpe"
-    assert wrap.web_width_m == 0.5
-    assert wrap.bands == (Band(0.0, 0.45, 4, 70.0), Band(0.45, 0.80, 2, 70.0),
-                          Band(0.80, 1.134, 3, 70.0))
+    assert wrap.bands == bands
 
 
 @pytest.mark.parametrize("example", ["wrap_kraft_3layer.toml", "wrap_lldpe_3layer.toml"])
@@ -163,16 +87,16 @@ def test_examples_reach_the_top_of_the_3_layer_load_and_no_higher(example):
 # --- custom material -----------------------------------------------------------------------
 
 
-def test_custom_material_table_is_read_with_defaults():
-    wrap = WrapFormat.from_dict(changed({"material": dict(CUSTOM), "band.0.tension_n": 100.0,
+def test_custom_material_table_is_read_with_defaults(wrap_data):
+    wrap = WrapFormat.from_dict(wrap_data({"material": dict(CUSTOM), "band.0.tension_n": 100.0,
                                          "band.1.tension_n": 100.0}))
     assert wrap.material_key == "custom"
     assert wrap.material == Material("custom", 0.012, 3000.0, 0.1, 0.5, 0.1, 0.5)
 
 
-def test_custom_material_takes_every_value_given():
+def test_custom_material_takes_every_value_given(wrap_data):
     table = {**CUSTOM, "name": "test film", "hardening_ratio": 0.0, "cd_ratio": 1.0}
-    wrap = WrapFormat.from_dict(changed({"material": table, "band.0.tension_n": 100.0,
+    wrap = WrapFormat.from_dict(wrap_data({"material": table, "band.0.tension_n": 100.0,
                                          "band.1.tension_n": 100.0}))
     assert wrap.material == Material("test film", 0.012, 3000.0, 0.1, 0.5, 0.0, 1.0)
     assert wrap.material.break_force_n_per_m == pytest.approx(300.0)
@@ -294,9 +218,9 @@ def test_custom_material_and_awkward_numbers_read_back_equal():
     assert WrapFormat.from_dict(tomllib.loads(text)) == wrap
 
 
-def test_to_dict_names_a_card_and_writes_a_custom_material_in_full():
-    kraft = WrapFormat.from_dict(BASE_WRAP)
-    assert kraft.to_dict() == BASE_WRAP
+def test_to_dict_names_a_card_and_writes_a_custom_material_in_full(wrap_data):
+    kraft = WrapFormat.from_dict(wrap_data())
+    assert kraft.to_dict() == wrap_data()
     custom = WrapFormat(Material("m", 0.01, 3000.0, 0.1, 0.5), 0.5, (Band(0, 1, 1, 50.0),))
     assert custom.to_dict()["material"] == {
         "name": "m", "grammage_kg_m2": 0.01, "stiffness_n_per_m": 3000.0, "yield_strain": 0.1,
@@ -318,14 +242,14 @@ def test_scaled_scales_stiffness_and_every_band_tension_only():
     assert wrap.scaled() == wrap
 
 
-def test_a_scaled_card_is_written_as_the_material_actually_used():
-    scaled = WrapFormat.from_dict(BASE_WRAP).scaled(stiffness_scale=1.5)
+def test_a_scaled_card_is_written_as_the_material_actually_used(wrap_data):
+    scaled = WrapFormat.from_dict(wrap_data()).scaled(stiffness_scale=1.5)
     back = WrapFormat.from_dict(tomllib.loads(scaled.to_toml()))
     assert back.material == scaled.material and back.material_key == "custom"
 
 
-def test_with_bands_replaces_the_bands_only():
-    wrap = WrapFormat.from_dict(BASE_WRAP)
+def test_with_bands_replaces_the_bands_only(wrap_data):
+    wrap = WrapFormat.from_dict(wrap_data())
     other = wrap.with_bands([Band(0.0, 0.2, 5, 100.0)])
     assert other.bands == (Band(0.0, 0.2, 5, 100.0),)
     assert (other.material, other.web_width_m, other.material_key) == (
@@ -335,7 +259,7 @@ def test_with_bands_replaces_the_bands_only():
 # --- bad input: one line naming the file and the field -----------------------------------------
 
 BAD_WRAPS = {
-    # id: (changes to BASE_WRAP, expected dotted field)
+    # id: (changes to BASE_WRAP of conftest, expected dotted field)
     "unknown material": ({"material": "cotton"}, "material"),
     "custom without a [material] table": ({"material": "custom"}, "material"),
     "missing material": ({"material": None}, "material"),
@@ -405,16 +329,16 @@ def test_tension_message_says_what_the_web_can_bear(wrap_file):
         WrapFormat.from_toml(path)
 
 
-def test_tension_at_the_break_force_is_accepted():
+def test_tension_at_the_break_force_is_accepted(wrap_data):
     limit = MATERIALS["lldpe"].break_force_n_per_m * 0.5
-    wrap = WrapFormat.from_dict(changed({"material": "lldpe", "band.0.tension_n": limit,
+    wrap = WrapFormat.from_dict(wrap_data({"material": "lldpe", "band.0.tension_n": limit,
                                          "band.1.tension_n": 70.0}))
     assert wrap.bands[0].tension_n == limit
 
 
 def test_band_above_the_load_is_rejected_naming_its_place_in_the_file(
-        wrap_file, assert_input_error):
-    bands = [*BASE_WRAP["band"], {"from_m": 0.7, "to_m": 0.9, "layers": 1, "tension_n": 50.0}]
+        wrap_data, wrap_file, assert_input_error):
+    bands = [*wrap_data()["band"], {"from_m": 0.7, "to_m": 0.9, "layers": 1, "tension_n": 50.0}]
     path = wrap_file({"band": bands})
     with pytest.raises(InputError, match=r"above the top of the load \(0\.804 m\)") as info:
         WrapFormat.from_toml(path, load_height_m=0.804)
