@@ -199,7 +199,6 @@ class WrapNet:
         for e, (a, b) in enumerate(self.panel_nodes):
             self._panel_to_node[a, e] += 1.0
             self._panel_to_node[b, e] -= 1.0
-        self.bodies = np.unique(self.node_body)
         self.frozen = False
 
     def _node(self, body: int, local: tuple[float, float, float]) -> int:
@@ -278,16 +277,14 @@ class WrapNet:
             return
         perimeter, active, prev, nxt, edge, length = self._ring_geometry(p)
         r = self.rings
+        unit = edge / np.maximum(length, 1e-12)[..., None]
+        rows = np.arange(len(unit))[:, None]
         if self.frozen:
             vs = v[self._slot_index]
-            rows = np.arange(len(vs))[:, None]
-            unit = edge / np.maximum(length, 1e-12)[..., None]
             rate = np.where(active, np.einsum("rmk,rmk->rm", vs[rows, nxt] - vs, unit), 0).sum(1)
             tension = r.force(perimeter, rate)
         else:
             tension = np.where(r.torn, 0.0, r.pretension)
-        unit = edge / np.maximum(length, 1e-12)[..., None]
-        rows = np.arange(len(unit))[:, None]
         # each hull corner is pulled towards both its neighbours
         pull = (unit - unit[rows, prev]) * (tension[:, None, None] * active[..., None])
         f += self._slot_to_node @ pull.reshape(-1, 3)
