@@ -77,6 +77,11 @@ class Verdict:
         return bool(self.levels) and all(level.passed for level in self.levels)
 
     @property
+    def margin(self) -> float:
+        """How far inside the criteria the worst level stayed (see `level_margin`)."""
+        return min((level_margin(v, self.load_height_m) for v in self.levels), default=-1.0)
+
+    @property
     def highest_passed_g(self) -> float | None:
         passed = [level.level_g for level in self.levels if level.passed]
         return max(passed) if passed else None
@@ -88,6 +93,18 @@ class Verdict:
             "levels": [level.to_json() for level in self.levels],
             "highest_passed_g": self.highest_passed_g,
         }
+
+
+def level_margin(level: LevelVerdict, load_height_m: float) -> float:
+    """The smallest of 1 - figure/limit over elastic, permanent and lowest-20-cm displacement:
+    0 on a limit, 0.5 at half of it, < 0 beyond. Damage or an invalid run is -1 at best."""
+    if not level.valid or level.elastic_max_m is None:
+        return -1.0
+    ratios = (level.elastic_max_m / (ELASTIC_LIMIT_FRACTION * load_height_m),
+              level.permanent_max_m / (PERMANENT_LIMIT_FRACTION * load_height_m),
+              level.permanent_low20_m / LOW_ZONE_LIMIT_M)
+    margin = 1.0 - max(ratios)
+    return min(margin, -1.0) if level.damage else margin
 
 
 def evaluate(trace: Trace, extra_damage: tuple[str, ...] = ()) -> LevelVerdict:
