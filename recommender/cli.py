@@ -9,10 +9,14 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import os
 import sys
+import time
 from collections.abc import Sequence
 from dataclasses import asdict
 from pathlib import Path
+
+from tqdm import tqdm
 
 from wrapenv.bench import BenchRun, run_levels
 from wrapenv.calibrated import Calibration
@@ -22,6 +26,8 @@ from wrapenv.load import Layout, LoadUnit
 from wrapenv.profile import MeasuredProfile, PulseProfile, eumos_levels
 from wrapenv.wrap import WrapFormat
 
+#: Robust passes tried, lightest first, until one passes the whole EUMOS sequence.
+VERIFY_CANDIDATES = 3
 EXAMPLE_LOAD = Path(__file__).resolve().parent.parent / "examples" / "pet_2layer_columnar.toml"
 
 
@@ -61,13 +67,39 @@ def build_parser() -> argparse.ArgumentParser:
                      help="pallet side along the motion (default: as the load file lays it out)")
     sim.add_argument("--json", type=Path, metavar="OUT", help="write the verdict as JSON")
     sim.add_argument("--plot", type=Path, metavar="OUT.png", help="plot displacement vs time")
+
+    rec = sub.add_parser("recommend", help="search the wrap format with the least material that "
+                                           "passes EUMOS 40509 up to the target")
+    rec.add_argument("load", type=Path, nargs="?", default=EXAMPLE_LOAD,
+                     help="LOAD.toml (default: the bundled 2-layer example)")
+    rec.add_argument("--calibration", type=Path, help="CAL.json (friction and its uncertainty)")
+    rec.add_argument("--material", default="kraft", help="kraft (default) or lldpe")
+    rec.add_argument("--target", type=_g, default=0.5, metavar="G", help="default 0.5 g")
+    rec.add_argument("--method", choices=("cmaes",), default="cmaes",
+                     help="search method (cmaes; ppo follows)")
+    rec.add_argument("--samples", type=int, default=3, metavar="K",
+                     help="robust samples of friction and masses per candidate (default 3)")
+    rec.add_argument("--margin", type=float, default=0.2,
+                     help="wanted EUMOS margin of the worst sample (default 0.2)")
+    rec.add_argument("--budget", type=int, default=48, metavar="N",
+                     help="most candidate formats to try (default 48)")
+    rec.add_argument("--workers", type=int, default=os.cpu_count() or 1,
+                     help="parallel processes (default: all cores)")
+    rec.add_argument("--seed", type=int, default=0)
+    rec.add_argument("--checkpoint", type=Path, default=Path("wrapbench-search.ckpt"),
+                     help="search state written after every generation (default "
+                          "wrapbench-search.ckpt; removed when the search ends)")
+    rec.add_argument("--resume", action="store_true", help="continue from --checkpoint")
+    rec.add_argument("--json", type=Path, metavar="OUT", help="write the result as JSON")
+    rec.add_argument("--wrap-out", type=Path, metavar="WRAP.toml",
+                     help="write the recommended format as a WRAP.toml")
     return parser
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     try:
-        return _simulate(args)
+        return _simulate(args) if args.command == "simulate" else _recommend(args)
     except InputError as exc:
         sys.stderr.write(f"wrapbench {args.command}: {exc}\n")
         return 2
@@ -134,6 +166,86 @@ def _wrap_summary(wrap: WrapFormat, layout: Layout) -> str:
              f" material used {used.area_m2:.2f} m² ({used.mass_kg:.3f} kg, {used.length_m:.1f} m"
              " of web)",
              wrap.machine_recipe().table()]
+    return "\n".join(lines)
+
+
+def _recommend(args: argparse.Namespace) -> int:
+    from recommender.search import Problem, RobustSearch, SearchSettings, verify
+
+    load = LoadUnit.from_toml(args.load)
+    calibration = Calibration.from_json(args.calibration) if args.calibration else None
+    for flag, value, low in (("--samples", args.samples, 1), ("--budget", args.budget, 2),
+                             ("--workers", args.workers, 1)):
+        if value < low:
+            raise InputError("arguments", flag, f"must be >= {low} (got {value})")
+    if not (math.isfinite(args.margin) and 0 <= args.margin < 1):
+        raise InputError("arguments", "--margin", f"must be in [0, 1) (got {args.margin})")
+    _output_dir_ok(args.json, "--json")
+    _output_dir_ok(args.wrap_out, "--wrap-out")
+    _output_dir_ok(args.checkpoint, "--checkpoint")
+    settings = SearchSettings(target_g=args.target, material=args.material,
+                              samples=args.samples, margin_goal=args.margin,
+                              max_candidates=args.budget, seed=args.seed, workers=args.workers,
+                              popsize=min(8, args.budget))
+    try:
+        problem = Problem.build(load, settings, calibration)
+    except InputError as exc:
+        if exc.field == "level_g":  # the target, checked against the bench
+            raise InputError("arguments", "--target", exc.message) from None
+        raise
+    search = RobustSearch(problem, args.checkpoint)
+    state = search.resume() if args.resume else search.start()
+    t0 = time.perf_counter()
+    with tqdm(total=settings.max_candidates, desc="candidates", unit="format",
+              file=sys.stderr, disable=None) as bar:
+        bar.update(len(state.history))
+
+        def progress(done: int, total: int, st) -> None:
+            bar.update(done - bar.n)
+            best = st.best(settings.margin_goal)
+            if best is not None:
+                bar.set_postfix(best_kg=f"{best.mass_kg:.3f}", margin=f"{best.margin:.2f}")
+
+        state = search.run(state, progress)
+    verdict_samples = max(8, args.samples)
+    chosen = None
+    for candidate in state.ranked(settings.margin_goal)[:VERIFY_CANDIDATES]:
+        # the search tried the target level; the recommendation must pass the whole sequence
+        verdict, rate = verify(problem, candidate.wrap, verdict_samples, workers=args.workers)
+        if verdict.passed:
+            chosen, best = (verdict, rate), candidate
+            break
+    args.checkpoint.unlink(missing_ok=True)
+    if chosen is None:
+        print(f"no format passed the EUMOS sequence up to {args.target:.2f} g after "
+              f"{len(state.history)} candidates x {args.samples} samples")
+        return 1
+    verdict, rate = chosen
+    layout = problem.load.layout()
+    used = best.wrap.material_used_on(layout)
+    print(_recommendation(load, best, rate, verdict_samples, args.target))
+    print(_table(problem.load, BenchRun(verdict, ()), None))
+    print(_wrap_summary(best.wrap, layout))
+    print(f"searched {len(state.history)} candidates x {args.samples} samples in "
+          f"{time.perf_counter() - t0:.0f} s ({args.workers} workers)")
+    if args.json:
+        out = {"format": best.wrap.to_dict(), "material_used": asdict(used),
+               "verdict": verdict.to_json(), "robust_pass_rate": rate,
+               "robust_samples": verdict_samples, "search_margin": best.margin,
+               "evaluations": len(state.history) * args.samples, "candidates": len(state.history),
+               "method": args.method, "target_g": args.target}
+        write_atomic(args.json, (json.dumps(out, indent=2) + "\n").encode())
+    if args.wrap_out:
+        write_atomic(args.wrap_out, best.wrap.to_toml().encode())
+    return 0
+
+
+def _recommendation(load: LoadUnit, best, rate: float, samples: int, target_g: float) -> str:
+    lines = [f"recommended wrap for {load.name}: passes {target_g:.2f} g in {rate:.0%} of "
+             f"{samples} samples of friction and mass (search margin {best.margin:.2f})",
+             "band  from m    to m  layers  tension N"]
+    for i, b in enumerate(sorted(best.wrap.bands, key=lambda b: b.from_m), start=1):
+        lines.append(f"{i:4d}  {b.from_m:6.3f}  {b.to_m:6.3f}  {b.layers:6d}  {b.tension_n:9.1f}")
     return "\n".join(lines)
 
 

@@ -5,10 +5,10 @@ to the pallet, a middle zone, and a top zone that closes the envelope. The vecto
 order:
 
     0-2  layers of the bottom, middle and top band      -> 0 .. max_layers (rounded; the bottom
-                                                           and top bands have at least one)
+                                                           band, the anchor, has at least one)
     3    top of the bottom band                          -> pallet top + 0.05 m .. 45 % of the load
     4    bottom of the top band                          -> 55 % of the load .. top - 0.05 m
-    5-7  web tension of the bottom, middle and top band -> 10 % .. 90 % of the web's yield force
+    5-7  web tension of the bottom, middle and top band -> 5 % .. 50 % of the web's yield force
 
 The bottom band always starts at the sled surface (it wraps the pallet: the anchor) and the top
 band always reaches the top of the load. Out-of-range values are clipped; NaN is an error.
@@ -28,9 +28,10 @@ from wrapenv.wrap import MATERIALS, Band, Material, WrapFormat
 N_PARAMS = 8
 WEB_WIDTH_M = 0.5
 MAX_LAYERS = 6
-#: Tension range as a fraction of one layer's yield force over the web width: below 10 % the web
-#: does not lie flat; above ~50 % machines risk tearing at corners (docs/materials.md, P4).
-TENSION_FRACTIONS = (0.1, 0.9)
+#: Tension range as a fraction of one layer's yield force over the web width. Machines set the
+#: tension at about half the limit because corners cause tension peaks (docs/materials.md, P4):
+#: Kraft 80-800 N, LLDPE 9-94 N on a 0.5 m web (measured here: Kraft at 90 % tore on the bench).
+TENSION_FRACTIONS = (0.05, 0.5)
 BAND_MARGIN_M = 0.05
 
 
@@ -76,7 +77,7 @@ class FormatSpace:
             raise ValueError(f"a wrap format vector must be finite, got {a.tolist()}")
         u = (np.clip(a, -1.0, 1.0) + 1.0) / 2.0          # 0 .. 1
         layers = [round(float(x) * self.max_layers) for x in u[:3]]
-        layers[0], layers[2] = max(layers[0], 1), max(layers[2], 1)
+        layers[0] = max(layers[0], 1)
         (lo0, lo1), (hi0, hi1) = self._bounds()
         bottom_top = lo0 + u[3] * (lo1 - lo0)
         top_bottom = hi0 + u[4] * (hi1 - hi0)
@@ -91,17 +92,17 @@ class FormatSpace:
     def encode(self, wrap: WrapFormat) -> np.ndarray:
         """A vector that decodes to (nearly) this three-band format: a search's starting point."""
         bottom, *rest = sorted(wrap.bands, key=lambda b: b.from_m)
-        top = rest[-1] if rest else bottom
-        middle = rest[0] if len(rest) == 2 else None
+        top = rest[-1] if rest and rest[-1].to_m >= self.load_height_m - 1e-6 else None
+        middle = rest[0] if rest and rest[0] is not top else None
         (lo0, lo1), (hi0, hi1) = self._bounds()
         t0, t1 = self.tension_range_n
         u = [
             bottom.layers / self.max_layers,
             (middle.layers if middle else 0) / self.max_layers,
-            top.layers / self.max_layers,
+            (top.layers if top else 0) / self.max_layers,
             _frac(bottom.to_m, lo0, lo1),
-            _frac(top.from_m, hi0, hi1),
-            *(_frac(b.tension_n, t0, t1) for b in (bottom, middle or bottom, top)),
+            _frac(top.from_m if top else hi1, hi0, hi1),
+            *(_frac(b.tension_n, t0, t1) for b in (bottom, middle or bottom, top or bottom)),
         ]
         return np.clip(2 * np.array(u) - 1, -1, 1)
 

@@ -303,8 +303,7 @@ class WrapNet:
     def report(self) -> WrapReport:
         torn = np.concatenate([self.rings.height_m[self.rings.torn],
                                self.panels.height_m[self.panels.torn]])
-        plastic = np.concatenate([self.rings.plastic / self.rings.length_m,
-                                  self.panels.plastic / self.panels.length_m])
+        plastic = np.concatenate([_strain(self.rings), _strain(self.panels)])
         peak = np.concatenate([self.rings.peak, self.panels.peak])
         tension = self.rings.last
         return WrapReport(
@@ -313,6 +312,11 @@ class WrapNet:
             plastic_strain_max=float(plastic.max()) if len(plastic) else 0.0,
             ring_tension_n=tuple(float(t) for t in tension),
         )
+
+
+def _strain(e: _Elements) -> np.ndarray:
+    """Permanent stretch of each element over its length (0 for a degenerate element)."""
+    return np.divide(e.plastic, e.length_m, out=np.zeros_like(e.plastic), where=e.length_m > 0)
 
 
 def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
