@@ -182,10 +182,14 @@ class _Run:
         self.world.apply_wrenches(bodies + 1, pos[bodies], force[bodies], torque[bodies])
 
     def _settle(self) -> None:
-        """Let the stack settle on the still sled; a wrap is laid at its wrapping tension."""
+        """Let the stack settle on the still sled; a wrap is laid at its wrapping tension,
+        rising smoothly over the first two thirds of the settling time."""
         self.world.set_sled_accel(0.0)
-        for _ in range(round(self.s.settle_s / self.s.timestep_s)):
+        n = round(self.s.settle_s / self.s.timestep_s)
+        for step in range(n):
             if self.wrap is not None:
+                x = min(1.0, step / (2 * n / 3))
+                self.wrap.laying(x * x * (3 - 2 * x))
                 pos, quat, vel, omega = self._state()
                 self._apply_wrap(pos, _rotations(quat), vel, omega)
             self.world.step()

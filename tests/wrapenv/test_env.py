@@ -1,0 +1,303 @@
+"""The Gymnasium environments (wrapenv/envs): registration, spaces, API checkers, seeding,
+actions, reward, info, rendering, the random variant, vector envs and resource use.
+
+Most tests use a tiny unit (one layer of two bundles) and only the target level, so a step
+costs about 0.3-0.5 s.
+"""
+
+from __future__ import annotations
+
+import importlib
+import resource
+import warnings
+from pathlib import Path
+
+import gymnasium as gym
+import numpy as np
+import pytest
+from gymnasium.utils.env_checker import check_env as gym_check_env
+from stable_baselines3.common.env_checker import check_env as sb3_check_env
+
+import wrapenv
+from wrapenv.config import InputError
+from wrapenv.envs import OBS_NAMES, WrapBenchEnv, WrapBenchRandomEnv
+from wrapenv.load import LoadUnit
+
+ENV_ID = "wrapenv/WrapBench-v0"
+RANDOM_ID = "wrapenv/WrapBenchRandom-v0"
+TINY_LOAD = """name = "tiny"
+[pallet]
+preset = "EUR"
+[bundle]
+preset = "PET6x1.5L"
+[stack]
+layers = 1
+pattern = "explicit"
+positions = [[-0.2, 0.0], [0.2, 0.0]]
+"""
+CHEAP, EXPENSIVE = -np.ones(8, np.float32), np.ones(8, np.float32)
+INFO_KEYS = {"format", "verdict", "material_used", "passed", "margin", "valid", "reward_terms"}
+
+
+@pytest.fixture(scope="module")
+def tiny(tmp_path_factory) -> Path:
+    path = tmp_path_factory.mktemp("env") / "LOAD.toml"
+    path.write_text(TINY_LOAD)
+    return path
+
+
+def make(tiny: Path, **kwargs) -> WrapBenchEnv:
+    kwargs = {"load": tiny, "levels": "target", "target_g": 0.3, **kwargs}
+    return WrapBenchEnv(**kwargs)
+
+
+def test_import_registers_both_ids_and_reimport_is_silent():
+    assert ENV_ID in gym.registry and RANDOM_ID in gym.registry
+    assert gym.registry[ENV_ID].entry_point == "wrapenv.envs:WrapBenchEnv"
+    assert gym.registry[RANDOM_ID].entry_point == "wrapenv.envs:WrapBenchRandomEnv"
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        importlib.reload(wrapenv)
+
+
+@pytest.mark.parametrize("env_id", [ENV_ID, "wrapenv:" + ENV_ID])
+def test_gym_make_steps_one_step_episode(tiny, env_id):
+    env = gym.make(env_id, load=str(tiny), levels="target", target_g=0.3)
+    obs, info = env.reset(seed=1)
+    assert env.observation_space.contains(obs)
+    obs, reward, terminated, truncated, info = env.step(np.zeros(8, np.float32))
+    assert terminated is True and truncated is False
+    assert isinstance(reward, float) and info["passed"]
+    env.close()
+
+
+def test_default_kwargs_use_the_bundled_example():
+    env = gym.make(ENV_ID)
+    unit = env.unwrapped.unit
+    assert unit == LoadUnit.from_toml("examples/pet_2layer_columnar.toml")
+    assert env.unwrapped.levels == "eumos" and env.unwrapped.target_g == 0.5
+    env.close()
+
+
+def test_spaces_and_observation_features(tiny):
+    env = make(tiny, material="lldpe")
+    assert env.action_space == gym.spaces.Box(-1, 1, (8,), np.float32)
+    space = env.observation_space
+    assert space.dtype == np.float32 and space.shape == (len(OBS_NAMES),) == (27,)
+    obs, _ = env.reset(seed=0)
+    assert space.contains(obs)
+    named = dict(zip(OBS_NAMES, obs.tolist(), strict=True))
+    assert named["layers"] == pytest.approx(1 / 4)
+    assert named["bundle_length"] == pytest.approx(0.28 / 0.5)
+    assert named["bundle_mass"] == pytest.approx(9.3 / 20)
+    assert named["pallet_length"] == pytest.approx(1.0)
+    assert named["load_height"] == pytest.approx((0.144 + 0.33) / 2)
+    assert (named["pattern_columnar"], named["pattern_interlocked"],
+            named["pattern_explicit"]) == (0, 0, 1)
+    assert named["friction_pallet_bundle_static"] == pytest.approx(0.30)
+    assert named["friction_sled_pallet_kinetic"] == pytest.approx(0.34)
+    assert named["target_g"] == pytest.approx(0.3)
+    assert named["friction_bundle_bundle_static_std"] == 0.0
+    assert (named["material_kraft"], named["material_lldpe"]) == (0, 1)
+
+
+def test_calibration_sets_friction_and_its_std(tiny, tmp_path):
+    cal = tmp_path / "CAL.json"
+    cal.write_text('{"friction": {"pallet_bundle": {"static": 0.5, "kinetic": 0.4, '
+                   '"static_std": 0.03, "kinetic_std": 0.02}}, '
+                   '"wrap": {"stiffness_scale": 1.0, "tension_scale": 1.0}}')
+    obs, _ = make(tiny, calibration=str(cal)).reset()
+    named = dict(zip(OBS_NAMES, obs.tolist(), strict=True))
+    assert named["friction_pallet_bundle_static"] == pytest.approx(0.5)
+    assert named["friction_pallet_bundle_static_std"] == pytest.approx(0.03)
+    assert named["friction_pallet_bundle_kinetic_std"] == pytest.approx(0.02)
+    assert named["friction_sled_pallet_static_std"] == 0.0
+
+
+@pytest.mark.parametrize("kwargs", [
+    {"material": "paper"}, {"target_g": 1.5}, {"target_g": 0.5, "start_g": 0.7},
+    {"levels": "all"}, {"material_weight": -1.0}, {"render_mode": "human"},
+    {"load": "/nonexistent/LOAD.toml"},
+])
+def test_bad_kwargs_raise_at_construction(tiny, kwargs):
+    with pytest.raises(ValueError) as err:
+        make(tiny, **kwargs)
+    assert isinstance(err.value, InputError)
+    assert "\n" not in str(err.value)
+
+
+def test_unknown_material_message_names_the_choices(tiny):
+    with pytest.raises(InputError, match="material: must be one of 'kraft', 'lldpe'"):
+        make(tiny, material="paper")
+
+
+def test_gymnasium_check_env(tiny):
+    env = gym.make(ENV_ID, load=str(tiny), levels="target", target_g=0.3)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        gym_check_env(env.unwrapped, skip_render_check=False)
+    assert not [str(w.message) for w in caught]
+    env.close()
+
+
+def test_sb3_check_env(tiny):
+    env = make(tiny)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        sb3_check_env(env)
+    assert not [str(w.message) for w in caught]
+    env.close()
+
+
+def test_same_seed_and_action_give_identical_results(tiny):
+    action = np.random.default_rng(3).uniform(-1, 1, 8).astype(np.float32)
+    results = []
+    for _ in range(2):
+        env = make(tiny)
+        obs0, info0 = env.reset(seed=42)
+        obs, reward, terminated, truncated, info = env.step(action)
+        results.append((obs0, info0, obs, reward, info))
+        env.close()
+    (a0, ai0, a, ra, ia), (b0, bi0, b, rb, ib) = results
+    np.testing.assert_array_equal(a0, b0)
+    np.testing.assert_array_equal(a, b)
+    assert ai0 == bi0 and ra == rb and ia == ib
+
+
+def test_out_of_range_actions_are_clipped_and_nan_raises(tiny):
+    env = make(tiny)
+    env.reset(seed=0)
+    wild = np.array([5.0, -7.0, 1.5, 3.0, -2.0, 9.0, -9.0, 1.0], np.float32)
+    assert env.decode(wild) == env.decode(np.clip(wild, -1, 1))
+    _, r_wild, _, _, i_wild = env.step(wild)
+    _, r_clip, _, _, i_clip = env.step(np.clip(wild, -1, 1))
+    assert r_wild == r_clip and i_wild == i_clip
+    bad = np.zeros(8, np.float32)
+    bad[2] = np.nan
+    with pytest.raises(ValueError, match="finite"):
+        env.step(bad)
+    with pytest.raises(ValueError, match="8 values"):
+        env.step(np.zeros(5, np.float32))
+
+
+def test_cheaper_passing_format_scores_higher(tiny):
+    env = make(tiny)
+    env.reset(seed=0)
+    _, r_cheap, _, _, cheap = env.step(CHEAP)
+    _, r_dear, _, _, dear = env.step(EXPENSIVE)
+    assert cheap["passed"] and dear["passed"]
+    assert cheap["material_used"]["mass_kg"] < dear["material_used"]["mass_kg"]
+    assert r_cheap > r_dear
+    for info, reward in ((cheap, r_cheap), (dear, r_dear)):
+        terms = info["reward_terms"]
+        assert reward == pytest.approx(terms["verdict"] + terms["material"])
+        assert terms["verdict"] == pytest.approx(1 + min(info["margin"], 0.5))
+        ratio = info["material_used"]["mass_kg"] / env.reference_mass_kg
+        assert terms["material"] == pytest.approx(-ratio)
+    # all-zero actions are 3 layers on every band over the whole height: the reference
+    assert env.step(np.zeros(8, np.float32))[4]["reward_terms"]["material"] == pytest.approx(-1)
+
+
+def test_material_weight_scales_the_material_term(tiny):
+    env = make(tiny, material_weight=0.0)
+    env.reset()
+    assert env.step(CHEAP)[4]["reward_terms"]["material"] == 0.0
+
+
+def test_info_keys_and_verdict_json(tiny):
+    env = make(tiny, levels="eumos", target_g=0.3)
+    env.reset()
+    *_, info = env.step(np.zeros(8, np.float32))
+    assert INFO_KEYS <= set(info)
+    assert set(info["verdict"]) == {"valid", "load_height_m", "levels", "highest_passed_g"}
+    assert [lv["level_g"] for lv in info["verdict"]["levels"]] == [0.2, 0.3]
+    level = info["verdict"]["levels"][-1]
+    assert {"level_g", "passed", "elastic_max_m", "permanent_max_m", "permanent_low20_m",
+            "pallet_slip_m", "damage", "criteria", "bodies", "wrap"} <= set(level)
+    assert {"area_m2", "mass_kg"} <= set(info["material_used"])
+    assert info["format"]["material"] == "kraft" and info["format"]["band"]
+    assert info["valid"] is True and isinstance(info["margin"], float)
+
+
+def test_render_frames_and_close_twice(tiny):
+    env = make(tiny, render_mode="rgb_array")
+    env.reset()
+    before = env.render()
+    env.step(EXPENSIVE)
+    after = env.render()
+    for frame in (before, after):
+        assert frame.shape == (300, 480, 3) and frame.dtype == np.uint8
+    assert not np.array_equal(before, after)  # the wrap is drawn over the tested unit
+    env.close()
+    env.close()
+    with pytest.warns(UserWarning, match="render_mode"):
+        assert make(tiny).render() is None  # no render_mode
+
+
+def test_random_env_units_follow_the_seed():
+    env = WrapBenchRandomEnv(levels="target")
+    with pytest.raises(gym.error.ResetNeeded):
+        env.step(np.zeros(8, np.float32))
+    obs = {seed: env.reset(seed=seed)[0] for seed in range(6)}
+    again, _ = env.reset(seed=3)
+    np.testing.assert_array_equal(obs[3], again)
+    assert len({o.tobytes() for o in obs.values()}) == 6
+    for o in obs.values():
+        assert env.observation_space.contains(o)
+    units = [env.sample_unit(np.random.default_rng(s)) for s in range(40)]
+    assert all(1 <= u.stack.layers <= 3 and u.stack.pattern in ("columnar", "interlocked")
+               for u in units)
+    assert {u.stack.pattern for u in units} == {"columnar", "interlocked"}
+    for u in units:
+        for pair in ("sled_pallet", "pallet_bundle", "bundle_bundle"):
+            f, base = u.friction.pair(pair), env.base_friction.pair(pair)
+            assert abs(f.static / base.static - 1) <= 0.15 + 1e-2
+            assert f.kinetic == pytest.approx(0.8 * f.static, abs=1e-3)
+    with pytest.raises(TypeError):
+        WrapBenchRandomEnv(load="x.toml")
+    env.close()
+
+
+def test_random_env_via_gym_make():
+    env = gym.make(RANDOM_ID, levels="target", target_g=0.3)
+    obs, info = env.reset(seed=5)
+    assert env.observation_space.contains(obs) and info["load"].startswith("random")
+    env.close()
+
+
+def test_async_vector_env_steps_and_closes(tiny):
+    envs = gym.make_vec(ENV_ID, num_envs=2, vectorization_mode="async", load=str(tiny),
+                        levels="target", target_g=0.3)
+    try:
+        obs, _ = envs.reset(seed=0)
+        assert obs.shape == (2, 27)
+        obs, reward, terminated, truncated, info = envs.step(np.stack([CHEAP, EXPENSIVE]))
+        assert terminated.tolist() == [True, True] and truncated.tolist() == [False, False]
+        assert reward[0] > reward[1]
+    finally:
+        envs.close()
+
+
+def test_many_steps_do_not_grow_memory(tiny):
+    env = make(tiny, render_mode="rgb_array")
+    rng = np.random.default_rng(0)
+    env.reset(seed=0)
+    env.step(np.zeros(8, np.float32))
+    env.render()
+    before = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    for i in range(30):
+        env.reset(seed=i)
+        env.step(rng.uniform(-1, 1, 8).astype(np.float32))
+        if i % 10 == 0:
+            env.render()
+    grown_mb = (resource.getrusage(resource.RUSAGE_SELF).ru_maxrss - before) / 1024
+    env.close()
+    assert grown_mb < 50
+
+
+@pytest.mark.slow
+def test_random_env_passes_the_checkers():
+    env = gym.make(RANDOM_ID, levels="target", target_g=0.3)
+    gym_check_env(env.unwrapped, skip_render_check=False)
+    sb3_check_env(env.unwrapped)
+    env.close()

@@ -1,0 +1,518 @@
+"""Gymnasium environments of the virtual bench: choose a wrap format, see it tested.
+
+One step is one wrap format put through the bench (EUMOS 40509 sequence or only the target
+level) on a load unit; the episode then ends. `WrapBenchEnv` keeps one load unit,
+`WrapBenchRandomEnv` draws a new one at every reset. See the class docstrings for the spaces,
+the reward and the arguments.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict
+from pathlib import Path
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+from gymnasium.error import ResetNeeded
+
+from wrapenv.bench import BenchRun, SimSettings, run_levels
+from wrapenv.calibrated import Calibration
+from wrapenv.config import InputError
+from wrapenv.design import N_PARAMS, FormatSpace
+from wrapenv.eumos import Verdict
+from wrapenv.load import PAIRS, PATTERNS, Friction, FrictionPair, Layout, LoadUnit
+from wrapenv.profile import eumos_levels
+from wrapenv.render import Renderer, SideCamera, rest_state
+from wrapenv.trace import Trace
+from wrapenv.wrap import DEFAULT_TENSION_N, MATERIALS, Band, WrapFormat
+from wrapenv.wrap_physics import WrapNet
+
+#: The bundled example the env tests formats on when no load is given (a source checkout's
+#: examples/ folder, next to the package; recommender/cli.py's EXAMPLE_LOAD).
+DEFAULT_LOAD = Path(__file__).resolve().parents[2] / "examples" / "pet_2layer_columnar.toml"
+MATERIAL_KEYS: tuple[str, ...] = tuple(MATERIALS)  # ("kraft", "lldpe"): the one-hot's order
+LEVEL_MODES: tuple[str, ...] = ("eumos", "target")
+#: The reference wrap the material term is measured against: this many layers of web over the
+#: whole height of the load, round its outline (and round the pallet below the pallet's top).
+REFERENCE_LAYERS = 3
+
+# Scales of the observation's features (divisors), chosen so usual loads land in [0, 1].
+LAYERS_SCALE = 4.0
+BUNDLE_SIZE_SCALE_M = 0.5
+BUNDLE_MASS_SCALE_KG = 20.0
+PALLET_SIZE_SCALE_M = 1.2   # the EUR pallet's length
+LOAD_HEIGHT_SCALE_M = 2.0
+
+#: Observation features in order: (name, upper bound of the space). Every lower bound is 0.
+OBS_FEATURES: tuple[tuple[str, float], ...] = (
+    ("layers", 10.0),
+    ("bundle_length", 10.0),
+    ("bundle_width", 10.0),
+    ("bundle_height", 10.0),
+    ("bundle_mass", 10.0),
+    ("pallet_length", 10.0),
+    ("pallet_width", 10.0),
+    ("pallet_height", 10.0),
+    ("load_height", 10.0),
+    *((f"pattern_{p}", 1.0) for p in PATTERNS),
+    *((f"friction_{pair}_{kind}", 2.0) for pair in PAIRS for kind in ("static", "kinetic")),
+    ("target_g", 1.1),
+    *((f"friction_{pair}_{kind}_std", 2.0) for pair in PAIRS for kind in ("static", "kinetic")),
+    *((f"material_{m}", 1.0) for m in MATERIAL_KEYS),
+)
+OBS_NAMES: tuple[str, ...] = tuple(name for name, _ in OBS_FEATURES)
+
+# WrapBenchRandomEnv's distribution of load units.
+RANDOM_LAYERS = (1, 3)
+RANDOM_BUNDLE_LENGTH_M = (0.2, 0.4)
+RANDOM_BUNDLE_WIDTH_M = (0.15, 0.3)
+RANDOM_BUNDLE_HEIGHT_M = (0.2, 0.35)
+RANDOM_BUNDLE_MASS_KG = (4.0, 14.0)
+RANDOM_PATTERNS = ("columnar", "interlocked")
+RANDOM_FRICTION_SPREAD = 0.15
+RANDOM_KINETIC_RATIO = 0.8
+RANDOM_MAX_TRIES = 100
+
+#: Rendered frames: a small side camera (the recordings' camera model, wrapenv.render).
+RENDER_SIZE = (480, 300)
+
+
+class WrapBenchEnv(gym.Env):
+    """
+    ## Description
+    The virtual EUMOS 40509 acceleration bench (ESTL sled) as a one-step decision problem: the
+    agent chooses a wrap format (stretch paper or film, three bands) for a pallet load unit, the
+    bench wraps the unit, runs the test and judges it, and the reward says whether the unit
+    passed, by how much, and how much material the format used. Passing with less material
+    scores higher.
+
+    ## Action Space
+    `Box(-1, 1, (8,), float32)`, decoded by `wrapenv.design.FormatSpace` for the unit and the
+    `material` (the ranges are FormatSpace's; its module docstring is the reference):
+
+    | index | meaning                                   | -1 ... 1 maps to                         |
+    |-------|-------------------------------------------|------------------------------------------|
+    | 0-2   | layers of the bottom, middle, top band    | 0 ... 6 (rounded; bottom >= 1)           |
+    | 3     | top of the bottom band                    | pallet top + 0.05 m ... 45 % of the load |
+    | 4     | bottom of the top band                    | 55 % of the load ... top - 0.05 m        |
+    | 5-7   | web tension of the bottom, middle, top    | 5 % ... 50 % of one layer's yield force  |
+
+    The bottom band starts at the sled surface (it wraps the pallet: the anchor); a band with 0
+    layers is left out. Values outside [-1, 1] are clipped (5.0 acts as 1.0); a NaN (or
+    infinite) value raises `ValueError`, as does a vector of another length.
+
+    ## Observation Space
+    `Box(0, high, (27,), float32)`: features of the load unit and of the task, constant within
+    an episode (the "state" is the unit the format is for). Scales are divisors:
+
+    | index | feature                                                     | scale         |
+    |-------|-------------------------------------------------------------|---------------|
+    | 0     | layers of bundles                                           | / 4           |
+    | 1-3   | bundle length, width, height                                | / 0.5 m       |
+    | 4     | bundle mass                                                 | / 20 kg       |
+    | 5-7   | pallet length, width, height                                | / 1.2 m       |
+    | 8     | load height (sled surface to top of the load)               | / 2 m         |
+    | 9-11  | pattern one-hot: columnar, interlocked, explicit            | 0 or 1        |
+    | 12-17 | friction static, kinetic of sled_pallet, pallet_bundle,     | coefficient   |
+    |       | bundle_bundle (as simulated: calibration applied)           |               |
+    | 18    | target level                                                | g             |
+    | 19-24 | calibration standard deviation of each of 12-17             | coefficient   |
+    |       | (0 without a calibration, or for a pair it does not give)   |               |
+    | 25-26 | material one-hot: kraft, lldpe                              | 0 or 1        |
+
+    Upper bounds of the space: 10 for indexes 0-8, 2 for friction and its std, 1.1 g for the
+    target, 1 for the one-hots (`OBS_FEATURES`); a load whose features fall outside is rejected
+    at construction with `InputError`.
+
+    ## Rewards
+    With `m` = `Verdict.margin` (the smallest of 1 - figure / limit over the elastic, permanent
+    and lowest-20-cm displacements, over the levels run; -1 at best with damage, -1 for an
+    invalid simulation) and `ratio` = material mass of the format / reference mass (the mass of
+    3 layers of the material over the whole load height, round the pallet below its top and
+    round the load's outline above it, `reference_mass_kg`):
+
+        reward = reward_verdict + reward_material
+        reward_verdict  =  1 + min(m, 0.5)    if the unit passed every level run
+                          -1 + max(m, -1)     otherwise (failed, damaged, or invalid)
+        reward_material = -material_weight * ratio
+
+    `reward_verdict` is in [1, 1.5] for a pass (m >= 0) and in [-2, -1] for a failure (m <= 0);
+    the cap at 0.5 stops rewarding margin beyond half the limits, so among safe formats the
+    cheaper wins. `ratio` is in (0, 2] (at most 6 layers everywhere), so with
+    `material_weight <= 1` every pass scores above every failure. A simulation that blew up
+    (`info["valid"] is False`) is rewarded as a failure with m = -1. The two terms are returned
+    in `info["reward_terms"]` (keys "verdict" and "material").
+
+    ## Starting State
+    The load unit stacked on the still sled, unwrapped. `WrapBenchEnv` has no randomness: every
+    reset returns the same observation. (`WrapBenchRandomEnv` draws a new unit from
+    `self.np_random`.)
+
+    ## Episode End
+    After one step: `terminated=True`, `truncated=False`. Stepping again without a reset tests
+    another format on the same unit (the env keeps no state between steps), but agents should
+    reset. The ids are registered without a time limit, so `truncated` stays False under
+    `gymnasium.make` too.
+
+    ## Info
+    `reset`: "load" (the unit's name), "reference_mass_kg". `step`: "format" (the WRAP.toml
+    content of the decoded format, before calibration scaling), "verdict" (the `wrapbench
+    simulate --json` verdict), "material_used" (area_m2, mass_kg, length_m), "passed",
+    "margin", "valid", "material_ratio", "reward_terms".
+
+    ## Arguments
+    `gymnasium.make("wrapenv/WrapBench-v0", **kwargs)`, all keyword-only and checked at
+    construction (`InputError`, a `ValueError`, for bad values; `TypeError` for wrong types):
+
+    | argument          | default                           | meaning                              |
+    |-------------------|-----------------------------------|--------------------------------------|
+    | `load`            | examples/pet_2layer_columnar.toml | LOAD.toml path or a `LoadUnit`       |
+    | `calibration`     | None                              | CAL.json path, `Calibration` or None |
+    | `material`        | "kraft"                           | "kraft" or "lldpe"                   |
+    | `target_g`        | 0.5                               | target level, g (bench max 1.019)    |
+    | `start_g`         | 0.2                               | first level of the EUMOS sequence    |
+    | `levels`          | "eumos"                           | "eumos": start_g, +0.1 g ... target, |
+    |                   |                                   | stop at the first failure (the       |
+    |                   |                                   | spec); "target": the target only     |
+    |                   |                                   | (3-4x faster, for training)          |
+    | `material_weight` | 1.0                               | weight of the material term (>= 0)   |
+    | `render_mode`     | None                              | None or "rgb_array"                  |
+    | `settings`        | `SimSettings()`                   | numerical settings of the bench      |
+
+    A calibration replaces the load's friction by its pairs (`Calibration.apply`) and scales the
+    web's stiffness and wrapping tension (`stiffness_scale`, `tension_scale`) in the simulation.
+    Pass paths rather than objects to vector envs (`gymnasium.make_vec(..., load="x.toml")`):
+    they pickle small and read the same file in every worker.
+
+    `render()` ("rgb_array") returns a 480 x 300 RGB uint8 frame from the recordings' side
+    camera: the unit as stacked before a step, else the last tested unit in the final state of
+    its last level with the wrap drawn over it (elements at the heights the verdict reports
+    torn are drawn torn).
+
+    ## Version History
+    * v0: initial version (one-step episodes, 8-parameter three-band formats, 27 features).
+    """
+
+    metadata = {"render_modes": ["rgb_array"], "render_fps": 20}
+    #: True: the unit is drawn at every reset (none exists before the first one).
+    draws_units = False
+
+    def __init__(
+        self,
+        *,
+        load: str | Path | LoadUnit | None = None,
+        calibration: str | Path | Calibration | None = None,
+        material: str = "kraft",
+        target_g: float = 0.5,
+        start_g: float = 0.2,
+        levels: str = "eumos",
+        material_weight: float = 1.0,
+        render_mode: str | None = None,
+        settings: SimSettings | None = None,
+    ) -> None:
+        super().__init__()
+        self.metadata = {"render_modes": ["rgb_array"], "render_fps": 20}
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise InputError("arguments", "render_mode",
+                             f"must be None or 'rgb_array' (got {render_mode!r})")
+        self.render_mode = render_mode
+        if not isinstance(material, str) or material not in MATERIALS:
+            raise InputError("arguments", "material",
+                             f"must be one of {', '.join(map(repr, MATERIALS))} (got {material!r})")
+        self.material = material
+        self.target_g, self.start_g = _level("target_g", target_g), _level("start_g", start_g)
+        try:
+            self._sequence = eumos_levels(self.target_g, self.start_g)
+        except InputError as exc:
+            field = "target_g" if exc.field == "--target" else "start_g"
+            raise InputError("arguments", field, exc.message) from None
+        if levels not in LEVEL_MODES:
+            raise InputError("arguments", "levels",
+                             f"must be one of {', '.join(map(repr, LEVEL_MODES))} (got {levels!r})")
+        self.levels = levels
+        if (isinstance(material_weight, bool) or not isinstance(material_weight, int | float)
+                or not math.isfinite(material_weight) or material_weight < 0):
+            raise InputError("arguments", "material_weight",
+                             f"must be a finite number >= 0 (got {material_weight!r})")
+        self.material_weight = float(material_weight)
+        if settings is None:
+            settings = SimSettings()
+        if not isinstance(settings, SimSettings):
+            raise TypeError(f"settings must be a wrapenv.bench.SimSettings (got {settings!r})")
+        self.settings = settings
+        self.calibration = _calibration(calibration)
+
+        self.action_space = spaces.Box(-1.0, 1.0, (N_PARAMS,), np.float32)
+        high = np.array([h for _, h in OBS_FEATURES], np.float32)
+        self.observation_space = spaces.Box(np.zeros_like(high), high, dtype=np.float32)
+
+        self._renderer: Renderer | None = None
+        self._last: tuple[Trace, WrapFormat] | None = None
+        self.unit: LoadUnit | None = None  # the unit as simulated (calibration applied)
+        self.layout: Layout | None = None
+        self.format_space: FormatSpace | None = None
+        self.reference_mass_kg = math.nan
+        self._obs = np.zeros(len(OBS_FEATURES), np.float32)
+        if not self.draws_units:
+            self._set_unit(self._calibrated(_load_unit(load)))
+
+    # -- the unit -------------------------------------------------------------------------
+    def _calibrated(self, load: LoadUnit) -> LoadUnit:
+        return self.calibration.apply(load) if self.calibration is not None else load
+
+    def _set_unit(self, unit: LoadUnit) -> None:
+        """Make `unit` (friction as simulated) the unit formats are tested on."""
+        layout = unit.layout()
+        space = FormatSpace.for_layout(layout, self.material)
+        obs = self._features(unit, layout)
+        outside = np.flatnonzero(~((obs >= 0) & (obs <= self.observation_space.high)))
+        if len(outside):
+            i = int(outside[0])
+            raise InputError(unit.name, "load", f"observation feature {i} ({OBS_NAMES[i]}) is "
+                             f"{obs[i]:.3f}, outside [0, {self.observation_space.high[i]:g}]")
+        reference = WrapFormat(space.material, space.web_width_m,
+                               (Band(0.0, layout.load_height_m, REFERENCE_LAYERS,
+                                     DEFAULT_TENSION_N[self.material]),), self.material)
+        if self.layout is not None and self.layout != layout and self._renderer is not None:
+            self._renderer.close()
+            self._renderer = None
+        self.unit, self.layout, self.format_space = unit, layout, space
+        self.reference_mass_kg = reference.material_used_on(layout).mass_kg
+        self._obs = obs
+        self._last = None
+
+    def _features(self, unit: LoadUnit, layout: Layout) -> np.ndarray:
+        b, p = unit.bundle, unit.pallet
+        cal = self.calibration.friction if self.calibration is not None else {}
+        friction, std = [], []
+        for pair in PAIRS:
+            fp = unit.friction.pair(pair)
+            friction += [fp.static, fp.kinetic]
+            c = cal.get(pair)
+            std += [c.static_std, c.kinetic_std] if c is not None else [0.0, 0.0]
+        values = [
+            unit.stack.layers / LAYERS_SCALE,
+            b.length_m / BUNDLE_SIZE_SCALE_M,
+            b.width_m / BUNDLE_SIZE_SCALE_M,
+            b.height_m / BUNDLE_SIZE_SCALE_M,
+            b.mass_kg / BUNDLE_MASS_SCALE_KG,
+            p.length_m / PALLET_SIZE_SCALE_M,
+            p.width_m / PALLET_SIZE_SCALE_M,
+            p.height_m / PALLET_SIZE_SCALE_M,
+            layout.load_height_m / LOAD_HEIGHT_SCALE_M,
+            *(float(unit.stack.pattern == pattern) for pattern in PATTERNS),
+            *friction,
+            self.target_g,
+            *std,
+            *(float(self.material == m) for m in MATERIAL_KEYS),
+        ]
+        return np.array(values, np.float32)
+
+    def _require_unit(self) -> None:
+        if self.unit is None:
+            raise ResetNeeded("call reset() before step() or render(): the load unit is drawn "
+                              "at reset")
+
+    # -- Gymnasium API --------------------------------------------------------------------
+    def reset(self, *, seed: int | None = None,
+              options: dict[str, Any] | None = None) -> tuple[np.ndarray, dict[str, Any]]:
+        super().reset(seed=seed)
+        self._new_unit()
+        self._last = None
+        assert self.unit is not None
+        return self._obs.copy(), {"load": self.unit.name,
+                                  "reference_mass_kg": self.reference_mass_kg}
+
+    def _new_unit(self) -> None:
+        """The unit of a new episode: the same one (here), a drawn one (WrapBenchRandomEnv)."""
+
+    def decode(self, action: np.ndarray) -> WrapFormat:
+        """The wrap format an action stands for on the current unit (clipped; NaN raises)."""
+        self._require_unit()
+        assert self.format_space is not None
+        return self.format_space.decode(action)
+
+    def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
+        wrap = self.decode(action)
+        assert self.unit is not None and self.layout is not None
+        simulated = wrap
+        if self.calibration is not None:
+            simulated = wrap.scaled(self.calibration.stiffness_scale,
+                                    self.calibration.tension_scale)
+        sequence = self._sequence if self.levels == "eumos" else [self.target_g]
+        run: BenchRun = run_levels(self.unit, sequence, self.settings, stop_at_failure=True,
+                                   wrap=simulated)
+        verdict = run.verdict
+        used = wrap.material_used_on(self.layout)
+        ratio = used.mass_kg / self.reference_mass_kg
+        terms = reward_terms(verdict, ratio, self.material_weight)
+        self._last = (run.traces[-1], simulated)
+        info = {
+            "format": wrap.to_dict(),
+            "verdict": verdict.to_json(),
+            "material_used": asdict(used),
+            "passed": verdict.passed,
+            "margin": float(verdict.margin),
+            "valid": verdict.valid,
+            "material_ratio": ratio,
+            "reward_terms": terms,
+        }
+        return self._obs.copy(), float(sum(terms.values())), True, False, info
+
+    def render(self) -> np.ndarray | None:
+        if self.render_mode is None:
+            gym.logger.warn("render() called without a render_mode; make the env with "
+                            "render_mode='rgb_array'")
+            return None
+        self._require_unit()
+        layout = self.layout
+        assert layout is not None
+        if self._renderer is None:
+            self._renderer = Renderer(layout, _camera(layout))
+        if self._last is None:
+            pos, rot = rest_state(layout)
+            return self._renderer.frame(pos[0], rot[0], pos[1:], rot[1:])
+        trace, wrap = self._last
+        finite = np.flatnonzero([np.isfinite(trace.pallet_pos[i]).all()
+                                 and np.isfinite(trace.bundle_pos[i]).all()
+                                 and np.isfinite(trace.bundle_rot[i]).all()
+                                 for i in range(len(trace.t_s))])
+        index = int(finite[-1]) if len(finite) else 0
+        return self._renderer.trace_frame(trace, index, _torn_net(wrap, layout, trace))
+
+    def close(self) -> None:
+        if self._renderer is not None:
+            self._renderer.close()
+            self._renderer = None
+        super().close()
+
+
+class WrapBenchRandomEnv(WrapBenchEnv):
+    """
+    ## Description
+    `WrapBenchEnv` on a new load unit at every reset, drawn from `self.np_random`, for policies
+    that generalise over units. Everything else (spaces, reward, info, rendering) is as in
+    `WrapBenchEnv`; the observation tells the policy which unit it is wrapping.
+
+    ## Starting State
+    A unit drawn uniformly: EUR pallet; 1-3 layers; bundle length 0.2-0.4 m, width
+    0.15-0.3 m, height 0.2-0.35 m (rounded to mm), mass 4-14 kg (rounded to 0.1 kg); pattern
+    columnar or interlocked (a draw that `LoadUnit` rejects, e.g. an interlocked layer that
+    would overhang or rest on nothing, is drawn again); static friction of each pair within
+    +-15 % of its default value (or of the calibrated one when a calibration is given), kinetic
+    = 0.8 x static. The same seed gives the same sequence of units.
+
+    ## Arguments
+    As `WrapBenchEnv`, without `load`. The material is fixed per env instance.
+
+    ## Version History
+    * v0: initial version.
+    """
+
+    draws_units = True
+
+    def __init__(self, **kwargs: Any) -> None:
+        if "load" in kwargs:
+            raise TypeError("WrapBenchRandomEnv draws its load units; it takes no `load`")
+        super().__init__(**kwargs)
+        base = Friction()
+        if self.calibration is not None:
+            pairs = {k: FrictionPair(p.static, p.kinetic)
+                     for k, p in self.calibration.friction.items()}
+            base = Friction(**{**{k: base.pair(k) for k in PAIRS}, **pairs})
+        self.base_friction = base
+
+    def _new_unit(self) -> None:
+        self._set_unit(self.sample_unit(self.np_random))
+
+    def sample_unit(self, rng: np.random.Generator) -> LoadUnit:
+        """A load unit drawn from the distribution of the class docstring."""
+        for _ in range(RANDOM_MAX_TRIES):
+            data = {
+                "name": "random unit",
+                "pallet": {"preset": "EUR"},
+                "bundle": {
+                    "length_m": round(float(rng.uniform(*RANDOM_BUNDLE_LENGTH_M)), 3),
+                    "width_m": round(float(rng.uniform(*RANDOM_BUNDLE_WIDTH_M)), 3),
+                    "height_m": round(float(rng.uniform(*RANDOM_BUNDLE_HEIGHT_M)), 3),
+                    "mass_kg": round(float(rng.uniform(*RANDOM_BUNDLE_MASS_KG)), 1),
+                },
+                "stack": {
+                    "layers": int(rng.integers(RANDOM_LAYERS[0], RANDOM_LAYERS[1] + 1)),
+                    "pattern": str(RANDOM_PATTERNS[int(rng.integers(len(RANDOM_PATTERNS)))]),
+                },
+                "friction": {},
+            }
+            for pair in PAIRS:
+                spread = rng.uniform(1 - RANDOM_FRICTION_SPREAD, 1 + RANDOM_FRICTION_SPREAD)
+                static = round(float(self.base_friction.pair(pair).static * spread), 3)
+                data["friction"][pair] = {"static": static,
+                                          "kinetic": round(RANDOM_KINETIC_RATIO * static, 3)}
+            b, s = data["bundle"], data["stack"]
+            data["name"] = (f"random: {s['layers']} x {s['pattern']}, bundle "
+                            f"{b['length_m']:.3f} x {b['width_m']:.3f} x {b['height_m']:.3f} m, "
+                            f"{b['mass_kg']:.1f} kg")
+            try:
+                return LoadUnit.from_dict(data, source="random unit")
+            except InputError:
+                continue
+        raise RuntimeError(f"no valid load unit in {RANDOM_MAX_TRIES} draws")
+
+
+def reward_terms(verdict: Verdict, material_ratio: float,
+                 material_weight: float) -> dict[str, float]:
+    """The two reward terms of a tested format (see `WrapBenchEnv`, "Rewards")."""
+    margin = float(verdict.margin)
+    if verdict.passed:
+        term = 1.0 + min(margin, 0.5)
+    else:
+        term = -1.0 + max(margin, -1.0)
+    return {"verdict": term, "material": -material_weight * material_ratio}
+
+
+def _level(name: str, value: Any) -> float:
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        raise InputError("arguments", name, f"must be a number of g (got {value!r})")
+    return float(value)
+
+
+def _load_unit(load: str | Path | LoadUnit | None) -> LoadUnit:
+    if load is None:
+        return LoadUnit.from_toml(DEFAULT_LOAD)
+    if isinstance(load, LoadUnit):
+        return load
+    if isinstance(load, str | Path):
+        return LoadUnit.from_toml(load)
+    raise TypeError(f"load must be a LOAD.toml path or a LoadUnit (got {load!r})")
+
+
+def _calibration(calibration: str | Path | Calibration | None) -> Calibration | None:
+    if calibration is None or isinstance(calibration, Calibration):
+        return calibration
+    if isinstance(calibration, str | Path):
+        return Calibration.from_json(calibration)
+    raise TypeError(f"calibration must be a CAL.json path, a Calibration or None "
+                    f"(got {calibration!r})")
+
+
+def _camera(layout: Layout) -> SideCamera:
+    """A `RENDER_SIZE` side camera whose scale fits the unit (with room for it to move)."""
+    width, height = RENDER_SIZE
+    origin = (width / 2, 0.85 * height)
+    across = 0.8 * width / (layout.pallet_size_m[0] + 0.2)
+    up = (origin[1] - 0.08 * height) / (layout.load_height_m + 0.05)
+    return SideCamera(width, height, float(math.floor(min(across, up))), origin)
+
+
+def _torn_net(wrap: WrapFormat, layout: Layout, trace: Trace) -> WrapNet:
+    """The wrap net to draw: a trace records where the wrap tore (heights), not which element,
+    so every element at a reported height is drawn torn."""
+    net = WrapNet(wrap, layout)
+    if trace.wrap is not None and trace.wrap.torn:
+        torn = np.array(trace.wrap.torn_at_m)
+        for elements in (net.rings, net.panels):
+            elements.torn |= np.isin(np.round(elements.height_m, 4), torn)
+    return net
