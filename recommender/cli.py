@@ -93,6 +93,9 @@ def build_parser() -> argparse.ArgumentParser:
     rec.add_argument("--json", type=Path, metavar="OUT", help="write the result as JSON")
     rec.add_argument("--wrap-out", type=Path, metavar="WRAP.toml",
                      help="write the recommended format as a WRAP.toml")
+    rec.add_argument("--report", type=Path, metavar="DIR",
+                     help="write displacement.png, search.png and test.mp4 (the recommended "
+                          "format's test at the target level) into DIR")
     return parser
 
 
@@ -183,6 +186,8 @@ def _recommend(args: argparse.Namespace) -> int:
     _output_dir_ok(args.json, "--json")
     _output_dir_ok(args.wrap_out, "--wrap-out")
     _output_dir_ok(args.checkpoint, "--checkpoint")
+    if args.report is not None and args.report.exists() and not args.report.is_dir():
+        raise InputError(str(args.report), "--report", "exists and is not a folder")
     settings = SearchSettings(target_g=args.target, material=args.material,
                               samples=args.samples, margin_goal=args.margin,
                               max_candidates=args.budget, seed=args.seed, workers=args.workers,
@@ -211,20 +216,21 @@ def _recommend(args: argparse.Namespace) -> int:
     chosen = None
     for candidate in state.ranked(settings.margin_goal)[:VERIFY_CANDIDATES]:
         # the search tried the target level; the recommendation must pass the whole sequence
-        verdict, rate = verify(problem, candidate.wrap, verdict_samples, workers=args.workers)
-        if verdict.passed:
-            chosen, best = (verdict, rate), candidate
+        run, rate = verify(problem, candidate.wrap, verdict_samples, workers=args.workers)
+        if run.verdict.passed:
+            chosen, best = (run, rate), candidate
             break
     args.checkpoint.unlink(missing_ok=True)
     if chosen is None:
         print(f"no format passed the EUMOS sequence up to {args.target:.2f} g after "
               f"{len(state.history)} candidates x {args.samples} samples")
         return 1
-    verdict, rate = chosen
+    run, rate = chosen
+    verdict = run.verdict
     layout = problem.load.layout()
     used = best.wrap.material_used_on(layout)
     print(_recommendation(load, best, rate, verdict_samples, args.target))
-    print(_table(problem.load, BenchRun(verdict, ()), None))
+    print(_table(problem.load, run, None))
     print(_wrap_summary(best.wrap, layout))
     print(f"searched {len(state.history)} candidates x {args.samples} samples in "
           f"{time.perf_counter() - t0:.0f} s ({args.workers} workers)")
@@ -237,7 +243,19 @@ def _recommend(args: argparse.Namespace) -> int:
         write_atomic(args.json, (json.dumps(out, indent=2) + "\n").encode())
     if args.wrap_out:
         write_atomic(args.wrap_out, best.wrap.to_toml().encode())
+    if args.report:
+        _write_report(args.report, problem, run, best, state, settings.margin_goal)
     return 0
+
+
+def _write_report(folder: Path, problem, run: BenchRun, best, state, margin_goal: float) -> None:
+    from recommender.report import plot_displacements, plot_search, write_video
+
+    folder.mkdir(parents=True, exist_ok=True)
+    plot_displacements(run, folder / "displacement.png", title=problem.load.name)
+    plot_search(state.history, best, folder / "search.png", margin_goal)
+    write_video(run.traces[-1], problem.load.layout(), problem.simulated(best.wrap),
+                folder / "test.mp4")
 
 
 def _recommendation(load: LoadUnit, best, rate: float, samples: int, target_g: float) -> str:

@@ -1,4 +1,5 @@
-"""Plots of bench runs for people: displacement against time with the EUMOS limits drawn."""
+"""Reports for people: displacement against time with the EUMOS limits drawn, the search's
+material against margin, and a video of a simulated test."""
 
 from __future__ import annotations
 
@@ -8,11 +9,17 @@ from pathlib import Path
 import matplotlib
 
 matplotlib.use("Agg")
+import cv2  # noqa: E402
 import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
 
 from wrapenv.bench import BenchRun  # noqa: E402
 from wrapenv.config import write_atomic  # noqa: E402
 from wrapenv.eumos import ELASTIC_LIMIT_FRACTION, PERMANENT_LIMIT_FRACTION  # noqa: E402
+from wrapenv.load import Layout  # noqa: E402
+from wrapenv.render import Renderer, fitting_camera, torn_net  # noqa: E402
+from wrapenv.trace import Trace  # noqa: E402
+from wrapenv.wrap import WrapFormat  # noqa: E402
 
 
 def plot_displacements(run: BenchRun, path: str | Path, title: str = "") -> None:
@@ -41,3 +48,48 @@ def plot_displacements(run: BenchRun, path: str | Path, title: str = "") -> None
     fig.savefig(buf, format="png", dpi=110)
     plt.close(fig)
     write_atomic(path, buf.getvalue())
+
+
+def plot_search(history: list, best, path: str | Path, margin_goal: float) -> None:
+    """Every candidate of a search: material against its worst sample's margin, robust passes
+    in green, the recommendation circled: where the search found the cheap side of safe."""
+    fig, ax = plt.subplots(figsize=(7, 4.5))
+    passed = [e for e in history if e.robust_pass]
+    failed = [e for e in history if not e.robust_pass]
+    for group, colour, label in ((failed, "tab:red", "fails in a sample"),
+                                 (passed, "tab:green", "passes in every sample")):
+        if group:
+            ax.scatter([e.mass_kg for e in group], [max(e.margin, -1.0) for e in group],
+                       s=18, c=colour, label=label, alpha=0.8)
+    if best is not None:
+        ax.scatter([best.mass_kg], [best.margin], s=160, facecolors="none", edgecolors="black",
+                   label="recommended")
+    ax.axhline(margin_goal, color="grey", ls="--", lw=0.8, label="margin goal")
+    ax.axhline(0.0, color="black", lw=0.6)
+    ax.set_xlabel("material [kg]")
+    ax.set_ylabel("EUMOS margin of the worst sample")
+    ax.set_title(f"search: {len(history)} candidates", fontsize=10)
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=110)
+    plt.close(fig)
+    write_atomic(path, buf.getvalue())
+
+
+def write_video(trace: Trace, layout: Layout, wrap: WrapFormat | None, path: str | Path,
+                size: tuple[int, int] = (960, 600), fps: int = 20) -> None:
+    """An MP4 of one simulated level from the side camera, at the recordings' 20 fps."""
+    path = Path(path)
+    step = max(1, round(1 / (fps * float(np.median(np.diff(trace.t_s))))))
+    net = torn_net(wrap, layout, trace) if wrap is not None else None
+    tmp = path.with_name(f".{path.stem}.tmp.mp4")
+    writer = cv2.VideoWriter(str(tmp), cv2.VideoWriter_fourcc(*"mp4v"), fps, size)
+    try:
+        with Renderer(layout, fitting_camera(layout, *size)) as renderer:
+            for i in range(0, len(trace.t_s), step):
+                frame = renderer.trace_frame(trace, i, net)
+                writer.write(cv2.cvtColor(frame, cv2.COLOR_RGB2BGR))
+    finally:
+        writer.release()
+    tmp.replace(path)

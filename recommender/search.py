@@ -25,11 +25,10 @@ from pathlib import Path
 import cma
 import numpy as np
 
-from wrapenv.bench import SimSettings, run_levels
+from wrapenv.bench import BenchRun, SimSettings, run_levels
 from wrapenv.calibrated import Calibration
 from wrapenv.config import InputError, write_atomic
-from wrapenv.design import N_PARAMS, FormatSpace
-from wrapenv.eumos import Verdict
+from wrapenv.design import FormatSpace
 from wrapenv.load import PAIRS, FrictionPair, LoadUnit
 from wrapenv.profile import PulseProfile, eumos_levels
 from wrapenv.wrap import Band, WrapFormat
@@ -41,6 +40,8 @@ MASS_SPREAD = 0.05
 #: Objective penalty per unit of margin shortfall: one unit of margin outweighs the material of
 #: ten full 3-layer wraps, so no failing candidate ever beats a passing one.
 PENALTY_PER_MARGIN = 10.0
+#: Default starting point of the search: about one layer in each band (see `start`).
+LIGHT_START = np.array([-0.6, -0.6, -0.6, 0.0, 0.0, 0.0, 0.0, 0.0])
 #: Objective per unit of mean tension (as a fraction of the searched range).
 TENSION_PRICE = 0.05
 
@@ -190,8 +191,10 @@ class RobustSearch:
         self.problem, self.checkpoint = problem, checkpoint
 
     def start(self, x0: np.ndarray | None = None) -> SearchState:
+        """A new search from `x0` (default: one layer per band, band heights and tensions in the
+        middle of their ranges: the light side, where the cheapest safe format usually is)."""
         s = self.problem.settings
-        x0 = np.zeros(N_PARAMS) if x0 is None else np.asarray(x0, float)
+        x0 = LIGHT_START if x0 is None else np.asarray(x0, float)
         es = cma.CMAEvolutionStrategy(x0, s.sigma0, {
             "bounds": [-1.0, 1.0], "popsize": s.popsize, "seed": s.seed + 1,
             "verbose": -9, "maxfevals": s.max_candidates,
@@ -245,7 +248,7 @@ class RobustSearch:
 
 
 def verify(problem: Problem, wrap: WrapFormat, samples: int, seed: int = 12345,
-           workers: int = 1) -> tuple[Verdict, float]:
+           workers: int = 1) -> tuple[BenchRun, float]:
     """The EUMOS sequence on the nominal load, and the pass rate at the target over `samples`
     fresh samples of the uncertain parameters."""
     run = run_levels(problem.load, eumos_levels(problem.settings.target_g), problem.settings.sim,
@@ -254,4 +257,4 @@ def verify(problem: Problem, wrap: WrapFormat, samples: int, seed: int = 12345,
         results = list(pool.map(_trial, [problem] * samples, [wrap] * samples,
                                 [seed + k for k in range(samples)]))
     rate = sum(1 for passed, _ in results if passed) / samples if samples else math.nan
-    return run.verdict, rate
+    return run, rate

@@ -11,6 +11,7 @@ out, so a tear shows as a gap.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -21,6 +22,7 @@ from wrapenv.bench import SLED_MARGIN_M, STOPPER_SIZE_M
 from wrapenv.bullet import BulletWorld
 from wrapenv.load import Layout
 from wrapenv.trace import Trace
+from wrapenv.wrap import WrapFormat
 from wrapenv.wrap_physics import WrapNet
 
 SLED_RGBA = (0.35, 0.35, 0.4, 1.0)
@@ -344,3 +346,22 @@ def render_trace(trace: Trace, layout: Layout, camera: SideCamera | None = None,
     """The frame of one sample of a `Trace` (default: the last, the unit after the test)."""
     with Renderer(layout, camera) as renderer:
         return renderer.trace_frame(trace, sample_index, wrap_net)
+
+
+def fitting_camera(layout: Layout, width: int, height: int) -> SideCamera:
+    """A side camera of this size whose scale fits the unit, with room for it to move."""
+    origin = (width / 2, 0.85 * height)
+    across = 0.8 * width / (layout.pallet_size_m[0] + 0.2)
+    up = (origin[1] - 0.08 * height) / (layout.load_height_m + 0.05)
+    return SideCamera(width, height, float(math.floor(min(across, up))), origin)
+
+
+def torn_net(wrap: WrapFormat, layout: Layout, trace: Trace) -> WrapNet:
+    """The wrap net to draw after a run: a trace records where the wrap tore (heights), not
+    which element, so every element at a reported height is drawn torn."""
+    net = WrapNet(wrap, layout)
+    if trace.wrap is not None and trace.wrap.torn:
+        torn = np.array(trace.wrap.torn_at_m)
+        for elements in (net.rings, net.panels):
+            elements.torn |= np.isin(np.round(elements.height_m, 4), torn)
+    return net

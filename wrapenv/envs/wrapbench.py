@@ -25,10 +25,9 @@ from wrapenv.design import N_PARAMS, FormatSpace
 from wrapenv.eumos import Verdict
 from wrapenv.load import PAIRS, PATTERNS, Friction, FrictionPair, Layout, LoadUnit
 from wrapenv.profile import eumos_levels
-from wrapenv.render import Renderer, SideCamera, rest_state
+from wrapenv.render import Renderer, fitting_camera, rest_state, torn_net
 from wrapenv.trace import Trace
 from wrapenv.wrap import DEFAULT_TENSION_N, MATERIALS, Band, WrapFormat
-from wrapenv.wrap_physics import WrapNet
 
 #: The bundled example the env tests formats on when no load is given (a source checkout's
 #: examples/ folder, next to the package; recommender/cli.py's EXAMPLE_LOAD).
@@ -371,7 +370,7 @@ class WrapBenchEnv(gym.Env):
         layout = self.layout
         assert layout is not None
         if self._renderer is None:
-            self._renderer = Renderer(layout, _camera(layout))
+            self._renderer = Renderer(layout, fitting_camera(layout, *RENDER_SIZE))
         if self._last is None:
             pos, rot = rest_state(layout)
             return self._renderer.frame(pos[0], rot[0], pos[1:], rot[1:])
@@ -381,7 +380,7 @@ class WrapBenchEnv(gym.Env):
                                  and np.isfinite(trace.bundle_rot[i]).all()
                                  for i in range(len(trace.t_s))])
         index = int(finite[-1]) if len(finite) else 0
-        return self._renderer.trace_frame(trace, index, _torn_net(wrap, layout, trace))
+        return self._renderer.trace_frame(trace, index, torn_net(wrap, layout, trace))
 
     def close(self) -> None:
         if self._renderer is not None:
@@ -496,23 +495,3 @@ def _calibration(calibration: str | Path | Calibration | None) -> Calibration | 
         return Calibration.from_json(calibration)
     raise TypeError(f"calibration must be a CAL.json path, a Calibration or None "
                     f"(got {calibration!r})")
-
-
-def _camera(layout: Layout) -> SideCamera:
-    """A `RENDER_SIZE` side camera whose scale fits the unit (with room for it to move)."""
-    width, height = RENDER_SIZE
-    origin = (width / 2, 0.85 * height)
-    across = 0.8 * width / (layout.pallet_size_m[0] + 0.2)
-    up = (origin[1] - 0.08 * height) / (layout.load_height_m + 0.05)
-    return SideCamera(width, height, float(math.floor(min(across, up))), origin)
-
-
-def _torn_net(wrap: WrapFormat, layout: Layout, trace: Trace) -> WrapNet:
-    """The wrap net to draw: a trace records where the wrap tore (heights), not which element,
-    so every element at a reported height is drawn torn."""
-    net = WrapNet(wrap, layout)
-    if trace.wrap is not None and trace.wrap.torn:
-        torn = np.array(trace.wrap.torn_at_m)
-        for elements in (net.rings, net.panels):
-            elements.torn |= np.isin(np.round(elements.height_m, 4), torn)
-    return net

@@ -1,0 +1,262 @@
+"""A PPO policy that proposes a wrap format for a load unit at once, trained on random units.
+
+The robust search (`recommender.search`) spends hundreds of simulations on one unit; a policy
+trained once on `wrapenv/WrapBenchRandom-v0` (a new random unit every one-step episode) answers
+for any unit in milliseconds, and the caller then verifies its proposal in simulation. The
+episode is a contextual bandit: the observation describes the unit, the action is the format
+vector of `wrapenv.design.FormatSpace`, the reward is the env's (pass, margin, material).
+
+`train` writes into one folder: ``policy.zip`` (the final policy), ``checkpoints/`` (SB3
+checkpoints every `TrainSettings.checkpoint_every` timesteps, so a long run that is stopped still
+leaves a usable policy) and ``log.csv`` (one row per episode, flushed as it goes, so progress can
+be followed and plotted while training runs).
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+import os
+from dataclasses import dataclass
+from pathlib import Path
+from typing import IO, Any
+
+import numpy as np
+import torch
+from stable_baselines3 import PPO
+from stable_baselines3.common.callbacks import BaseCallback, CallbackList, CheckpointCallback
+from stable_baselines3.common.env_util import make_vec_env
+from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv
+
+import wrapenv  # noqa: F401  (registers the env ids used by gym.make)
+from wrapenv.calibrated import Calibration
+from wrapenv.design import N_PARAMS
+from wrapenv.envs import WrapBenchEnv, WrapBenchRandomEnv
+from wrapenv.load import LoadUnit
+from wrapenv.wrap import WrapFormat
+
+ENV_ID = "wrapenv/WrapBenchRandom-v0"
+POLICY_FILE = "policy.zip"
+CHECKPOINT_DIR = "checkpoints"
+CHECKPOINT_PREFIX = "policy"  # SB3 names them policy_<timesteps>_steps.zip
+LOG_FILE = "log.csv"
+LOG_COLUMNS = ("timesteps", "reward", "passed", "margin", "material_kg", "valid")
+#: Second word of the held-out units' seed: the training envs are seeded with plain integers
+#: (seed, seed + 1, ...), whose streams a two-word seed sequence with a non-zero second word
+#: never reproduces, so held-out units are never units the policy was trained on.
+HELD_OUT_STREAM = 40509
+
+
+@dataclass(frozen=True)
+class TrainSettings:
+    """PPO training run; the defaults are a short run that fits a 2-core machine."""
+
+    timesteps: int = 2048
+    n_envs: int = 2                # vector envs (SubprocVecEnv when > 1, DummyVecEnv when 1)
+    material: str = "kraft"
+    target_g: float = 0.5
+    levels: str = "target"         # env levels mode: "target" is 3-4x faster than "eumos"
+    seed: int = 0
+    checkpoint_every: int = 512    # timesteps between policy checkpoints
+    n_steps: int = 64              # PPO rollout length per env (one-step episodes)
+    batch_size: int = 64
+    learning_rate: float = 3e-4
+    progress_bar: bool = True
+
+    def check(self) -> None:
+        """Reject settings SB3 would fail on late (or silently misuse), before any process
+        is started."""
+        for name in ("timesteps", "n_envs", "checkpoint_every", "n_steps", "batch_size"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+                raise ValueError(f"TrainSettings.{name} must be an integer >= 1 (got {value!r})")
+        if not (math.isfinite(self.learning_rate) and self.learning_rate > 0):
+            raise ValueError(f"TrainSettings.learning_rate must be > 0 "
+                             f"(got {self.learning_rate!r})")
+
+
+class EpisodeLog(BaseCallback):
+    """Writes one CSV row per finished episode from the step infos (every step ends an episode
+    here), flushing after each vector step so the file is readable while training runs."""
+
+    def __init__(self, path: Path) -> None:
+        super().__init__()
+        self.path = path
+        self._file: IO[str] | None = None
+        self._writer: Any = None
+        self.rows = 0
+        self.invalid = 0
+
+    def _on_training_start(self) -> None:
+        self._file = self.path.open("w", newline="")
+        self._writer = csv.writer(self._file)
+        self._writer.writerow(LOG_COLUMNS)
+        self._file.flush()
+
+    def _on_step(self) -> bool:
+        infos, dones, rewards = self.locals["infos"], self.locals["dones"], self.locals["rewards"]
+        n = len(infos)
+        for i, (info, done) in enumerate(zip(infos, dones, strict=True)):
+            if not done or "passed" not in info:
+                continue
+            valid = bool(info["valid"])  # a blown-up run: a failure, counted and logged
+            self.invalid += not valid
+            self._writer.writerow([
+                self.num_timesteps - n + i + 1,  # this episode's own count of timesteps
+                f"{float(rewards[i]):.6g}",
+                int(bool(info["passed"])),
+                f"{float(info['margin']):.6g}",
+                f"{float(info['material_used']['mass_kg']):.6g}",
+                int(valid),
+            ])
+            self.rows += 1
+        assert self._file is not None
+        self._file.flush()
+        return True
+
+    def close(self) -> None:
+        if self._file is not None:
+            self._file.close()
+            self._file = None
+
+    def _on_training_end(self) -> None:
+        self.close()
+
+
+def train(settings: TrainSettings, out_dir: Path) -> Path:
+    """Train PPO on wrapenv/WrapBenchRandom-v0; writes out_dir/policy.zip (final), periodic
+    out_dir/checkpoints/policy_<steps>_steps.zip (SB3 CheckpointCallback), and out_dir/log.csv
+    (one row per episode: timesteps, reward, passed, margin, material_kg, valid — via a small
+    callback reading infos; written incrementally, flushed). Returns the policy path."""
+    settings.check()
+    out_dir = Path(out_dir)
+    checkpoints = out_dir / CHECKPOINT_DIR
+    checkpoints.mkdir(parents=True, exist_ok=True)
+    # The policy is a small MLP: one thread avoids oversubscribing the cores the env workers
+    # simulate on (and thread start-up costs more than it saves on a 64-unit layer).
+    threads = torch.get_num_threads()
+    torch.set_num_threads(1)
+    vec_env = make_vec_env(
+        ENV_ID, n_envs=settings.n_envs, seed=settings.seed,
+        env_kwargs={"material": settings.material, "target_g": settings.target_g,
+                    "levels": settings.levels},
+        vec_env_cls=SubprocVecEnv if settings.n_envs > 1 else DummyVecEnv,
+    )
+    log = EpisodeLog(out_dir / LOG_FILE)
+    try:
+        model = PPO("MlpPolicy", vec_env, n_steps=settings.n_steps,
+                    batch_size=settings.batch_size, learning_rate=settings.learning_rate,
+                    seed=settings.seed, device="cpu", verbose=0)
+        # save_freq counts vector steps, each n_envs timesteps
+        checkpoint = CheckpointCallback(max(1, settings.checkpoint_every // settings.n_envs),
+                                        str(checkpoints), name_prefix=CHECKPOINT_PREFIX)
+        model.learn(settings.timesteps, callback=CallbackList([checkpoint, log]),
+                    progress_bar=settings.progress_bar)
+        path = out_dir / POLICY_FILE
+        partial = out_dir / f".{POLICY_FILE}.partial.zip"
+        model.save(partial)
+        os.replace(partial, path)  # never a half-written policy.zip
+        return path
+    finally:
+        log.close()
+        vec_env.close()
+        torch.set_num_threads(threads)
+
+
+def load_policy(policy_path: Path) -> PPO:
+    """The trained policy, on the CPU (no env needed to predict)."""
+    return PPO.load(Path(policy_path), device="cpu")
+
+
+def _policy(policy: PPO | Path | str) -> PPO:
+    return policy if isinstance(policy, PPO) else load_policy(Path(policy))
+
+
+def _env(load: LoadUnit, material: str, target_g: float,
+         calibration: Calibration | None = None) -> WrapBenchEnv:
+    """The one-unit env: it computes the observation and decodes actions exactly as training
+    did (levels="target", as the policy was trained)."""
+    return WrapBenchEnv(load=load, calibration=calibration, material=material,
+                        target_g=target_g, levels="target")
+
+
+def _action(model: PPO, obs: np.ndarray) -> np.ndarray:
+    action, _ = model.predict(obs, deterministic=True)
+    return np.asarray(action, np.float32).reshape(N_PARAMS)
+
+
+def propose(policy_path: Path | PPO, load: LoadUnit, material: str, target_g: float,
+            calibration: Calibration | None = None) -> WrapFormat:
+    """Deterministic action of the trained policy for this unit's observation, decoded to a
+    format (answers instantly; the caller verifies it in simulation). An already loaded `PPO`
+    is accepted too, so evaluations over many units load the file once."""
+    model = _policy(policy_path)
+    env = _env(load, material, target_g, calibration)
+    try:
+        obs, _ = env.reset(seed=0)
+        return env.decode(_action(model, obs))
+    finally:
+        env.close()
+
+
+@dataclass(frozen=True)
+class Trial:
+    """One format tested on one unit at the target level."""
+
+    load: str
+    wrap: WrapFormat
+    passed: bool
+    valid: bool
+    margin: float
+    material_kg: float
+    reward: float
+
+
+def evaluate(policy_or_none: PPO | Path | None, loads: list[LoadUnit], material: str,
+             target_g: float, seed: int) -> list[Trial]:
+    """Each unit tested (target level only) with the policy's proposal, or with a uniformly
+    random action from np.random.default_rng(seed) when the policy is None (one draw per unit,
+    in order): the per-unit detail behind `pass_rate`, for comparing material too."""
+    model = None if policy_or_none is None else _policy(policy_or_none)
+    rng = np.random.default_rng(seed)
+    trials = []
+    for load in loads:
+        env = _env(load, material, target_g)
+        try:
+            obs, _ = env.reset(seed=0)
+            if model is None:
+                action = rng.uniform(-1.0, 1.0, N_PARAMS).astype(np.float32)
+            else:
+                action = _action(model, obs)
+            _, reward, _, _, info = env.step(action)
+            trials.append(Trial(load.name, env.decode(action), bool(info["passed"]),
+                                bool(info["valid"]), float(info["margin"]),
+                                float(info["material_used"]["mass_kg"]), float(reward)))
+        finally:
+            env.close()
+    return trials
+
+
+def pass_rate(policy_or_none: PPO | Path | None, loads: list[LoadUnit], material: str,
+              target_g: float, seed: int) -> float:
+    """Fraction of `loads` on which the policy's proposal (or a uniformly random action from
+    np.random.default_rng(seed) when policy is None) passes the target level (env
+    levels="target"). An invalid (blown-up) simulation counts as a failure."""
+    trials = evaluate(policy_or_none, loads, material, target_g, seed)
+    return sum(t.passed for t in trials) / len(trials) if trials else math.nan
+
+
+def held_out_loads(n: int, seed: int) -> list[LoadUnit]:
+    """n units drawn like WrapBenchRandomEnv draws them, from a seed not used in training (the
+    env's own sampler, so the distribution cannot drift from the training one; see
+    `HELD_OUT_STREAM` for why the stream differs from every training env's)."""
+    env = WrapBenchRandomEnv(levels="target")
+    try:
+        rng = np.random.default_rng([seed, HELD_OUT_STREAM])
+        return [env.sample_unit(rng) for _ in range(n)]
+    finally:
+        env.close()
+
+
+__all__ = ["TrainSettings", "Trial", "evaluate", "held_out_loads", "load_policy", "pass_rate",
+           "propose", "train"]
