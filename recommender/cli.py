@@ -24,7 +24,7 @@ from wrapenv.config import InputError, write_atomic
 from wrapenv.eumos import LevelVerdict
 from wrapenv.load import Layout, LoadUnit
 from wrapenv.profile import MeasuredProfile, PulseProfile, eumos_levels
-from wrapenv.wrap import WrapFormat
+from wrapenv.wrap import MATERIALS, WrapFormat
 
 #: Robust passes tried, lightest first, until one passes the whole EUMOS sequence.
 VERIFY_CANDIDATES = 3
@@ -75,8 +75,11 @@ def build_parser() -> argparse.ArgumentParser:
     rec.add_argument("--calibration", type=Path, help="CAL.json (friction and its uncertainty)")
     rec.add_argument("--material", default="kraft", help="kraft (default) or lldpe")
     rec.add_argument("--target", type=_g, default=0.5, metavar="G", help="default 0.5 g")
-    rec.add_argument("--method", choices=("cmaes",), default="cmaes",
-                     help="search method (cmaes; ppo follows)")
+    rec.add_argument("--method", choices=("cmaes", "ppo"), default="cmaes",
+                     help="cmaes: robust search (default); ppo: a trained policy's proposal, "
+                          "verified in simulation (needs --policy)")
+    rec.add_argument("--policy", type=Path, metavar="FILE",
+                     help="policy.zip written by `wrapbench train` (with --method ppo)")
     rec.add_argument("--samples", type=int, default=3, metavar="K",
                      help="robust samples of friction and masses per candidate (default 3)")
     rec.add_argument("--margin", type=float, default=0.2,
@@ -96,13 +99,25 @@ def build_parser() -> argparse.ArgumentParser:
     rec.add_argument("--report", type=Path, metavar="DIR",
                      help="write displacement.png, search.png and test.mp4 (the recommended "
                           "format's test at the target level) into DIR")
+
+    tr = sub.add_parser("train", help="train a PPO policy on random load units "
+                                      "(wrapenv/WrapBenchRandom-v0)")
+    tr.add_argument("--out", type=Path, required=True, metavar="DIR",
+                    help="folder for policy.zip, checkpoints/ and log.csv")
+    tr.add_argument("--timesteps", type=int, default=2048)
+    tr.add_argument("--envs", type=int, default=os.cpu_count() or 1,
+                    help="parallel environments (default: all cores)")
+    tr.add_argument("--material", default="kraft")
+    tr.add_argument("--target", type=_g, default=0.5, metavar="G")
+    tr.add_argument("--seed", type=int, default=0)
     return parser
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     try:
-        return _simulate(args) if args.command == "simulate" else _recommend(args)
+        command = {"simulate": _simulate, "recommend": _recommend, "train": _train}
+        return command[args.command](args)
     except InputError as exc:
         sys.stderr.write(f"wrapbench {args.command}: {exc}\n")
         return 2
@@ -172,6 +187,48 @@ def _wrap_summary(wrap: WrapFormat, layout: Layout) -> str:
     return "\n".join(lines)
 
 
+def _train(args: argparse.Namespace) -> int:
+    from recommender.policy import TrainSettings, train
+
+    for flag, value in (("--timesteps", args.timesteps), ("--envs", args.envs)):
+        if value < 1:
+            raise InputError("arguments", flag, f"must be >= 1 (got {value})")
+    if args.material not in MATERIALS:
+        raise InputError("arguments", "--material",
+                         f"must be one of {', '.join(map(repr, MATERIALS))} "
+                         f"(got {args.material!r})")
+    try:
+        PulseProfile(args.target)
+    except InputError as exc:
+        raise InputError("arguments", "--target", exc.message) from None
+    if args.out.exists() and not args.out.is_dir():
+        raise InputError(str(args.out), "--out", "exists and is not a folder")
+    args.out.mkdir(parents=True, exist_ok=True)
+    settings = TrainSettings(timesteps=args.timesteps, n_envs=args.envs, material=args.material,
+                             target_g=args.target, seed=args.seed)
+    path = train(settings, args.out)
+    print(f"policy written to {path} (log: {args.out / 'log.csv'})")
+    return 0
+
+
+def _propose_with_policy(args: argparse.Namespace, problem, verify) -> tuple:
+    """A trained policy's format for this unit, answered at once, then verified."""
+    from recommender.policy import propose
+    from recommender.search import Evaluation
+
+    if args.policy is None or not args.policy.is_file():
+        where = "arguments" if args.policy is None else str(args.policy)
+        raise InputError(where, "--policy", "a policy.zip from `wrapbench train` is needed "
+                                            "with --method ppo")
+    calibration = Calibration.from_json(args.calibration) if args.calibration else None
+    wrap = propose(args.policy, LoadUnit.from_toml(args.load), args.material, args.target,
+                   calibration)
+    run, rate = verify(problem, wrap, max(8, args.samples), workers=args.workers)
+    mass = wrap.material_used_on(problem.load.layout()).mass_kg
+    best = Evaluation((), wrap, mass, (run.verdict.margin,), (run.verdict.passed,), 0.0)
+    return run, rate, best
+
+
 def _recommend(args: argparse.Namespace) -> int:
     from recommender.search import Problem, RobustSearch, SearchSettings, verify
 
@@ -198,6 +255,15 @@ def _recommend(args: argparse.Namespace) -> int:
         if exc.field == "level_g":  # the target, checked against the bench
             raise InputError("arguments", "--target", exc.message) from None
         raise
+    if args.method == "ppo":
+        t0 = time.perf_counter()
+        run, rate, best = _propose_with_policy(args, problem, verify)
+        print(_recommendation(load, best, rate, max(8, args.samples), args.target))
+        print(_table(problem.load, run, None))
+        print(_wrap_summary(best.wrap, problem.load.layout()))
+        print(f"policy proposal verified in {time.perf_counter() - t0:.0f} s")
+        _write_outputs(args, best, run, rate, max(8, args.samples), 1)
+        return 0 if run.verdict.passed else 1
     search = RobustSearch(problem, args.checkpoint)
     state = search.resume() if args.resume else search.start()
     t0 = time.perf_counter()
@@ -226,26 +292,31 @@ def _recommend(args: argparse.Namespace) -> int:
               f"{len(state.history)} candidates x {args.samples} samples")
         return 1
     run, rate = chosen
-    verdict = run.verdict
     layout = problem.load.layout()
-    used = best.wrap.material_used_on(layout)
     print(_recommendation(load, best, rate, verdict_samples, args.target))
     print(_table(problem.load, run, None))
     print(_wrap_summary(best.wrap, layout))
     print(f"searched {len(state.history)} candidates x {args.samples} samples in "
           f"{time.perf_counter() - t0:.0f} s ({args.workers} workers)")
+    _write_outputs(args, best, run, rate, verdict_samples, len(state.history) * args.samples,
+                   candidates=len(state.history))
+    if args.report:
+        _write_report(args.report, problem, run, best, state, settings.margin_goal)
+    return 0
+
+
+def _write_outputs(args: argparse.Namespace, best, run: BenchRun, rate: float, samples: int,
+                   evaluations: int, candidates: int | None = None) -> None:
     if args.json:
+        used = best.wrap.material_used_on(LoadUnit.from_toml(args.load).layout())
         out = {"format": best.wrap.to_dict(), "material_used": asdict(used),
-               "verdict": verdict.to_json(), "robust_pass_rate": rate,
-               "robust_samples": verdict_samples, "search_margin": best.margin,
-               "evaluations": len(state.history) * args.samples, "candidates": len(state.history),
+               "verdict": run.verdict.to_json(), "robust_pass_rate": rate,
+               "robust_samples": samples, "search_margin": best.margin,
+               "evaluations": evaluations, "candidates": candidates,
                "method": args.method, "target_g": args.target}
         write_atomic(args.json, (json.dumps(out, indent=2) + "\n").encode())
     if args.wrap_out:
         write_atomic(args.wrap_out, best.wrap.to_toml().encode())
-    if args.report:
-        _write_report(args.report, problem, run, best, state, settings.margin_goal)
-    return 0
 
 
 def _write_report(folder: Path, problem, run: BenchRun, best, state, margin_goal: float) -> None:

@@ -136,3 +136,33 @@ def test_bad_recommend_arguments_exit_2_with_one_line(argv, field, load_file, tm
     err = capsys.readouterr().err.strip()
     assert code == 2 and "\n" not in err and field in err
     assert not (tmp_path / "out.json").exists()
+
+
+def test_ppo_method_answers_from_a_policy_and_verifies_it(load_file, tmp_path, capsys):
+    import gymnasium as gym
+    from stable_baselines3 import PPO
+
+    load = load_file(base=SMALL)
+    env = gym.make("wrapenv/WrapBench-v0", load=str(load))
+    PPO("MlpPolicy", env, n_steps=64, batch_size=32, device="cpu", seed=0).save(tmp_path / "p")
+    env.close()
+    out = tmp_path / "ppo.json"
+    code = main(["recommend", str(load), "--method", "ppo", "--policy", str(tmp_path / "p.zip"),
+                 "--samples", "2", "--workers", "2", "--json", str(out)])
+    assert "recommended wrap" in capsys.readouterr().out
+    result = json.loads(out.read_text())
+    assert result["method"] == "ppo"
+    assert code == (0 if result["verdict"]["levels"][-1]["passed"] else 1)
+
+
+@pytest.mark.parametrize("argv, field", [
+    (["recommend", "--method", "ppo"], "--policy"),
+    (["train", "--out", "OUT", "--timesteps", "0"], "--timesteps"),
+    (["train", "--out", "OUT", "--material", "cotton"], "--material"),
+    (["train", "--out", "OUT", "--target", "2.0"], "--target"),
+])
+def test_bad_policy_arguments_exit_2_with_one_line(argv, field, tmp_path, capsys):
+    argv = [str(tmp_path / "out") if a == "OUT" else a for a in argv]
+    code = main(argv)
+    err = capsys.readouterr().err.strip()
+    assert code == 2 and "\n" not in err and field in err
