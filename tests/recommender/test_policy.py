@@ -26,11 +26,15 @@ from recommender.policy import (
     propose,
     train,
 )
-from wrapenv.design import MAX_LAYERS
+from wrapenv.design import MAX_LAYERS, FormatSpace
 from wrapenv.envs import WrapBenchRandomEnv
 from wrapenv.load import LoadUnit
 from wrapenv.wrap import WrapFormat
 
+#: One layer of two bundles (a fraction of a second per simulation), and a heavier bundle.
+TINY_LOAD = {"name": "tiny", "pallet": {"preset": "EUR"}, "bundle": {"preset": "PET6x1.5L"},
+             "stack": {"layers": 1, "pattern": "explicit", "positions": [[-0.2, 0.0], [0.2, 0.0]]}}
+HEAVY_BUNDLE = {"length_m": 0.28, "width_m": 0.19, "height_m": 0.33, "mass_kg": 14.0}
 TINY = TrainSettings(timesteps=8, n_envs=1, n_steps=8, batch_size=8, checkpoint_every=4,
                      progress_bar=False)
 
@@ -109,15 +113,56 @@ def test_held_out_loads_are_reproducible_random_units_unseen_in_training():
     assert not {u.name for u in loads} & set(trained_on)
 
 
-def test_pass_rate_of_random_actions_is_a_fraction_and_repeats_under_a_seed():
-    loads = held_out_loads(2, seed=5)
-    trials = evaluate(None, loads, "kraft", 0.5, seed=1)
-    rate = pass_rate(None, loads, "kraft", 0.5, seed=1)
-    assert rate == sum(t.passed for t in trials) / 2
-    assert [t.wrap for t in evaluate(None, loads, "kraft", 0.5, seed=1)] == [t.wrap for t in trials]
+def test_pass_rate_counts_passes_of_random_or_policy_actions(trained):
+    loads = [LoadUnit.from_dict(TINY_LOAD), LoadUnit.from_dict({**TINY_LOAD, "name": "heavy",
+                                                                "bundle": HEAVY_BUNDLE})]
+    trials = evaluate(None, loads, "kraft", 0.3, seed=1)
+    assert [t.load for t in trials] == ["tiny", "heavy"]
+    assert all(t.valid and 0 < t.material_kg < 1 for t in trials)
+    # the random actions are one uniform draw per unit from default_rng(seed), in order
+    rng = np.random.default_rng(1)
+    space = FormatSpace.for_layout(loads[0].layout(), "kraft")
+    assert trials[0].wrap == space.decode(rng.uniform(-1, 1, 8))
+    assert pass_rate(None, loads, "kraft", 0.3, seed=1) == sum(t.passed for t in trials) / 2
+    path, _ = trained
+    mine = evaluate(path, loads, "kraft", 0.3, seed=1)
+    assert [t.wrap for t in mine] == [propose(path, u, "kraft", 0.3) for u in loads]
+    assert pass_rate(path, loads, "kraft", 0.3, seed=99) == sum(t.passed for t in mine) / 2
+
+
+#: The slow test's run: 384 timesteps = 6 PPO updates of 64 episodes (32 per env, 2 envs), at
+#: a higher learning rate than the default so that a run short enough for a test moves the policy.
+SHORT_RUN = TrainSettings(timesteps=384, n_envs=2, n_steps=32, batch_size=32,
+                          learning_rate=1e-3, checkpoint_every=128, progress_bar=False)
+HELD_OUT = 12
+MATERIAL_SAVING = 0.15  # at least this fraction less material than random actions
 
 
 @pytest.mark.slow
 def test_short_training_beats_random_actions_on_held_out_units(tmp_path):
-    """Measured: see SLOW_RESULT below."""
-    raise NotImplementedError
+    """Kraft at 0.5 g: random actions already pass (almost) every random unit (the units
+    stand on a free pallet, which slides from ~0.45 g on, and any few layers of paper hold),
+    so "better" is: the same pass rate with less material.
+
+    Not yet run to completion on this machine (a training run of 384 timesteps takes about
+    10-15 minutes on 2 cores); the test prints its figures when it runs.
+    """
+    t0 = time.perf_counter()
+    policy = train(SHORT_RUN, tmp_path)
+    t_train = time.perf_counter() - t0
+    loads = held_out_loads(HELD_OUT, seed=0)
+    t0 = time.perf_counter()
+    mine = evaluate(policy, loads, "kraft", 0.5, seed=0)
+    chance = evaluate(None, loads, "kraft", 0.5, seed=0)
+    t_eval = time.perf_counter() - t0
+    rate = {k: sum(t.passed for t in v) / HELD_OUT for k, v in (("policy", mine),
+                                                                ("random", chance))}
+    kg = {k: float(np.mean([t.material_kg for t in v])) for k, v in (("policy", mine),
+                                                                    ("random", chance))}
+    print(f"train {t_train:.0f} s ({SHORT_RUN.timesteps / t_train:.2f} simulations/s), "
+          f"evaluation {t_eval:.0f} s; pass rate {rate}; mean material kg {kg}; "
+          f"policy kg {[round(t.material_kg, 3) for t in mine]}, "
+          f"random kg {[round(t.material_kg, 3) for t in chance]}; "
+          f"invalid {sum(not t.valid for t in mine + chance)}")
+    assert rate["policy"] >= rate["random"]
+    assert kg["policy"] <= (1 - MATERIAL_SAVING) * kg["random"]
