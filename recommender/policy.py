@@ -36,6 +36,10 @@ from wrapenv.load import LoadUnit
 from wrapenv.wrap import WrapFormat
 
 ENV_ID = "wrapenv/WrapBenchRandom-v0"
+#: What the env workers pass to gym.make: the "module:id" form imports wrapenv (which registers
+#: the id) in a SubprocVecEnv worker too, whose fresh interpreter has not imported it when the
+#: parent's main module is not ours (under pytest, or any host program).
+MAKE_ID = f"wrapenv:{ENV_ID}"
 POLICY_FILE = "policy.zip"
 CHECKPOINT_DIR = "checkpoints"
 CHECKPOINT_PREFIX = "policy"  # SB3 names them policy_<timesteps>_steps.zip
@@ -137,7 +141,7 @@ def train(settings: TrainSettings, out_dir: Path) -> Path:
     threads = torch.get_num_threads()
     torch.set_num_threads(1)
     vec_env = make_vec_env(
-        ENV_ID, n_envs=settings.n_envs, seed=settings.seed,
+        MAKE_ID, n_envs=settings.n_envs, seed=settings.seed,
         env_kwargs={"material": settings.material, "target_g": settings.target_g,
                     "levels": settings.levels},
         vec_env_cls=SubprocVecEnv if settings.n_envs > 1 else DummyVecEnv,

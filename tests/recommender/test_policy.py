@@ -82,6 +82,18 @@ def test_train_writes_the_policy_checkpoints_and_one_log_row_per_episode(trained
             assert passed == "0"  # a blown-up run is logged as a failure
 
 
+def test_train_with_two_subprocess_envs(tmp_path):
+    """The default: SubprocVecEnv workers, which import nothing of the parent's but the env."""
+    settings = TrainSettings(timesteps=4, n_envs=2, n_steps=2, batch_size=4, checkpoint_every=2,
+                             seed=7, progress_bar=False)
+    path = train(settings, tmp_path)
+    assert path.is_file()
+    assert sorted(p.name for p in (tmp_path / CHECKPOINT_DIR).iterdir()) == [
+        "policy_2_steps.zip", "policy_4_steps.zip"]
+    with (tmp_path / "log.csv").open() as f:
+        assert [int(r["timesteps"]) for r in csv.DictReader(f)] == [1, 2, 3, 4]
+
+
 def test_propose_returns_a_valid_format_for_the_unit(trained):
     path, _ = trained
     load = held_out_loads(1, seed=3)[0]
