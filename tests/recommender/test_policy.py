@@ -143,21 +143,28 @@ def test_pass_rate_counts_passes_of_random_or_policy_actions(trained):
 
 
 #: The slow test's run: 384 timesteps = 6 PPO updates of 64 episodes (32 per env, 2 envs), at
-#: a higher learning rate than the default so that a run short enough for a test moves the policy.
+#: a higher learning rate than the default so that a run short enough for a test (~11 min) moves
+#: the policy. (Defaults, lr 3e-4 and 128 episodes per update: -13 % material after 512 timesteps,
+#: -29 % after 1024, which take 28 min.)
 SHORT_RUN = TrainSettings(timesteps=384, n_envs=2, n_steps=32, batch_size=32,
                           learning_rate=1e-3, checkpoint_every=128, progress_bar=False)
 HELD_OUT = 12
-MATERIAL_SAVING = 0.15  # at least this fraction less material than random actions
+MATERIAL_SAVING = 0.25  # at least this fraction less material than random actions
 
 
 @pytest.mark.slow
 def test_short_training_beats_random_actions_on_held_out_units(tmp_path):
-    """Kraft at 0.5 g: random actions already pass (almost) every random unit (the units
-    stand on a free pallet, which slides from ~0.45 g on, and any few layers of paper hold),
-    so "better" is: the same pass rate with less material.
+    """Kraft at 0.5 g: random actions already pass every held-out unit (the random units stand
+    on a free pallet, which slides from ~0.45 g on, and a few layers of paper hold the rest;
+    the cheapest format, one layer on the pallet and nothing above, fails 11 of these 12), so
+    "better" is: no lower pass rate, and less material.
 
-    Not yet run to completion on this machine (a training run of 384 timesteps takes about
-    10-15 minutes on 2 cores); the test prints its figures when it runs.
+    Measured (2026-11-21, this 2-core machine; wall time 651 s = 10 min 51 s: training 600 s,
+    0.64 simulations/s with 2 envs, evaluation 49 s): pass rate policy 12/12, random 12/12;
+    mean material policy 0.383 kg, random 0.667 kg (-43 %; the untrained policy's proposal,
+    three layers everywhere, averages 0.627 kg); no invalid run. The policy learnt one layer on
+    the pallet, about two in the middle and four at the top. The threshold (-25 %) leaves room
+    for other machines and seeds.
     """
     t0 = time.perf_counter()
     policy = train(SHORT_RUN, tmp_path)
