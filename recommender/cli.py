@@ -131,6 +131,14 @@ def _output_dir_ok(path: Path | None, flag: str) -> None:
         raise InputError(str(path), flag, "the folder to write into does not exist")
 
 
+def _target(target_g: float) -> None:
+    """A target level the bench can produce, or a usage error naming --target."""
+    try:
+        PulseProfile(target_g)
+    except InputError as exc:
+        raise InputError("arguments", "--target", exc.message) from None
+
+
 def _level(level_g: float) -> PulseProfile:
     try:
         return PulseProfile(level_g)
@@ -197,10 +205,7 @@ def _train(args: argparse.Namespace) -> int:
         raise InputError("arguments", "--material",
                          f"must be one of {', '.join(map(repr, MATERIALS))} "
                          f"(got {args.material!r})")
-    try:
-        PulseProfile(args.target)
-    except InputError as exc:
-        raise InputError("arguments", "--target", exc.message) from None
+    _target(args.target)
     if args.out.exists() and not args.out.is_dir():
         raise InputError(str(args.out), "--out", "exists and is not a folder")
     args.out.mkdir(parents=True, exist_ok=True)
@@ -224,7 +229,7 @@ def _propose_with_policy(args: argparse.Namespace, problem, verify) -> tuple:
     wrap = propose(args.policy, LoadUnit.from_toml(args.load), args.material, args.target,
                    calibration)
     run, rate = verify(problem, wrap, max(8, args.samples), workers=args.workers)
-    mass = wrap.material_used_on(problem.load.layout()).mass_kg
+    mass = wrap.material_used_on(problem.layout).mass_kg
     best = Evaluation((), wrap, mass, (run.verdict.margin,), (run.verdict.passed,), 0.0)
     return run, rate, best
 
@@ -249,20 +254,16 @@ def _recommend(args: argparse.Namespace) -> int:
                               samples=args.samples, margin_goal=args.margin,
                               max_candidates=args.budget, seed=args.seed, workers=args.workers,
                               popsize=min(8, args.budget))
-    try:
-        problem = Problem.build(load, settings, calibration)
-    except InputError as exc:
-        if exc.field == "level_g":  # the target, checked against the bench
-            raise InputError("arguments", "--target", exc.message) from None
-        raise
+    _target(args.target)
+    problem = Problem.build(load, settings, calibration)
     if args.method == "ppo":
         t0 = time.perf_counter()
         run, rate, best = _propose_with_policy(args, problem, verify)
         print(_recommendation(load, best, rate, max(8, args.samples), args.target))
         print(_table(problem.load, run, None))
-        print(_wrap_summary(best.wrap, problem.load.layout()))
+        print(_wrap_summary(best.wrap, problem.layout))
         print(f"policy proposal verified in {time.perf_counter() - t0:.0f} s")
-        _write_outputs(args, best, run, rate, max(8, args.samples), 1)
+        _write_outputs(args, problem.layout, best, run, rate, max(8, args.samples), 1)
         return 0 if run.verdict.passed else 1
     search = RobustSearch(problem, args.checkpoint)
     state = search.resume() if args.resume else search.start()
@@ -292,23 +293,23 @@ def _recommend(args: argparse.Namespace) -> int:
               f"{len(state.history)} candidates x {args.samples} samples")
         return 1
     run, rate = chosen
-    layout = problem.load.layout()
+    layout = problem.layout
     print(_recommendation(load, best, rate, verdict_samples, args.target))
     print(_table(problem.load, run, None))
     print(_wrap_summary(best.wrap, layout))
     print(f"searched {len(state.history)} candidates x {args.samples} samples in "
           f"{time.perf_counter() - t0:.0f} s ({args.workers} workers)")
-    _write_outputs(args, best, run, rate, verdict_samples, len(state.history) * args.samples,
-                   candidates=len(state.history))
+    _write_outputs(args, layout, best, run, rate, verdict_samples,
+                   len(state.history) * args.samples, candidates=len(state.history))
     if args.report:
         _write_report(args.report, problem, run, best, state, settings.margin_goal)
     return 0
 
 
-def _write_outputs(args: argparse.Namespace, best, run: BenchRun, rate: float, samples: int,
-                   evaluations: int, candidates: int | None = None) -> None:
+def _write_outputs(args: argparse.Namespace, layout: Layout, best, run: BenchRun, rate: float,
+                   samples: int, evaluations: int, candidates: int | None = None) -> None:
     if args.json:
-        used = best.wrap.material_used_on(LoadUnit.from_toml(args.load).layout())
+        used = best.wrap.material_used_on(layout)
         out = {"format": best.wrap.to_dict(), "material_used": asdict(used),
                "verdict": run.verdict.to_json(), "robust_pass_rate": rate,
                "robust_samples": samples, "search_margin": best.margin,
@@ -325,7 +326,7 @@ def _write_report(folder: Path, problem, run: BenchRun, best, state, margin_goal
     folder.mkdir(parents=True, exist_ok=True)
     plot_displacements(run, folder / "displacement.png", title=problem.load.name)
     plot_search(state.history, best, folder / "search.png", margin_goal)
-    write_video(run.traces[-1], problem.load.layout(), problem.simulated(best.wrap),
+    write_video(run.traces[-1], problem.layout, problem.simulated(best.wrap),
                 folder / "test.mp4")
 
 

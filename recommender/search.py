@@ -29,9 +29,9 @@ from wrapenv.bench import BenchRun, SimSettings, run_levels
 from wrapenv.calibrated import Calibration
 from wrapenv.config import InputError, write_atomic
 from wrapenv.design import FormatSpace
-from wrapenv.load import PAIRS, FrictionPair, LoadUnit
+from wrapenv.load import PAIRS, FrictionPair, Layout, LoadUnit
 from wrapenv.profile import PulseProfile, eumos_levels
-from wrapenv.wrap import Band, WrapFormat
+from wrapenv.wrap import WrapFormat
 
 #: Friction standard deviation assumed for a pair without calibration (CTU Code figures are
 #: quoted to about ±0.03).
@@ -111,6 +111,7 @@ class Problem:
     """What the workers need: picklable, no Bullet state."""
 
     load: LoadUnit
+    layout: Layout
     friction_std: dict[str, tuple[float, float]]  # pair -> (static std, kinetic std)
     space: FormatSpace
     settings: SearchSettings
@@ -132,11 +133,7 @@ class Problem:
         PulseProfile(settings.target_g)  # validates the target against the bench
         layout = load.layout()
         space = FormatSpace.for_layout(layout, settings.material)
-        full = WrapFormat(space.material, space.web_width_m,
-                          (Band(0.0, layout.load_height_m, 3, space.tension_range_n[0]),),
-                          settings.material)
-        ref = full.material_used_on(layout).mass_kg
-        return cls(load, std, space, settings, ref, *scales)
+        return cls(load, layout, std, space, settings, space.reference_mass_kg(layout), *scales)
 
     def wrap(self, vector: np.ndarray) -> WrapFormat:
         """The format to program into the machine (what `--wrap-out` writes)."""
@@ -235,7 +232,7 @@ class RobustSearch:
             results = [f.result() for f in fs]
             passed = tuple(p for p, _ in results)
             margins = tuple(m for _, m in results)
-            mass = wrap.material_used_on(problem.load.layout()).mass_kg
+            mass = wrap.material_used_on(problem.layout).mass_kg
             value = _objective(problem, wrap, mass, list(margins))
             state.history.append(Evaluation(tuple(float(v) for v in x), wrap, mass, margins,
                                             passed, value))

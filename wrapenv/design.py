@@ -33,6 +33,9 @@ MAX_LAYERS = 6
 #: Kraft 80-800 N, LLDPE 9-94 N on a 0.5 m web (measured here: Kraft at 90 % tore on the bench).
 TENSION_FRACTIONS = (0.05, 0.5)
 BAND_MARGIN_M = 0.05
+#: The reference a format's material is measured against: this many layers over the whole
+#: height of the load (round the pallet below its top, round the load's outline above it).
+REFERENCE_LAYERS = 3
 
 
 @dataclass(frozen=True)
@@ -61,6 +64,13 @@ class FormatSpace:
     def tension_range_n(self) -> tuple[float, float]:
         limit = self.material.yield_force_n_per_m * self.web_width_m
         return TENSION_FRACTIONS[0] * limit, TENSION_FRACTIONS[1] * limit
+
+    def reference_mass_kg(self, layout: Layout) -> float:
+        """Material of `REFERENCE_LAYERS` layers over the whole height of this unit."""
+        full = WrapFormat(self.material, self.web_width_m,
+                          (Band(0.0, layout.load_height_m, REFERENCE_LAYERS, 1.0),),
+                          self.material_key)
+        return full.material_used_on(layout).mass_kg
 
     def _bounds(self) -> tuple[tuple[float, float], tuple[float, float]]:
         h = self.load_height_m

@@ -27,16 +27,13 @@ from wrapenv.load import PAIRS, PATTERNS, Friction, FrictionPair, Layout, LoadUn
 from wrapenv.profile import eumos_levels
 from wrapenv.render import Renderer, fitting_camera, rest_state, torn_net
 from wrapenv.trace import Trace
-from wrapenv.wrap import DEFAULT_TENSION_N, MATERIALS, Band, WrapFormat
+from wrapenv.wrap import MATERIALS, WrapFormat
 
 #: The bundled example the env tests formats on when no load is given (a source checkout's
 #: examples/ folder, next to the package; recommender/cli.py's EXAMPLE_LOAD).
 DEFAULT_LOAD = Path(__file__).resolve().parents[2] / "examples" / "pet_2layer_columnar.toml"
 MATERIAL_KEYS: tuple[str, ...] = tuple(MATERIALS)  # ("kraft", "lldpe"): the one-hot's order
 LEVEL_MODES: tuple[str, ...] = ("eumos", "target")
-#: The reference wrap the material term is measured against: this many layers of web over the
-#: whole height of the load, round its outline (and round the pallet below the pallet's top).
-REFERENCE_LAYERS = 3
 
 # Scales of the observation's features (divisors), chosen so usual loads land in [0, 1].
 LAYERS_SCALE = 4.0
@@ -272,14 +269,11 @@ class WrapBenchEnv(gym.Env):
             i = int(outside[0])
             raise InputError(unit.name, "load", f"observation feature {i} ({OBS_NAMES[i]}) is "
                              f"{obs[i]:.3f}, outside [0, {self.observation_space.high[i]:g}]")
-        reference = WrapFormat(space.material, space.web_width_m,
-                               (Band(0.0, layout.load_height_m, REFERENCE_LAYERS,
-                                     DEFAULT_TENSION_N[self.material]),), self.material)
         if self.layout is not None and self.layout != layout and self._renderer is not None:
             self._renderer.close()
             self._renderer = None
         self.unit, self.layout, self.format_space = unit, layout, space
-        self.reference_mass_kg = reference.material_used_on(layout).mass_kg
+        self.reference_mass_kg = space.reference_mass_kg(layout)
         self._obs = obs
         self._last = None
 
