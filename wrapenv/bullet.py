@@ -208,13 +208,40 @@ class BulletWorld:
         wrong for anything but a perspective camera; no specular highlight either, so a face's
         colour depends only on its orientation (steady colours for trackers).
         """
-        _, _, rgba, _, _ = self._client.getCameraImage(
+        rgb, _ = self._render(width, height, view, projection, light_direction, ambient, diffuse,
+                              False)
+        return rgb
+
+    def camera_image_and_mask(
+        self,
+        width: int,
+        height: int,
+        view: Sequence[float],
+        projection: Sequence[float],
+        light_direction: Sequence[float] = (0.3, -1.0, 0.8),
+        ambient: float = 0.6,
+        diffuse: float = 0.4,
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """`camera_image` and, per pixel, the index in this world of the body seen there (-1:
+        none): which pixels a texture of that body may paint."""
+        rgb, seg = self._render(width, height, view, projection, light_direction, ambient,
+                                diffuse, True)
+        lookup = np.full(max(self._ids) + 2, -1, np.int32)  # unique id -> index; id -1 -> -1
+        lookup[np.array(self._ids)] = np.arange(len(self._ids))
+        return rgb, lookup[np.asarray(seg, np.int64).reshape(height, width)]
+
+    def _render(self, width: int, height: int, view: Sequence[float],
+                projection: Sequence[float], light_direction: Sequence[float], ambient: float,
+                diffuse: float, mask: bool) -> tuple[np.ndarray, np.ndarray | None]:
+        _, _, rgba, _, seg = self._client.getCameraImage(
             width, height, viewMatrix=[float(v) for v in view],
             projectionMatrix=[float(p) for p in projection], renderer=pb.ER_TINY_RENDERER,
             shadow=0, lightDirection=list(light_direction), lightAmbientCoeff=ambient,
-            lightDiffuseCoeff=diffuse, lightSpecularCoeff=0.0, flags=pb.ER_NO_SEGMENTATION_MASK,
+            lightDiffuseCoeff=diffuse, lightSpecularCoeff=0.0,
+            flags=0 if mask else pb.ER_NO_SEGMENTATION_MASK,
         )
-        return np.asarray(rgba, np.uint8).reshape(height, width, 4)[..., :3].copy()
+        rgb = np.asarray(rgba, np.uint8).reshape(height, width, 4)[..., :3].copy()
+        return rgb, (seg if mask else None)
 
     # -- lifetime -------------------------------------------------------------------------
     def close(self) -> None:

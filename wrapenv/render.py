@@ -154,7 +154,9 @@ class WrapOverlay:
     pair of neighbouring rings. Tear states are read from the net at every draw.
     """
 
-    def __init__(self, net: WrapNet) -> None:
+    def __init__(self, net: WrapNet, alpha: float = WRAP_ALPHA) -> None:
+        #: opacity of the web: recordings draw paper nearly opaque and film see-through
+        self.alpha = alpha
         self.net = net
         layout = net.layout
         pz = layout.pallet_size_m[2]
@@ -242,7 +244,7 @@ class WrapOverlay:
             high = edge(i + 1, self.bands[i + 1][0], np.array(self.corners[i + 1]))
             quad = np.array([low[0], low[1], high[1], high[0]])
             cv2.fillPoly(overlay, [quad], fill, cv2.LINE_8, _SHIFT)
-        out = cv2.addWeighted(overlay, WRAP_ALPHA, image, 1 - WRAP_ALPHA, 0.0)
+        out = cv2.addWeighted(overlay, self.alpha, image, 1 - self.alpha, 0.0)
         thickness = max(1, round(camera.width / 960))
         line = tuple(int(c) for c in self.line_rgb)
         for r, ids in enumerate(self.ring_nodes):
@@ -262,9 +264,12 @@ class Renderer:
     video cost a render, not a rebuild. It owns a PyBullet client, so close it (or use it as a
     context manager); `close()` may be called more than once."""
 
-    def __init__(self, layout: Layout, camera: SideCamera | None = None) -> None:
+    def __init__(self, layout: Layout, camera: SideCamera | None = None,
+                 colours: bool = True) -> None:
         self.layout = layout
         self.camera = camera if camera is not None else SideCamera()
+        #: False: every body white, so a frame is the shading alone (textures are multiplied in)
+        self.colours = colours
         self.world = BulletWorld(timestep_s=1 / 240, solver_iterations=1)
         self._overlay: WrapOverlay | None = None
         try:
@@ -278,23 +283,57 @@ class Renderer:
         layout, world = self.layout, self.world
         px, py, pz = layout.pallet_size_m
         deck = (px + 2 * SLED_MARGIN_M, py + 2 * SLED_MARGIN_M, 0.1)
-        world.add_box(deck, (0, 0, -0.05), 0.0, 0.5, rgba=SLED_RGBA)
-        world.add_box((px, py, pz), (0, 0, pz / 2), 0.0, 0.5, rgba=PALLET_RGBA)
+        white = None if self.colours else (1.0, 1.0, 1.0, 1.0)
+        world.add_box(deck, (0, 0, -0.05), 0.0, 0.5, rgba=white or SLED_RGBA)
+        world.add_box((px, py, pz), (0, 0, pz / 2), 0.0, 0.5, rgba=white or PALLET_RGBA)
         for b in layout.bundles:
             column = sorted({round(o.centre_m[0], 4) for o in layout.bundles
                              if o.layer == b.layer}).index(round(b.centre_m[0], 4))
             world.add_box(b.size_m, b.centre_m, 0.0, 0.5,
-                          rgba=BUNDLE_RGBA[(column + b.layer) % 2])
+                          rgba=white or BUNDLE_RGBA[(column + b.layer) % 2])
         if layout.pallet_stopper:
             t, h = STOPPER_SIZE_M
             world.add_box((t, py, h), (-px / 2 - t / 2 - 1e-3, 0, h / 2), 0.0, 0.5,
-                          rgba=STOPPER_RGBA)
+                          rgba=white or STOPPER_RGBA)
 
     def frame(self, pallet_pos: np.ndarray, pallet_rot: np.ndarray, bundle_pos: np.ndarray,
               bundle_rot: np.ndarray, wrap_net: WrapNet | None = None,
               sled_x_m: float = 0.0) -> np.ndarray:
         """RGB frame (height, width, 3) uint8 of the unit in the given state (sled frame;
         rotations as 3x3 matrices), the wrap drawn over it when `wrap_net` is given."""
+        pos, rot = self._place(pallet_pos, pallet_rot, bundle_pos, bundle_rot)
+        cam = self.camera
+        image = self.world.camera_image(cam.width, cam.height, cam.view_matrix(sled_x_m),
+                                        cam.projection_matrix())
+        if wrap_net is None:
+            return image
+        return self.draw_wrap(image, pos, rot, wrap_net, sled_x_m)
+
+    def masked_frame(self, pallet_pos: np.ndarray, pallet_rot: np.ndarray,
+                     bundle_pos: np.ndarray, bundle_rot: np.ndarray,
+                     sled_x_m: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+        """The frame without the wrap, and per pixel the index of the body seen there (0 sled,
+        1 pallet, 2 + k bundle k, then the stopper; -1 background): where textures go."""
+        self._place(pallet_pos, pallet_rot, bundle_pos, bundle_rot)
+        cam = self.camera
+        return self.world.camera_image_and_mask(cam.width, cam.height, cam.view_matrix(sled_x_m),
+                                                cam.projection_matrix())
+
+    def draw_wrap(self, image: np.ndarray, pos: np.ndarray, rot: np.ndarray, wrap_net: WrapNet,
+                  sled_x_m: float = 0.0, alpha: float = WRAP_ALPHA) -> np.ndarray:
+        """`image` with the wrap drawn over it; `pos`, `rot` are the bodies' states, pallet
+        first (as `WrapNet.nodes` takes them)."""
+        n = len(self.layout.bundles)
+        if wrap_net.n_bodies != 1 + n:
+            raise ValueError(f"the wrap net has {wrap_net.n_bodies} bodies, the layout {1 + n}")
+        if self._overlay is None or self._overlay.net is not wrap_net:
+            self._overlay = WrapOverlay(wrap_net)
+        self._overlay.alpha = alpha
+        return self._overlay.draw(image, pos, rot, self.camera, sled_x_m)
+
+    def _place(self, pallet_pos: np.ndarray, pallet_rot: np.ndarray, bundle_pos: np.ndarray,
+               bundle_rot: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Move the bodies to a state; returns positions (n, 3) and rotations, pallet first."""
         if self.world._client is None:
             raise RuntimeError("the renderer is closed")
         n = len(self.layout.bundles)
@@ -303,16 +342,7 @@ class Renderer:
                               np.reshape(bundle_rot, (n, 3, 3))])
         for j, q in enumerate(quaternions(rot)):
             self.world.set_pose(1 + j, pos[j], q)
-        cam = self.camera
-        image = self.world.camera_image(cam.width, cam.height, cam.view_matrix(sled_x_m),
-                                        cam.projection_matrix())
-        if wrap_net is None:
-            return image
-        if wrap_net.n_bodies != 1 + n:
-            raise ValueError(f"the wrap net has {wrap_net.n_bodies} bodies, the layout {1 + n}")
-        if self._overlay is None or self._overlay.net is not wrap_net:
-            self._overlay = WrapOverlay(wrap_net)
-        return self._overlay.draw(image, pos, rot, cam, sled_x_m)
+        return pos, rot
 
     def trace_frame(self, trace: Trace, sample_index: int, wrap_net: WrapNet | None = None,
                     sled_x_m: float = 0.0) -> np.ndarray:
