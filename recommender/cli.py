@@ -18,6 +18,7 @@ from pathlib import Path
 
 from tqdm import tqdm
 
+from recommender.parallel import BACKENDS
 from wrapenv.bench import BenchRun, run_levels
 from wrapenv.calibrated import Calibration
 from wrapenv.config import InputError, write_atomic
@@ -87,7 +88,13 @@ def build_parser() -> argparse.ArgumentParser:
     rec.add_argument("--budget", type=int, default=48, metavar="N",
                      help="most candidate formats to try (default 48)")
     rec.add_argument("--workers", type=int, default=os.cpu_count() or 1,
-                     help="parallel processes (default: all cores)")
+                     help="parallel simulations (default: all cores)")
+    rec.add_argument("--backend", choices=BACKENDS, default="process",
+                     help="where simulations run: worker processes here (default) or Ray "
+                          "(needs `pip install .[ray]`)")
+    rec.add_argument("--ray-address", metavar="ADDRESS",
+                     help="with --backend ray: join this cluster ('auto', 'ray://host:10001'); "
+                          "default: start a local Ray instance of --workers CPUs")
     rec.add_argument("--seed", type=int, default=0)
     rec.add_argument("--checkpoint", type=Path, default=Path("wrapbench-search.ckpt"),
                      help="search state written after every generation (default "
@@ -253,7 +260,8 @@ def _recommend(args: argparse.Namespace) -> int:
     settings = SearchSettings(target_g=args.target, material=args.material,
                               samples=args.samples, margin_goal=args.margin,
                               max_candidates=args.budget, seed=args.seed, workers=args.workers,
-                              popsize=min(8, args.budget))
+                              popsize=min(8, args.budget), backend=args.backend,
+                              ray_address=args.ray_address)
     _target(args.target)
     problem = Problem.build(load, settings, calibration)
     if args.method == "ppo":
@@ -298,7 +306,7 @@ def _recommend(args: argparse.Namespace) -> int:
     print(_table(problem.load, run, None))
     print(_wrap_summary(best.wrap, layout))
     print(f"searched {len(state.history)} candidates x {args.samples} samples in "
-          f"{time.perf_counter() - t0:.0f} s ({args.workers} workers)")
+          f"{time.perf_counter() - t0:.0f} s ({args.workers} workers, {args.backend})")
     _write_outputs(args, layout, best, run, rate, verdict_samples,
                    len(state.history) * args.samples, candidates=len(state.history))
     if args.report:

@@ -8,8 +8,8 @@ relative to a 3-layer full-height wrap, plus a penalty that grows with the short
 sample's margin below the wanted safety margin. A blown-up simulation counts as a failure.
 
 The loop is pycma's ask/tell, one generation at a time; samples of a generation run in parallel
-processes; after every generation the state is checkpointed (atomically) so an interrupted search
-resumes where it stopped.
+(worker processes, or Ray tasks on a cluster: `recommender.parallel`); after every generation
+the state is checkpointed (atomically) so an interrupted search resumes where it stopped.
 """
 
 from __future__ import annotations
@@ -18,13 +18,14 @@ import math
 import os
 import pickle
 from collections.abc import Callable
-from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures import Executor
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import cma
 import numpy as np
 
+from recommender.parallel import executor
 from wrapenv.bench import BenchRun, SimSettings, run_levels
 from wrapenv.calibrated import Calibration
 from wrapenv.config import InputError, write_atomic
@@ -59,6 +60,8 @@ class SearchSettings:
     sigma0: float = 0.4
     seed: int = 0
     workers: int = max(1, os.cpu_count() or 1)
+    backend: str = "process"       # "process" (this machine) or "ray"
+    ray_address: str | None = None  # None: a local Ray instance; "auto" or "ray://...": a cluster
     sim: SimSettings = SimSettings()
 
 
@@ -211,7 +214,7 @@ class RobustSearch:
 
     def run(self, state: SearchState, progress: Progress | None = None) -> SearchState:
         s = self.problem.settings
-        with ProcessPoolExecutor(max_workers=s.workers) as pool:
+        with executor(s.backend, s.workers, s.ray_address) as pool:
             while not state.finished(s):
                 self._generation(state, pool)
                 if self.checkpoint is not None:
@@ -220,7 +223,7 @@ class RobustSearch:
                     progress(len(state.history), s.max_candidates, state)
         return state
 
-    def _generation(self, state: SearchState, pool: ProcessPoolExecutor) -> None:
+    def _generation(self, state: SearchState, pool: Executor) -> None:
         s, problem = self.problem.settings, self.problem
         before = state.best(s.margin_goal)
         xs = state.es.ask()
@@ -250,7 +253,8 @@ def verify(problem: Problem, wrap: WrapFormat, samples: int, seed: int = 12345,
     fresh samples of the uncertain parameters."""
     run = run_levels(problem.load, eumos_levels(problem.settings.target_g), problem.settings.sim,
                      stop_at_failure=True, wrap=problem.simulated(wrap))
-    with ProcessPoolExecutor(max_workers=workers) as pool:
+    s = problem.settings
+    with executor(s.backend, workers, s.ray_address) as pool:
         results = list(pool.map(_trial, [problem] * samples, [wrap] * samples,
                                 [seed + k for k in range(samples)]))
     rate = sum(1 for passed, _ in results if passed) / samples if samples else math.nan

@@ -1,0 +1,64 @@
+"""Where a search's simulations run: worker processes on this machine, or a Ray cluster.
+
+Both backends are `concurrent.futures.Executor`s, so the search submits the same picklable calls
+and reads the same futures whichever one runs them; results do not depend on the backend (each
+simulation is seeded by its arguments alone). Ray is an optional extra (`pip install .[ray]`):
+it is imported only when asked for.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from concurrent.futures import Executor, Future, ProcessPoolExecutor
+from typing import Any
+
+from wrapenv.config import InputError
+
+BACKENDS = ("process", "ray")
+#: Object store of a Ray instance started here: the calls carry a load unit and a wrap format,
+#: kilobytes, so Ray's default (30 % of RAM in /dev/shm, often small in containers) is not needed.
+RAY_OBJECT_STORE_BYTES = 100 * 1024**2
+
+
+class RayExecutor(Executor):
+    """Runs submitted calls as Ray tasks. With `address=None` it starts a local Ray instance of
+    `workers` CPUs and stops it on shutdown; with an address ("auto", "ray://host:10001") it
+    joins that cluster, whose nodes need wrapbench installed, and leaves it running."""
+
+    def __init__(self, workers: int, address: str | None = None) -> None:
+        try:
+            import ray
+        except ImportError:
+            raise InputError("--backend", "ray",
+                             "Ray is not installed (pip install .[ray])") from None
+        self._ray = ray
+        self._remote: dict[Callable, Any] = {}
+        self._owns_instance = not ray.is_initialized() and address is None
+        if not ray.is_initialized():
+            options: dict[str, Any] = {"address": address, "include_dashboard": False,
+                                       "log_to_driver": False, "logging_level": "ERROR"}
+            if address is None:
+                options.update(num_cpus=workers, object_store_memory=RAY_OBJECT_STORE_BYTES)
+            try:
+                ray.init(**options)
+            except ConnectionError as exc:
+                raise InputError("--ray-address", str(address), f"cannot join ({exc})") from None
+
+    def submit(self, fn: Callable, /, *args: Any, **kwargs: Any) -> Future:
+        if fn not in self._remote:
+            self._remote[fn] = self._ray.remote(fn)
+        return self._remote[fn].remote(*args, **kwargs).future()
+
+    def shutdown(self, wait: bool = True, *, cancel_futures: bool = False) -> None:
+        if self._owns_instance and self._ray.is_initialized():
+            self._ray.shutdown()
+        self._owns_instance = False
+
+
+def executor(backend: str, workers: int, address: str | None = None) -> Executor:
+    """An executor of `workers` parallel simulations on the named backend."""
+    if backend == "process":
+        return ProcessPoolExecutor(max_workers=workers)
+    if backend == "ray":
+        return RayExecutor(workers, address)
+    raise InputError("--backend", backend, f"unknown backend (one of {', '.join(BACKENDS)})")

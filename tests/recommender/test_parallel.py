@@ -1,0 +1,73 @@
+"""Where simulations run: the same search gives the same answer on worker processes and on a
+local Ray instance, and a missing or unknown backend is a usage error."""
+
+from __future__ import annotations
+
+import builtins
+import dataclasses
+
+import pytest
+
+from recommender.cli import main
+from recommender.parallel import RayExecutor, executor
+from recommender.search import Problem, RobustSearch, SearchSettings
+from wrapenv.config import InputError
+from wrapenv.load import LoadUnit
+from wrapenv.profile import eumos_levels
+
+#: One bundle per layer on a stopped pallet: a bench run takes a fraction of a second.
+TINY = {
+    "name": "tiny",
+    "pallet": {"preset": "EUR"},
+    "bundle": {"preset": "PET6x1.5L"},
+    "stack": {"layers": 2, "pattern": "explicit", "positions": [[0.0, 0.0]]},
+    "fixture": {"pallet_stopper": True},
+}
+SMALL_SEARCH = SearchSettings(target_g=0.5, samples=2, popsize=3, max_candidates=3, patience=9,
+                              workers=2)
+
+
+def _history(backend: str) -> list[tuple]:
+    problem = Problem.build(LoadUnit.from_dict(TINY),
+                            dataclasses.replace(SMALL_SEARCH, backend=backend))
+    search = RobustSearch(problem)
+    state = search.run(search.start())
+    return [(e.vector, e.margins, e.passed, e.objective) for e in state.history]
+
+
+def test_ray_backend_reproduces_the_process_backend():
+    pytest.importorskip("ray")
+    process = _history("process")
+    assert len(process) == 3
+    assert _history("ray") == process
+
+
+def test_a_ray_instance_started_by_the_search_is_stopped_after_it():
+    ray = pytest.importorskip("ray")
+    with executor("ray", 1) as pool:
+        assert pool.submit(eumos_levels, 0.4).result() == [0.2, 0.3, 0.4]
+        assert ray.is_initialized()
+    assert not ray.is_initialized()
+
+
+def test_unknown_backend_is_an_input_error():
+    with pytest.raises(InputError, match="--backend: cluster: unknown backend"):
+        executor("cluster", 2)
+
+
+def test_ray_backend_without_ray_installed_says_how_to_install(monkeypatch, capsys, tmp_path):
+    real_import = builtins.__import__
+
+    def no_ray(name, *args, **kwargs):
+        if name == "ray":
+            raise ImportError("No module named 'ray'")
+        return real_import(name, *args, **kwargs)
+
+    monkeypatch.setattr(builtins, "__import__", no_ray)
+    with pytest.raises(InputError, match=r"pip install \.\[ray\]"):
+        RayExecutor(1)
+    monkeypatch.chdir(tmp_path)
+    assert main(["recommend", "--backend", "ray", "--budget", "2", "--samples", "1"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "pip install .[ray]" in err[0]
+    assert list(tmp_path.iterdir()) == []
