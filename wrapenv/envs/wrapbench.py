@@ -396,7 +396,9 @@ class WrapBenchRandomEnv(WrapBenchEnv):
     columnar or interlocked (a draw that `LoadUnit` rejects, e.g. an interlocked layer that
     would overhang or rest on nothing, is drawn again); static friction of each pair within
     +-15 % of its default value (or of the calibrated one when a calibration is given), kinetic
-    = 0.8 x static. The same seed gives the same sequence of units.
+    = 0.8 x static. The pallet stands against the sled's stopper, as on an EUMOS bench (a free
+    pallet slides from ~0.45 g on and spares the load the rest of the pulse). The same seed
+    gives the same sequence of units.
 
     ## Arguments
     As `WrapBenchEnv`, without `load`. The material is fixed per env instance.
@@ -438,6 +440,7 @@ class WrapBenchRandomEnv(WrapBenchEnv):
                     "pattern": str(RANDOM_PATTERNS[int(rng.integers(len(RANDOM_PATTERNS)))]),
                 },
                 "friction": {},
+                "fixture": {"pallet_stopper": True},
             }
             for pair in PAIRS:
                 spread = rng.uniform(1 - RANDOM_FRICTION_SPREAD, 1 + RANDOM_FRICTION_SPREAD)
