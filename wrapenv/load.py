@@ -7,8 +7,9 @@ of the pallet at z = 0 and the pallet centred on x = y = 0.
 
 from __future__ import annotations
 
+import json
 import math
-from dataclasses import dataclass, field, replace
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Literal
 
@@ -166,6 +167,29 @@ class LoadUnit:
         bundles.sort(key=lambda b: (b.layer, b.centre_m[0], b.centre_m[1]))
         return Layout(pallet_size, p.mass_kg, tuple(bundles), self.friction, self.pallet_stopper)
 
+    def to_dict(self) -> dict:
+        """The LOAD.toml content with every value written out (no presets), so the file says
+        exactly what was simulated; `from_dict` reads it back equal."""
+        stack: dict = {"layers": self.stack.layers, "pattern": self.stack.pattern}
+        if self.stack.pattern == "explicit":
+            stack["positions"] = [list(p) for p in self.stack.positions]
+        return {
+            "name": self.name,
+            "pallet": asdict(self.pallet),
+            "bundle": asdict(self.bundle),
+            "stack": stack,
+            "friction": {name: asdict(self.friction.pair(name)) for name in PAIRS},
+            "fixture": {"pallet_stopper": self.pallet_stopper},
+        }
+
+    def to_toml(self) -> str:
+        data = self.to_dict()
+        lines = ["# Load unit (LOAD.toml); metres, kilograms.", f"name = {_toml(data['name'])}"]
+        for table in ("pallet", "bundle", "stack", "friction", "fixture"):
+            lines.append(f"\n[{table}]")
+            lines += [f"{k} = {_toml(v)}" for k, v in data[table].items()]
+        return "\n".join(lines) + "\n"
+
     @classmethod
     def from_toml(cls, path: str | Path) -> LoadUnit:
         return cls.from_dict(read_toml(path), source=str(path))
@@ -185,6 +209,19 @@ class LoadUnit:
         unit = cls(name, pallet, bundle, stack, friction, stopper)
         _check_geometry(unit, source)
         return unit
+
+
+def _toml(value: object) -> str:
+    """A TOML value that reads back equal: floats by repr, strings as JSON-style strings."""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, str):
+        return json.dumps(value, ensure_ascii=False)
+    if isinstance(value, dict):
+        return "{ " + ", ".join(f"{k} = {_toml(v)}" for k, v in value.items()) + " }"
+    if isinstance(value, list):
+        return "[" + ", ".join(_toml(v) for v in value) + "]"
+    return repr(value)
 
 
 def _sized(t: Table, kind: type, presets: dict) -> Pallet | Bundle:
