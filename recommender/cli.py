@@ -29,7 +29,8 @@ from wrapenv.wrap import MATERIALS, WrapFormat
 
 #: Robust passes tried, lightest first, until one passes the whole EUMOS sequence.
 VERIFY_CANDIDATES = 3
-EXAMPLE_LOAD = Path(__file__).resolve().parent.parent / "examples" / "pet_2layer_columnar.toml"
+#: The bundled example (a link to examples/pet_2layer_columnar.toml, copied into wheels).
+EXAMPLE_LOAD = Path(__file__).resolve().parent / "data" / "example_load.toml"
 
 
 class _Parser(argparse.ArgumentParser):

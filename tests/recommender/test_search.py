@@ -5,11 +5,13 @@ from __future__ import annotations
 
 import json
 import pickle
+import tomllib
+from pathlib import Path
 
 import numpy as np
 import pytest
 
-from recommender.cli import main
+from recommender.cli import EXAMPLE_LOAD, main
 from recommender.search import (
     MASS_SPREAD,
     Problem,
@@ -166,3 +168,13 @@ def test_bad_policy_arguments_exit_2_with_one_line(argv, field, tmp_path, capsys
     code = main(argv)
     err = capsys.readouterr().err.strip()
     assert code == 2 and "\n" not in err and field in err
+
+
+def test_the_bundled_example_is_package_data_and_the_readme_example():
+    """`recommend` without LOAD reads a file inside the package, so a wheel install finds it;
+    it is the repository's examples/pet_2layer_columnar.toml."""
+    root = Path(__file__).resolve().parents[2]
+    assert EXAMPLE_LOAD.parent == root / "recommender" / "data"
+    assert EXAMPLE_LOAD.read_bytes() == (root / "examples/pet_2layer_columnar.toml").read_bytes()
+    pyproject = tomllib.loads((root / "pyproject.toml").read_text())
+    assert "data/*.toml" in pyproject["tool"]["setuptools"]["package-data"]["recommender"]
