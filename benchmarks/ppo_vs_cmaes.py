@@ -1,0 +1,76 @@
+"""A trained PPO policy against random actions and against the CMA-ES search.
+
+1. Held-out random units (drawn like `WrapBenchRandom-v0` draws them, from a stream no training
+   env uses), target level only: pass rate and mean material of the policy's proposals and of
+   uniformly random actions.
+2. Every example load: `wrapbench recommend` with CMA-ES (its defaults) and with
+   `--method ppo --policy`, run as a user runs them: exit status, material, highest EUMOS level
+   passed, robust pass rate, evaluations and wall time.
+
+    python benchmarks/ppo_vs_cmaes.py --policy RUN/policy.zip [--held-out 12] [--target 0.5]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+from recommender.policy import evaluate, held_out_loads
+
+EXAMPLES = ("examples/pet_2layer_columnar.toml", "examples/pet_3layer_columnar.toml",
+            "examples/pet_3layer_interlocked.toml")
+
+
+def held_out(policy: Path, n: int, target_g: float) -> None:
+    loads = held_out_loads(n, seed=0)
+    for name, source in (("policy", policy), ("random", None)):
+        t0 = time.perf_counter()
+        trials = evaluate(source, loads, "kraft", target_g, seed=0)
+        wall = time.perf_counter() - t0
+        passed = sum(t.passed for t in trials)
+        kg = np.mean([t.material_kg for t in trials])
+        print(f"held-out units ({n}), {name:6s}: passed {passed}/{n}, mean material {kg:.3f} kg, "
+              f"invalid {sum(not t.valid for t in trials)}, {wall:.0f} s", flush=True)
+
+
+def recommend(load: str, method: list[str], target_g: float) -> str:
+    with tempfile.TemporaryDirectory() as tmp:
+        out = Path(tmp) / "out.json"
+        t0 = time.perf_counter()
+        code = subprocess.run(["wrapbench", "recommend", load, "--target", str(target_g),
+                               "--json", str(out), *method], cwd=tmp,
+                              stdout=subprocess.DEVNULL).returncode
+        wall = time.perf_counter() - t0
+        if code != 0 or not out.exists():
+            return f"exit {code}, no passing format, {wall:.0f} s"
+        r = json.loads(out.read_text())
+    bands = " + ".join(f"{b['layers']}x {b['from_m']:.2f}-{b['to_m']:.2f} m"
+                       for b in r["format"]["band"])
+    return (f"{r['material_used']['mass_kg']:.3f} kg ({bands}), highest "
+            f"{r['verdict']['highest_passed_g']:.1f} g, robust {r['robust_pass_rate']:.0%}, "
+            f"{r['evaluations']} simulations, {wall:.0f} s")
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--policy", type=Path, required=True)
+    parser.add_argument("--held-out", type=int, default=12)
+    parser.add_argument("--target", type=float, default=0.5)
+    args = parser.parse_args()
+    held_out(args.policy, args.held_out, args.target)
+    ppo = ["--method", "ppo", "--policy", str(args.policy.resolve())]
+    for load in EXAMPLES:
+        for name, method in (("ppo", ppo), ("cmaes", [])):
+            result = recommend(str(Path(load).resolve()), method, args.target)
+            print(f"{Path(load).stem}, {name:5s}: {result}", flush=True)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
