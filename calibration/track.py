@@ -1,0 +1,377 @@
+"""`wrapbench track`: object paths from a bench recording (issue 5, after the source paper).
+
+The pipeline per recording:
+1. region of interest from the sled profile (the unit rides the sled across a fixed camera);
+2. first frame: the bundles by template matching (NCC + NMS) inside it, named by the layout
+   position nearest to each match (`L{layer}C{column}R1`); pallet and sled from the layout;
+   on wrapped units the bundles are hidden, so the objects carrying ArUco markers are followed
+   through their markers instead;
+3. every frame: each object followed against its first-frame patch (`vision.tracking`), poses
+   converted to world metres with setup.toml's camera and checked against the sled markers.
+Bad input raises `InputError`; anything the run could still measure around (lost objects,
+missing markers, a short video) is reported in `TrackResult.warnings`, naming the frames.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from calibration.recording import Recording
+from calibration.trajectories import ObjectPath, Trajectories
+from calibration.vision.detection import Detection, find_template
+from calibration.vision.markers import MarkerDetector, object_pose, scale_warning, side_px
+from calibration.vision.roi import PixelMap, predict_roi
+from calibration.vision.tracking import (
+    LOST_SCORE,
+    OPENCV_TRACKERS,
+    Frame,
+    MultiTracker,
+    Pose,
+    make_tracker,
+)
+from wrapenv.config import InputError
+from wrapenv.load import Layout
+
+DEFAULT_TRACKER = "ncc+flow"
+#: A template match must score this much (TM_CCOEFF_NORMED) to count as a bundle.
+MATCH_THRESHOLD = 0.6
+#: Margin of the region of interest around the unit: bundles slide and tip within it.
+ROI_MARGIN_M = 0.25
+#: Inset of an object's tracked box from its outline, so no neighbour is in its reference patch.
+INSET_M = 0.012
+#: Height of the sled's face that is followed (the deck under the unit).
+SLED_FACE_M = 0.08
+#: A match farther than this fraction of the bundle's size from every layout position is ignored.
+MATCH_RADIUS = 0.35
+#: Container and setup frame rates may differ by this fraction.
+FPS_TOLERANCE = 1e-3
+
+
+@dataclass(frozen=True)
+class TrackResult:
+    trajectories: Trajectories
+    warnings: list[str]
+
+
+@dataclass(frozen=True)
+class _Object:
+    name: str
+    centre_px: tuple[float, float]
+    size_px: tuple[int, int]
+
+
+def track(recording: Recording, *, tracker: str = DEFAULT_TRACKER,
+          debug_video: Path | None = None,
+          progress: Callable[[int, int], None] | None = None) -> TrackResult:
+    """Follow the sled, pallet and visible bundles (or the marker-carrying objects of a wrapped
+    unit) through the recording; `progress(frame, frames)` is called after every frame."""
+    run = _Run(recording, tracker)
+    try:
+        return run.go(debug_video, progress)
+    finally:
+        run.close()
+
+
+class _Run:
+    def __init__(self, recording: Recording, tracker: str) -> None:
+        self.rec, self.kind = recording, tracker
+        self.warnings: list[str] = []
+        self.cap = cv2.VideoCapture(str(recording.video))
+        if not self.cap.isOpened():
+            raise InputError(str(recording.video), "", "cannot open the video")
+        self.frames = int(self.cap.get(cv2.CAP_PROP_FRAME_COUNT))
+        self._check_time_base()
+        self.size = (int(self.cap.get(cv2.CAP_PROP_FRAME_WIDTH)),
+                     int(self.cap.get(cv2.CAP_PROP_FRAME_HEIGHT)))
+        self.pixmap = PixelMap(recording.px_per_m, *recording.origin_px)
+        self.layout = recording.load.layout()
+        times = np.arange(max(self.frames, 1)) / recording.fps
+        self.sled_x = recording.profile.position_m(times)
+        self.full_frame = tracker in OPENCV_TRACKERS
+        self.markers = (MarkerDetector(recording.markers.dictionary)
+                        if recording.markers and recording.markers.placements else None)
+        self.writer: cv2.VideoWriter | None = None
+
+    def _check_time_base(self) -> None:
+        video, fps = self.rec.video, float(self.cap.get(cv2.CAP_PROP_FPS))
+        if self.frames < 1:
+            raise InputError(str(video), "", "no frames")
+        if not (math.isfinite(fps) and abs(fps - self.rec.fps) <= FPS_TOLERANCE * self.rec.fps):
+            raise InputError(str(self.rec.folder / "setup.toml"), "recording.fps",
+                             f"{self.rec.fps:g} does not match the video's {fps:g} fps")
+        end = (self.frames - 1) / self.rec.fps
+        if self.rec.profile.t_s[-1] < end - 1e-6:
+            raise InputError(str(self.rec.folder / "profile.csv"), "t_s",
+                             f"ends at {self.rec.profile.t_s[-1]:g} s, before the video's last "
+                             f"frame at {end:g} s")
+
+    def close(self) -> None:
+        self.cap.release()
+        if self.writer is not None:
+            self.writer.release()
+
+    def frame(self, index: int, bgr: np.ndarray) -> Frame:
+        """Grayscale of the frame's region of interest (the whole frame for OpenCV's trackers)."""
+        if self.full_frame:
+            return Frame(cv2.cvtColor(bgr, cv2.COLOR_BGR2GRAY))
+        box = predict_roi(self.pixmap, self.layout, self.sled_x[index], self.size, ROI_MARGIN_M)
+        crop = bgr[box.y0:box.y1, box.x0:box.x1]
+        return Frame(cv2.cvtColor(crop, cv2.COLOR_BGR2GRAY), box.x0, box.y0)
+
+    def go(self, debug_video: Path | None,
+           progress: Callable[[int, int], None] | None) -> TrackResult:
+        ok, bgr = self.cap.read()
+        if not ok:
+            raise InputError(str(self.rec.video), "", "the first frame does not decode")
+        first = self.frame(0, bgr)
+        objects = self._objects(first)
+        tracked = [o for o in objects if o.name not in self._marker_objects()]
+        trackers = {o.name: make_tracker(self.kind, first, o.centre_px, o.size_px)
+                    for o in tracked}
+        multi = MultiTracker(trackers, {o.name: Pose(*o.centre_px) for o in tracked})
+        poses: dict[str, list[tuple[int, Pose]]] = {o.name: [(0, Pose(*o.centre_px))]
+                                                    for o in tracked}
+        lost: dict[str, list[int]] = {o.name: [] for o in tracked}
+        seen = [self.markers.detect(first)] if self.markers else []
+        if debug_video is not None:
+            self._open_writer(debug_video)
+            self._draw(bgr, 0, objects, {n: p[-1][1] for n, p in poses.items()})
+        index = 0
+        try:
+            while True:
+                if progress:
+                    progress(index + 1, self.frames)
+                ok, bgr = self.cap.read()
+                if not ok:
+                    break
+                index += 1
+                if index >= len(self.sled_x):
+                    self.sled_x = self.rec.profile.position_m(np.arange(index + 1) / self.rec.fps)
+                frame = self.frame(index, bgr)
+                sled_u = self.pixmap.px_per_m * (self.sled_x[index] - self.sled_x[0])
+                now = {}
+                for name, (pose, score) in multi.step(frame, sled_u).items():
+                    if score < LOST_SCORE:
+                        lost[name].append(index)
+                    else:
+                        poses[name].append((index, pose))
+                        now[name] = pose
+                if self.markers:
+                    seen.append(self.markers.detect(frame))
+                if self.writer is not None:
+                    self._draw(bgr, index, objects, now)
+        finally:
+            multi.close()
+        if index + 1 < self.frames:
+            self.warnings.append(f"{self.rec.video.name}: the container states {self.frames} "
+                                 f"frames, only {index + 1} decode; tracked those")
+        for name, frames in lost.items():
+            if frames:
+                self.warnings.append(f"{name}: lost (NCC < {LOST_SCORE}) in frames "
+                                     f"{_ranges(frames)}; those frames are left out")
+        paths = {name: self._path(p) for name, p in poses.items()}
+        if self.markers:
+            paths.update(self._marker_paths(seen))
+        self._check_swaps(paths, objects)
+        return TrackResult(Trajectories(paths), self.warnings)
+
+    # -- first frame -------------------------------------------------------------------------
+
+    def _objects(self, first: Frame) -> list[_Object]:
+        """Sled, pallet and front-row bundles with their first-frame centres and box sizes."""
+        s, x0 = self.pixmap.px_per_m, self.sled_x[0]
+        inset = 2 * INSET_M
+        px, _, pz = self.layout.pallet_size_m
+        sled_x0 = self._sled_start(first)
+        objects = [
+            _Object("sled", tuple(self.pixmap.to_px(sled_x0, -0.05)),
+                    _size(s * (px + 0.2), s * (SLED_FACE_M - inset))),
+            _Object("pallet", tuple(self.pixmap.to_px(x0, pz / 2)),
+                    _size(s * (px - inset), s * (pz - inset))),
+        ]
+        if self.rec.wrap is None:
+            objects += self._bundles(first)
+        return objects
+
+    def _sled_start(self, first: Frame) -> float:
+        """The sled's x at the first frame: from its markers when they are seen, else the
+        profile's (and the markers check setup.toml's scale either way)."""
+        spec = self.rec.markers
+        if self.markers is None or spec is None:
+            return float(self.sled_x[0])
+        found = self.markers.detect(first)
+        scale = scale_warning([side_px(c) for c in found.values()], spec.size_m,
+                              self.pixmap.px_per_m)
+        if scale:
+            self.warnings.append(scale)
+        sled = [(found[p.id], p.offset_m) for p in spec.placements
+                if p.object == "sled" and p.id in found]
+        if not sled:
+            self.warnings.append("sled markers not found in frame 0: the sled starts where "
+                                 "profile.csv puts it")
+            return float(self.sled_x[0])
+        return object_pose(sled, self.pixmap).x_m
+
+    def _bundles(self, first: Frame) -> list[_Object]:
+        """Front-row bundles: template matches named after the nearest layout position; a
+        position no match comes near is started from the layout, with a warning."""
+        expected = _front_row(self.layout)
+        s, x0 = self.pixmap.px_per_m, self.sled_x[0]
+        inset = 2 * INSET_M
+        found = self._match_template(first) if self.rec.template else []
+        objects = []
+        for name, (bx, bz, length, height) in expected.items():
+            u, v = self.pixmap.to_px(bx + x0, bz)
+            radius = MATCH_RADIUS * s * min(length, height)
+            near = [d for d in found if math.hypot(d.u - u, d.v - v) < radius]
+            if near:
+                best = max(near, key=lambda d: d.score)
+                u, v = best.u, best.v
+            elif self.rec.template:
+                self.warnings.append(f"{name}: no template match near its layout position in "
+                                     "frame 0; started from the layout")
+            objects.append(_Object(name, (float(u), float(v)),
+                                   _size(s * (length - inset), s * (height - inset))))
+        return objects
+
+    def _match_template(self, first: Frame) -> list[Detection]:
+        path = self.rec.template
+        assert path is not None
+        template = cv2.imread(str(path), cv2.IMREAD_GRAYSCALE)
+        if template is None:
+            raise InputError(str(path), "", "cannot read the template image")
+        box = predict_roi(self.pixmap, self.layout, self.sled_x[0], self.size, ROI_MARGIN_M)
+        roi = first.gray[box.y0 - first.y0:box.y1 - first.y0, box.x0 - first.x0:box.x1 - first.x0]
+        found = find_template(roi, template, MATCH_THRESHOLD)
+        if not found:
+            raise InputError(str(path), "", f"no match scoring >= {MATCH_THRESHOLD} in the first "
+                             "frame's region of interest: is it a bundle's front face at the "
+                             "recording's scale?")
+        return [Detection(d.u + box.x0, d.v + box.y0, d.score, d.width, d.height) for d in found]
+
+    # -- markers -----------------------------------------------------------------------------
+
+    def _marker_objects(self) -> set[str]:
+        """Objects followed through their markers: the load's, when the web hides it."""
+        spec = self.rec.markers
+        if spec is None or self.rec.wrap is None:
+            return set()
+        return {p.object for p in spec.placements if p.object != "sled"}
+
+    def _marker_paths(self, seen: list[dict[int, np.ndarray]]) -> dict[str, ObjectPath]:
+        """Per marker-carrying object: its pose in each frame any of its markers is seen; gaps
+        inside the run are interpolated, frames before the first or after the last sighting
+        are left out, and both are reported."""
+        spec = self.rec.markers
+        assert spec is not None
+        paths = {}
+        for name in sorted(self._marker_objects()):
+            placements = [p for p in spec.placements if p.object == name]
+            frames, values = [], []
+            for k, found in enumerate(seen):
+                obs = [(found[p.id], p.offset_m) for p in placements if p.id in found]
+                if obs:
+                    pose = object_pose(obs, self.pixmap)
+                    frames.append(k)
+                    values.append((pose.x_m, pose.z_m, pose.angle_rad))
+            missing = sorted(set(range(len(seen))) - set(frames))
+            if not frames:
+                self.warnings.append(f"{name}: markers {[p.id for p in placements]} never "
+                                     "detected; not tracked")
+                continue
+            if missing:
+                inside = [k for k in missing if frames[0] < k < frames[-1]]
+                outside = [k for k in missing if k < frames[0] or k > frames[-1]]
+                note = []
+                if inside:
+                    note.append(f"frames {_ranges(inside)} interpolated")
+                if outside:
+                    note.append(f"frames {_ranges(outside)} left out")
+                self.warnings.append(f"{name}: markers missing in {len(missing)} frames ("
+                                     f"{'; '.join(note)})")
+            ks = np.arange(frames[0], frames[-1] + 1)
+            vals = np.array(values)
+            x, z, a = (np.interp(ks, frames, vals[:, j]) for j in range(3))
+            paths[name] = ObjectPath(ks / self.rec.fps, x, z, a)
+        return paths
+
+    # -- results -----------------------------------------------------------------------------
+
+    def _path(self, poses: list[tuple[int, Pose]]) -> ObjectPath:
+        k = np.array([i for i, _ in poses])
+        u = np.array([p.u for _, p in poses])
+        v = np.array([p.v for _, p in poses])
+        x, z = self.pixmap.to_world(u, v)
+        return ObjectPath(k / self.rec.fps, x, z, np.array([p.theta for _, p in poses]))
+
+    def _check_swaps(self, paths: dict[str, ObjectPath], objects: list[_Object]) -> None:
+        """Warn when two objects' centres come closer than half a box: one tracker may have
+        jumped to its neighbour."""
+        half = {o.name: 0.5 * min(o.size_px) / self.pixmap.px_per_m for o in objects}
+        names = [n for n in paths if n in half]
+        for i, a in enumerate(names):
+            for b in names[i + 1:]:
+                pa, pb = paths[a], paths[b]
+                common, ia, ib = np.intersect1d(pa.t_s, pb.t_s, return_indices=True)
+                if common.size == 0:
+                    continue
+                d = np.hypot(pa.x_m[ia] - pb.x_m[ib], pa.z_m[ia] - pb.z_m[ib])
+                close = d < min(half[a], half[b])
+                if np.any(close):
+                    frames = np.rint(common[close] * self.rec.fps).astype(int).tolist()
+                    self.warnings.append(f"{a} and {b} overlap in frames {_ranges(frames)}: "
+                                         "their identities may have swapped")
+
+    # -- debug video -------------------------------------------------------------------------
+
+    def _open_writer(self, path: Path) -> None:
+        self.writer = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"mp4v"), self.rec.fps,
+                                      self.size)
+        if not self.writer.isOpened():
+            raise InputError(str(path), "", "cannot write the debug video there")
+
+    def _draw(self, bgr: np.ndarray, index: int, objects: list[_Object],
+              poses: dict[str, Pose]) -> None:
+        """Rotated box, centre dot and name of every object found in this frame."""
+        assert self.writer is not None
+        image = bgr.copy()
+        for obj in objects:
+            pose = poses.get(obj.name)
+            if pose is None:
+                continue
+            rect = ((pose.u, pose.v), obj.size_px, -math.degrees(pose.theta))
+            corners = np.round(cv2.boxPoints(rect)).astype(np.int32)
+            cv2.polylines(image, [corners], True, (0, 255, 255), 1, cv2.LINE_AA)
+            centre = (int(round(pose.u)), int(round(pose.v)))
+            cv2.circle(image, centre, 3, (0, 0, 255), -1, cv2.LINE_AA)
+            cv2.putText(image, obj.name, (centre[0] + 5, centre[1] - 5),
+                        cv2.FONT_HERSHEY_SIMPLEX, 0.4, (0, 255, 255), 1, cv2.LINE_AA)
+        cv2.putText(image, f"frame {index}", (10, 25), cv2.FONT_HERSHEY_SIMPLEX, 0.7,
+                    (255, 255, 255), 2, cv2.LINE_AA)
+        self.writer.write(image)
+
+
+def _front_row(layout: Layout) -> dict[str, tuple[float, float, float, float]]:
+    """Name -> (x, z, length, height) in the sled frame of the bundles facing the camera (R1)."""
+    return {b.name: (b.centre_m[0], b.centre_m[2], b.size_m[0], b.size_m[2])
+            for b in layout.bundles if b.name.endswith("R1")}
+
+
+def _size(width_px: float, height_px: float) -> tuple[int, int]:
+    return max(int(round(width_px)), 8), max(int(round(height_px)), 8)
+
+
+def _ranges(frames: list[int]) -> str:
+    """[1, 2, 3, 7] -> "1-3, 7"."""
+    out, start = [], frames[0]
+    for prev, cur in zip(frames, [*frames[1:], None], strict=True):
+        if cur != prev + 1:
+            out.append(f"{start}-{prev}" if prev > start else f"{start}")
+            start = cur
+    return ", ".join(out)

@@ -1,0 +1,1 @@
+"""Computer vision of bench recordings: region of interest, detection, tracking, flow, markers."""

@@ -1,0 +1,243 @@
+"""Multi-object tracking: every object followed against its own first-frame appearance.
+
+Identities come from the first-frame detections and never change afterwards: each tracker
+only searches a few pixels around its prediction (the sled's motion from the profile plus the
+object's own recent motion relative to the sled), far less than the distance to a neighbour,
+so a tracker cannot jump to the bundle next to it. Measuring against the first frame rather
+than the previous one keeps sub-pixel errors from accumulating into drift.
+
+Trackers (the `kind` names `track()` and the benchmarks use):
+- ``ncc+flow`` (default): NCC of the reference patch around the prediction (sub-pixel peak),
+  then Farnebäck on the reference vs the frame warped back by that estimate for the residual
+  translation and the rotation.
+- ``ncc``: the NCC step alone (translation only).
+- ``flow``: Farnebäck refinements alone, no NCC search (fails when the prediction is off by
+  more than Farnebäck's window).
+- ``chain``: the paper's order, frame-to-frame Farnebäck mean displacement summed (drifts).
+- ``mil`` (and ``dasiamrpn``, ``nano``, ``vit`` when their ONNX models are given): OpenCV's
+  trackers; box centre only, integer pixels.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass, replace
+from typing import Protocol
+
+import cv2
+import numpy as np
+
+from calibration.vision.detection import ncc, subpixel_peak
+from calibration.vision.flow import RigidFlow, rotation_px, warp_to_reference
+from calibration.vision.roi import Box
+
+#: NCC score under which an object counts as lost in a frame.
+LOST_SCORE = 0.5
+OWN_TRACKERS = ("ncc+flow", "ncc", "flow", "chain")
+OPENCV_TRACKERS = ("mil", "dasiamrpn", "nano", "vit")
+
+
+@dataclass(frozen=True)
+class Pose:
+    """Where the object's reference centre is in a frame (px) and its rotation since the first
+    frame (rad, world convention: counter-clockwise with z up)."""
+
+    u: float
+    v: float
+    theta: float = 0.0
+
+
+@dataclass(frozen=True)
+class Frame:
+    """A grayscale crop of a video frame and where its top-left pixel is in the full frame."""
+
+    gray: np.ndarray
+    x0: int = 0
+    y0: int = 0
+
+    def local(self, pose: Pose) -> tuple[float, float]:
+        return pose.u - self.x0, pose.v - self.y0
+
+
+class Tracker(Protocol):
+    """One object's tracker: `update` returns the pose in this frame and a confidence in [0, 1]
+    (below `LOST_SCORE`: not found; the pose is then the prediction)."""
+
+    box_size: tuple[int, int]
+
+    def update(self, frame: Frame, predicted: Pose) -> tuple[Pose, float]: ...
+
+
+class PatchTracker:
+    """An object followed by matching its first-frame patch (see the module docstring)."""
+
+    def __init__(self, frame: Frame, centre: tuple[float, float], size: tuple[int, int],
+                 kind: str = "ncc+flow", search_px: int = 8) -> None:
+        if kind not in ("ncc+flow", "ncc", "flow"):
+            raise ValueError(f"unknown patch tracker {kind!r}")
+        box = Box.around(centre[0] - frame.x0, centre[1] - frame.y0, *size)
+        if box.x0 < 0 or box.y0 < 0 or box.x1 > frame.gray.shape[1] or box.y1 > frame.gray.shape[0]:
+            raise ValueError("object box leaves the frame")
+        self.reference = np.ascontiguousarray(frame.gray[box.y0:box.y1, box.x0:box.x1])
+        self.ref_centre = (centre[0] - frame.x0 - box.x0, centre[1] - frame.y0 - box.y0)
+        self.box_size = (box.width, box.height)
+        self.kind, self.search_px = kind, search_px
+        self.flow = RigidFlow(self.reference, self.ref_centre) if kind != "ncc" else None
+
+    def update(self, frame: Frame, predicted: Pose) -> tuple[Pose, float]:
+        pose, score = predicted, 1.0
+        if self.kind != "flow":
+            pose, score = self._ncc(frame, pose)
+            if score < LOST_SCORE:
+                return predicted, score
+        if self.flow is not None:
+            for _ in range(2 if self.kind == "flow" else 1):
+                pose = self._refine(frame, pose)
+        return pose, score
+
+    def _ncc(self, frame: Frame, pose: Pose) -> tuple[Pose, float]:
+        m = self.search_px
+        crop = warp_to_reference(frame.gray, frame.local(pose), pose.theta, self.ref_centre,
+                                 self.box_size, m)
+        scores = ncc(crop, self.reference)
+        row, col = np.unravel_index(int(np.argmax(scores)), scores.shape)
+        dc, dr = subpixel_peak(scores, row, col)
+        t = rotation_px(pose.theta) @ np.array([col + dc - m, row + dr - m])
+        return replace(pose, u=pose.u + t[0], v=pose.v + t[1]), float(scores[row, col])
+
+    def _refine(self, frame: Frame, pose: Pose) -> Pose:
+        assert self.flow is not None
+        warped = warp_to_reference(frame.gray, frame.local(pose), pose.theta, self.ref_centre,
+                                   self.box_size)
+        motion = self.flow.measure(warped)
+        t = rotation_px(pose.theta) @ np.array([motion.du, motion.dv])
+        return Pose(pose.u + t[0], pose.v + t[1], pose.theta + motion.dtheta)
+
+
+class ChainFlowTracker:
+    """The paper's order: Farnebäck between consecutive frames inside the box, the weighted mean
+    displacement added up. Kept for the comparison: its errors accumulate."""
+
+    def __init__(self, frame: Frame, centre: tuple[float, float], size: tuple[int, int]) -> None:
+        self.box_size = size
+        self.previous, self.pose = frame, Pose(*centre)
+
+    def update(self, frame: Frame, predicted: Pose) -> tuple[Pose, float]:
+        centre = _patch_centre(self.box_size)
+        ref = warp_to_reference(self.previous.gray, self.previous.local(self.pose), 0.0, centre,
+                                self.box_size)
+        cur = warp_to_reference(frame.gray, frame.local(predicted), 0.0, centre, self.box_size)
+        motion = RigidFlow(ref, centre).measure(cur)
+        self.pose = Pose(predicted.u + motion.du, predicted.v + motion.dv,
+                         self.pose.theta + motion.dtheta)
+        self.previous = frame
+        return self.pose, 1.0
+
+
+def _patch_centre(size: tuple[int, int]) -> tuple[float, float]:
+    return (size[0] - 1) / 2, (size[1] - 1) / 2
+
+
+class OpenCVTracker:
+    """cv2's single-object trackers (box centre only). They keep their own state in full-frame
+    coordinates, so they must be given whole frames (offset 0)."""
+
+    def __init__(self, frame: Frame, centre: tuple[float, float], size: tuple[int, int],
+                 kind: str = "mil", model: str | None = None) -> None:
+        self.box_size = size
+        self.tracker = opencv_tracker(kind, model)
+        box = Box.around(centre[0], centre[1], *size)
+        self.offset = (centre[0] - (box.x0 + (box.width - 1) / 2),
+                       centre[1] - (box.y0 + (box.height - 1) / 2))
+        self.tracker.init(_bgr(frame.gray), (box.x0, box.y0, box.width, box.height))
+
+    def update(self, frame: Frame, predicted: Pose) -> tuple[Pose, float]:
+        ok, (x, y, w, h) = self.tracker.update(_bgr(frame.gray))
+        if not ok:
+            return predicted, 0.0
+        return Pose(x + (w - 1) / 2 + self.offset[0], y + (h - 1) / 2 + self.offset[1]), 1.0
+
+
+def _bgr(gray: np.ndarray) -> np.ndarray:
+    return cv2.cvtColor(gray, cv2.COLOR_GRAY2BGR)
+
+
+def opencv_tracker(kind: str, model: str | None = None) -> cv2.Tracker:
+    """An OpenCV tracker by name; the deep ones need their ONNX model file (`model`), which is
+    not bundled with opencv-python-headless: without one they raise `ValueError`."""
+    if kind == "mil":
+        return cv2.TrackerMIL_create()
+    factories = {"dasiamrpn": (cv2.TrackerDaSiamRPN_Params, cv2.TrackerDaSiamRPN_create, "model"),
+                 "nano": (cv2.TrackerNano_Params, cv2.TrackerNano_create, "backbone"),
+                 "vit": (cv2.TrackerVit_Params, cv2.TrackerVit_create, "net")}
+    if kind not in factories:
+        known = ", ".join(OWN_TRACKERS + OPENCV_TRACKERS)
+        raise ValueError(f"unknown tracker {kind!r}; known: {known}")
+    params_cls, create, field = factories[kind]
+    if model is None:
+        raise ValueError(f"tracker {kind!r} needs its ONNX model file, which is not available")
+    params = params_cls()
+    setattr(params, field, model)
+    try:
+        return create(params)
+    except cv2.error as exc:
+        raise ValueError(f"tracker {kind!r} cannot load {model}: {exc.msg.strip()}") from None
+
+
+def make_tracker(kind: str, frame: Frame, centre: tuple[float, float],
+                 size: tuple[int, int]) -> Tracker:
+    """A tracker of `kind` (see the module docstring) started on an object in `frame`."""
+    if kind == "chain":
+        return ChainFlowTracker(frame, centre, size)
+    if kind in OPENCV_TRACKERS:
+        return OpenCVTracker(frame, centre, size, kind)
+    return PatchTracker(frame, centre, size, kind)
+
+
+@dataclass
+class _History:
+    """The last two poses relative to the sled (u) for a constant-velocity prediction."""
+
+    poses: list[Pose]
+    sled_u: list[float]
+
+    def predict(self, sled_u: float) -> Pose:
+        last, ref = self.poses[-1], self.sled_u[-1]
+        if len(self.poses) < 2:
+            return Pose(last.u + sled_u - ref, last.v, last.theta)
+        prev, prev_ref = self.poses[-2], self.sled_u[-2]
+        rel_vu = (last.u - ref) - (prev.u - prev_ref)
+        return Pose(last.u - ref + sled_u + rel_vu, 2 * last.v - prev.v,
+                    2 * last.theta - prev.theta)
+
+    def push(self, pose: Pose, sled_u: float) -> None:
+        self.poses = [*self.poses[-1:], pose]
+        self.sled_u = [*self.sled_u[-1:], sled_u]
+
+
+class MultiTracker:
+    """Named trackers stepped together, each predicted from the sled shift and its own motion;
+    the objects are independent, so they are updated on a small thread pool (OpenCV releases
+    the GIL)."""
+
+    def __init__(self, trackers: dict[str, Tracker], start: dict[str, Pose], threads: int = 2):
+        self.trackers = trackers
+        self.history = {name: _History([start[name]], [0.0]) for name in trackers}
+        self.pool = ThreadPoolExecutor(threads) if threads > 1 else None
+
+    def step(self, frame: Frame, sled_u: float) -> dict[str, tuple[Pose, float]]:
+        """Poses and scores of every object in `frame`; `sled_u` is the sled's predicted u shift
+        since the first frame. A lost object's history keeps its prediction."""
+        def one(name: str) -> tuple[Pose, float]:
+            return self.trackers[name].update(frame, self.history[name].predict(sled_u))
+
+        run: Callable = self.pool.map if self.pool else map  # type: ignore[assignment]
+        results = dict(zip(self.trackers, run(one, self.trackers), strict=True))
+        for name, (pose, _) in results.items():
+            self.history[name].push(pose, sled_u)
+        return results
+
+    def close(self) -> None:
+        if self.pool:
+            self.pool.shutdown()

@@ -1,0 +1,48 @@
+"""trajectories.csv: round trip, validation messages, error against truth."""
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from calibration.trajectories import ObjectPath, Trajectories, error_vs_truth
+from wrapenv.config import InputError
+
+
+def _paths() -> Trajectories:
+    t = np.arange(5) / 20
+    return Trajectories({"sled": ObjectPath(t, t * 0.1, -0.05 + 0 * t, 0 * t),
+                         "L1C1R1": ObjectPath(t[1:], 0.3 + t[1:], 0.3 + 0 * t[1:], 0.01 * t[1:])})
+
+
+def test_round_trip(tmp_path: Path) -> None:
+    path = tmp_path / "trajectories.csv"
+    _paths().to_csv(path)
+    assert path.read_text().splitlines()[0] == "t_s,object,x_m,z_m,angle_rad"
+    back = Trajectories.from_csv(path)
+    assert set(back.objects) == {"sled", "L1C1R1"}
+    assert np.allclose(back.objects["L1C1R1"].x_m, _paths().objects["L1C1R1"].x_m, atol=1e-6)
+
+
+@pytest.mark.parametrize("text,where", [
+    ("t,object,x_m,z_m,angle_rad\n", "header"),
+    ("t_s,object,x_m,z_m,angle_rad\n0,sled,1,2\n", "line 2"),
+    ("t_s,object,x_m,z_m,angle_rad\n0,sled,abc,2,0\n", "line 2: x_m"),
+    ("t_s,object,x_m,z_m,angle_rad\n0,sled,nan,2,0\n", "line 2: x_m"),
+    ("t_s,object,x_m,z_m,angle_rad\n0,sled,0,0,0\n0,sled,0,0,0\n", "object sled"),
+])
+def test_bad_files_name_the_place(tmp_path: Path, text: str, where: str) -> None:
+    path = tmp_path / "bad.csv"
+    path.write_text(text)
+    with pytest.raises(InputError, match=where):
+        Trajectories.from_csv(path)
+
+
+def test_error_vs_truth_ignores_start_offset() -> None:
+    t = np.linspace(0, 1, 11)
+    truth = {"a": ObjectPath(t, t, 0 * t, 0 * t)}
+    tracked = Trajectories({"a": ObjectPath(t[2:], t[2:] + 0.5 + 0.001 * (t[2:] > 0.5),
+                                            0 * t[2:], 0 * t[2:])})
+    err = error_vs_truth(tracked, truth)["a"]
+    assert err.frames == 9 and abs(err.offset_m - 0.5) < 1e-12
+    assert abs(err.max_m - 0.001) < 1e-12 and 0 < err.rms_m < 0.001
