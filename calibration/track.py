@@ -26,13 +26,14 @@ from calibration.recording import Recording
 from calibration.trajectories import ObjectPath, Trajectories
 from calibration.vision.detection import Detection, find_template
 from calibration.vision.markers import MarkerDetector, object_pose, scale_warning, side_px
-from calibration.vision.roi import PixelMap, predict_roi
+from calibration.vision.roi import SLED_DECK_M, PixelMap, predict_roi
 from calibration.vision.tracking import (
     LOST_SCORE,
     OPENCV_TRACKERS,
     Frame,
     MultiTracker,
     Pose,
+    Tracker,
     make_tracker,
 )
 from wrapenv.config import InputError
@@ -45,8 +46,6 @@ MATCH_THRESHOLD = 0.6
 ROI_MARGIN_M = 0.25
 #: Inset of an object's tracked box from its outline, so no neighbour is in its reference patch.
 INSET_M = 0.012
-#: Height of the sled's face that is followed (the deck under the unit).
-SLED_FACE_M = 0.08
 #: A match farther than this fraction of the bundle's size from every layout position is ignored.
 MATCH_RADIUS = 0.35
 #: Container and setup frame rates may differ by this fraction.
@@ -131,9 +130,9 @@ class _Run:
             raise InputError(str(self.rec.video), "", "the first frame does not decode")
         first = self.frame(0, bgr)
         objects = self._objects(first)
-        tracked = [o for o in objects if o.name not in self._marker_objects()]
-        trackers = {o.name: make_tracker(self.kind, first, o.centre_px, o.size_px)
-                    for o in tracked}
+        trackers = self._trackers(first, [o for o in objects
+                                          if o.name not in self._marker_objects()])
+        tracked = [o for o in objects if o.name in trackers]
         multi = MultiTracker(trackers, {o.name: Pose(*o.centre_px) for o in tracked})
         poses: dict[str, list[tuple[int, Pose]]] = {o.name: [(0, Pose(*o.centre_px))]
                                                     for o in tracked}
@@ -181,6 +180,16 @@ class _Run:
         self._check_swaps(paths, objects)
         return TrackResult(Trajectories(paths), self.warnings)
 
+    def _trackers(self, first: Frame, objects: list[_Object]) -> dict[str, Tracker]:
+        trackers = {}
+        for o in objects:
+            try:
+                trackers[o.name] = make_tracker(self.kind, first, o.centre_px, o.size_px)
+            except ValueError as exc:
+                self.warnings.append(f"{o.name}: cannot be followed from frame 0 ({exc}); "
+                                     "not tracked")
+        return trackers
+
     # -- first frame -------------------------------------------------------------------------
 
     def _objects(self, first: Frame) -> list[_Object]:
@@ -190,8 +199,8 @@ class _Run:
         px, _, pz = self.layout.pallet_size_m
         sled_x0 = self._sled_start(first)
         objects = [
-            _Object("sled", tuple(self.pixmap.to_px(sled_x0, -0.05)),
-                    _size(s * (px + 0.2), s * (SLED_FACE_M - inset))),
+            _Object("sled", tuple(self.pixmap.to_px(sled_x0, -SLED_DECK_M / 2)),
+                    _size(s * (px + 0.2), s * (SLED_DECK_M - inset))),
             _Object("pallet", tuple(self.pixmap.to_px(x0, pz / 2)),
                     _size(s * (px - inset), s * (pz - inset))),
         ]

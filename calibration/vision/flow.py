@@ -67,7 +67,8 @@ class RigidFlow:
     """The rigid fit of the flow between one reference patch and warped current patches; the
     pixel grid and its moments are computed once per object."""
 
-    def __init__(self, reference: np.ndarray, ref_centre: tuple[float, float], border: int = 6):
+    def __init__(self, reference: np.ndarray, ref_centre: tuple[float, float], border: int = 6
+                 ) -> None:
         self.reference = reference
         h, w = reference.shape
         ys, xs = np.mgrid[0:h, 0:w].astype(np.float32)

@@ -73,17 +73,22 @@ class PatchTracker:
     """An object followed by matching its first-frame patch (see the module docstring)."""
 
     def __init__(self, frame: Frame, centre: tuple[float, float], size: tuple[int, int],
-                 kind: str = "ncc+flow", search_px: int = 8) -> None:
+                 kind: str = "ncc+flow", search_px: int = 8, pad_px: int = 6) -> None:
         if kind not in ("ncc+flow", "ncc", "flow"):
             raise ValueError(f"unknown patch tracker {kind!r}")
         box = Box.around(centre[0] - frame.x0, centre[1] - frame.y0, *size)
-        if box.x0 < 0 or box.y0 < 0 or box.x1 > frame.gray.shape[1] or box.y1 > frame.gray.shape[0]:
+        padded = box.grow(pad_px)
+        h, w = frame.gray.shape
+        if padded.x0 < 0 or padded.y0 < 0 or padded.x1 > w or padded.y1 > h:
             raise ValueError("object box leaves the frame")
         self.reference = np.ascontiguousarray(frame.gray[box.y0:box.y1, box.x0:box.x1])
         self.ref_centre = (centre[0] - frame.x0 - box.x0, centre[1] - frame.y0 - box.y0)
         self.box_size = (box.width, box.height)
-        self.kind, self.search_px = kind, search_px
-        self.flow = RigidFlow(self.reference, self.ref_centre) if kind != "ncc" else None
+        self.kind, self.search_px, self.pad_px = kind, search_px, pad_px
+        # Farnebäck runs on the box plus a pad, so its window has real pixels at the box's edge
+        self.flow = None if kind == "ncc" else RigidFlow(
+            np.ascontiguousarray(frame.gray[padded.y0:padded.y1, padded.x0:padded.x1]),
+            (self.ref_centre[0] + pad_px, self.ref_centre[1] + pad_px), border=pad_px + 2)
 
     def update(self, frame: Frame, predicted: Pose) -> tuple[Pose, float]:
         pose, score = predicted, 1.0
@@ -109,7 +114,7 @@ class PatchTracker:
     def _refine(self, frame: Frame, pose: Pose) -> Pose:
         assert self.flow is not None
         warped = warp_to_reference(frame.gray, frame.local(pose), pose.theta, self.ref_centre,
-                                   self.box_size)
+                                   self.box_size, self.pad_px)
         motion = self.flow.measure(warped)
         t = rotation_px(pose.theta) @ np.array([motion.du, motion.dv])
         return Pose(pose.u + t[0], pose.v + t[1], pose.theta + motion.dtheta)

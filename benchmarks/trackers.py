@@ -1,0 +1,65 @@
+"""Tracker comparison on synthetic recordings: accuracy against truth.json and speed.
+
+Rows: this project's trackers (`calibration.vision.tracking`: ncc+flow, ncc, flow, chain) and
+OpenCV 5's (TrackerMIL; DaSiamRPN, Nano and Vit need ONNX model files that opencv-python-headless
+does not ship and that cannot be fetched offline, so they are listed as unavailable). Columns:
+mean and worst per-object RMS and max displacement error (mm), objects whose error ever exceeds
+half a bundle's width (a swap or a loss), and fps of the whole `track` run.
+
+    python benchmarks/trackers.py [--size 960 600]
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import numpy as np
+
+from benchmarks.bench_track import CACHE, cached_recording
+from calibration.recording import Recording, Truth
+from calibration.track import track
+from calibration.trajectories import error_vs_truth
+from calibration.vision.tracking import OPENCV_TRACKERS, OWN_TRACKERS, opencv_tracker
+
+RECORDINGS = (("examples/pet_2layer_columnar.toml", 0.4, None),
+              ("examples/pet_3layer_columnar.toml", 0.3, None))
+#: An object's error beyond this (m) means its tracker followed something else.
+SWAP_M = 0.095
+
+
+def row(rec: Recording, kind: str) -> str:
+    start = time.perf_counter()
+    result = track(rec, tracker=kind)
+    seconds = time.perf_counter() - start
+    frames = max(len(p.t_s) for p in result.trajectories.objects.values())
+    errors = error_vs_truth(result.trajectories, Truth.read(rec.folder).objects).values()
+    rms = np.array([e.rms_m for e in errors]) * 1e3
+    worst = np.array([e.max_m for e in errors]) * 1e3
+    swaps = int(np.sum(worst > SWAP_M * 1e3))
+    return (f"| {kind:9} | {rms.mean():7.2f} | {rms.max():7.2f} | {worst.max():8.2f} "
+            f"| {swaps:5d} | {frames / seconds:6.1f} |")
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--size", type=int, nargs=2, default=(960, 600))
+    parser.add_argument("--cache", default=CACHE)
+    args = parser.parse_args()
+    for load, level, wrap in RECORDINGS:
+        rec = cached_recording(load, level, tuple(args.size), wrap=wrap, cache=args.cache)
+        print(f"\n{load} at {level} g, {args.size[0]}x{args.size[1]}, {rec.px_per_m:.0f} px/m")
+        print("| tracker   | RMS avg | RMS max | max (mm) | swaps |    fps |")
+        print("|-----------|---------|---------|----------|-------|--------|")
+        for kind in OWN_TRACKERS + OPENCV_TRACKERS:
+            if kind in OPENCV_TRACKERS:
+                try:
+                    opencv_tracker(kind)
+                except ValueError as exc:
+                    print(f"| {kind:9} | unavailable: {exc} |")
+                    continue
+            print(row(rec, kind), flush=True)
+
+
+if __name__ == "__main__":
+    main()
