@@ -135,6 +135,12 @@ def rest_state(layout: Layout) -> tuple[np.ndarray, np.ndarray]:
     return pos, np.repeat(np.eye(3)[None], len(pos), axis=0)
 
 
+def is_paper(wrap: WrapFormat) -> bool:
+    """Whether the web is paper (opaque, brown) rather than film (see-through)."""
+    return wrap.material_key == "kraft" or any(
+        word in wrap.material.name.lower() for word in ("kraft", "paper"))
+
+
 def _coverage(net: WrapNet) -> list[tuple[float, float]]:
     """Height intervals the wrap's bands cover, overlapping bands merged."""
     merged: list[list[float]] = []
@@ -182,10 +188,7 @@ class WrapOverlay:
             elements = np.array([e for e, (a, b) in enumerate(net.panel_nodes)
                                  if a in front and b in front], int)
             self.bridges.append((i, elements))
-        m = net.wrap.material
-        kraft = net.wrap.material_key == "kraft" or any(
-            word in m.name.lower() for word in ("kraft", "paper"))
-        self.fill_rgb, self.line_rgb = KRAFT_RGB if kraft else FILM_RGB
+        self.fill_rgb, self.line_rgb = KRAFT_RGB if is_paper(net.wrap) else FILM_RGB
 
     def _bands(self, spans: np.ndarray) -> list[tuple[float, float]]:
         """(bottom, top) of the web each ring stands for: the height of the bodies it runs

@@ -1,0 +1,413 @@
+"""The recording folder of a bench test (CONTRACTS.md, "Recording folder"): read, validate, write.
+
+A recording is what the tracker reads and the calibration fits to: the side camera's video, the
+sled's profile, the camera mapping and markers (`setup.toml`), the load (and wrap) as tested, and
+for synthetic recordings the true object tracks (`truth.json`). Every problem with a folder is one
+`InputError` naming the file and the field, so `wrapbench track` can exit 2 with one line.
+
+Coordinates: world x along the sled's motion, z up, z = 0 the sled surface; the camera is fixed to
+the ground, so world x = sled x + x in the sled frame. Pixels: u = u0 + px_per_m x,
+v = v0 - px_per_m z with (u0, v0) = `origin_px`.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import cv2
+import numpy as np
+
+from wrapenv.config import InputError, Table, read_json, read_toml, write_atomic
+from wrapenv.load import LoadUnit
+from wrapenv.render import SideCamera
+from wrapenv.wrap import WrapFormat
+
+SETUP, PROFILE, TRUTH = "setup.toml", "profile.csv", "truth.json"
+LOAD, WRAP = "load.toml", "wrap.toml"
+VIDEOS = ("video.mp4", "video.avi")
+PROFILE_COLUMNS = ("t_s", "accel_mps2", "vel_mps", "pos_m")
+TRACK_KEYS = ("t_s", "x_m", "z_m", "angle_rad")
+#: Relative tolerance between setup.toml's fps and the container's (containers store rationals).
+FPS_TOLERANCE = 1e-3
+#: Slack on time comparisons: the profile may end this much before the last frame's time.
+TIME_SLACK_S = 1e-6
+
+
+def aruco_dictionaries() -> tuple[str, ...]:
+    """Names of OpenCV's predefined ArUco dictionaries (``DICT_4X4_50``, ...)."""
+    return tuple(n for n in dir(cv2.aruco) if n.startswith("DICT_")
+                 and isinstance(getattr(cv2.aruco, n), int))
+
+
+@dataclass(frozen=True)
+class MarkerPlacement:
+    """One ArUco marker fixed to an object (printed on the web, bolted to the sled)."""
+
+    id: int
+    object: str                      # "sled", "pallet" or a bundle name "L2C1R1"
+    #: marker centre minus object centre, in the object's frame (x along motion, z up), at rest
+    offset_m: tuple[float, float]
+
+
+@dataclass(frozen=True)
+class MarkerSpec:
+    dictionary: str                  # a cv2.aruco predefined dictionary name, "DICT_4X4_50"
+    size_m: float                    # side of the black square
+    placements: tuple[MarkerPlacement, ...]
+
+    def aruco(self) -> cv2.aruco.Dictionary:
+        return cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, self.dictionary))
+
+
+@dataclass(frozen=True, eq=False)
+class SledProfile:
+    """The sled's motion on the recording's time base (t = 0 is the first video frame)."""
+
+    t_s: np.ndarray
+    accel_mps2: np.ndarray
+    vel_mps: np.ndarray
+    pos_m: np.ndarray
+
+    def position_m(self, t: np.ndarray | float) -> np.ndarray:
+        """Sled x at times t (s), interpolated; held at the ends."""
+        return np.interp(t, self.t_s, self.pos_m)
+
+    @classmethod
+    def from_accel(cls, t_s: np.ndarray, accel_mps2: np.ndarray) -> SledProfile:
+        """Velocity and position integrated (trapezoids) from rest at the first sample."""
+        dt = np.diff(t_s)
+        vel = np.concatenate([[0.0], np.cumsum(dt * (accel_mps2[1:] + accel_mps2[:-1]) / 2)])
+        pos = np.concatenate([[0.0], np.cumsum(dt * (vel[1:] + vel[:-1]) / 2)])
+        return cls(t_s, accel_mps2, vel, pos)
+
+    @classmethod
+    def read(cls, path: str | Path) -> SledProfile:
+        columns = _read_csv(Path(path))
+        t, a = columns["t_s"], columns["accel_mps2"]
+        if len(t) < 2:
+            raise InputError(str(path), "t_s", "needs at least two samples")
+        if np.any(np.diff(t) <= 0):
+            raise InputError(str(path), "t_s", "must increase strictly")
+        integrated = cls.from_accel(t, a)
+        return cls(t, a, columns.get("vel_mps", integrated.vel_mps),
+                   columns.get("pos_m", integrated.pos_m))
+
+    def to_csv(self) -> bytes:
+        rows = [",".join(PROFILE_COLUMNS)]
+        rows += [",".join(_num(v) for v in row) for row in
+                 zip(self.t_s, self.accel_mps2, self.vel_mps, self.pos_m, strict=True)]
+        return ("\n".join(rows) + "\n").encode()
+
+
+def _num(value: float) -> str:
+    """A float written so that it reads back equal."""
+    return repr(float(value))
+
+
+def _read_csv(path: Path) -> dict[str, np.ndarray]:
+    """The profile's known columns as arrays; t_s and accel_mps2 required, all finite."""
+    src = str(path)
+    try:
+        with path.open(newline="") as fh:
+            rows = [r for r in csv.reader(fh) if r]
+    except (OSError, UnicodeDecodeError) as exc:
+        raise InputError(src, "", f"cannot read file ({exc})") from None
+    if not rows:
+        raise InputError(src, "", "empty file")
+    header = [h.strip() for h in rows[0]]
+    for col in PROFILE_COLUMNS[:2]:
+        if col not in header:
+            raise InputError(src, col, "missing column (header must name t_s,accel_mps2)")
+    present = [c for c in PROFILE_COLUMNS if c in header]
+    values = []
+    for line, row in enumerate(rows[1:], start=2):
+        try:
+            values.append([float(row[header.index(c)]) for c in present])
+        except (ValueError, IndexError):
+            raise InputError(src, f"line {line}", f"not a number row: {row!r}") from None
+    table = np.array(values, float).reshape(-1, len(present))
+    for j, col in enumerate(present):
+        if not np.all(np.isfinite(table[:, j])):
+            raise InputError(src, col, "contains NaN or infinite values")
+    return {c: table[:, j] for j, c in enumerate(present)}
+
+
+@dataclass(frozen=True, eq=False)
+class Recording:
+    """A validated recording folder."""
+
+    folder: Path
+    video: Path                      # video.mp4 or video.avi
+    fps: float
+    px_per_m: float
+    origin_px: tuple[float, float]   # pixel of world x = 0, z = 0 at t = 0
+    profile: SledProfile
+    load: LoadUnit
+    wrap: WrapFormat | None
+    markers: MarkerSpec | None
+    template: Path | None
+
+    @classmethod
+    def read(cls, folder: str | Path) -> Recording:
+        """Read and check every file of the folder (the video's container, not its frames)."""
+        folder = Path(folder)
+        if not folder.is_dir():
+            raise InputError(str(folder), "", "not a folder")
+        setup_path = folder / SETUP
+        setup = _Setup.parse(read_toml(setup_path), str(setup_path))
+        load = LoadUnit.from_toml(folder / LOAD)
+        wrap_path = folder / WRAP
+        wrap = (WrapFormat.from_toml(wrap_path, load.layout().load_height_m)
+                if wrap_path.exists() else None)
+        if setup.markers is not None:
+            _check_markers(setup.markers, load, str(setup_path))
+        template = None
+        if setup.template is not None:
+            template = folder / setup.template
+            if cv2.imread(str(template)) is None:
+                raise InputError(str(setup_path), setup.template_field,
+                                 f"{setup.template} is missing or not an image")
+        video = _find_video(folder)
+        frames = _check_video(video, setup.fps, str(setup_path))
+        profile_path = folder / PROFILE
+        profile = SledProfile.read(profile_path)
+        _check_covers(profile, (frames - 1) / setup.fps, str(profile_path))
+        return cls(folder, video, setup.fps, setup.px_per_m, setup.origin_px, profile, load,
+                   wrap, setup.markers, template)
+
+    def camera(self, width: int, height: int) -> SideCamera:
+        """The side camera of this recording (`SideCamera.project` gives pixels)."""
+        return SideCamera(width, height, self.px_per_m, self.origin_px)
+
+    def video_size(self) -> tuple[int, int]:
+        """(width, height) of the video's frames."""
+        cap = _open_video(self.video)
+        try:
+            return (int(cap.get(cv2.CAP_PROP_FRAME_WIDTH)), int(cap.get(cv2.CAP_PROP_FRAME_HEIGHT)))
+        finally:
+            cap.release()
+
+
+@dataclass(frozen=True)
+class _Setup:
+    fps: float
+    px_per_m: float
+    origin_px: tuple[float, float]
+    markers: MarkerSpec | None
+    template: str | None
+    template_field: str
+
+    @classmethod
+    def parse(cls, data: dict[str, Any], src: str) -> _Setup:
+        top = Table(data, src)
+        template, where = None, "template"
+        if top.has("template"):
+            template = top.string("template")
+        rec = top.table("recording", required=True)
+        fps = rec.number("fps", positive=True)
+        if rec.has("template"):
+            template, where = rec.string("template"), "recording.template"
+        rec.done()
+        cam = top.table("camera", required=True)
+        px_per_m = cam.number("px_per_m", positive=True)
+        origin = _pair(cam, "origin_px")
+        cam.done()
+        markers = None
+        if top.has("markers"):
+            table = top.table("markers")
+            if table.has("template"):
+                template, where = table.string("template"), "markers.template"
+            markers = _marker_spec(table)
+        top.done()
+        return cls(fps, px_per_m, origin, markers, template, where)
+
+
+def _pair(t: Table, key: str) -> tuple[float, float]:
+    """Two finite numbers, e.g. ``origin_px = [960.0, 1020.0]``."""
+    raw = t.array(key)
+    ok = len(raw) == 2 and all(isinstance(v, int | float) and not isinstance(v, bool)
+                               and math.isfinite(v) for v in raw)
+    if not ok:
+        raise t.error(key, f"must be two finite numbers (got {raw!r})")
+    return float(raw[0]), float(raw[1])
+
+
+def _marker_spec(t: Table) -> MarkerSpec:
+    dictionary = t.string("dictionary")
+    names = aruco_dictionaries()
+    if dictionary not in names:
+        raise t.error("dictionary", f"unknown ArUco dictionary {dictionary!r} (e.g. DICT_4X4_50)")
+    size = t.number("size_m", positive=True)
+    placements = []
+    raw = t.array("placement") if t.has("placement") else []
+    for i, item in enumerate(raw):
+        p = Table(item, t.source, t.field(f"placement[{i}]"))
+        marker_id = p.integer("id", minimum=0)
+        obj = p.string("object")
+        offset = _pair(p, "offset_m")
+        p.done()
+        placements.append(MarkerPlacement(marker_id, obj, offset))
+    t.done()
+    return MarkerSpec(dictionary, size, tuple(placements))
+
+
+def _check_markers(spec: MarkerSpec, load: LoadUnit, src: str) -> None:
+    """Ids the dictionary holds, each once, on objects the load has."""
+    count = spec.aruco().bytesList.shape[0]
+    objects = {"sled", "pallet"} | {b.name for b in load.layout().bundles}
+    seen: set[int] = set()
+    for i, p in enumerate(spec.placements):
+        where = f"markers.placement[{i}]"
+        if p.id >= count:
+            raise InputError(src, f"{where}.id", f"{spec.dictionary} has ids 0 to {count - 1}"
+                             f" (got {p.id})")
+        if p.id in seen:
+            raise InputError(src, f"{where}.id", f"duplicate marker id {p.id}")
+        seen.add(p.id)
+        if p.object not in objects:
+            raise InputError(src, f"{where}.object", f"no object {p.object!r} in the load"
+                             " (sled, pallet or a bundle name such as L1C1R1)")
+
+
+def _find_video(folder: Path) -> Path:
+    for name in VIDEOS:
+        if (folder / name).is_file():
+            return folder / name
+    raise InputError(str(folder / VIDEOS[0]), "", f"missing (neither {' nor '.join(VIDEOS)})")
+
+
+def _open_video(path: Path) -> cv2.VideoCapture:
+    cap = cv2.VideoCapture(str(path))
+    if not cap.isOpened():
+        cap.release()
+        raise InputError(str(path), "", "cannot open the video (unknown or damaged container)")
+    return cap
+
+
+def _check_video(path: Path, fps: float, setup_src: str) -> int:
+    """The number of frames, after checking that they decode and run at `fps`."""
+    cap = _open_video(path)
+    try:
+        ok, _ = cap.read()
+        frames = int(cap.get(cv2.CAP_PROP_FRAME_COUNT))
+        container_fps = float(cap.get(cv2.CAP_PROP_FPS))
+    finally:
+        cap.release()
+    if not ok or frames < 1:
+        raise InputError(str(path), "", "no decodable frame")
+    if not (math.isfinite(container_fps) and container_fps > 0):
+        raise InputError(str(path), "", "the container states no frame rate")
+    if abs(container_fps - fps) > FPS_TOLERANCE * fps:
+        raise InputError(setup_src, "recording.fps", f"{fps} does not match the video's"
+                         f" {container_fps:g} fps")
+    return frames
+
+
+def _check_covers(profile: SledProfile, last_frame_s: float, src: str) -> None:
+    if profile.t_s[0] > TIME_SLACK_S:
+        raise InputError(src, "t_s", f"starts at {profile.t_s[0]:g} s, after the first frame (0 s)")
+    if profile.t_s[-1] < last_frame_s - TIME_SLACK_S:
+        raise InputError(src, "t_s", f"ends at {profile.t_s[-1]:g} s, before the video's last"
+                         f" frame at {last_frame_s:g} s")
+
+
+@dataclass(frozen=True, eq=False)
+class ObjectTrack:
+    """One object's centre as the camera sees it: world x, z (m) and the angle about the camera
+    axis, counter-clockwise in the image (x right, z up): atan2(R[2,0], R[0,0])."""
+
+    t_s: np.ndarray
+    x_m: np.ndarray
+    z_m: np.ndarray
+    angle_rad: np.ndarray
+
+    def to_dict(self) -> dict[str, list[float]]:
+        return {k: [float(v) for v in getattr(self, k)] for k in TRACK_KEYS}
+
+
+@dataclass(frozen=True, eq=False)
+class Truth:
+    """What a synthetic recording really shows: true parameters and object tracks."""
+
+    params: dict
+    objects: dict[str, ObjectTrack]
+
+    @classmethod
+    def read(cls, folder: str | Path) -> Truth:
+        path = Path(folder) / TRUTH
+        src = str(path)
+        data = read_json(path)
+        params = data.get("params", {})
+        if not isinstance(params, dict):
+            raise InputError(src, "params", "must be an object")
+        objects = data.get("objects")
+        if not isinstance(objects, dict) or not objects:
+            raise InputError(src, "objects", "must be an object of object tracks")
+        return cls(params, {name: _track(item, src, f"objects.{name}")
+                            for name, item in objects.items()})
+
+    def to_json(self) -> bytes:
+        data = {"params": self.params,
+                "objects": {name: track.to_dict() for name, track in self.objects.items()}}
+        return json.dumps(data, allow_nan=False).encode()
+
+
+def _track(item: Any, src: str, where: str) -> ObjectTrack:
+    if not isinstance(item, dict):
+        raise InputError(src, where, "must be an object with t_s, x_m, z_m, angle_rad")
+    arrays = []
+    for key in TRACK_KEYS:
+        raw = item.get(key)
+        ok = isinstance(raw, list) and all(isinstance(v, int | float) and not isinstance(v, bool)
+                                           for v in raw)
+        if not ok:
+            raise InputError(src, f"{where}.{key}", "must be an array of numbers")
+        values = np.array(raw, float)
+        if not np.all(np.isfinite(values)):
+            raise InputError(src, f"{where}.{key}", "contains NaN or infinite values")
+        if len(values) != len(item["t_s"]):
+            raise InputError(src, f"{where}.{key}", f"has {len(values)} values, t_s"
+                             f" {len(item['t_s'])}")
+        arrays.append(values)
+    return ObjectTrack(*arrays)
+
+
+# --- writing (synthetic recordings) -----------------------------------------------------------
+
+def setup_toml(fps: float, px_per_m: float, origin_px: tuple[float, float],
+               markers: MarkerSpec | None = None, template: str | None = None) -> str:
+    """The setup.toml text (contract keys, template at the top level)."""
+    lines = ["# Recording setup: side camera looking along +y, u = u0 + px_per_m x,"
+             " v = v0 - px_per_m z."]
+    if template is not None:
+        lines.append(f"template = {json.dumps(template)}")
+    lines += ["", "[recording]", f"fps = {_num(fps)}",
+              "", "[camera]", f"px_per_m = {_num(px_per_m)}",
+              f"origin_px = [{_num(origin_px[0])}, {_num(origin_px[1])}]"]
+    if markers is not None:
+        lines += ["", "[markers]", f"dictionary = {json.dumps(markers.dictionary)}",
+                  f"size_m = {_num(markers.size_m)}"]
+        for p in markers.placements:
+            lines += ["", "[[markers.placement]]", f"id = {p.id}",
+                      f"object = {json.dumps(p.object)}",
+                      f"offset_m = [{_num(p.offset_m[0])}, {_num(p.offset_m[1])}]"]
+    return "\n".join(lines) + "\n"
+
+
+def write_setup(folder: str | Path, fps: float, px_per_m: float, origin_px: tuple[float, float],
+                markers: MarkerSpec | None = None, template: str | None = None) -> None:
+    write_atomic(Path(folder) / SETUP,
+                 setup_toml(fps, px_per_m, origin_px, markers, template).encode())
+
+
+def write_profile(folder: str | Path, profile: SledProfile) -> None:
+    write_atomic(Path(folder) / PROFILE, profile.to_csv())
+
+
+def write_truth(folder: str | Path, truth: Truth) -> None:
+    write_atomic(Path(folder) / TRUTH, truth.to_json())
