@@ -18,6 +18,7 @@ from pathlib import Path
 
 from tqdm import tqdm
 
+from calibration import commands
 from recommender.parallel import BACKENDS
 from wrapenv.bench import BenchRun, run_levels
 from wrapenv.calibrated import Calibration
@@ -118,13 +119,17 @@ def build_parser() -> argparse.ArgumentParser:
     tr.add_argument("--material", default="kraft")
     tr.add_argument("--target", type=_g, default=0.5, metavar="G")
     tr.add_argument("--seed", type=int, default=0)
+
+    commands.add_synth(sub, _g)
+    commands.add_track(sub)
     return parser
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     try:
-        command = {"simulate": _simulate, "recommend": _recommend, "train": _train}
+        command = {"simulate": _simulate, "recommend": _recommend, "train": _train,
+                   "synth": commands.run_synth, "track": commands.run_track}
         return command[args.command](args)
     except InputError as exc:
         sys.stderr.write(f"wrapbench {args.command}: {exc}\n")
