@@ -17,6 +17,7 @@ import math
 import os
 import shutil
 import tempfile
+from collections.abc import Iterable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -44,6 +45,7 @@ from wrapenv.profile import PulseProfile
 from wrapenv.render import Renderer, SideCamera, is_paper, torn_net
 from wrapenv.trace import Trace
 from wrapenv.wrap import WrapFormat
+from wrapenv.wrap_physics import WrapNet
 
 SLED_DECK_M = 0.1  # thickness of the bench's deck (wrapenv.bench)
 MARKER_DICTIONARY = "DICT_4X4_50"
@@ -59,7 +61,7 @@ BLUR_SIGMA_PX = 0.6
 NOISE_GREY = 2.0
 LIGHT_DRIFT = 0.05
 #: Codec, file and container: Motion-JPEG at this quality (see `write_video`).
-FOURCC, VIDEO_NAME, JPEG_QUALITY = "MJPG", "video.avi", 95
+FOURCC, VIDEO_NAME, JPEG_QUALITY = "MJPG", "video.avi", 100
 
 
 @dataclass(frozen=True)
@@ -314,7 +316,7 @@ class _Scene:
     imperfections. Frames depend only on the states and the seed."""
 
     def __init__(self, layout: Layout, camera: SideCamera, seed: int, markers: MarkerSpec,
-                 wrap_net, wrap_alpha: float | None) -> None:
+                 wrap_net: WrapNet | None, wrap_alpha: float | None) -> None:
         self.layout, self.camera, self.seed, self.markers = layout, camera, seed, markers
         self.wrap_net, self.wrap_alpha = wrap_net, wrap_alpha
         tpm = TEXTURE_OVERSAMPLING * camera.px_per_m
@@ -434,7 +436,7 @@ class _Scene:
         self._draw_markers(image, shade, mask, pos, rot, sled_x)
         return self._camera_effects(image, i, float(s.t_s[i]), float(s.t_s[-1]))
 
-    def frames(self, s: _States):
+    def frames(self, s: _States) -> Iterator[np.ndarray]:
         for i in range(len(s.t_s)):
             yield self.frame(s, i)
 
@@ -453,14 +455,16 @@ class _Scene:
         return np.clip(np.rint(crop), 0, 255).astype(np.uint8)
 
 
-def write_video(path: Path, frames, fps: float, size: tuple[int, int]) -> int:
-    """Encode RGB frames; returns how many. Motion-JPEG at quality 95 in AVI: every frame is
-    coded on its own and the decoded frames stay within a few grey levels of the rendered ones,
-    where mp4v (MPEG-4 part 2, no quality control in OpenCV) smears moving texture."""
-    writer = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*FOURCC), fps, size)
-    if not writer.isOpened():
-        raise RuntimeError(f"OpenCV cannot write {FOURCC} video to {path}")
-    writer.set(cv2.VIDEOWRITER_PROP_QUALITY, JPEG_QUALITY)
+def write_video(path: Path, frames: Iterable[np.ndarray], fps: float, size: tuple[int, int]
+                ) -> int:
+    """Encode RGB frames; returns how many. Motion-JPEG from OpenCV's own encoder, the one that
+    honours the quality setting (FFmpeg's ignores it): every frame is coded on its own, and
+    textures keep their sub-pixel position where mp4v (no quality control) smears motion."""
+    writer = cv2.VideoWriter(str(path), cv2.CAP_OPENCV_MJPEG, cv2.VideoWriter_fourcc(*FOURCC),
+                             fps, size)
+    if not (writer.isOpened() and writer.set(cv2.VIDEOWRITER_PROP_QUALITY, JPEG_QUALITY)):
+        raise RuntimeError(f"OpenCV cannot write {FOURCC} video at quality {JPEG_QUALITY}"
+                           f" to {path}")
     count = 0
     try:
         for frame in frames:

@@ -1,0 +1,67 @@
+"""Synthetic recordings shared by the calibration tests: small images, low level, few frames.
+
+Each is made once per session (a few seconds each); tests that change files work on copies.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+
+from calibration.synth import synthesize
+from wrapenv.load import LoadUnit
+from wrapenv.wrap import WrapFormat
+
+#: A 0.6 x 0.4 m pallet with 2 layers of 2 x 2 bundles: 8 bundles, 4 of them in row 1.
+SMALL_LOAD = {
+    "name": "small test unit",
+    "pallet": {"length_m": 0.6, "width_m": 0.4, "height_m": 0.12, "mass_kg": 10.0},
+    "bundle": {"length_m": 0.28, "width_m": 0.19, "height_m": 0.33, "mass_kg": 9.3},
+    "stack": {"layers": 2, "pattern": "columnar"},
+}
+#: 800 x 500 at 0.2 g gives ~240 px/m: markers of 0.075 m are 18 px, big enough for ArUco.
+SIZE = (800, 500)
+SYNTH = {"level_g": 0.2, "size": SIZE, "fps": 10.0, "marker_size_m": 0.075}
+
+
+@pytest.fixture(scope="session")
+def small_load() -> LoadUnit:
+    return LoadUnit.from_dict(SMALL_LOAD)
+
+
+@pytest.fixture(scope="session")
+def recording_dir(tmp_path_factory: pytest.TempPathFactory, small_load: LoadUnit) -> Path:
+    out = tmp_path_factory.mktemp("synth") / "plain"
+    synthesize(small_load, out, seed=3, **SYNTH)
+    return out
+
+
+@pytest.fixture(scope="session")
+def wrapped_dir(tmp_path_factory: pytest.TempPathFactory, small_load: LoadUnit) -> Path:
+    wrap = WrapFormat.from_dict({
+        "material": "kraft", "web_width_m": 0.5,
+        "band": [{"from_m": 0.0, "to_m": 0.78, "layers": 2, "tension_n": 100.0}]})
+    out = tmp_path_factory.mktemp("synth") / "wrapped"
+    synthesize(small_load, out, wrap=wrap, seed=4, **SYNTH)
+    return out
+
+
+def decoded_frames(video: Path) -> list[np.ndarray]:
+    """Every frame of a video as RGB."""
+    cap = cv2.VideoCapture(str(video))
+    frames = []
+    while True:
+        ok, frame = cap.read()
+        if not ok:
+            break
+        frames.append(cv2.cvtColor(frame, cv2.COLOR_BGR2RGB))
+    cap.release()
+    return frames
+
+
+@pytest.fixture(scope="session")
+def frames_of():
+    return decoded_frames

@@ -1,0 +1,196 @@
+"""The recording folder (calibration/recording.py): reading a good folder, the sled profile, and
+one `InputError` naming file and field for each way a folder can be wrong."""
+
+from __future__ import annotations
+
+import shutil
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from calibration.recording import (
+    MarkerPlacement,
+    MarkerSpec,
+    Recording,
+    SledProfile,
+    Truth,
+    setup_toml,
+)
+from wrapenv.config import InputError, read_toml
+
+
+def test_reads_a_synthetic_recording(recording_dir):
+    rec = Recording.read(recording_dir)
+    assert rec.video.name == "video.avi" and rec.fps == 10.0
+    assert rec.px_per_m > 0 and len(rec.origin_px) == 2
+    assert rec.video_size() == (800, 500)
+    assert rec.wrap is None and rec.template == recording_dir / "template.png"
+    assert rec.markers is not None and rec.markers.dictionary == "DICT_4X4_50"
+    assert [p.object for p in rec.markers.placements] == ["sled", "sled"]
+    cam = rec.camera(800, 500)
+    assert cam.px_per_m == rec.px_per_m and cam.origin_px == rec.origin_px
+    assert rec.load.stack.layers == 2
+
+
+def test_profile_integrates_velocity_and_position_when_absent(tmp_path):
+    t = np.linspace(0.0, 2.0, 401)
+    path = tmp_path / "profile.csv"
+    path.write_text("t_s,accel_mps2\n" + "".join(f"{float(v)!r},2.0\n" for v in t))
+    profile = SledProfile.read(path)
+    np.testing.assert_allclose(profile.vel_mps, 2.0 * t, atol=1e-12)
+    np.testing.assert_allclose(profile.pos_m, t**2, atol=1e-4)
+    assert profile.position_m(1.5) == pytest.approx(2.25, abs=1e-4)
+
+
+def test_profile_round_trips_through_csv(tmp_path):
+    t = np.array([0.0, 0.1, 0.25])
+    profile = SledProfile(t, np.array([1.0, 2.0, 0.5]), np.array([0.0, 0.15, 0.34]),
+                          np.array([0.0, 0.01, 0.05]))
+    (tmp_path / "profile.csv").write_bytes(profile.to_csv())
+    back = SledProfile.read(tmp_path / "profile.csv")
+    for key in ("t_s", "accel_mps2", "vel_mps", "pos_m"):
+        np.testing.assert_array_equal(getattr(back, key), getattr(profile, key))
+
+
+def test_setup_round_trips_markers_and_template():
+    spec = MarkerSpec("DICT_5X5_100", 0.05,
+                      (MarkerPlacement(7, "pallet", (0.5, 0.0)),
+                       MarkerPlacement(9, "L2C1R1", (-0.1, 0.12))))
+    import tomllib
+    data = tomllib.loads(setup_toml(25.0, 412.0, (960.5, 1001.0), spec, "t.png"))
+    assert data["template"] == "t.png" and data["recording"]["fps"] == 25.0
+    assert data["camera"] == {"px_per_m": 412.0, "origin_px": [960.5, 1001.0]}
+    assert data["markers"]["placement"][1] == {"id": 9, "object": "L2C1R1",
+                                               "offset_m": [-0.1, 0.12]}
+
+
+def _edit(name: str, old: str, new: str) -> Callable[[Path], None]:
+    def change(folder: Path) -> None:
+        path = folder / name
+        text = path.read_text()
+        assert old in text, f"{old!r} not in {name}"
+        path.write_text(text.replace(old, new, 1))
+    return change
+
+
+def _remove(name: str) -> Callable[[Path], None]:
+    return lambda folder: (folder / name).unlink()
+
+
+def _write(name: str, data: bytes) -> Callable[[Path], None]:
+    return lambda folder: (folder / name).write_bytes(data)
+
+
+def _truncate_profile(folder: Path) -> None:
+    path = folder / "profile.csv"
+    lines = path.read_text().splitlines()
+    path.write_text("\n".join(lines[: len(lines) // 2]) + "\n")
+
+
+def _nan_in_profile(folder: Path) -> None:
+    path = folder / "profile.csv"
+    lines = path.read_text().splitlines()
+    t = lines[5].split(",")[0]
+    lines[5] = f"{t},nan,0.0,0.0"
+    path.write_text("\n".join(lines) + "\n")
+
+
+def _placement_edit(index: int, key: str, value: str) -> Callable[[Path], None]:
+    """Change one key of the index-th [[markers.placement]]."""
+    def change(folder: Path) -> None:
+        path = folder / "setup.toml"
+        blocks = path.read_text().split("[[markers.placement]]")
+        lines = blocks[index + 1].splitlines()
+        lines = [f"{key} = {value}" if line.startswith(f"{key} =") else line for line in lines]
+        blocks[index + 1] = "\n".join(lines) + "\n"
+        path.write_text("[[markers.placement]]".join(blocks))
+    return change
+
+
+CASES = {
+    "setup missing": (_remove("setup.toml"), "setup.toml", ""),
+    "fps zero": (_edit("setup.toml", "fps = 10.0", "fps = 0"), "setup.toml", "recording.fps"),
+    "fps not the video's": (_edit("setup.toml", "fps = 10.0", "fps = 25.0"), "setup.toml",
+                            "recording.fps"),
+    "px_per_m infinite": (_edit("setup.toml", "px_per_m = ", "px_per_m = inf #"), "setup.toml",
+                          "camera.px_per_m"),
+    "origin not finite": (_edit("setup.toml", "origin_px = [", "origin_px = [nan, "),
+                          "setup.toml", "camera.origin_px"),
+    "camera missing": (_edit("setup.toml", "[camera]", "[kamera]"), "setup.toml", "camera"),
+    "unknown dictionary": (_edit("setup.toml", "DICT_4X4_50", "DICT_4X4_51"), "setup.toml",
+                           "markers.dictionary"),
+    "duplicate marker id": (_placement_edit(1, "id", "0"), "setup.toml",
+                            "markers.placement[1].id"),
+    "id beyond dictionary": (_placement_edit(0, "id", "50"), "setup.toml",
+                             "markers.placement[0].id"),
+    "unknown object": (_placement_edit(0, "object", '"L9C1R1"'), "setup.toml",
+                       "markers.placement[0].object"),
+    "template missing": (_remove("template.png"), "setup.toml", "template"),
+    "video missing": (_remove("video.avi"), "video.mp4", ""),
+    "video unreadable": (_write("video.avi", b"RIFF not a video at all" * 100), "video.avi", ""),
+    "profile missing": (_remove("profile.csv"), "profile.csv", ""),
+    "profile shorter than video": (_truncate_profile, "profile.csv", "t_s"),
+    "profile NaN": (_nan_in_profile, "profile.csv", "accel_mps2"),
+    "profile without accel": (_edit("profile.csv", "accel_mps2", "acc"), "profile.csv",
+                              "accel_mps2"),
+    "load missing": (_remove("load.toml"), "load.toml", ""),
+    "load bad": (_edit("load.toml", "layers = 2", "layers = 0"), "load.toml", "stack.layers"),
+}
+
+
+@pytest.fixture
+def copy_of(recording_dir, tmp_path) -> Callable[[], Path]:
+    def make() -> Path:
+        folder = tmp_path / "rec"
+        shutil.copytree(recording_dir, folder)
+        return folder
+    return make
+
+
+@pytest.mark.parametrize("case", CASES)
+def test_bad_recording_is_one_input_error(case, copy_of, assert_input_error):
+    change, file, field = CASES[case]
+    folder = copy_of()
+    change(folder)
+    with pytest.raises(InputError) as err:
+        Recording.read(folder)
+    assert_input_error(err.value, str(folder / file), field)
+
+
+def test_missing_folder(tmp_path, assert_input_error):
+    with pytest.raises(InputError) as err:
+        Recording.read(tmp_path / "nowhere")
+    assert_input_error(err.value, str(tmp_path / "nowhere"), "")
+
+
+def test_template_may_sit_under_recording(copy_of):
+    folder = copy_of()
+    _edit("setup.toml", 'template = "template.png"\n', "")(folder)
+    _edit("setup.toml", "[recording]\n", '[recording]\ntemplate = "template.png"\n')(folder)
+    assert read_toml(folder / "setup.toml")["recording"]["template"] == "template.png"
+    assert Recording.read(folder).template == folder / "template.png"
+
+
+def test_wrap_file_is_read(wrapped_dir):
+    rec = Recording.read(wrapped_dir)
+    assert rec.wrap is not None and rec.wrap.material_key == "kraft"
+
+
+@pytest.mark.parametrize("change, field", [
+    ('"x_m": [', "objects.pallet.x_m"),
+    ('"angle_rad": [', "objects.pallet.angle_rad"),
+])
+def test_bad_truth_is_one_input_error(change, field, copy_of, assert_input_error):
+    folder = copy_of()
+    path = folder / "truth.json"
+    text = path.read_text()
+    start = text.index('"pallet"')
+    at = text.index(change, start) + len(change)
+    # one value too many (length mismatch) for x_m, a string for angle_rad
+    extra = "0.0, " if "x_m" in change else '"a", '
+    path.write_text(text[:at] + extra + text[at:])
+    with pytest.raises(InputError) as err:
+        Truth.read(folder)
+    assert_input_error(err.value, str(path), field)

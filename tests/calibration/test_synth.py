@@ -1,0 +1,143 @@
+"""Synthetic recordings (calibration/synth.py): the folder reads back, the truth is where the
+frames show the objects, the sled moves as its profile says, markers are detectable, and the same
+seed gives the same recording."""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+import pytest
+
+from calibration.recording import Recording, Truth
+from calibration.synth import synthesize
+from wrapenv.config import InputError
+
+ROW1 = {"L1C1R1", "L1C2R1", "L2C1R1", "L2C2R1"}
+
+
+def detect(frame: np.ndarray, rec: Recording) -> dict[int, np.ndarray]:
+    """Marker id -> corners (4, 2), refined to sub-pixel."""
+    params = cv2.aruco.DetectorParameters()
+    params.cornerRefinementMethod = cv2.aruco.CORNER_REFINE_SUBPIX
+    detector = cv2.aruco.ArucoDetector(rec.markers.aruco(), params)
+    corners, ids, _ = detector.detectMarkers(cv2.cvtColor(frame, cv2.COLOR_RGB2GRAY))
+    return {} if ids is None else {int(i): c.reshape(4, 2) for i, c in zip(ids.ravel(), corners,
+                                                                            strict=True)}
+
+
+def test_recording_reads_back_with_truth_for_every_object(recording_dir, frames_of):
+    rec = Recording.read(recording_dir)
+    truth = Truth.read(recording_dir)
+    assert set(truth.objects) == {"sled", "pallet"} | ROW1
+    frames = frames_of(rec.video)
+    t = truth.objects["sled"].t_s
+    assert len(frames) == len(t)
+    np.testing.assert_allclose(t, np.arange(len(t)) / rec.fps)
+    assert rec.profile.t_s[0] == 0.0 and rec.profile.t_s[-1] >= t[-1]
+    np.testing.assert_allclose(truth.objects["sled"].x_m, rec.profile.position_m(t))
+    assert truth.params["level_g"] == 0.2 and truth.params["seed"] == 3
+    assert set(truth.params["friction"]) == {"sled_pallet", "pallet_bundle", "bundle_bundle"}
+    # the pre-roll stands still, then the sled travels about a metre at 0.2 g
+    assert truth.objects["sled"].x_m[0] == 0.0 and truth.objects["sled"].x_m[-1] > 0.5
+
+
+def test_truth_centres_are_on_their_bundles(recording_dir, frames_of):
+    """The template (the front of a bundle) matches each row-1 bundle where its truth centre
+    projects, in the first frame and in one in full motion."""
+    rec = Recording.read(recording_dir)
+    truth = Truth.read(recording_dir)
+    frames = frames_of(rec.video)
+    cam = rec.camera(*rec.video_size())
+    template = cv2.cvtColor(cv2.imread(str(rec.template)), cv2.COLOR_BGR2GRAY)
+    th, tw = template.shape
+    speed = np.abs(np.gradient(truth.objects["sled"].x_m))
+    for i in (0, int(np.argmax(speed))):
+        gray = cv2.cvtColor(frames[i], cv2.COLOR_RGB2GRAY)
+        for name in ROW1:
+            track = truth.objects[name]
+            u, v = cam.project([[track.x_m[i], 0.0, track.z_m[i]]])[0]
+            x0, y0 = round(u - tw / 2) - 6, round(v - th / 2) - 6
+            window = gray[y0:y0 + th + 12, x0:x0 + tw + 12]
+            score = cv2.matchTemplate(window, template, cv2.TM_CCOEFF_NORMED)
+            _, best, _, (bx, by) = cv2.minMaxLoc(score)
+            found = (x0 + bx + (tw - 1) / 2, y0 + by + (th - 1) / 2)
+            assert best > 0.7, (name, i, best)
+            assert abs(found[0] - u) <= 1.5 and abs(found[1] - v) <= 1.5, (name, i, found, u, v)
+
+
+def test_pallet_at_rest_projects_by_the_contract_mapping(recording_dir, frames_of):
+    """At t = 0 the pallet's wood spans pixels centred where u = u0 + px_per_m x puts it."""
+    rec = Recording.read(recording_dir)
+    truth = Truth.read(recording_dir)
+    frame = frames_of(rec.video)[0].astype(int)
+    pallet = truth.objects["pallet"]
+    length, height = rec.load.pallet.length_m, rec.load.pallet.height_m
+    u0, v0 = rec.origin_px
+    row = round(v0 - rec.px_per_m * (height - 0.011))  # through the top deck board
+    wood = np.flatnonzero(frame[row, :, 0] - frame[row, :, 2] > 40)
+    centre = (wood.min() + wood.max()) / 2
+    assert abs(centre - (u0 + rec.px_per_m * pallet.x_m[0])) <= 1.0
+    assert (wood.max() - wood.min() + 1) == pytest.approx(length * rec.px_per_m, abs=2)
+    assert pallet.z_m[0] == pytest.approx(height / 2, abs=1e-3)
+
+
+def test_sled_marker_moves_as_the_profile_says(recording_dir, frames_of):
+    rec = Recording.read(recording_dir)
+    frames = frames_of(rec.video)
+    first, last = detect(frames[0], rec), detect(frames[-1], rec)
+    assert 0 in first and 0 in last
+    t_last = (len(frames) - 1) / rec.fps
+    moved_m = (last[0][:, 0].mean() - first[0][:, 0].mean()) / rec.px_per_m
+    expected = rec.profile.position_m(t_last) - rec.profile.position_m(0.0)
+    # 0.5 px at this scale (~2 mm at 240 px/m; the 2 mm of a 1920 px recording is ~0.7 px)
+    assert moved_m == pytest.approx(expected, abs=0.5 / rec.px_per_m)
+    placement = rec.markers.placements[0]
+    u, v = rec.camera(*rec.video_size()).project([[placement.offset_m[0], 0.0,
+                                                   -0.05 + placement.offset_m[1]]])[0]
+    centre = first[0].mean(axis=0)
+    assert abs(centre[0] - u) <= 0.5 and abs(centre[1] - v) <= 0.5
+
+
+def test_wrapped_recording_shows_every_marker(wrapped_dir, frames_of):
+    rec = Recording.read(wrapped_dir)
+    frames = frames_of(rec.video)
+    ids = {p.id for p in rec.markers.placements}
+    objects = {p.object for p in rec.markers.placements}
+    assert objects == {"sled", "pallet", "L1C1R1", "L1C2R1", "L2C1R1", "L2C2R1"}
+    assert ids <= set(detect(frames[0], rec))
+    truth = Truth.read(wrapped_dir)
+    assert truth.params["wrap"] == {"material": "kraft", "stiffness_scale": 1.0,
+                                    "tension_scale": 1.0}
+
+
+def test_same_seed_same_recording(tmp_path, small_load):
+    """Truth and frames are identical (byte for byte: the encoder is deterministic too);
+    another seed changes the textures, not the physics."""
+    args = {"level_g": 0.1, "size": (320, 200), "fps": 5.0, "pre_roll_s": 0.2}
+    a = synthesize(small_load, tmp_path / "a", seed=11, **args)
+    b = synthesize(small_load, tmp_path / "b", seed=11, **args)
+    c = synthesize(small_load, tmp_path / "c", seed=12, **args)
+    assert (a.folder / "truth.json").read_bytes() == (b.folder / "truth.json").read_bytes()
+    assert a.video.read_bytes() == b.video.read_bytes()
+    assert a.video.read_bytes() != c.video.read_bytes()
+    ta, tc = Truth.read(a.folder), Truth.read(c.folder)
+    np.testing.assert_array_equal(ta.objects["pallet"].x_m, tc.objects["pallet"].x_m)
+
+
+def test_friction_jitter_changes_the_true_friction_only(tmp_path, small_load):
+    rec = synthesize(small_load, tmp_path / "j", seed=5, friction_jitter=0.2, level_g=0.1,
+                     size=(320, 200), fps=5.0, pre_roll_s=0.0)
+    true = Truth.read(rec.folder).params["friction"]
+    nominal = small_load.friction.sled_pallet
+    assert true["sled_pallet"]["static"] != nominal.static
+    assert 0.8 <= true["sled_pallet"]["static"] / nominal.static <= 1.2
+    assert rec.load == small_load  # load.toml says what was given, truth what was simulated
+
+
+def test_refuses_a_folder_in_use(tmp_path, small_load, assert_input_error):
+    (tmp_path / "busy").mkdir()
+    (tmp_path / "busy" / "x").write_text("")
+    with pytest.raises(InputError) as err:
+        synthesize(small_load, tmp_path / "busy", level_g=0.1, size=(320, 200))
+    assert_input_error(err.value, str(tmp_path / "busy"), "")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["busy"]  # no temporary left
