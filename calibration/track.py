@@ -71,9 +71,12 @@ def track(recording: Recording, *, tracker: str = DEFAULT_TRACKER,
     """Follow the sled, pallet and visible bundles (or the marker-carrying objects of a wrapped
     unit) through the recording; `progress(frame, frames)` is called after every frame."""
     run = _Run(recording, tracker)
+    threads = cv2.getNumThreads()
+    cv2.setNumThreads(1)  # objects run in parallel; OpenCV's own threads on small boxes only cost
     try:
         return run.go(debug_video, progress)
     finally:
+        cv2.setNumThreads(threads)
         run.close()
 
 
@@ -95,7 +98,13 @@ class _Run:
         self.full_frame = tracker in OPENCV_TRACKERS
         self.markers = (MarkerDetector(recording.markers.dictionary)
                         if recording.markers and recording.markers.placements else None)
+        #: markers are looked for in every frame only where they carry objects (wrapped units)
+        self.follow_markers = self.markers is not None and bool(self._marker_objects())
         self.writer: cv2.VideoWriter | None = None
+        spec = recording.markers
+        #: the sled's markers, which the region of interest must reach (centre +- half a side)
+        self.sled_marker_x = tuple(p.offset_m[0] + s * spec.size_m for p in spec.placements
+                                   for s in (-1, 1) if p.object == "sled") if spec else ()
 
     def _check_time_base(self) -> None:
         video, fps = self.rec.video, float(self.cap.get(cv2.CAP_PROP_FPS))
@@ -119,7 +128,8 @@ class _Run:
         """Grayscale of the frame's region of interest (the whole frame for OpenCV's trackers)."""
         if self.full_frame:
             return Frame(cv2.cvtColor(bgr, cv2.COLOR_BGR2GRAY))
-        box = predict_roi(self.pixmap, self.layout, self.sled_x[index], self.size, ROI_MARGIN_M)
+        box = predict_roi(self.pixmap, self.layout, self.sled_x[index], self.size, ROI_MARGIN_M,
+                          self.sled_marker_x)
         crop = bgr[box.y0:box.y1, box.x0:box.x1]
         return Frame(cv2.cvtColor(crop, cv2.COLOR_BGR2GRAY), box.x0, box.y0)
 
@@ -137,7 +147,7 @@ class _Run:
         poses: dict[str, list[tuple[int, Pose]]] = {o.name: [(0, Pose(*o.centre_px))]
                                                     for o in tracked}
         lost: dict[str, list[int]] = {o.name: [] for o in tracked}
-        seen = [self.markers.detect(first)] if self.markers else []
+        seen = [self.markers.detect(first)] if self.follow_markers else []
         if debug_video is not None:
             self._open_writer(debug_video)
             self._draw(bgr, 0, objects, {n: p[-1][1] for n, p in poses.items()})
@@ -161,7 +171,7 @@ class _Run:
                     else:
                         poses[name].append((index, pose))
                         now[name] = pose
-                if self.markers:
+                if self.follow_markers:
                     seen.append(self.markers.detect(frame))
                 if self.writer is not None:
                     self._draw(bgr, index, objects, now)
@@ -175,7 +185,7 @@ class _Run:
                 self.warnings.append(f"{name}: lost (NCC < {LOST_SCORE}) in frames "
                                      f"{_ranges(frames)}; those frames are left out")
         paths = {name: self._path(p) for name, p in poses.items()}
-        if self.markers:
+        if self.follow_markers:
             paths.update(self._marker_paths(seen))
         self._check_swaps(paths, objects)
         return TrackResult(Trajectories(paths), self.warnings)

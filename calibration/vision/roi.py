@@ -70,11 +70,13 @@ class Box:
                    int(np.ceil(u + width / 2)) + 1, int(np.ceil(v + height / 2)) + 1)
 
 
-def unit_extent_m(layout: Layout) -> tuple[float, float, float, float]:
-    """(x_min, x_max, z_min, z_max) in the sled frame of the unit at rest plus the deck's face."""
+def unit_extent_m(layout: Layout, extra_x_m: tuple[float, ...] = ()
+                  ) -> tuple[float, float, float, float]:
+    """(x_min, x_max, z_min, z_max) in the sled frame of the unit at rest plus the deck's face
+    (as far along it as `extra_x_m`, e.g. to the sled's markers)."""
     px, _, pz = layout.pallet_size_m
-    xs = [-px / 2, px / 2] + [b.centre_m[0] + s * b.size_m[0] / 2 for b in layout.bundles
-                              for s in (-1, 1)]
+    xs = [-px / 2, px / 2, *extra_x_m] + [b.centre_m[0] + s * b.size_m[0] / 2
+                                          for b in layout.bundles for s in (-1, 1)]
     return min(xs), max(xs), -SLED_DECK_M, max(pz, layout.load_height_m)
 
 
@@ -85,9 +87,9 @@ def sled_shift_px(pixmap: PixelMap, sled_x_m: np.ndarray) -> np.ndarray:
 
 
 def predict_roi(pixmap: PixelMap, layout: Layout, sled_x_m: float, frame_size: tuple[int, int],
-                margin_m: float) -> Box:
+                margin_m: float, extra_x_m: tuple[float, ...] = ()) -> Box:
     """Where the unit (sled face included) is in a frame, `margin_m` around it, clipped."""
-    x0, x1, z0, z1 = unit_extent_m(layout)
+    x0, x1, z0, z1 = unit_extent_m(layout, extra_x_m)
     u0, v1 = pixmap.to_px(x0 + sled_x_m - margin_m, z0 - margin_m)
     u1, v0 = pixmap.to_px(x1 + sled_x_m + margin_m, z1 + margin_m)
     box = Box(int(np.floor(u0)), int(np.floor(v0)), int(np.ceil(u1)) + 1, int(np.ceil(v1)) + 1)

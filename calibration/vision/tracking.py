@@ -29,7 +29,7 @@ import cv2
 import numpy as np
 
 from calibration.vision.detection import ncc, subpixel_peak
-from calibration.vision.flow import RigidFlow, rotation_px, warp_to_reference
+from calibration.vision.flow import FARNEBACK_LARGE, RigidFlow, rotation_px, warp_to_reference
 from calibration.vision.roi import Box
 
 #: NCC score under which an object counts as lost in a frame.
@@ -133,7 +133,7 @@ class ChainFlowTracker:
         ref = warp_to_reference(self.previous.gray, self.previous.local(self.pose), 0.0, centre,
                                 self.box_size)
         cur = warp_to_reference(frame.gray, frame.local(predicted), 0.0, centre, self.box_size)
-        motion = RigidFlow(ref, centre).measure(cur)
+        motion = RigidFlow(ref, centre, farneback=FARNEBACK_LARGE).measure(cur)
         self.pose = Pose(predicted.u + motion.du, predicted.v + motion.dv,
                          self.pose.theta + motion.dtheta)
         self.previous = frame
