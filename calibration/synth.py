@@ -248,7 +248,7 @@ def _fit_camera(layout: Layout, s: _States, markers: MarkerSpec, size: tuple[int
                 ) -> SideCamera:
     """The largest whole px_per_m at which the whole test fits the image with margins: every
     box at every frame, the stopper and the sled's markers; the origin centres it."""
-    half = np.array([(layout.pallet_size_m)] + [b.size_m for b in layout.bundles]) / 2
+    half = np.array([layout.pallet_size_m] + [b.size_m for b in layout.bundles]) / 2
     signs = np.array([[i, j, k] for i in (-1, 1) for j in (-1, 1) for k in (-1, 1)], float)
     corners = np.einsum("fbij,bcj->fbci", s.rot, half[:, None] * signs[None]) + s.pos[:, :, None]
     xs = [(corners[..., 0] + s.sled_x_m[:, None, None]).ravel()]
