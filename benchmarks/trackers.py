@@ -6,7 +6,7 @@ does not ship and that cannot be fetched offline, so they are listed as unavaila
 mean and worst per-object RMS and max displacement error (mm), objects whose error ever exceeds
 half a bundle's width (a swap or a loss), and fps of the whole `track` run.
 
-    python benchmarks/trackers.py [--size 960 600]
+    python -m benchmarks.trackers [--size 960 600]
 """
 
 from __future__ import annotations

@@ -133,7 +133,7 @@ class ChainFlowTracker:
         ref = warp_to_reference(self.previous.gray, self.previous.local(self.pose), 0.0, centre,
                                 self.box_size)
         cur = warp_to_reference(frame.gray, frame.local(predicted), 0.0, centre, self.box_size)
-        motion = RigidFlow(ref, centre, farneback=FARNEBACK_LARGE).measure(cur)
+        motion = RigidFlow(ref, centre, border=2, farneback=FARNEBACK_LARGE).measure(cur)
         self.pose = Pose(predicted.u + motion.du, predicted.v + motion.dv,
                          self.pose.theta + motion.dtheta)
         self.previous = frame
