@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 
 from wrapenv.config import InputError, Table, read_json
@@ -24,11 +24,21 @@ class Calibration:
     friction: dict[str, CalibratedPair] = field(default_factory=dict)
     stiffness_scale: float = 1.0
     tension_scale: float = 1.0
+    stiffness_scale_std: float = 0.0
+    tension_scale_std: float = 0.0
 
     def apply(self, load: LoadUnit) -> LoadUnit:
         """The load with its friction replaced by the calibrated pairs."""
         pairs = {k: FrictionPair(p.static, p.kinetic) for k, p in self.friction.items()}
         return load.with_friction(replace(load.friction, **pairs))
+
+    def to_dict(self) -> dict:
+        """CAL.json's `friction` and `wrap` tables (what `from_dict` reads back)."""
+        return {"friction": {name: asdict(pair) for name, pair in self.friction.items()},
+                "wrap": {"stiffness_scale": self.stiffness_scale,
+                         "tension_scale": self.tension_scale,
+                         "stiffness_scale_std": self.stiffness_scale_std,
+                         "tension_scale_std": self.tension_scale_std}}
 
     @classmethod
     def from_json(cls, path: str | Path) -> Calibration:
@@ -59,7 +69,9 @@ class Calibration:
         wrap = top.table("wrap")
         stiffness = wrap.number("stiffness_scale", 1.0, positive=True)
         tension = wrap.number("tension_scale", 1.0, positive=True)
+        stds = (wrap.number("stiffness_scale_std", 0.0, minimum=0.0),
+                wrap.number("tension_scale_std", 0.0, minimum=0.0))
         wrap.done()
         top.ignore("residual_rms_m", "simulations", "method")  # fit diagnostics, informative
         top.done()
-        return cls(pairs, stiffness, tension)
+        return cls(pairs, stiffness, tension, *stds)

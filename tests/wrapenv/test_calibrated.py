@@ -192,3 +192,11 @@ def test_missing_calibration_file_is_rejected_naming_it(tmp_path, assert_input_e
     with pytest.raises(InputError, match="cannot read") as info:
         Calibration.from_json(path)
     assert_input_error(info.value, str(path), "")
+
+
+def test_a_calibration_written_as_a_dict_reads_back_equal():
+    cal = Calibration(
+        {"pallet_bundle": CalibratedPair(0.37, 0.30, 0.01, 0.004),
+         "sled_pallet": CalibratedPair(0.11, 0.10, identified=False)},
+        stiffness_scale=1.3, tension_scale=0.9, stiffness_scale_std=0.1, tension_scale_std=0.05)
+    assert Calibration.from_dict(cal.to_dict()) == cal
