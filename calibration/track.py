@@ -4,10 +4,15 @@ The pipeline per recording:
 1. region of interest from the sled profile (the unit rides the sled across a fixed camera);
 2. first frame: the bundles by template matching (NCC + NMS) inside it, named by the layout
    position nearest to each match (`L{layer}C{column}R1`); pallet and sled from the layout;
-   on wrapped units the bundles are hidden, so the objects carrying ArUco markers are followed
-   through their markers instead;
+   on wrapped units the bundles are hidden, so ArUco names the objects carrying markers and the
+   patch tracker follows a box round each marker (marker, quiet zone and a little web): an
+   18 px marker's ArUco corners give a noisy pose and are missed in some frames, the patch
+   fitted to the first frame's is sub-pixel; the object's centre is the marker's minus its
+   placement offset turned by the tracked rotation;
 3. every frame: each object followed against its first-frame patch (`vision.tracking`), poses
-   converted to world metres with setup.toml's camera and checked against the sled markers.
+   converted to world metres with setup.toml's camera, whose scale the sled's markers check.
+   ArUco runs again only every `MARKER_CHECK_EVERY` frames and where a marker was lost or not
+   yet seen: to cross-check the patch tracker, re-acquire lost markers and start late ones.
 Bad input raises `InputError`; anything the run could still measure around (lost objects,
 missing markers, a short video) is reported in `TrackResult.warnings`, naming the frames.
 """
@@ -22,16 +27,25 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from calibration.recording import Recording
+from calibration.recording import MarkerPlacement, Recording
 from calibration.trajectories import ObjectPath, Trajectories
 from calibration.vision.detection import Detection, find_template
-from calibration.vision.markers import MarkerDetector, object_pose, scale_warning, side_px
+from calibration.vision.markers import (
+    MarkerDetector,
+    angle_rad,
+    baseline_scale,
+    centre_px,
+    object_pose,
+    rigid_pose,
+    scale_warning,
+)
 from calibration.vision.roi import SLED_DECK_M, PixelMap, predict_roi
 from calibration.vision.tracking import (
     LOST_SCORE,
     OPENCV_TRACKERS,
     Frame,
     MultiTracker,
+    PatchTracker,
     Pose,
     Tracker,
     make_tracker,
@@ -50,6 +64,13 @@ INSET_M = 0.012
 MATCH_RADIUS = 0.35
 #: Container and setup frame rates may differ by this fraction.
 FPS_TOLERANCE = 1e-3
+#: Side of a marker's tracked box in marker sides: the printed square, its white border (at
+#: least one of a 4x4 code's six modules) and a little web.
+MARKER_BOX_SIDES = 1.6
+#: ArUco cross-checks the marker trackers every this many frames.
+MARKER_CHECK_EVERY = 10
+#: Tracked and detected marker centres further apart than this (px) are reported.
+MARKER_CHECK_PX = 1.5
 
 
 @dataclass(frozen=True)
@@ -139,7 +160,8 @@ class _Run:
         if not ok:
             raise InputError(str(self.rec.video), "", "the first frame does not decode")
         first = self.frame(0, bgr)
-        objects = self._objects(first)
+        found = self.markers.detect(first) if self.markers is not None else {}
+        objects = self._objects(first, found)
         trackers = self._trackers(first, [o for o in objects
                                           if o.name not in self._marker_objects()])
         tracked = [o for o in objects if o.name in trackers]
@@ -147,7 +169,9 @@ class _Run:
         poses: dict[str, list[tuple[int, Pose]]] = {o.name: [(0, Pose(*o.centre_px))]
                                                     for o in tracked}
         lost: dict[str, list[int]] = {o.name: [] for o in tracked}
-        seen = [self.markers.detect(first)] if self.follow_markers else []
+        markers = _MarkerTracks(self, multi) if self.follow_markers else None
+        if markers is not None:
+            markers.start(first, found, 0.0)
         if debug_video is not None:
             self._open_writer(debug_video)
             self._draw(bgr, 0, objects, {n: p[-1][1] for n, p in poses.items()})
@@ -164,15 +188,17 @@ class _Run:
                     self.sled_x = self.rec.profile.position_m(np.arange(index + 1) / self.rec.fps)
                 frame = self.frame(index, bgr)
                 sled_u = self.pixmap.px_per_m * (self.sled_x[index] - self.sled_x[0])
+                results = multi.step(frame, sled_u)
+                if markers is not None:
+                    markers.step(index, frame, sled_u, results)
                 now = {}
-                for name, (pose, score) in multi.step(frame, sled_u).items():
+                for name in poses:
+                    pose, score = results[name]
                     if score < LOST_SCORE:
                         lost[name].append(index)
                     else:
                         poses[name].append((index, pose))
                         now[name] = pose
-                if self.follow_markers:
-                    seen.append(self.markers.detect(frame))
                 if self.writer is not None:
                     self._draw(bgr, index, objects, now)
         finally:
@@ -185,8 +211,8 @@ class _Run:
                 self.warnings.append(f"{name}: lost (NCC < {LOST_SCORE}) in frames "
                                      f"{_ranges(frames)}; those frames are left out")
         paths = {name: self._path(p) for name, p in poses.items()}
-        if self.follow_markers:
-            paths.update(self._marker_paths(seen))
+        if markers is not None:
+            paths.update(markers.paths(index + 1))
         self._check_swaps(paths, objects)
         return TrackResult(Trajectories(paths), self.warnings)
 
@@ -202,12 +228,13 @@ class _Run:
 
     # -- first frame -------------------------------------------------------------------------
 
-    def _objects(self, first: Frame) -> list[_Object]:
-        """Sled, pallet and front-row bundles with their first-frame centres and box sizes."""
+    def _objects(self, first: Frame, found: dict[int, np.ndarray]) -> list[_Object]:
+        """Sled, pallet and front-row bundles with their first-frame centres and box sizes;
+        `found`: the markers ArUco sees in the first frame."""
         s, x0 = self.pixmap.px_per_m, self.sled_x[0]
         inset = 2 * INSET_M
         px, _, pz = self.layout.pallet_size_m
-        sled_x0 = self._sled_start(first)
+        sled_x0 = self._sled_start(found)
         objects = [
             _Object("sled", tuple(self.pixmap.to_px(sled_x0, -SLED_DECK_M / 2)),
                     _size(s * (px + 0.2), s * (SLED_DECK_M - inset))),
@@ -218,24 +245,22 @@ class _Run:
             objects += self._bundles(first)
         return objects
 
-    def _sled_start(self, first: Frame) -> float:
+    def _sled_start(self, found: dict[int, np.ndarray]) -> float:
         """The sled's x at the first frame: from its markers when they are seen, else the
-        profile's (and the markers check setup.toml's scale either way)."""
+        profile's (and the distance between them checks setup.toml's scale either way)."""
         spec = self.rec.markers
         if self.markers is None or spec is None:
             return float(self.sled_x[0])
-        found = self.markers.detect(first)
-        scale = scale_warning([side_px(c) for c in found.values()], spec.size_m,
-                              self.pixmap.px_per_m)
+        sled = {p.id: p.offset_m for p in spec.placements if p.object == "sled"}
+        scale = scale_warning(baseline_scale(found, sled), self.pixmap.px_per_m)
         if scale:
             self.warnings.append(scale)
-        sled = [(found[p.id], p.offset_m) for p in spec.placements
-                if p.object == "sled" and p.id in found]
-        if not sled:
+        seen = [(found[i], offset) for i, offset in sled.items() if i in found]
+        if not seen:
             self.warnings.append("sled markers not found in frame 0: the sled starts where "
                                  "profile.csv puts it")
             return float(self.sled_x[0])
-        return object_pose(sled, self.pixmap).x_m
+        return object_pose(seen, self.pixmap).x_m
 
     def _bundles(self, first: Frame) -> list[_Object]:
         """Front-row bundles: template matches named after the nearest layout position; a
@@ -282,43 +307,6 @@ class _Run:
         if spec is None or self.rec.wrap is None:
             return set()
         return {p.object for p in spec.placements if p.object != "sled"}
-
-    def _marker_paths(self, seen: list[dict[int, np.ndarray]]) -> dict[str, ObjectPath]:
-        """Per marker-carrying object: its pose in each frame any of its markers is seen; gaps
-        inside the run are interpolated, frames before the first or after the last sighting
-        are left out, and both are reported."""
-        spec = self.rec.markers
-        assert spec is not None
-        paths = {}
-        for name in sorted(self._marker_objects()):
-            placements = [p for p in spec.placements if p.object == name]
-            frames, values = [], []
-            for k, found in enumerate(seen):
-                obs = [(found[p.id], p.offset_m) for p in placements if p.id in found]
-                if obs:
-                    pose = object_pose(obs, self.pixmap)
-                    frames.append(k)
-                    values.append((pose.x_m, pose.z_m, pose.angle_rad))
-            missing = sorted(set(range(len(seen))) - set(frames))
-            if not frames:
-                self.warnings.append(f"{name}: markers {[p.id for p in placements]} never "
-                                     "detected; not tracked")
-                continue
-            if missing:
-                inside = [k for k in missing if frames[0] < k < frames[-1]]
-                outside = [k for k in missing if k < frames[0] or k > frames[-1]]
-                note = []
-                if inside:
-                    note.append(f"frames {_ranges(inside)} interpolated")
-                if outside:
-                    note.append(f"frames {_ranges(outside)} left out")
-                self.warnings.append(f"{name}: markers missing in {len(missing)} frames ("
-                                     f"{'; '.join(note)})")
-            ks = np.arange(frames[0], frames[-1] + 1)
-            vals = np.array(values)
-            x, z, a = (np.interp(ks, frames, vals[:, j]) for j in range(3))
-            paths[name] = ObjectPath(ks / self.rec.fps, x, z, a)
-        return paths
 
     # -- results -----------------------------------------------------------------------------
 
@@ -374,6 +362,145 @@ class _Run:
         cv2.putText(image, f"frame {index}", (10, 25), cv2.FONT_HERSHEY_SIMPLEX, 0.7,
                     (255, 255, 255), 2, cv2.LINE_AA)
         self.writer.write(image)
+
+
+class _MarkerTracks:
+    """The markers of a wrapped unit's objects, each followed by a patch tracker on its box
+    from the frame ArUco first sees it in; ArUco runs again only to cross-check, re-acquire
+    and start (see the module docstring)."""
+
+    def __init__(self, run: _Run, multi: MultiTracker) -> None:
+        spec = run.rec.markers
+        assert spec is not None and run.markers is not None
+        self.run, self.multi, self.detector = run, multi, run.markers
+        carriers = run._marker_objects()
+        self.placements: dict[int, MarkerPlacement] = {p.id: p for p in spec.placements
+                                                       if p.object in carriers}
+        side = MARKER_BOX_SIDES * spec.size_m * run.pixmap.px_per_m
+        self.box = _size(side, side)
+        #: the object's rotation in the frame its marker was first seen (0 at rest, frame 0)
+        self.theta0: dict[int, float] = {}
+        self.poses: dict[int, dict[int, Pose]] = {}
+        self.lost: dict[int, list[int]] = {}
+        self.disagree: dict[int, list[int]] = {}
+        self.unusable: set[int] = set()
+
+    def start(self, frame: Frame, found: dict[int, np.ndarray], sled_u: float,
+              index: int = 0) -> None:
+        """Trackers for the carried markers in `found` that have none yet."""
+        for i, corners in found.items():
+            placement = self.placements.get(i)
+            if placement is None or i in self.theta0 or i in self.unusable:
+                continue
+            centre = centre_px(corners)
+            try:
+                tracker = PatchTracker(frame, (float(centre[0]), float(centre[1])), self.box)
+            except ValueError as exc:
+                self.unusable.add(i)
+                self.run.warnings.append(f"marker {i} ({placement.object}): cannot be followed "
+                                         f"from frame {index} ({exc})")
+                continue
+            self.theta0[i] = self._object_theta(placement.object, index, corners)
+            pose = Pose(float(centre[0]), float(centre[1]))
+            self.multi.add(_marker_name(i), tracker, pose, sled_u)
+            self.poses[i], self.lost[i], self.disagree[i] = {index: pose}, [], []
+
+    def _object_theta(self, name: str, index: int, corners: np.ndarray) -> float:
+        """The object's rotation now: zero in frame 0 (at rest, as placements are given), else
+        from another of its markers followed in this frame, else the marker's own edges."""
+        if index == 0:
+            return 0.0
+        for i, poses in self.poses.items():
+            if self.placements[i].object == name and index in poses:
+                return poses[index].theta + self.theta0[i]
+        return angle_rad(corners)
+
+    def step(self, index: int, frame: Frame, sled_u: float,
+             results: dict[str, tuple[Pose, float]]) -> None:
+        """Record this frame's marker poses; ArUco on check frames, and where a marker was
+        lost or has not been seen yet."""
+        lost = {i for i in self.theta0 if results[_marker_name(i)][1] < LOST_SCORE}
+        unseen = set(self.placements) - set(self.theta0) - self.unusable
+        if lost or unseen or index % MARKER_CHECK_EVERY == 0:
+            found = self.detector.detect(frame)
+            for i in lost & set(found):
+                u, v = centre_px(found[i])
+                predicted = Pose(float(u), float(v), results[_marker_name(i)][0].theta)
+                results[_marker_name(i)] = self.multi.retry(_marker_name(i), frame, predicted)
+            for i in set(self.theta0) & set(found):
+                pose, score = results[_marker_name(i)]
+                if score >= LOST_SCORE and math.dist((pose.u, pose.v),
+                                                     centre_px(found[i])) > MARKER_CHECK_PX:
+                    self.disagree[i].append(index)
+            known = set(self.theta0)
+            self._record(index, known, results)
+            self.start(frame, {i: c for i, c in found.items() if i in unseen}, sled_u, index)
+        else:
+            self._record(index, set(self.theta0), results)
+
+    def _record(self, index: int, ids: set[int], results: dict[str, tuple[Pose, float]]) -> None:
+        for i in ids:
+            pose, score = results[_marker_name(i)]
+            if score < LOST_SCORE:
+                self.lost[i].append(index)
+            else:
+                self.poses[i][index] = pose
+
+    def paths(self, frames: int) -> dict[str, ObjectPath]:
+        """Per carrying object, its pose in every frame one of its markers is followed in; gaps
+        inside the run are interpolated, frames outside it left out, and both reported."""
+        out = {}
+        for name in sorted({p.object for p in self.placements.values()}):
+            ids = sorted(i for i, p in self.placements.items() if p.object == name)
+            self._warn_markers(name, ids)
+            ks, values = [], []
+            for k in range(frames):
+                seen = [i for i in ids if k in self.poses.get(i, {})]
+                if seen:
+                    ks.append(k)
+                    values.append(self._pose(k, seen))
+            if not ks:
+                self.run.warnings.append(f"{name}: markers {ids} never detected; not tracked")
+                continue
+            self._warn_gaps(name, ks, frames)
+            span = np.arange(ks[0], ks[-1] + 1)
+            vals = np.array(values)
+            x, z, a = (np.interp(span, ks, vals[:, j]) for j in range(3))
+            out[name] = ObjectPath(span / self.run.rec.fps, x, z, a)
+        return out
+
+    def _pose(self, k: int, ids: list[int]) -> tuple[float, float, float]:
+        poses = [self.poses[i][k] for i in ids]
+        thetas = np.array([p.theta + self.theta0[i] for p, i in zip(poses, ids, strict=True)])
+        theta = float(np.arctan2(np.sin(thetas).mean(), np.cos(thetas).mean()))
+        centres = [tuple(self.run.pixmap.to_world(p.u, p.v)) for p in poses]
+        pose = rigid_pose(centres, [self.placements[i].offset_m for i in ids], theta)
+        return pose.x_m, pose.z_m, pose.angle_rad
+
+    def _warn_markers(self, name: str, ids: list[int]) -> None:
+        for i in ids:
+            if self.lost.get(i):
+                self.run.warnings.append(f"marker {i} ({name}): lost (NCC < {LOST_SCORE}) in "
+                                         f"frames {_ranges(self.lost[i])}")
+            if self.disagree.get(i):
+                self.run.warnings.append(
+                    f"marker {i} ({name}): followed and ArUco-detected centres differ by more "
+                    f"than {MARKER_CHECK_PX} px in frames {_ranges(self.disagree[i])}")
+
+    def _warn_gaps(self, name: str, ks: list[int], frames: int) -> None:
+        missing = sorted(set(range(frames)) - set(ks))
+        if not missing:
+            return
+        inside = [k for k in missing if ks[0] < k < ks[-1]]
+        outside = [k for k in missing if k < ks[0] or k > ks[-1]]
+        note = ([f"frames {_ranges(inside)} interpolated"] if inside else []) + (
+            [f"frames {_ranges(outside)} left out"] if outside else [])
+        self.run.warnings.append(f"{name}: no marker followed in {len(missing)} frames "
+                                 f"({'; '.join(note)})")
+
+
+def _marker_name(marker_id: int) -> str:
+    return f"marker {marker_id}"
 
 
 def _front_row(layout: Layout) -> dict[str, tuple[float, float, float, float]]:

@@ -1,12 +1,16 @@
 """ArUco markers: where the wrapped layers are, and a check of the camera's scale.
 
 On a wrapped unit the web hides the bundles, so (as in the paper) layer positions come from
-markers printed on the web; two markers on the sled give its position and, through their known
-printed size, an independent measure of px_per_m.
+markers printed on the web: ArUco names the objects, the patch tracker follows the markers
+(`calibration.track`). Two markers on the sled give its position and, through the known distance
+between them (hundreds of pixels, so a fraction of a pixel on their centres is a few 0.01 %), an
+independent measure of px_per_m; a marker's own side is too short for that (a 0.5 px bias on
+18 px is 3 %).
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -17,7 +21,7 @@ from calibration.vision.roi import PixelMap
 from calibration.vision.tracking import Frame
 
 #: Relative disagreement of the markers' scale with setup.toml's px_per_m that gets a warning.
-SCALE_TOLERANCE = 0.02
+SCALE_TOLERANCE = 0.01
 
 
 def dictionary(name: str) -> cv2.aruco.Dictionary:
@@ -66,20 +70,29 @@ def angle_rad(corners: np.ndarray) -> float:
     return float(np.arctan2(-edge[1], edge[0]))
 
 
-def side_px(corners: np.ndarray) -> float:
-    """Mean length of a marker's four sides in pixels."""
-    return float(np.mean(np.linalg.norm(corners - np.roll(corners, -1, axis=0), axis=1)))
+def baseline_scale(found: dict[int, np.ndarray],
+                   offsets_m: dict[int, tuple[float, float]]) -> float | None:
+    """px/m from the two farthest-apart markers of one rigid object (the sled) seen in a frame:
+    their centres' distance in pixels over their placements' distance; None with fewer than two."""
+    ids = [i for i in offsets_m if i in found]
+    pairs = [(a, b) for k, a in enumerate(ids) for b in ids[k + 1:]]
+    if not pairs:
+        return None
+    a, b = max(pairs, key=lambda p: math.dist(offsets_m[p[0]], offsets_m[p[1]]))
+    distance_m = math.dist(offsets_m[a], offsets_m[b])
+    if distance_m <= 0:
+        return None
+    return float(np.linalg.norm(centre_px(found[a]) - centre_px(found[b]))) / distance_m
 
 
-def scale_warning(sides_px: Sequence[float], size_m: float, px_per_m: float) -> str | None:
-    """A warning when the markers' median scale (side px / size_m) disagrees with px_per_m."""
-    if not sides_px:
+def scale_warning(measured_px_per_m: float | None, px_per_m: float) -> str | None:
+    """A warning when the markers' scale disagrees with setup.toml's px_per_m beyond
+    `SCALE_TOLERANCE`."""
+    if measured_px_per_m is None or abs(measured_px_per_m / px_per_m - 1) <= SCALE_TOLERANCE:
         return None
-    measured = float(np.median(sides_px)) / size_m
-    if abs(measured / px_per_m - 1) <= SCALE_TOLERANCE:
-        return None
-    return (f"markers measure {measured:.1f} px/m but setup.toml camera.px_per_m is "
-            f"{px_per_m:.1f} ({100 * (measured / px_per_m - 1):+.1f} %): positions use setup.toml")
+    return (f"the sled's markers measure {measured_px_per_m:.1f} px/m but setup.toml "
+            f"camera.px_per_m is {px_per_m:.1f} ({100 * (measured_px_per_m / px_per_m - 1):+.1f} "
+            "%): positions use setup.toml")
 
 
 @dataclass(frozen=True)
@@ -91,15 +104,28 @@ class ObjectPose:
 
 def object_pose(observations: Sequence[tuple[np.ndarray, tuple[float, float]]],
                 pixmap: PixelMap) -> ObjectPose:
-    """An object's centre and rotation from its markers: each marker's centre minus its offset
-    (marker centre minus object centre, object frame at rest) rotated by the marker's angle,
-    averaged over the markers seen (angles averaged as unit vectors)."""
+    """An object's pose from its markers' ArUco corners and placement offsets (marker centre
+    minus object centre, object frame at rest); see `rigid_pose`. One marker's rotation is the
+    mean direction of its edges."""
     angles = np.array([angle_rad(c) for c, _ in observations])
     theta = float(np.arctan2(np.sin(angles).mean(), np.cos(angles).mean()))
+    centres = [tuple(pixmap.to_world(*centre_px(c))) for c, _ in observations]
+    return rigid_pose(centres, [o for _, o in observations], theta)
+
+
+def rigid_pose(centres_m: Sequence[tuple[float, float]], offsets_m: Sequence[tuple[float, float]],
+               theta: float) -> ObjectPose:
+    """An object's centre and rotation from its markers' world centres: with one marker the
+    rotation is `theta` (measured on the marker itself), with more the rotation that best maps
+    the offsets onto the centres (2-D Procrustes: a baseline of many pixels fixes it far better
+    than one small marker does); the centre is then the markers' mean minus the rotated mean
+    offset."""
+    p, o = np.asarray(centres_m, float), np.asarray(offsets_m, float)
+    if len(p) > 1:
+        pc, oc = p - p.mean(axis=0), o - o.mean(axis=0)
+        theta = float(np.arctan2(np.sum(oc[:, 0] * pc[:, 1] - oc[:, 1] * pc[:, 0]),
+                                 np.sum(oc * pc)))
     cos, sin = np.cos(theta), np.sin(theta)
-    xs, zs = [], []
-    for corners, (dx, dz) in observations:
-        x, z = pixmap.to_world(*centre_px(corners))
-        xs.append(x - (cos * dx - sin * dz))
-        zs.append(z - (sin * dx + cos * dz))
-    return ObjectPose(float(np.mean(xs)), float(np.mean(zs)), theta)
+    ox, oz = o.mean(axis=0)
+    x, z = p.mean(axis=0)
+    return ObjectPose(float(x - (cos * ox - sin * oz)), float(z - (sin * ox + cos * oz)), theta)

@@ -243,6 +243,19 @@ class MultiTracker:
             self.history[name].push(pose, sled_u)
         return results
 
+    def add(self, name: str, tracker: Tracker, pose: Pose, sled_u: float) -> None:
+        """Follow one more object from this frame on (one first seen late)."""
+        self.trackers[name] = tracker
+        self.history[name] = _History([pose], [sled_u])
+
+    def retry(self, name: str, frame: Frame, predicted: Pose) -> tuple[Pose, float]:
+        """Update `name` again in the frame just stepped from a better prediction (an object
+        its tracker lost, found by other means); the result replaces the step's."""
+        pose, score = self.trackers[name].update(frame, predicted)
+        history = self.history[name]
+        history.poses[-1] = pose
+        return pose, score
+
     def close(self) -> None:
         if self.pool:
             self.pool.shutdown()

@@ -6,9 +6,10 @@ import numpy as np
 from calibration.vision.markers import (
     MarkerDetector,
     angle_rad,
+    baseline_scale,
     object_pose,
+    rigid_pose,
     scale_warning,
-    side_px,
 )
 from calibration.vision.roi import PixelMap
 from calibration.vision.tracking import Frame
@@ -41,7 +42,6 @@ def test_marker_centre_angle_and_side() -> None:
     # marker pixel (c, r) covers [c - 0.5, c + 0.5]: a 40 px tile's centre is at 19.5
     assert np.allclose(corners.mean(axis=0), (300.0, 200.0), atol=0.3)
     assert abs(angle_rad(corners) - 0.1) < 0.01
-    assert abs(side_px(corners) - 40) < 0.5
 
 
 def test_object_pose_subtracts_the_rotated_offset() -> None:
@@ -56,7 +56,29 @@ def test_object_pose_subtracts_the_rotated_offset() -> None:
     assert abs(pose.x_m - 1.0) < 1e-9 and abs(pose.z_m - 0.5) < 1e-9
 
 
-def test_scale_warning_beyond_two_percent() -> None:
-    assert scale_warning([40.4, 39.8], 0.1, 400.0) is None
-    message = scale_warning([42.0, 42.2], 0.1, 400.0)
-    assert message is not None and "+5.2 %" in message
+def test_rigid_pose_takes_the_rotation_from_two_markers() -> None:
+    """Two markers 1 m apart on an object turned 0.02 rad about (2.0, 0.3): the given rotation
+    (one marker's own, noisy) is overruled by the baseline's."""
+    c, s = np.cos(0.02), np.sin(0.02)
+    offsets = [(-0.5, 0.1), (0.5, 0.1)]
+    centres = [(2.0 + c * dx - s * dz, 0.3 + s * dx + c * dz) for dx, dz in offsets]
+    pose = rigid_pose(centres, offsets, theta=0.3)
+    assert abs(pose.angle_rad - 0.02) < 1e-12
+    assert abs(pose.x_m - 2.0) < 1e-12 and abs(pose.z_m - 0.3) < 1e-12
+    one = rigid_pose(centres[:1], offsets[:1], theta=0.02)
+    assert abs(one.x_m - 2.0) < 1e-12 and abs(one.z_m - 0.3) < 1e-12
+
+
+def test_baseline_scale_from_the_farthest_markers() -> None:
+    square = np.array([[-1, -1], [1, -1], [1, 1], [-1, 1]], float) * 5
+    found = {0: square + (100.0, 50.0), 1: square + (700.0, 50.0), 5: square + (400.0, 50.0)}
+    offsets = {0: (-1.0, 0.0), 1: (1.0, 0.0), 5: (0.0, 0.0), 9: (3.0, 0.0)}
+    assert baseline_scale(found, offsets) == 300.0
+    assert baseline_scale({0: found[0]}, offsets) is None
+
+
+def test_scale_warning_beyond_one_percent() -> None:
+    assert scale_warning(None, 400.0) is None
+    assert scale_warning(403.0, 400.0) is None
+    message = scale_warning(412.0, 400.0)
+    assert message is not None and "+3.0 %" in message

@@ -7,6 +7,7 @@ px_per_m: the tracker works in pixels, so its error in metres grows as pixels ge
 
 from __future__ import annotations
 
+import re
 import shutil
 from dataclasses import replace
 from pathlib import Path
@@ -78,6 +79,29 @@ def test_wrapped_follows_markers(tmp_path: Path) -> None:
     assert {"sled", "pallet", "L1C1R1", "L1C4R1", "L2C1R1", "L2C4R1"} <= set(
         result.trajectories.objects)
     _check_accuracy(rec, result.trajectories)
+
+
+def test_wrapped_small_follows_marker_patches(wrapped_dir: Path) -> None:
+    """800x500 (240 px/m), 18 px markers: every carrying object followed in every frame."""
+    rec = Recording.read(wrapped_dir)
+    result = track(rec)
+    assert set(result.trajectories.objects) == {"sled", "pallet", "L1C1R1", "L1C2R1", "L2C1R1",
+                                                "L2C2R1"}
+    _check_accuracy(rec, result.trajectories)
+    assert result.warnings == []
+
+
+def test_scale_check_on_the_sled_markers(recording_dir: Path, tmp_path: Path) -> None:
+    """The distance between the sled's markers agrees with setup.toml's scale; 3 % off warns."""
+    assert not any("px/m" in w for w in track(Recording.read(recording_dir)).warnings)
+    folder = tmp_path / "scaled"
+    shutil.copytree(recording_dir, folder)
+    setup = folder / "setup.toml"
+    setup.write_text(re.sub(r"px_per_m = ([0-9.]+)",
+                            lambda m: f"px_per_m = {1.03 * float(m.group(1))!r}",
+                            setup.read_text()))
+    warnings = track(Recording.read(folder)).warnings
+    assert any("px/m" in w and "(-2.9 %)" in w for w in warnings), warnings
 
 
 def _copy(rec: Recording, tmp_path: Path) -> Path:
