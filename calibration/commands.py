@@ -1,4 +1,4 @@
-"""`wrapbench synth` and `wrapbench track`: the recording side of the command line.
+"""`wrapbench synth`, `track` and `calibrate`: the recording side of the command line.
 
 `recommender.cli` owns the `wrapbench` parser and registers these subcommands; their options and
 output live here, beside the code they drive. Errors of input are `InputError`s, which the CLI
@@ -8,15 +8,17 @@ turns into one line and exit status 2.
 from __future__ import annotations
 
 import argparse
+import json
 import math
+import os
 import sys
 import time
 from pathlib import Path
 
 from tqdm import tqdm
 
-from wrapenv.config import InputError
-from wrapenv.load import LoadUnit
+from wrapenv.config import InputError, write_atomic
+from wrapenv.load import Friction, LoadUnit
 from wrapenv.wrap import WrapFormat
 
 
@@ -120,3 +122,117 @@ def run_track(args: argparse.Namespace) -> int:
         for name, e in errors.items():
             print(f"{name:>44s}  {1e3 * e.rms_m:6.2f}  {1e3 * e.max_m:6.2f}")
     return 0
+
+
+def add_calibrate(sub: argparse._SubParsersAction) -> None:
+    from calibration.fit import METHODS, PARAMS
+
+    p = sub.add_parser("calibrate", help="fit friction (and wrap) parameters to recordings")
+    p.add_argument("recordings", type=Path, nargs="+", metavar="DIR",
+                   help="recording folders of one load unit (several levels are fitted jointly)")
+    p.add_argument("--out", type=Path, required=True, metavar="CAL.json",
+                   help="fitted values; CAL-loss.png and CAL-overlay.png are written beside it")
+    p.add_argument("--method", choices=METHODS, default="cmaes",
+                   help="cmaes (default) or momentum (the source paper's gradient descent)")
+    p.add_argument("--params", choices=PARAMS, default="all",
+                   help="friction, wrap (stiffness and tension scales) or all (default)")
+    p.add_argument("--budget", type=int, default=240, metavar="N",
+                   help="most simulations (default 240)")
+    p.add_argument("--workers", type=int, default=os.cpu_count() or 1,
+                   help="parallel simulations (default: all cores)")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--max-residual-mm", type=float, default=10.0, metavar="MM",
+                   help="fail (nothing written) when the fit's residual RMS is larger")
+    p.add_argument("--mixed-loads", action="store_true",
+                   help="accept recordings of different load units (their pairs fitted jointly)")
+    p.add_argument("--retrack", action="store_true",
+                   help="track every recording even where DIR/trajectories.csv exists")
+
+
+def _same_unit(load: LoadUnit) -> LoadUnit:
+    """A load without its friction: the starting values may differ between recordings."""
+    return load.with_friction(Friction())
+
+
+def _observations(args: argparse.Namespace) -> list:
+    from calibration.recording import Recording
+    from calibration.replay import observe
+    from calibration.track import track
+    from calibration.trajectories import Trajectories
+
+    recordings = [Recording.read(d) for d in args.recordings]
+    first = recordings[0]
+    for rec in recordings[1:]:
+        if not args.mixed_loads and _same_unit(rec.load) != _same_unit(first.load):
+            raise InputError(str(rec.folder / "load.toml"), "",
+                             f"a different load unit from {first.folder / 'load.toml'} "
+                             "(pass --mixed-loads to fit them jointly)")
+    observations = []
+    for rec in recordings:
+        csv = rec.folder / "trajectories.csv"
+        if csv.exists() and not args.retrack:
+            tracked = Trajectories.from_csv(csv)
+            print(f"{rec.folder}: trajectories from {csv.name}")
+        else:
+            result = track(rec)
+            for warning in result.warnings:
+                sys.stderr.write(f"wrapbench calibrate: warning: {rec.folder}: {warning}\n")
+            tracked = result.trajectories
+            print(f"{rec.folder}: tracked {len(tracked.objects)} objects")
+        observations.append(observe(rec, tracked))
+    return observations
+
+
+def run_calibrate(args: argparse.Namespace) -> int:
+    from calibration.fit import FitSettings, fit
+    from calibration.report import plot_loss, plot_overlay
+
+    if args.budget < 10:
+        raise InputError("arguments", "--budget", f"must be >= 10 (got {args.budget})")
+    if args.workers < 1:
+        raise InputError("arguments", "--workers", f"must be >= 1 (got {args.workers})")
+    if not (math.isfinite(args.max_residual_mm) and args.max_residual_mm > 0):
+        raise InputError("arguments", "--max-residual-mm",
+                         f"must be > 0 (got {args.max_residual_mm})")
+    if not args.out.resolve().parent.is_dir():
+        raise InputError(str(args.out), "--out", "the folder to write into does not exist")
+    observations = _observations(args)
+    settings = FitSettings(args.method, args.params, args.budget, args.workers, args.seed,
+                           args.max_residual_mm / 1000)
+    t0 = time.perf_counter()
+    with tqdm(total=args.budget, desc="simulations", unit="sim", leave=False,
+              disable=None) as bar:
+        result = fit(observations, settings, lambda n: bar.update(n - bar.n))
+    wall = time.perf_counter() - t0
+    rms_mm = 1e3 * result.residual_rms_m
+    if not result.converged:
+        sys.stderr.write(f"wrapbench calibrate: the fit did not converge: residual RMS "
+                         f"{rms_mm:.1f} mm > --max-residual-mm {args.max_residual_mm:g} after "
+                         f"{result.simulations} simulations; nothing written\n")
+        return 1
+    out = result.calibration.to_dict() | {"residual_rms_m": result.residual_rms_m,
+                                          "simulations": result.simulations,
+                                          "method": result.method}
+    stem = args.out.with_suffix("")
+    plot_loss(result.curve, f"{stem}-loss.png",
+              f"{result.method}: residual RMS {rms_mm:.2f} mm after {result.simulations} "
+              "simulations")
+    plot_overlay(observations, result.fitted, f"{stem}-overlay.png")
+    write_atomic(args.out, (json.dumps(out, indent=2) + "\n").encode())
+    print(_summary(result.calibration))
+    print(f"residual RMS {rms_mm:.2f} mm; {result.simulations} simulations in {wall:.0f} s "
+          f"({result.method}); wrote {args.out}, {stem}-loss.png, {stem}-overlay.png")
+    return 0
+
+
+def _summary(cal) -> str:
+    lines = ["pair            static         kinetic        identified"]
+    for name, p in cal.friction.items():
+        if p.identified:
+            lines.append(f"{name:14s}  {p.static:.3f} ± {p.static_std:.3f}  "
+                         f"{p.kinetic:.3f} ± {p.kinetic_std:.3f}  yes")
+        else:
+            lines.append(f"{name:14s}  >= {p.static:.3f}      (never slipped)  no")
+    lines.append(f"wrap: stiffness scale {cal.stiffness_scale:.2f} ± {cal.stiffness_scale_std:.2f}"
+                 f", tension scale {cal.tension_scale:.2f} ± {cal.tension_scale_std:.2f}")
+    return "\n".join(lines)

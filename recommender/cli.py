@@ -122,6 +122,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     commands.add_synth(sub, _g)
     commands.add_track(sub)
+    commands.add_calibrate(sub)
     return parser
 
 
@@ -129,7 +130,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     try:
         command = {"simulate": _simulate, "recommend": _recommend, "train": _train,
-                   "synth": commands.run_synth, "track": commands.run_track}
+                   "synth": commands.run_synth, "track": commands.run_track,
+                   "calibrate": commands.run_calibrate}
         return command[args.command](args)
     except InputError as exc:
         sys.stderr.write(f"wrapbench {args.command}: {exc}\n")

@@ -65,3 +65,27 @@ def decoded_frames(video: Path) -> list[np.ndarray]:
 @pytest.fixture(scope="session")
 def frames_of():
     return decoded_frames
+
+
+#: Two bundles apart on a stopped EUR pallet: each slides on the pallet on its own (no bundle
+#: pushes another, none falls), so its path is a smooth function of the pallet-bundle friction,
+#: the regime a friction fit can be checked in.
+SLIDE_LOAD = {
+    "name": "two bundles sliding on the pallet",
+    "pallet": {"preset": "EUR"},
+    "bundle": {"length_m": 0.28, "width_m": 0.19, "height_m": 0.33, "mass_kg": 9.3},
+    "stack": {"layers": 1, "pattern": "explicit", "positions": [[-0.25, -0.3], [0.25, -0.3]]},
+    "friction": {"sled_pallet": {"static": 0.45, "kinetic": 0.40},
+                 "pallet_bundle": {"static": 0.35, "kinetic": 0.28}},
+    "fixture": {"pallet_stopper": True},
+}
+#: Seed 7 and a 10 % jitter make the true pallet-bundle pair 0.378 / 0.302 (the file says
+#: 0.35 / 0.28), which the fit must find without being told.
+SLIDE_SYNTH = {"level_g": 0.45, "seed": 7, "size": (480, 300), "friction_jitter": 0.1}
+
+
+@pytest.fixture(scope="session")
+def slide_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    out = tmp_path_factory.mktemp("synth") / "slide"
+    synthesize(LoadUnit.from_dict(SLIDE_LOAD), out, **SLIDE_SYNTH)
+    return out

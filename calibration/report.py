@@ -1,0 +1,59 @@
+"""Pictures of a fit for people: the loss against simulations spent, and the fitted against the
+tracked displacements of every object (relative to the sled)."""
+
+from __future__ import annotations
+
+import io
+import math
+from collections.abc import Sequence
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+from calibration.replay import Observation  # noqa: E402
+from wrapenv.config import write_atomic  # noqa: E402
+
+
+def _save(fig: plt.Figure, path: str | Path) -> None:
+    fig.tight_layout()
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=110)
+    plt.close(fig)
+    write_atomic(path, buf.getvalue())
+
+
+def plot_loss(curve: Sequence[tuple[int, float]], path: str | Path, title: str = "") -> None:
+    """Residual RMS (the square root of the loss) of the best point so far."""
+    fig, ax = plt.subplots(figsize=(7, 3.6))
+    sims = [s for s, _ in curve]
+    rms_mm = [1e3 * math.sqrt(loss) for _, loss in curve]
+    ax.plot(sims, rms_mm, marker=".", lw=1)
+    ax.set_yscale("log")
+    ax.set_xlabel("simulations")
+    ax.set_ylabel("residual RMS, best so far [mm]")
+    ax.set_title(title, fontsize=10)
+    ax.grid(alpha=0.3)
+    _save(fig, path)
+
+
+def plot_overlay(observations: Sequence[Observation],
+                 fitted: Sequence[dict[str, np.ndarray] | None], path: str | Path) -> None:
+    """One panel per recording: tracked (dots) and fitted (lines) x displacement relative to
+    the sled of every object."""
+    n = len(observations)
+    fig, axes = plt.subplots(n, 1, figsize=(9, 3.0 * n + 0.4), squeeze=False)
+    for ax, obs, sim in zip(axes[:, 0], observations, fitted, strict=True):
+        for k, (name, (t, disp)) in enumerate(obs.paths.items()):
+            colour = f"C{k % 10}"
+            ax.plot(t, 1e3 * disp[:, 0], ".", ms=3, color=colour, label=name)
+            if sim is not None:
+                ax.plot(t, 1e3 * sim[name][:, 0], "-", lw=1, color=colour)
+        ax.set_title(f"{Path(obs.source).name}: tracked (dots), fitted (lines)", fontsize=9)
+        ax.set_ylabel("x relative to sled [mm]")
+        ax.legend(fontsize=6, ncol=6)
+    axes[-1, 0].set_xlabel("time [s]")
+    _save(fig, path)
