@@ -4,12 +4,14 @@ one-line errors and nothing half-written."""
 from __future__ import annotations
 
 import csv
+import json
 import shutil
 from pathlib import Path
 
 import pytest
 
 from recommender.cli import main
+from wrapenv.calibrated import Calibration
 from wrapenv.load import LoadUnit
 
 
@@ -21,7 +23,9 @@ def load_path(tmp_path: Path, small_load: LoadUnit) -> Path:
 
 
 def _one_line_error(capsys: pytest.CaptureFixture, *needles: str) -> str:
-    err = capsys.readouterr().err.strip().splitlines()
+    """The one error line on stderr (warnings about the recording aside)."""
+    err = [line for line in capsys.readouterr().err.strip().splitlines()
+           if ": warning: " not in line]
     assert len(err) == 1, err
     for needle in needles:
         assert needle in err[0], err[0]
@@ -95,3 +99,56 @@ def test_track_of_a_corrupt_video_writes_nothing(recording_dir, tmp_path, capsys
 def test_track_into_a_missing_folder_is_refused_before_tracking(recording_dir, tmp_path, capsys):
     assert main(["track", str(recording_dir), "--out", str(tmp_path / "no" / "t.csv")]) == 2
     _one_line_error(capsys, "--out", "does not exist")
+
+
+def test_calibrate_writes_cal_json_that_simulate_accepts(slide_dir, tmp_path, capsys):
+    rec = tmp_path / "rec"
+    shutil.copytree(slide_dir, rec)
+    cal = tmp_path / "cal.json"
+    assert main(["calibrate", str(rec), "--out", str(cal), "--budget", "30"]) == 0
+    assert "pallet_bundle" in capsys.readouterr().out
+    data = json.loads(cal.read_text())
+    assert set(data) >= {"friction", "wrap", "residual_rms_m", "simulations", "method"}
+    assert data["simulations"] <= 30 and data["method"] == "cmaes"
+    assert data["friction"]["pallet_bundle"]["identified"] is True
+    assert data["friction"]["sled_pallet"]["identified"] is False
+    assert (tmp_path / "cal-loss.png").read_bytes()[:4] == b"\x89PNG"
+    assert (tmp_path / "cal-overlay.png").read_bytes()[:4] == b"\x89PNG"
+    assert Calibration.from_json(cal).friction["pallet_bundle"].static > 0
+    assert main(["simulate", str(rec / "load.toml"), "--calibration", str(cal),
+                 "--level", "0.3"]) in (0, 1)
+
+
+def test_calibrate_that_does_not_converge_writes_nothing(slide_dir, tmp_path, capsys):
+    cal = tmp_path / "cal.json"
+    assert main(["calibrate", str(slide_dir), "--out", str(cal), "--budget", "10",
+                 "--max-residual-mm", "0.001"]) == 1
+    _one_line_error(capsys, "did not converge", "nothing written")
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_calibrate_refuses_recordings_of_different_loads(slide_dir, recording_dir, tmp_path,
+                                                         capsys):
+    cal = tmp_path / "cal.json"
+    assert main(["calibrate", str(slide_dir), str(recording_dir), "--out", str(cal)]) == 2
+    _one_line_error(capsys, "load.toml", "--mixed-loads")
+    assert not cal.exists()
+
+
+def test_calibrate_refuses_too_short_trajectories(slide_dir, tmp_path, capsys):
+    rec = tmp_path / "rec"
+    shutil.copytree(slide_dir, rec)
+    lines = ["t_s,object,x_m,z_m,angle_rad"] + [f"{k / 20},L1C1R1,0.0,0.3,0.0" for k in range(3)]
+    (rec / "trajectories.csv").write_text("\n".join(lines) + "\n")
+    cal = tmp_path / "cal.json"
+    assert main(["calibrate", str(rec), "--out", str(cal)]) == 2
+    _one_line_error(capsys, "trajectories", "10 frames")
+    assert not cal.exists()
+
+
+@pytest.mark.parametrize("args, needle", [(["--budget", "5"], "--budget"),
+                                          (["--workers", "0"], "--workers"),
+                                          (["--max-residual-mm", "nan"], "--max-residual-mm")])
+def test_calibrate_rejects_bad_arguments(args, needle, slide_dir, tmp_path, capsys):
+    assert main(["calibrate", str(slide_dir), "--out", str(tmp_path / "c.json"), *args]) == 2
+    _one_line_error(capsys, needle)
