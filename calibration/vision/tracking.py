@@ -20,6 +20,7 @@ Trackers (the `kind` names `track()` and the benchmarks use):
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, replace
@@ -34,6 +35,9 @@ from calibration.vision.roi import Box
 
 #: NCC score under which an object counts as lost in a frame.
 LOST_SCORE = 0.5
+#: ncc+flow skips the NCC search in a frame when the last frame's result was this close (px) to
+#: its prediction: the motion is then smooth enough for Farnebäck's window alone.
+SKIP_NCC_PX = 0.25
 OWN_TRACKERS = ("ncc+flow", "ncc", "flow", "chain")
 OPENCV_TRACKERS = ("mil", "dasiamrpn", "nano", "vit")
 
@@ -85,20 +89,27 @@ class PatchTracker:
         self.ref_centre = (centre[0] - frame.x0 - box.x0, centre[1] - frame.y0 - box.y0)
         self.box_size = (box.width, box.height)
         self.kind, self.search_px, self.pad_px = kind, search_px, pad_px
+        self.score, self.predicted_well = 1.0, False
         # Farnebäck runs on the box plus a pad, so its window has real pixels at the box's edge
         self.flow = None if kind == "ncc" else RigidFlow(
             np.ascontiguousarray(frame.gray[padded.y0:padded.y1, padded.x0:padded.x1]),
             (self.ref_centre[0] + pad_px, self.ref_centre[1] + pad_px), border=pad_px + 2)
 
     def update(self, frame: Frame, predicted: Pose) -> tuple[Pose, float]:
-        pose, score = predicted, 1.0
-        if self.kind != "flow":
+        """NCC then Farnebäck; NCC is skipped while the prediction keeps landing within
+        `SKIP_NCC_PX` of the result (Farnebäck alone captures that; the score is then the last
+        NCC's)."""
+        pose, score = predicted, self.score
+        if self.kind == "ncc" or (self.kind == "ncc+flow" and not self.predicted_well):
             pose, score = self._ncc(frame, pose)
             if score < LOST_SCORE:
+                self.predicted_well = False
                 return predicted, score
         if self.flow is not None:
             for _ in range(2 if self.kind == "flow" else 1):
                 pose = self._refine(frame, pose)
+        self.predicted_well = math.hypot(pose.u - predicted.u, pose.v - predicted.v) < SKIP_NCC_PX
+        self.score = score
         return pose, score
 
     def _ncc(self, frame: Frame, pose: Pose) -> tuple[Pose, float]:
