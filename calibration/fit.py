@@ -290,7 +290,7 @@ def fit(observations: Sequence[Observation], settings: FitSettings,
                                       Param("ratio", name, *RATIO_RANGE)))
     wrap_params = (Param("stiffness", "", *LOG2_SCALE_RANGE),
                    Param("tension", "", *LOG2_SCALE_RANGE))
-    fit_friction = settings.params in ("friction", "all") and bool(friction_params)
+    fit_friction = settings.params != "wrap" and bool(friction_params)
     fit_wrap = settings.params in ("wrap", "all") and bool(wrapped)
     progress = Progress(listener=listener)
     friction, scales = base, (1.0, 1.0)
@@ -316,7 +316,8 @@ def fit(observations: Sequence[Observation], settings: FitSettings,
              for o, sim in zip(observations, fitted, strict=True)]
     rms = (math.inf if any(r is None for r in parts)
            else float(np.sqrt(np.mean(np.concatenate(parts) ** 2))))
-    present = pairs_present(observations)
+    # friction not asked for is not reported: the bench keeps the load file's values
+    present = pairs_present(observations) if settings.params != "wrap" else ()
     bounds = _pair_bounds(observations, friction, slipped)
     calibration = _calibration(friction, scales, stds, slipped, bounds, present)
     return FitResult(calibration, rms, progress.simulations, settings.method, progress.curve,

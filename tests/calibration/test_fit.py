@@ -91,3 +91,25 @@ def test_momentum_descent_lowers_the_loss_within_its_budget(slide):
     losses = [loss for _, loss in result.curve]
     assert losses[-1] < 0.5 * losses[0]
     assert result.simulations <= 40
+
+
+def test_wrap_stiffness_fit_finds_the_hidden_scale(tmp_path):
+    """The sliding unit in one light layer of LLDPE whose true stiffness is 1.3 times the
+    card's (friction as the load file says), at 1280 x 800 so the web's markers decode: the
+    fitted stiffness scale within ±20 %."""
+    from calibration.synth import synthesize
+    from wrapenv.load import LoadUnit
+    from wrapenv.wrap import WrapFormat
+
+    wrap = WrapFormat.from_toml("examples/wrap_lldpe_1layer_light.toml")
+    out = tmp_path / "wrapped"
+    synthesize(LoadUnit.from_toml("examples/calibration_slide.toml"), out, wrap=wrap,
+               level_g=0.55, seed=2, size=(1280, 800), marker_size_m=0.075, stiffness_scale=1.3)
+    rec = Recording.read(out)
+    tracked = track(rec).trajectories
+    assert {"L1C1R1", "L1C2R1", "pallet"} <= set(tracked.objects)
+    result = fit([observe(rec, tracked)], FitSettings(params="wrap", budget=50, workers=2))
+    assert abs(result.calibration.stiffness_scale / 1.3 - 1) <= 0.2
+    assert result.calibration.stiffness_scale_std > 0
+    assert result.calibration.friction == {}  # not asked for: the load file's values stand
+    assert result.simulations <= 50
