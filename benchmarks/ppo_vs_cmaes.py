@@ -8,6 +8,7 @@
    passed, robust pass rate, evaluations and wall time.
 
     python benchmarks/ppo_vs_cmaes.py --policy RUN/policy.zip [--held-out 12] [--target 0.5]
+                                      [--only held-out|ppo|cmaes]
 """
 
 from __future__ import annotations
@@ -60,14 +61,23 @@ def recommend(load: str, method: list[str], target_g: float) -> str:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--policy", type=Path, required=True)
+    parser.add_argument("--policy", type=Path)
     parser.add_argument("--held-out", type=int, default=12)
     parser.add_argument("--target", type=float, default=0.5)
+    parser.add_argument("--only", choices=("held-out", "ppo", "cmaes"),
+                        help="one part (the CMA-ES searches need no policy)")
     args = parser.parse_args()
-    held_out(args.policy, args.held_out, args.target)
-    ppo = ["--method", "ppo", "--policy", str(args.policy.resolve())]
+    if args.policy is None and args.only != "cmaes":
+        parser.error("--policy is needed unless --only cmaes")
+    if args.only in (None, "held-out"):
+        held_out(args.policy, args.held_out, args.target)
+    methods = []
+    if args.only in (None, "ppo"):
+        methods.append(("ppo", ["--method", "ppo", "--policy", str(args.policy.resolve())]))
+    if args.only in (None, "cmaes"):
+        methods.append(("cmaes", []))
     for load in EXAMPLES:
-        for name, method in (("ppo", ppo), ("cmaes", [])):
+        for name, method in methods:
             result = recommend(str(Path(load).resolve()), method, args.target)
             print(f"{Path(load).stem}, {name:5s}: {result}", flush=True)
 
