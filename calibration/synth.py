@@ -38,7 +38,7 @@ from calibration.recording import (
     write_setup,
     write_truth,
 )
-from wrapenv.bench import SLED_MARGIN_M, STOPPER_SIZE_M, SimSettings, run_level
+from wrapenv.bench import SLED_DECK_M, SLED_MARGIN_M, STOPPER_SIZE_M, SimSettings, run_level
 from wrapenv.config import InputError, write_atomic
 from wrapenv.load import PAIRS, Friction, FrictionPair, Layout, LoadUnit
 from wrapenv.profile import PulseProfile
@@ -47,7 +47,6 @@ from wrapenv.trace import Trace
 from wrapenv.wrap import WrapFormat
 from wrapenv.wrap_physics import WrapNet
 
-SLED_DECK_M = 0.1  # thickness of the bench's deck (wrapenv.bench)
 MARKER_DICTIONARY = "DICT_4X4_50"
 #: Sled markers this far beyond the pallet's ends (a 1.2 m pallet: x = -1.0 and +1.0 m).
 SLED_MARKER_REACH_M = 0.4

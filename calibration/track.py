@@ -40,7 +40,7 @@ from calibration.vision.markers import (
     rigid_pose,
     scale_warning,
 )
-from calibration.vision.roi import SLED_DECK_M, PixelMap, predict_roi
+from calibration.vision.roi import PixelMap, predict_roi
 from calibration.vision.tracking import (
     LOST_SCORE,
     OPENCV_TRACKERS,
@@ -51,6 +51,7 @@ from calibration.vision.tracking import (
     Tracker,
     make_tracker,
 )
+from wrapenv.bench import SLED_DECK_M
 from wrapenv.config import InputError
 from wrapenv.load import Layout
 

@@ -18,6 +18,7 @@ from wrapenv.wrap import WrapFormat
 from wrapenv.wrap_physics import WrapNet
 
 SLED_MARGIN_M = 2.0          # sled deck beyond the pallet on every side
+SLED_DECK_M = 0.1            # thickness of the sled deck (its top is z = 0)
 STOPPER_SIZE_M = (0.05, 0.08)  # pallet stopper bar: thickness along x, height
 PENETRATION_LIMIT_M = 0.02   # deeper overlap than this means the solver lost the contact
 
@@ -91,8 +92,8 @@ def run_levels(
 def _build(world: BulletWorld, layout: Layout, mu: np.ndarray) -> None:
     """Add sled (index 0), pallet (1) and bundles (2 + k) in the order `StickSlip` numbers them."""
     px, py, pz = layout.pallet_size_m
-    deck = (px + 2 * SLED_MARGIN_M, py + 2 * SLED_MARGIN_M, 0.1)
-    world.add_box(deck, (0, 0, -0.05), 0.0, mu[0], rgba=(0.35, 0.35, 0.4, 1))
+    deck = (px + 2 * SLED_MARGIN_M, py + 2 * SLED_MARGIN_M, SLED_DECK_M)
+    world.add_box(deck, (0, 0, -SLED_DECK_M / 2), 0.0, mu[0], rgba=(0.35, 0.35, 0.4, 1))
     world.add_box((px, py, pz), (0, 0, pz / 2), layout.pallet_mass_kg, mu[1],
                   rgba=(0.76, 0.6, 0.4, 1))
     for k, b in enumerate(layout.bundles):

@@ -18,7 +18,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from wrapenv.bench import SLED_MARGIN_M, STOPPER_SIZE_M
+from wrapenv.bench import SLED_DECK_M, SLED_MARGIN_M, STOPPER_SIZE_M
 from wrapenv.bullet import BulletWorld
 from wrapenv.load import Layout
 from wrapenv.trace import Trace
@@ -285,9 +285,9 @@ class Renderer:
         """Sled deck (0), pallet (1), bundles (2 + k) as the bench lays them out, all static."""
         layout, world = self.layout, self.world
         px, py, pz = layout.pallet_size_m
-        deck = (px + 2 * SLED_MARGIN_M, py + 2 * SLED_MARGIN_M, 0.1)
+        deck = (px + 2 * SLED_MARGIN_M, py + 2 * SLED_MARGIN_M, SLED_DECK_M)
         white = None if self.colours else (1.0, 1.0, 1.0, 1.0)
-        world.add_box(deck, (0, 0, -0.05), 0.0, 0.5, rgba=white or SLED_RGBA)
+        world.add_box(deck, (0, 0, -SLED_DECK_M / 2), 0.0, 0.5, rgba=white or SLED_RGBA)
         world.add_box((px, py, pz), (0, 0, pz / 2), 0.0, 0.5, rgba=white or PALLET_RGBA)
         for b in layout.bundles:
             column = sorted({round(o.centre_m[0], 4) for o in layout.bundles

@@ -11,10 +11,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from wrapenv.bench import SLED_DECK_M
 from wrapenv.load import Layout
-
-#: Depth of the sled deck below its surface (wrapenv.bench builds a 0.1 m thick deck).
-SLED_DECK_M = 0.1
 
 
 @dataclass(frozen=True)
