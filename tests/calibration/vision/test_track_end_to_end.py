@@ -59,7 +59,6 @@ def test_two_layer_unwrapped(two_layer: Recording, tmp_path: Path) -> None:
     assert set(Trajectories.from_csv(out).objects) == names
 
 
-@pytest.mark.slow
 def test_three_layer_tipping(tmp_path: Path) -> None:
     rec = synthesize(LoadUnit.from_toml("examples/pet_3layer_columnar.toml"), tmp_path / "three",
                      level_g=0.3, size=SIZE)
@@ -68,7 +67,6 @@ def test_three_layer_tipping(tmp_path: Path) -> None:
     _check_accuracy(rec, result.trajectories)
 
 
-@pytest.mark.slow
 def test_wrapped_follows_markers(tmp_path: Path) -> None:
     load = LoadUnit.from_toml("examples/pet_2layer_columnar.toml")
     wrap = WrapFormat.from_toml("examples/wrap_kraft_2layer.toml", load.layout().load_height_m)
