@@ -40,7 +40,7 @@ from calibration.vision.markers import (
     rigid_pose,
     scale_warning,
 )
-from calibration.vision.roi import PixelMap, predict_roi
+from calibration.vision.roi import PixelMap, predict_roi, unit_extent_m
 from calibration.vision.tracking import (
     LOST_SCORE,
     OPENCV_TRACKERS,
@@ -126,8 +126,9 @@ class _Run:
         self.writer: cv2.VideoWriter | None = None
         spec = recording.markers
         #: the sled's markers, which the region of interest must reach (centre +- half a side)
-        self.sled_marker_x = tuple(p.offset_m[0] + s * spec.size_m for p in spec.placements
-                                   for s in (-1, 1) if p.object == "sled") if spec else ()
+        sled_marker_x = tuple(p.offset_m[0] + s * spec.size_m for p in spec.placements
+                              for s in (-1, 1) if p.object == "sled") if spec else ()
+        self.roi_extent = unit_extent_m(self.layout, sled_marker_x)
 
     def _check_time_base(self) -> None:
         video, fps = self.rec.video, float(self.cap.get(cv2.CAP_PROP_FPS))
@@ -151,8 +152,8 @@ class _Run:
         """Grayscale of the frame's region of interest (the whole frame for OpenCV's trackers)."""
         if self.full_frame:
             return Frame(cv2.cvtColor(bgr, cv2.COLOR_BGR2GRAY))
-        box = predict_roi(self.pixmap, self.layout, self.sled_x[index], self.size, ROI_MARGIN_M,
-                          self.sled_marker_x)
+        box = predict_roi(self.pixmap, self.roi_extent, self.sled_x[index], self.size,
+                          ROI_MARGIN_M)
         crop = bgr[box.y0:box.y1, box.x0:box.x1]
         return Frame(cv2.cvtColor(crop, cv2.COLOR_BGR2GRAY), box.x0, box.y0)
 
@@ -303,7 +304,8 @@ class _Run:
         template = cv2.imread(str(path), cv2.IMREAD_GRAYSCALE)
         if template is None:
             raise InputError(str(path), "", "cannot read the template image")
-        box = predict_roi(self.pixmap, self.layout, self.sled_x[0], self.size, ROI_MARGIN_M)
+        box = predict_roi(self.pixmap, unit_extent_m(self.layout), self.sled_x[0], self.size,
+                          ROI_MARGIN_M)
         roi = first.gray[box.y0 - first.y0:box.y1 - first.y0, box.x0 - first.x0:box.x1 - first.x0]
         found = find_template(roi, template, MATCH_THRESHOLD)
         if not found:

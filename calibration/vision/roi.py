@@ -78,16 +78,11 @@ def unit_extent_m(layout: Layout, extra_x_m: tuple[float, ...] = ()
     return min(xs), max(xs), -SLED_DECK_M, max(pz, layout.load_height_m)
 
 
-def sled_shift_px(pixmap: PixelMap, sled_x_m: np.ndarray) -> np.ndarray:
-    """Predicted u-shift of everything on the sled in each frame, relative to the first frame."""
-    x = np.asarray(sled_x_m, float)
-    return pixmap.px_per_m * (x - x[0])
-
-
-def predict_roi(pixmap: PixelMap, layout: Layout, sled_x_m: float, frame_size: tuple[int, int],
-                margin_m: float, extra_x_m: tuple[float, ...] = ()) -> Box:
-    """Where the unit (sled face included) is in a frame, `margin_m` around it, clipped."""
-    x0, x1, z0, z1 = unit_extent_m(layout, extra_x_m)
+def predict_roi(pixmap: PixelMap, extent_m: tuple[float, float, float, float], sled_x_m: float,
+                frame_size: tuple[int, int], margin_m: float) -> Box:
+    """Where the unit is in a frame, `margin_m` around it, clipped; `extent_m` is
+    `unit_extent_m`'s (computed once per recording, not per frame)."""
+    x0, x1, z0, z1 = extent_m
     u0, v1 = pixmap.to_px(x0 + sled_x_m - margin_m, z0 - margin_m)
     u1, v0 = pixmap.to_px(x1 + sled_x_m + margin_m, z1 + margin_m)
     box = Box(int(np.floor(u0)), int(np.floor(v0)), int(np.ceil(u1)) + 1, int(np.ceil(v1)) + 1)
