@@ -17,7 +17,7 @@ from pathlib import Path
 
 from tqdm import tqdm
 
-from wrapenv.config import InputError, write_atomic
+from wrapenv.config import InputError, check_output, write_atomic
 from wrapenv.load import Friction, LoadUnit
 from wrapenv.wrap import WrapFormat
 
@@ -97,9 +97,8 @@ def run_track(args: argparse.Namespace) -> int:
 
     rec = Recording.read(args.recording)
     out = args.out if args.out is not None else rec.folder / "trajectories.csv"
-    for path, flag in ((out, "--out"), (args.debug_video, "--debug-video")):
-        if path is not None and not path.resolve().parent.is_dir():
-            raise InputError(str(path), flag, "the folder to write into does not exist")
+    check_output(out, "--out")
+    check_output(args.debug_video, "--debug-video")
     t0 = time.perf_counter()
     with tqdm(desc="frames", unit="frame", leave=False, disable=None) as bar:
         def progress(frame: int, frames: int) -> None:
@@ -194,8 +193,7 @@ def run_calibrate(args: argparse.Namespace) -> int:
     if not (math.isfinite(args.max_residual_mm) and args.max_residual_mm > 0):
         raise InputError("arguments", "--max-residual-mm",
                          f"must be > 0 (got {args.max_residual_mm})")
-    if not args.out.resolve().parent.is_dir():
-        raise InputError(str(args.out), "--out", "the folder to write into does not exist")
+    check_output(args.out, "--out")
     observations = _observations(args)
     settings = FitSettings(args.method, args.params, args.budget, args.workers, args.seed,
                            args.max_residual_mm / 1000)

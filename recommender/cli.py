@@ -22,7 +22,7 @@ from calibration import commands
 from recommender.parallel import BACKENDS
 from wrapenv.bench import BenchRun, run_levels
 from wrapenv.calibrated import Calibration
-from wrapenv.config import InputError, write_atomic
+from wrapenv.config import InputError, check_output, write_atomic
 from wrapenv.eumos import LevelVerdict
 from wrapenv.load import Layout, LoadUnit
 from wrapenv.profile import MeasuredProfile, PulseProfile, eumos_levels
@@ -141,11 +141,6 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 130
 
 
-def _output_dir_ok(path: Path | None, flag: str) -> None:
-    if path is not None and not path.resolve().parent.is_dir():
-        raise InputError(str(path), flag, "the folder to write into does not exist")
-
-
 def _target(target_g: float) -> None:
     """A target level the bench can produce, or a usage error naming --target."""
     try:
@@ -169,8 +164,8 @@ def _simulate(args: argparse.Namespace) -> int:
         load = calibration.apply(load)
         if wrap is not None:
             wrap = wrap.scaled(calibration.stiffness_scale, calibration.tension_scale)
-    _output_dir_ok(args.json, "--json")
-    _output_dir_ok(args.plot, "--plot")
+    check_output(args.json, "--json")
+    check_output(args.plot, "--plot")
     if args.profile and (args.level or args.eumos):
         raise InputError("arguments", "--profile", "cannot be combined with --level or --eumos")
     if args.level and args.eumos:
@@ -260,9 +255,9 @@ def _recommend(args: argparse.Namespace) -> int:
             raise InputError("arguments", flag, f"must be >= {low} (got {value})")
     if not (math.isfinite(args.margin) and 0 <= args.margin < 1):
         raise InputError("arguments", "--margin", f"must be in [0, 1) (got {args.margin})")
-    _output_dir_ok(args.json, "--json")
-    _output_dir_ok(args.wrap_out, "--wrap-out")
-    _output_dir_ok(args.checkpoint, "--checkpoint")
+    check_output(args.json, "--json")
+    check_output(args.wrap_out, "--wrap-out")
+    check_output(args.checkpoint, "--checkpoint")
     if args.report is not None and args.report.exists() and not args.report.is_dir():
         raise InputError(str(args.report), "--report", "exists and is not a folder")
     settings = SearchSettings(target_g=args.target, material=args.material,

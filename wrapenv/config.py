@@ -161,6 +161,13 @@ class _Required:
 _REQUIRED: Any = _Required()
 
 
+def check_output(path: Path | None, flag: str) -> None:
+    """An output's folder must exist before any work starts, so a long run does not end in a
+    failed write (`path` None: the output was not asked for)."""
+    if path is not None and not Path(path).resolve().parent.is_dir():
+        raise InputError(str(path), flag, "the folder to write into does not exist")
+
+
 def write_atomic(path: str | Path, data: bytes) -> None:
     """Write a file so readers see the old content or the whole new one, never a part."""
     path = Path(path)
