@@ -103,9 +103,11 @@ class _Elements:
         trial = self.k_elastic * (length - self.rest - self.plastic)
         hardening = self.plastic_modulus * self.plastic
         over = trial - (self.yield_force + hardening)
-        flow = np.where(over > 0, over / (self.k_elastic + self.plastic_modulus), 0.0)
-        self.plastic += flow
-        elastic = np.maximum(trial - self.k_elastic * flow, 0.0)
+        if over.max(initial=0.0) > 0:  # some element yields (most steps none does)
+            flow = np.maximum(over, 0.0) / (self.k_elastic + self.plastic_modulus)
+            self.plastic += flow
+            trial = trial - self.k_elastic * flow
+        elastic = np.maximum(trial, 0.0)
         self.peak = np.maximum(self.peak, np.minimum(elastic / self.break_force, 1.0))
         self.torn |= elastic >= self.break_force
         self.last = np.where(self.torn, 0.0, elastic)
@@ -114,7 +116,7 @@ class _Elements:
 
 
 def _series(*k: np.ndarray | float) -> np.ndarray:
-    return 1.0 / sum(1.0 / np.asarray(x, float) for x in k)
+    return np.asarray(1.0 / sum(1.0 / np.asarray(x, float) for x in k))
 
 
 def _element_set(k_web: np.ndarray, material_strength: tuple[float, float, float],
@@ -166,6 +168,7 @@ class WrapNet:
         self.node_local = np.array(self._node_local, float).reshape(-1, 3)
         self._slot_valid = self._slots >= 0
         self._active = self._slot_valid.copy()
+        self._hull_links = _neighbours(self._active)
         self._slot_index = np.where(self._slot_valid, self._slots, 0)
         m = wrap.material
         strength = (m.yield_force_n_per_m, m.break_force_n_per_m, m.hardening_ratio)
@@ -188,13 +191,14 @@ class WrapNet:
             pretension=np.zeros(len(panel_k)), mass=ma * mb / (ma + mb), height=panel_h,
             length=np.ones(len(panel_k)), contact_k=k_c,
         )
-        # incidence matrices: sums over slots, elements and nodes become one product each
+        # incidence matrices: sums over elements and nodes become one product each
         n_nodes = len(self.node_body)
         self._incidence = np.zeros((self.n_bodies, n_nodes))
         self._incidence[self.node_body, np.arange(n_nodes)] = 1.0
-        self._slot_to_node = np.zeros((n_nodes, self._slots.size))
+        # every node is the node of exactly one ring slot: its flat index in (rings x slots)
         flat = self._slots.ravel()
-        self._slot_to_node[flat[flat >= 0], np.flatnonzero(flat >= 0)] = 1.0
+        self._node_slot = np.zeros(n_nodes, int)
+        self._node_slot[flat[flat >= 0]] = np.flatnonzero(flat >= 0)
         self._panel_to_node = np.zeros((n_nodes, len(self.panel_nodes)))
         for e, (a, b) in enumerate(self.panel_nodes):
             self._panel_to_node[a, e] += 1.0
@@ -247,8 +251,8 @@ class WrapNet:
         xyz = p[self._slot_index]                       # (R, M, 3)
         rows = np.arange(len(xyz))[:, None]
         active = self._active
+        prev, nxt = self._hull_links
         for _ in range(2 * xyz.shape[1]):
-            prev, nxt = _neighbours(active)
             a, c = xyz[rows, prev], xyz[rows, nxt]
             # < 0: the slot is right of its hull edge (a -> c), i.e. outside the hull
             side = ((c[..., 0] - a[..., 0]) * (xyz[..., 1] - a[..., 1])
@@ -260,7 +264,8 @@ class WrapNet:
             # drop reflex corners first; add outside slots only when no corner is reflex
             drop = active & changed
             active = active & ~drop if drop.any() else active | changed
-        self._active = active
+            prev, nxt = _neighbours(active)
+        self._active, self._hull_links = active, (prev, nxt)
         edge = xyz[rows, nxt] - xyz                     # to the next hull corner
         length = np.where(active, np.linalg.norm(edge, axis=-1), 0.0)
         return length.sum(axis=1), active, prev, nxt, edge, length
@@ -271,18 +276,19 @@ class WrapNet:
 
         `pos`, `rot`, `vel`, `omega`: state of every body (pallet first), in the sled frame.
         """
-        p = self.nodes(pos, rot)
-        arm = p - pos[self.node_body]
-        v = vel[self.node_body] + _cross(omega[self.node_body], arm)
-        f = np.zeros_like(p)
-        self._ring_forces(p, v, f)
+        nb = self.node_body
+        arm = np.einsum("nij,nj->ni", rot[nb], self.node_local)
+        p = pos[nb] + arm
+        v = vel[nb] + _cross(omega[nb], arm)
+        f = self._ring_forces(p, v)
         self._panel_forces(p, v, f)
-        torque = _cross(arm, f)
-        return self._incidence @ f, self._incidence @ torque
+        wrench = self._incidence @ np.hstack([f, _cross(arm, f)])
+        return wrench[:, :3], wrench[:, 3:]
 
-    def _ring_forces(self, p: np.ndarray, v: np.ndarray, f: np.ndarray) -> None:
+    def _ring_forces(self, p: np.ndarray, v: np.ndarray) -> np.ndarray:
+        """Forces of the rings on every node (n_nodes, 3)."""
         if not len(self._slots):
-            return
+            return np.zeros_like(p)
         perimeter, active, prev, nxt, edge, length = self._ring_geometry(p)
         r = self.rings
         unit = edge / np.maximum(length, 1e-12)[..., None]
@@ -295,7 +301,7 @@ class WrapNet:
             tension = np.where(r.torn, 0.0, r.pretension * self.laid)
         # each hull corner is pulled towards both its neighbours
         pull = (unit - unit[rows, prev]) * (tension[:, None, None] * active[..., None])
-        f += self._slot_to_node @ pull.reshape(-1, 3)
+        return pull.reshape(-1, 3)[self._node_slot]
 
     def _panel_forces(self, p: np.ndarray, v: np.ndarray, f: np.ndarray) -> None:
         if not self.frozen or not len(self.panel_nodes):
