@@ -59,7 +59,7 @@ class BulletWorld:
             self._client = bullet_client.BulletClient(connection_mode=pb.DIRECT)
         self.timestep_s = timestep_s
         # Per-step calls go to pybullet with this client's id: the same client, without the
-        # BulletClient wrapper's attribute lookup (halves the cost of a state read).
+        # BulletClient wrapper's attribute lookup (halves the cost of a state read or a step).
         self._id = self._client._client
         self._client.setTimeStep(timestep_s)
         self._client.setPhysicsEngineParameter(
@@ -111,10 +111,10 @@ class BulletWorld:
     # -- stepping -------------------------------------------------------------------------
     def set_sled_accel(self, accel_mps2: float) -> None:
         """Apply the sled's acceleration as an inertial field for the next steps."""
-        self._client.setGravity(-accel_mps2, 0.0, -G)
+        pb.setGravity(-accel_mps2, 0.0, -G, physicsClientId=self._id)
 
-    def apply_wrenches(self, indices: Sequence[int], centres: np.ndarray, forces: np.ndarray,
-                       torques: np.ndarray) -> None:
+    def apply_wrenches(self, indices: Sequence[int] | np.ndarray, centres: np.ndarray,
+                       forces: np.ndarray, torques: np.ndarray) -> None:
         """Forces at the bodies' centres and torques (world frame) for the next step only."""
         cid = self._id
         for index, centre, force, torque in zip(indices, centres.tolist(), forces.tolist(),
@@ -133,7 +133,7 @@ class BulletWorld:
         """Set a body's own coefficient; Bullet multiplies the two bodies' values per contact."""
         body = self._ids[index]
         if self._friction[body] != coefficient:
-            self._client.changeDynamics(body, -1, lateralFriction=coefficient)
+            pb.changeDynamics(body, -1, lateralFriction=coefficient, physicsClientId=self._id)
             self._friction[body] = coefficient
 
     def set_anchored(self, index: int, anchored: bool) -> None:
@@ -142,7 +142,8 @@ class BulletWorld:
         if self._anchor_wanted[body] != anchored:
             self._anchor_wanted[body] = anchored
             if body not in self._refreshing:
-                self._client.changeDynamics(body, -1, frictionAnchor=int(anchored))
+                pb.changeDynamics(body, -1, frictionAnchor=int(anchored),
+                                  physicsClientId=self._id)
 
     def refresh_contacts(self, indices: Sequence[int]) -> None:
         """Make the bodies' contacts pick up changed friction coefficients in the next step.
@@ -155,14 +156,14 @@ class BulletWorld:
         for index in indices:
             body = self._ids[index]
             if body not in self._refreshing:
-                self._client.changeDynamics(body, -1, frictionAnchor=0)
+                pb.changeDynamics(body, -1, frictionAnchor=0, physicsClientId=self._id)
                 self._refreshing.add(body)
 
     def step(self) -> None:
-        self._client.stepSimulation()
+        pb.stepSimulation(physicsClientId=self._id)
         for body in self._refreshing:
             if self._anchor_wanted[body]:
-                self._client.changeDynamics(body, -1, frictionAnchor=1)
+                pb.changeDynamics(body, -1, frictionAnchor=1, physicsClientId=self._id)
         self._refreshing.clear()
 
     # -- state ----------------------------------------------------------------------------
@@ -249,7 +250,7 @@ class BulletWorld:
         if self._client is not None:
             with contextlib.suppress(pb.error):
                 self._client.disconnect()
-            self._client = None  # type: ignore[assignment]
+            self._client = None
 
     def __enter__(self) -> BulletWorld:
         return self
