@@ -30,10 +30,13 @@ class Trace:
     valid: bool = True
     invalid_reason: str = ""
     wrap: WrapReport | None = None  # None: the unit was not wrapped
+    #: Why the run stopped before rest, its verdict already decided failed ("": it ran to rest).
+    #: The figures of such a trace are those at the stop, not the permanent ones.
+    stopped_early: str = ""
 
     def bundle_displacement_m(self) -> np.ndarray:
         """(T, n) horizontal displacement of each bundle centre in the pallet's frame."""
-        rel = np.einsum("tba,tnb->tna", self.pallet_rot, self.bundle_pos - self.pallet_pos[:, None])
+        rel = in_pallet_frame(self.pallet_pos, self.pallet_rot, self.bundle_pos)
         return np.linalg.norm((rel - rel[0])[..., :2], axis=-1)
 
     def pallet_slip_m(self) -> float:
@@ -43,3 +46,10 @@ class Trace:
     def tilt_rad(self) -> np.ndarray:
         """(n,) final tilt of each bundle: angle between its vertical axis and the world's."""
         return np.arccos(np.clip(self.bundle_rot[-1, :, 2, 2], -1.0, 1.0))
+
+
+def in_pallet_frame(pallet_pos: np.ndarray, pallet_rot: np.ndarray,
+                    bundle_pos: np.ndarray) -> np.ndarray:
+    """Bundle centres (..., n, 3) in the pallet's frame, for one sample or a whole trace
+    (leading axes of `pallet_pos` (..., 3) and `pallet_rot` (..., 3, 3))."""
+    return np.einsum("...ba,...nb->...na", pallet_rot, bundle_pos - pallet_pos[..., None, :])

@@ -1,0 +1,71 @@
+"""A level can stop once its verdict is decided (issue 15, `SimSettings.stop_when_decided`):
+searches and training need the verdict, not the rest of a failing run. Such a run must still
+fail, and never stop a level that would pass; off by default, so `simulate` keeps full traces.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import pytest
+
+from wrapenv.bench import SimSettings, run_level
+from wrapenv.eumos import WRAP_TORN, evaluate
+from wrapenv.load import FrictionPair, LoadUnit
+from wrapenv.profile import PulseProfile
+from wrapenv.wrap import WrapFormat
+
+EXAMPLE_3 = "examples/pet_3layer_columnar.toml"
+DECIDED = SimSettings(stop_when_decided=True)
+
+
+def example(material: str | None = None) -> tuple[LoadUnit, WrapFormat | None]:
+    load = LoadUnit.from_toml(EXAMPLE_3)
+    wrap = (WrapFormat.from_toml(f"examples/wrap_{material}_3layer.toml", load.load_height_m)
+            if material else None)
+    return load, wrap
+
+
+def weak_wrap_on_a_slick_unit() -> tuple[LoadUnit, WrapFormat]:
+    """A web that yields at 0.2 % and breaks at 0.4 % on the 2-layer example whose bundles
+    slide on the pallet (0.2 / 0.15), as in test_wrap_physics.py: it tears at 0.5 g."""
+    load = LoadUnit.from_toml("examples/pet_2layer_columnar.toml")
+    friction = replace(load.friction, pallet_bundle=FrictionPair(0.2, 0.15))
+    load = replace(load.with_friction(friction), pallet_stopper=True)
+    web = dict(grammage_kg_m2=0.05, stiffness_n_per_m=4e4, yield_strain=0.002,
+               break_strain=0.004, hardening_ratio=0.5)
+    wrap = WrapFormat.from_dict({"material": web, "web_width_m": 0.5, "band": [
+        dict(from_m=0.0, to_m=0.804, layers=1, tension_n=20.0)]})
+    return load, wrap
+
+
+FAILING = {
+    # (load and wrap, level, what decides it)
+    "bundles fall": (lambda: example(), 0.5, ("fallen", "elastic displacement")),
+    "wrap tears": (weak_wrap_on_a_slick_unit, 0.5, (WRAP_TORN,)),
+    "elastic past its limit": (lambda: example("lldpe"), 0.7, ("elastic displacement",)),
+}
+
+
+@pytest.mark.parametrize("case", list(FAILING))
+def test_a_decided_level_stops_early_and_still_fails(case):
+    make, level, reasons = FAILING[case]
+    load, wrap = make()
+    early = run_level(load.layout(), PulseProfile(level), DECIDED, wrap)
+    full = run_level(load.layout(), PulseProfile(level), SimSettings(), wrap)
+    verdict = evaluate(early)
+    assert early.stopped_early.startswith(reasons), early.stopped_early
+    assert not verdict.passed and verdict.valid
+    assert verdict.to_json()["stopped_early"] == early.stopped_early
+    assert early.t_s[-1] < full.t_s[-1] - 0.5        # it saved at least half a second
+    assert not evaluate(full).passed                   # decided means: the full run fails too
+
+
+def test_a_passing_level_runs_to_rest_exactly_as_without_the_option():
+    load, wrap = example("kraft")
+    early = run_level(load.layout(), PulseProfile(0.3), DECIDED, wrap)
+    full = run_level(load.layout(), PulseProfile(0.3), SimSettings(), wrap)
+    assert early.stopped_early == ""
+    assert evaluate(early).passed
+    assert evaluate(early).to_json() == evaluate(full).to_json()
+    assert "stopped_early" not in evaluate(full).to_json()

@@ -1,0 +1,101 @@
+"""A level skips what cannot change (issue 15): while the sled's acceleration stays constant, a
+unit at rest stays as it is, so the run jumps to the next change (`SimSettings.skip_still`).
+
+Each case runs twice, skipping and taken step by step to the end; the verdicts must be the same
+and every bundle's permanent and elastic displacement within `TOLERANCE_M`, the noise of a
+squeezed stack (a wrapped unit jitters by ~1 mm on the spot, tests/wrapenv/test_wrap_physics.py).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from wrapenv import bullet
+from wrapenv.bench import SimSettings, run_level
+from wrapenv.eumos import evaluate
+from wrapenv.load import LoadUnit
+from wrapenv.profile import MeasuredProfile, PulseProfile
+from wrapenv.wrap import WrapFormat
+
+TOLERANCE_M = 0.002
+EXAMPLE_3 = "examples/pet_3layer_columnar.toml"
+
+
+def one_bundle(size=(0.28, 0.19, 0.33), mass=9.3, static=0.5, kinetic=0.4, x=0.4):
+    """One bundle on a pallet that grips the sled (as in test_bench_mechanics.py)."""
+    return LoadUnit.from_dict({
+        "pallet": {"preset": "EUR"},
+        "bundle": dict(zip(("length_m", "width_m", "height_m"), size, strict=True), mass_kg=mass),
+        "stack": {"layers": 1, "pattern": "explicit", "positions": [[x, 0.0]]},
+        "friction": {"sled_pallet": {"static": 1.0, "kinetic": 1.0},
+                     "pallet_bundle": {"static": static, "kinetic": kinetic}},
+    }).layout()
+
+
+def example_wrap(material: str) -> WrapFormat:
+    return WrapFormat.from_toml(f"examples/wrap_{material}_3layer.toml",
+                                LoadUnit.from_toml(EXAMPLE_3).load_height_m)
+
+
+def counted_run(monkeypatch, layout, profile, settings, wrap=None):
+    """The trace and how many steps Bullet actually simulated."""
+    steps = []
+    real = bullet.BulletWorld.step
+    monkeypatch.setattr(bullet.BulletWorld, "step", lambda self: (steps.append(1), real(self)))
+    trace = run_level(layout, profile, settings, wrap)
+    monkeypatch.setattr(bullet.BulletWorld, "step", real)
+    return trace, len(steps)
+
+
+CASES = {
+    # slides through the dwell, sticks in the deceleration (closed form: 0.33 m)
+    "unwrapped sliding": (one_bundle, PulseProfile(0.6, ramp_s=0.0), None),
+    # a 0.10 x 0.40 m bundle above its tipping level w/h = 0.25 g: tips over
+    "tipping": (lambda: one_bundle(size=(0.10, 0.2, 0.40), mass=5.0, static=0.9, kinetic=0.8,
+                                   x=0.0), PulseProfile(0.2625), None),
+    "Kraft-wrapped": (lambda: LoadUnit.from_toml(EXAMPLE_3).layout(), PulseProfile(0.5),
+                      "kraft"),
+    "LLDPE-wrapped": (lambda: LoadUnit.from_toml(EXAMPLE_3).layout(), PulseProfile(0.5),
+                      "lldpe"),
+}
+
+
+@pytest.mark.parametrize("case", list(CASES))
+def test_skipping_what_cannot_change_gives_the_verdict_of_the_run_taken_to_the_end(
+        case, monkeypatch):
+    make_layout, profile, material = CASES[case]
+    layout = make_layout()
+    wrap = example_wrap(material) if material else None
+    skipped, simulated = counted_run(monkeypatch, layout, profile, SimSettings(), wrap)
+    full, every_step = counted_run(monkeypatch, layout, profile,
+                                   SimSettings(skip_still=False), wrap)
+    fast, slow = evaluate(skipped), evaluate(full)
+    assert fast.passed == slow.passed
+    assert fast.criteria == slow.criteria
+    assert fast.damage == slow.damage
+    a, b = skipped.bundle_displacement_m(), full.bundle_displacement_m()
+    assert np.abs(a[-1] - b[-1]).max() < TOLERANCE_M      # permanent, every bundle
+    assert np.abs(a.max(0) - b.max(0)).max() < TOLERANCE_M  # elastic, every bundle
+    # what was skipped is the solver's creep at rest: it never adds motion
+    assert skipped.pallet_slip_m() < full.pallet_slip_m() + TOLERANCE_M
+    # the trace still covers the level, at every step; Bullet simulated far fewer
+    assert len(skipped.t_s) == pytest.approx(len(full.t_s), abs=0.1 / (1 / 240))
+    assert np.allclose(np.diff(skipped.t_s), 1 / 240)
+    assert simulated < 0.8 * every_step
+
+
+def test_a_unit_that_keeps_moving_is_never_skipped(monkeypatch):
+    # the 3-layer example unwrapped at 0.3 g rocks until the deceleration ends: nothing skipped
+    layout = LoadUnit.from_toml(EXAMPLE_3).layout()
+    trace, simulated = counted_run(monkeypatch, layout, PulseProfile(0.3), SimSettings())
+    settle = round(SimSettings().settle_s * 240)
+    assert simulated == settle + len(trace.t_s) - 1
+
+
+def test_a_still_sled_with_nothing_to_change_ends_as_soon_as_the_unit_rests(monkeypatch):
+    layout = one_bundle()
+    still = MeasuredProfile(np.array([0.0, 10.0]), np.zeros(2))
+    trace, simulated = counted_run(monkeypatch, layout, still, SimSettings())
+    assert trace.t_s[-1] >= 10.0                      # the trace covers the profile
+    assert simulated < round((0.3 + 0.5) * 240)       # settling and one rest hold, no more
