@@ -1,0 +1,161 @@
+"""The bench against plain PyBullet (issue 15), measured side by side in one run.
+
+Plain PyBullet: the same boxes as the bench (sled deck, stopper, pallet and the 48 bundles of
+examples/pet_3layer_columnar.toml, from `wrapenv.bench.bench_boxes`), each with Bullet's own
+single friction coefficient, chosen once so that the products Bullet forms give each pair its
+static value, and every other dynamics setting PyBullet's default. The same sled pulse as an
+inertial field (0.3 s still, then the 0.5 g pulse), dt 1/240 s, 20 solver iterations, no
+stick-slip, no wrap, nothing read back while it steps.
+
+The bench: `run_level` on the same unit at 0.5 g, Kraft-wrapped (examples/wrap_kraft_3layer.toml),
+with default settings: world building, settling and laying the wrap, the pulse, rest detection
+and the trace. Its level ends when nothing more can happen, so it simulates less time than the
+issue's plain run; the plain run is therefore timed twice: for the 4.5 s the issue measured,
+and for exactly as long as the bench's level lasted (settling plus the trace), the like-for-like
+figure per simulated second.
+
+Each timing is the median of `--repeat` runs, alternated, inside this process (imports and
+interpreter start-up excluded, which only dilutes a ratio towards 1); wall and CPU time are both
+printed (CPU time is less disturbed by other work on the machine). `--whole-process` also times
+each run as a fresh interpreter, imports included, as the issue measured. Run it on one core:
+
+    taskset -c 0 python -m benchmarks.bench_baseline [--whole-process]
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import statistics
+import subprocess
+import sys
+import time
+from collections.abc import Callable
+from functools import partial
+
+os.environ.setdefault("OMP_NUM_THREADS", "1")
+
+import numpy as np  # noqa: E402
+import pybullet as pb  # noqa: E402
+
+from wrapenv.bench import SimSettings, bench_boxes, run_level  # noqa: E402
+from wrapenv.bullet import G  # noqa: E402
+from wrapenv.load import Layout, LoadUnit  # noqa: E402
+from wrapenv.profile import PulseProfile  # noqa: E402
+from wrapenv.wrap import WrapFormat  # noqa: E402
+
+EXAMPLE = "examples/pet_3layer_columnar.toml"
+WRAP = "examples/wrap_kraft_3layer.toml"
+LEVEL_G = 0.5
+ISSUE_SIM_S = 4.5
+SETTLE_S = SimSettings().settle_s
+
+
+def part_coefficients(layout: Layout) -> dict[int, float]:
+    """One coefficient per part (0 sled, 1 pallet, 2 + k bundle k) whose products are the static
+    pair values: bundle-bundle = b², pallet-bundle = p b, sled-pallet = s p."""
+    f = layout.friction
+    bundle = f.bundle_bundle.static ** 0.5
+    pallet = f.pallet_bundle.static / bundle
+    out = {0: f.sled_pallet.static / pallet, 1: pallet}
+    out.update({2 + k: bundle for k in range(len(layout.bundles))})
+    return out
+
+
+def plain_pybullet(layout: Layout, profile: PulseProfile, sim_s: float,
+                   timestep_s: float = 1 / 240, iterations: int = 20) -> None:
+    """The plain run: build, settle still for `SETTLE_S`, run the pulse, `sim_s` in all."""
+    client = pb.connect(pb.DIRECT)
+    try:
+        pb.setTimeStep(timestep_s, physicsClientId=client)
+        pb.setPhysicsEngineParameter(numSolverIterations=iterations, physicsClientId=client)
+        mu = part_coefficients(layout)
+        for box in bench_boxes(layout):
+            half = [s / 2 for s in box.size_m]
+            shape = pb.createCollisionShape(pb.GEOM_BOX, halfExtents=half,
+                                            physicsClientId=client)
+            body = pb.createMultiBody(box.mass_kg, shape, basePosition=list(box.centre_m),
+                                      physicsClientId=client)
+            pb.changeDynamics(body, -1, lateralFriction=mu[box.part], physicsClientId=client)
+        steps = round(sim_s / timestep_s)
+        settle = round(SETTLE_S / timestep_s)
+        for accel in profile.accel((np.arange(steps) - settle) * timestep_s).tolist():
+            pb.setGravity(-accel, 0.0, -G, physicsClientId=client)
+            pb.stepSimulation(physicsClientId=client)
+    finally:
+        pb.disconnect(client)
+
+
+def bench_level() -> None:
+    load = LoadUnit.from_toml(EXAMPLE)
+    run_level(load.layout(), PulseProfile(LEVEL_G),
+              wrap=WrapFormat.from_toml(WRAP, load.load_height_m))
+
+
+def plain_level(sim_s: float) -> None:
+    plain_pybullet(LoadUnit.from_toml(EXAMPLE).layout(), PulseProfile(LEVEL_G), sim_s)
+
+
+def in_a_fresh_interpreter(call: str) -> Callable[[], object]:
+    """A run as its own process: interpreter start-up and imports included."""
+    code = f"from benchmarks.bench_baseline import *; {call}"
+    return lambda: subprocess.run([sys.executable, "-c", code], check=True,
+                                  stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+
+
+def child_cpu_s() -> float:
+    usage = os.times()
+    return usage.children_user + usage.children_system
+
+
+def compare(runs: dict[str, Callable[[], object]], repeat: int, clock: Callable[[], float],
+            title: str) -> None:
+    """Median wall and CPU time of each run (alternated), and the bench's ratio to the rest."""
+    results: dict[str, list[tuple[float, float]]] = {name: [] for name in runs}
+    for _ in range(repeat):
+        for name, fn in runs.items():
+            wall, cpu = time.perf_counter(), clock()
+            fn()
+            results[name].append((time.perf_counter() - wall, clock() - cpu))
+    wall_s = {n: statistics.median(w for w, _ in r) for n, r in results.items()}
+    cpu_s = {n: statistics.median(c for _, c in r) for n, r in results.items()}
+    print(f"\n{title}, median of {repeat}")
+    print(f"{'run':32s} {'wall s':>7} {'CPU s':>7}")
+    for name in runs:
+        print(f"{name:32s} {wall_s[name]:7.3f} {cpu_s[name]:7.3f}")
+    bench = next(iter(runs))
+    for name in list(runs)[1:]:
+        print(f"ratio bench / {name}: {wall_s[bench] / wall_s[name]:.2f} wall, "
+              f"{cpu_s[bench] / cpu_s[name]:.2f} CPU (goal <= 1.0)")
+
+
+def main(argv: list[str] | None = None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--repeat", type=int, default=3)
+    parser.add_argument("--whole-process", action="store_true",
+                        help="also time each run as a fresh interpreter, imports included")
+    args = parser.parse_args(argv)
+    load = LoadUnit.from_toml(EXAMPLE)
+    trace = run_level(load.layout(), PulseProfile(LEVEL_G),  # warm-up, and how long it lasts
+                      wrap=WrapFormat.from_toml(WRAP, load.load_height_m))
+    level_sim_s = SETTLE_S + float(trace.t_s[-1])
+    print(f"3-layer example (48 bundles), {LEVEL_G} g, dt 1/240 s, 20 solver iterations; "
+          f"CPUs {sorted(os.sched_getaffinity(0))}")
+    print(f"the bench's level: {SETTLE_S:.2f} s settling + {trace.t_s[-1]:.2f} s of pulse and "
+          f"rest = {level_sim_s:.2f} s simulated")
+    runs: list[tuple[str, Callable[[], object], str]] = [
+        ("bench, Kraft-wrapped", bench_level, "bench_level()"),
+        (f"plain PyBullet, {ISSUE_SIM_S} s", partial(plain_level, ISSUE_SIM_S),
+         f"plain_level({ISSUE_SIM_S})"),
+        (f"plain PyBullet, {level_sim_s:.2f} s", partial(plain_level, level_sim_s),
+         f"plain_level({level_sim_s})"),
+    ]
+    compare({name: fn for name, fn, _ in runs}, args.repeat, time.process_time,
+            "in this process")
+    if args.whole_process:
+        compare({name: in_a_fresh_interpreter(code) for name, _, code in runs}, args.repeat,
+                child_cpu_s, "each run a fresh interpreter (imports included)")
+
+
+if __name__ == "__main__":
+    main()
