@@ -8,7 +8,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from wrapenv.bullet import BulletWorld, G
+from wrapenv.bullet import BulletWorld, G, rotation_matrices
 from wrapenv.eumos import (
     ELASTIC_LIMIT_FRACTION,
     WRAP_TORN,
@@ -142,35 +142,6 @@ def _build(world: BulletWorld, layout: Layout, mu: np.ndarray) -> None:
         world.add_box(box.size_m, box.centre_m, box.mass_kg, mu[box.part], rgba=box.rgba)
 
 
-def _quaternion_products_to_rotation() -> np.ndarray:
-    """(16, 9): each rotation matrix entry as weights of the products q_i q_j of a unit
-    quaternion (x, y, z, w), row 4 i + j; the diagonal uses 1 = xx + yy + zz + ww."""
-    x, y, z, w = range(4)
-    entries = {
-        (0, 0): ((x, x, 1), (w, w, 1), (y, y, -1), (z, z, -1)),
-        (1, 1): ((y, y, 1), (w, w, 1), (x, x, -1), (z, z, -1)),
-        (2, 2): ((z, z, 1), (w, w, 1), (x, x, -1), (y, y, -1)),
-        (0, 1): ((x, y, 2), (z, w, -2)), (1, 0): ((x, y, 2), (z, w, 2)),
-        (0, 2): ((x, z, 2), (y, w, 2)), (2, 0): ((x, z, 2), (y, w, -2)),
-        (1, 2): ((y, z, 2), (x, w, -2)), (2, 1): ((y, z, 2), (x, w, 2)),
-    }
-    m = np.zeros((4, 4, 3, 3))
-    for (row, col), terms in entries.items():
-        for i, j, weight in terms:
-            m[i, j, row, col] = weight
-    return m.reshape(16, 9)
-
-
-_QUAT_TO_ROT = _quaternion_products_to_rotation()
-
-
-def _rotations(quat: np.ndarray) -> np.ndarray:
-    """Rotation matrices (n, 3, 3) from unit quaternions (n, 4) in Bullet's x y z w order:
-    one product with `_QUAT_TO_ROT` instead of nine columns assembled per step."""
-    products = (quat[:, :, None] * quat[:, None, :]).reshape(-1, 16)
-    return (products @ _QUAT_TO_ROT).reshape(-1, 3, 3)
-
-
 class _Run:
     """The stepping loop of one level: inertial field, contact states, records, health checks."""
 
@@ -198,6 +169,7 @@ class _Run:
         #: The first step at which the sled has stopped (the run may end from there on).
         self.stop_step = int(np.argmax(np.arange(n_steps) * dt >= profile.duration_s))
         self.changes = _load_changes(self.accel, self.stop_step if push else None)
+        self.quiet_mps2 = quiet_accel_mps2(layout)
         self.samples: list[tuple[float, float, np.ndarray, np.ndarray]] = []
         self.invalid = ""
         self.stopped_early = ""
@@ -209,7 +181,7 @@ class _Run:
     def _state(self) -> tuple[np.ndarray, ...]:
         pos, quat = self.world.poses(self.dynamic)
         vel, omega = self.world.velocities(self.dynamic)
-        return pos, _rotations(quat), vel, omega
+        return pos, rotation_matrices(quat), vel, omega
 
     def _update_friction(self, pos, rot, vel, omega) -> None:
         zeros = np.zeros((1, 3))
@@ -318,15 +290,18 @@ class _Run:
 
         The run ends once everything has rested for `rest_hold_s` after the sled stopped (or
         `max_rest_wait_s` after it, at the latest). Before that, a unit whose bodies all rest
-        relative to the sled while the sled's acceleration stays constant is in static
+        relative to the sled, while the sled's acceleration stays constant and below what could
+        make any body slide or tip on its own (`quiet_accel_mps2`), is in stable static
         equilibrium: contact and friction forces balance gravity, the steady inertial field and
-        the wrap, whose forces depend only on the poses, which do not change. Nothing can change
-        until the load does: the next change of acceleration (for the bench pulse: the stop
-        that ends the constant, gentle deceleration after the dwell, most of a level's time), or
-        the end of a push. So with `skip_still` the run records the resting state for the steps
-        in between without simulating them and goes on from the change, whose effect (the
-        deceleration let go at the stop) is simulated as always. Left out is only the solver's
-        creep of a resting stack (tests/wrapenv/test_bench_skip.py bounds what it changes).
+        the wrap, whose forces depend only on the poses, which do not change; and no slow
+        instability can be under way (a box just past its tipping level starts to tip
+        imperceptibly). Nothing can change until the load does: the next change of
+        acceleration, for the bench pulse the stop that ends the constant, gentle deceleration
+        after the dwell (most of a level's time). So with `skip_still` the run records the
+        resting state for the steps in between without simulating them and goes on from the
+        change, whose effect (the deceleration let go at the stop) is simulated as always. Left
+        out is only the solver's creep of a resting stack (tests/wrapenv/test_bench_skip.py
+        bounds what it changes). A push is a load of its own: nothing is skipped while it acts.
         """
         s, dt = self.s, self.s.timestep_s
         at = np.searchsorted(self.changes, step, "right")
@@ -339,7 +314,8 @@ class _Run:
         if step >= self.stop_step:
             waited_out = step * dt >= self.profile.duration_s + s.max_rest_wait_s
             return None if held or waited_out else step
-        if not (held and s.skip_still):
+        if not (held and s.skip_still and abs(self.accel[step]) < self.quiet_mps2
+                and (self.push is None or step >= self.stop_step)):
             return step
         # Until the next change of load nothing moves; at the sled's stop the run would end.
         last = min(int(self.changes[at]) - 1, self.stop_step)
@@ -376,6 +352,22 @@ class _Run:
             stopped_early=self.stopped_early,
             wrap=self.wrap.report() if self.wrap is not None else None,
         )
+
+
+def quiet_accel_mps2(layout: Layout) -> float:
+    """The sled acceleration below which no body of the unit could start to slide or tip on
+    its own: g times the lowest static friction coefficient of a pair that bears a body, and the
+    lowest width-to-height ratio of a bundle with everything above it (a column tips as one),
+    or of the whole load on its pallet."""
+    f = layout.friction
+    top = layout.load_height_m
+    ratios = [min(b.size_m[:2]) / (top - (b.centre_m[2] - b.size_m[2] / 2))
+              for b in layout.bundles]
+    ratios.append(min(layout.pallet_size_m[:2]) / top)
+    mu = [f.sled_pallet.static, f.pallet_bundle.static]
+    if any(b.layer > 1 for b in layout.bundles):
+        mu.append(f.bundle_bundle.static)
+    return G * min(*mu, *ratios)
 
 
 def _load_changes(accel: np.ndarray, push_end_step: int | None) -> np.ndarray:

@@ -47,6 +47,35 @@ with _quiet_stdout():
     from pybullet_utils import bullet_client
 
 
+def _quaternion_products_to_rotation() -> np.ndarray:
+    """(16, 9): each rotation matrix entry as weights of the products q_i q_j of a unit
+    quaternion (x, y, z, w), row 4 i + j; the diagonal uses 1 = xx + yy + zz + ww."""
+    x, y, z, w = range(4)
+    entries = {
+        (0, 0): ((x, x, 1), (w, w, 1), (y, y, -1), (z, z, -1)),
+        (1, 1): ((y, y, 1), (w, w, 1), (x, x, -1), (z, z, -1)),
+        (2, 2): ((z, z, 1), (w, w, 1), (x, x, -1), (y, y, -1)),
+        (0, 1): ((x, y, 2), (z, w, -2)), (1, 0): ((x, y, 2), (z, w, 2)),
+        (0, 2): ((x, z, 2), (y, w, 2)), (2, 0): ((x, z, 2), (y, w, -2)),
+        (1, 2): ((y, z, 2), (x, w, -2)), (2, 1): ((y, z, 2), (x, w, 2)),
+    }
+    m = np.zeros((4, 4, 3, 3))
+    for (row, col), terms in entries.items():
+        for i, j, weight in terms:
+            m[i, j, row, col] = weight
+    return m.reshape(16, 9)
+
+
+_QUAT_TO_ROT = _quaternion_products_to_rotation()
+
+
+def rotation_matrices(quat: np.ndarray) -> np.ndarray:
+    """Rotation matrices (n, 3, 3) from unit quaternions (n, 4) in Bullet's x y z w order:
+    one product with `_QUAT_TO_ROT` instead of nine columns assembled per step."""
+    products = (quat[:, :, None] * quat[:, None, :]).reshape(-1, 16)
+    return (products @ _QUAT_TO_ROT).reshape(-1, 3, 3)
+
+
 class BulletWorld:
     """Boxes in a Bullet world of their own (`BulletClient`, DIRECT), addressed by index.
 

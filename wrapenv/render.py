@@ -105,7 +105,7 @@ def quaternions(rot: np.ndarray) -> np.ndarray:
     """Quaternions (n, 4, Bullet's x y z w) of rotation matrices (n, 3, 3).
 
     Each is computed from whichever of w, x, y, z is largest, so it stays accurate near
-    half-turns too (the inverse of `wrapenv.bench._rotations`).
+    half-turns too (the inverse of `wrapenv.bullet.rotation_matrices`).
     """
     r = np.asarray(rot, float).reshape(-1, 3, 3)
     m00, m11, m22 = r[:, 0, 0], r[:, 1, 1], r[:, 2, 2]

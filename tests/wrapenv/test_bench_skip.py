@@ -12,10 +12,10 @@ import numpy as np
 import pytest
 
 from wrapenv import bullet
-from wrapenv.bench import SimSettings, run_level
+from wrapenv.bench import SimSettings, quiet_accel_mps2, run_level
 from wrapenv.eumos import evaluate
 from wrapenv.load import LoadUnit
-from wrapenv.profile import MeasuredProfile, PulseProfile
+from wrapenv.profile import G, MeasuredProfile, PulseProfile
 from wrapenv.wrap import WrapFormat
 
 TOLERANCE_M = 0.002
@@ -99,3 +99,20 @@ def test_a_still_sled_with_nothing_to_change_ends_as_soon_as_the_unit_rests(monk
     trace, simulated = counted_run(monkeypatch, layout, still, SimSettings())
     assert trace.t_s[-1] >= 10.0                      # the trace covers the profile
     assert simulated < round((0.3 + 0.5) * 240)       # settling and one rest hold, no more
+
+
+def test_quiet_acceleration_is_the_lowest_friction_or_tipping_level():
+    # 3-layer example: a first-layer bundle with the two above it, 0.19 m wide and 0.99 m tall,
+    # tips before anything slides (lowest static coefficient 0.40)
+    layout = LoadUnit.from_toml(EXAMPLE_3).layout()
+    assert quiet_accel_mps2(layout) == pytest.approx(G * 0.19 / 0.99)
+    # one bundle: sliding at mu_s = 0.5 comes before tipping at 0.19 / 0.33
+    assert quiet_accel_mps2(one_bundle()) == pytest.approx(G * 0.5)
+
+
+def test_nothing_is_skipped_where_the_deceleration_could_tip_a_body(monkeypatch):
+    # a 0.10 x 0.40 m bundle tips at 0.25 g; at a 1.0 g level the sled decelerates at 0.25 g
+    layout = one_bundle(size=(0.10, 0.2, 0.40), mass=5.0, static=0.9, kinetic=0.8, x=0.0)
+    trace, simulated = counted_run(monkeypatch, layout, PulseProfile(1.0), SimSettings())
+    settle = round(SimSettings().settle_s * 240)
+    assert simulated == settle + len(trace.t_s) - 1

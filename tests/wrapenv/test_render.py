@@ -11,8 +11,7 @@ import resource
 import numpy as np
 import pytest
 
-from wrapenv.bench import _rotations
-from wrapenv.bullet import BulletWorld
+from wrapenv.bullet import BulletWorld, rotation_matrices
 from wrapenv.load import LoadUnit
 from wrapenv.render import (
     Renderer,
@@ -93,7 +92,7 @@ def test_quaternions_invert_bench_rotations():
     q = rng.normal(size=(200, 4))
     q[:4] = [[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 0], [0.7071, 0.7071, 0, 1e-7]]  # half-turns
     q /= np.linalg.norm(q, axis=1, keepdims=True)
-    back = quaternions(_rotations(q))
+    back = quaternions(rotation_matrices(q))
     np.testing.assert_allclose(np.abs(np.einsum("ij,ij->i", back, q)), 1.0, atol=1e-9)
 
 
