@@ -179,8 +179,7 @@ class _Run:
         self.bottom_z = np.array([b.centre_m[2] - b.size_m[2] / 2 for b in layout.bundles])
 
     def _state(self) -> tuple[np.ndarray, ...]:
-        pos, quat = self.world.poses(self.dynamic)
-        vel, omega = self.world.velocities(self.dynamic)
+        pos, quat, vel, omega = self.world.state(self.dynamic)
         return pos, rotation_matrices(quat), vel, omega
 
     def _update_friction(self, pos, rot, vel, omega) -> None:

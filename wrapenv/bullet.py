@@ -76,6 +76,24 @@ def rotation_matrices(quat: np.ndarray) -> np.ndarray:
     return (products @ _QUAT_TO_ROT).reshape(-1, 3, 3)
 
 
+def _step_velocities(pos0: np.ndarray, quat0: np.ndarray, pos1: np.ndarray, quat1: np.ndarray,
+                     dt: float) -> tuple[np.ndarray, np.ndarray]:
+    """Linear and angular (world frame) velocities that carry poses 0 to poses 1 in one step:
+    (x1 - x0) / dt, and the rotation vector of q1 conj(q0) over dt."""
+    x0, y0, z0, w0 = (-quat0[:, 0], -quat0[:, 1], -quat0[:, 2], quat0[:, 3])  # conj(q0)
+    x1, y1, z1, w1 = quat1.T
+    turn = np.stack([w1 * x0 + x1 * w0 + y1 * z0 - z1 * y0,
+                     w1 * y0 - x1 * z0 + y1 * w0 + z1 * x0,
+                     w1 * z0 + x1 * y0 - y1 * x0 + z1 * w0], axis=1)
+    w = w1 * w0 - x1 * x0 - y1 * y0 - z1 * z0
+    turn *= np.sign(w + (w == 0))[:, None]  # the shorter way round: q and -q are one rotation
+    sin_half = np.sqrt(np.einsum("nk,nk->n", turn, turn))
+    # angle / sin(angle / 2), with its limit 2 for no rotation
+    scale = 2 * np.arctan2(sin_half, np.abs(w)) / np.where(sin_half > 0, sin_half, 1.0)
+    scale[sin_half == 0] = 2.0
+    return (pos1 - pos0) / dt, turn * (scale / dt)[:, None]
+
+
 class BulletWorld:
     """Boxes in a Bullet world of their own (`BulletClient`, DIRECT), addressed by index.
 
@@ -100,6 +118,9 @@ class BulletWorld:
         self._friction: dict[int, float] = {}
         self._anchor_wanted: dict[int, bool] = {}
         self._refreshing: set[int] = set()
+        self._steps = 0  # steps taken, so `state` knows when a finite difference is exact
+        #: (bodies, steps taken, positions, quaternions) of the last `state` call
+        self._last_state: tuple[tuple[int, ...], int, np.ndarray, np.ndarray] | None = None
 
     # -- building -------------------------------------------------------------------------
     def add_box(
@@ -190,6 +211,7 @@ class BulletWorld:
 
     def step(self) -> None:
         pb.stepSimulation(physicsClientId=self._id)
+        self._steps += 1
         for body in self._refreshing:
             if self._anchor_wanted[body]:
                 pb.changeDynamics(body, -1, frictionAnchor=1, physicsClientId=self._id)
@@ -201,6 +223,25 @@ class BulletWorld:
         get, cid = pb.getBasePositionAndOrientation, self._id
         states = [get(self._ids[i], physicsClientId=cid) for i in indices]
         return np.array([s[0] for s in states]), np.array([s[1] for s in states])
+
+    def state(self, indices: Sequence[int]) -> tuple[np.ndarray, ...]:
+        """Positions (n, 3), quaternions (n, 4), linear and angular velocities (n, 3) of the
+        given bodies, sled frame.
+
+        Bullet moves a reduced-coordinate body's base by x += v dt and q = exp(w dt) q (world
+        frame) with the velocities after the step, so one step after the previous call for the
+        same bodies the velocities are the poses' finite differences, exact to 1e-14
+        (tests/wrapenv/test_bench_health.py). That saves the second pybullet call per body, a
+        state request of ~30 000 instructions, which was a fifth of a wrapped step's Python.
+        """
+        pos, quat = self.poses(indices)
+        bodies, last = tuple(indices), self._last_state
+        if last is not None and last[0] == bodies and last[1] == self._steps - 1:
+            vel, omega = _step_velocities(last[2], last[3], pos, quat, self.timestep_s)
+        else:
+            vel, omega = self.velocities(indices)
+        self._last_state = (bodies, self._steps, pos, quat)
+        return pos, quat, vel, omega
 
     def velocities(self, indices: Sequence[int]) -> tuple[np.ndarray, np.ndarray]:
         """Linear (n, 3) and angular (n, 3) velocities of the given bodies (sled frame)."""
@@ -219,6 +260,7 @@ class BulletWorld:
     def set_pose(self, index: int, position: Sequence[float], quat: Sequence[float]) -> None:
         """Place a body at a recorded pose (quaternion x y z w): for drawing states, not for
         simulating (velocities are left as they are)."""
+        self._last_state = None
         self._client.resetBasePositionAndOrientation(self._ids[index], list(position), list(quat))
 
     def camera_image(

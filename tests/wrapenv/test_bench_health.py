@@ -12,6 +12,7 @@ from wrapenv.bench import run_level, run_levels
 from wrapenv.eumos import evaluate
 from wrapenv.load import LoadUnit
 from wrapenv.profile import PulseProfile
+from wrapenv.wrap import WrapFormat
 
 SMALL = {
     "pallet": {"preset": "EUR"},
@@ -54,16 +55,16 @@ def test_many_runs_close_their_worlds_and_do_not_grow_memory(monkeypatch):
 
 def test_blown_up_simulation_is_invalid_never_a_pass(monkeypatch):
     calls = {"n": 0}
-    real = bullet.BulletWorld.velocities
+    real = bullet.BulletWorld.state
 
     def exploding(self, indices):
-        lin, ang = real(self, indices)
+        pos, quat, lin, ang = real(self, indices)
         calls["n"] += 1
         if calls["n"] > 100:
             lin = lin + 1e3  # energy from nowhere
-        return lin, ang
+        return pos, quat, lin, ang
 
-    monkeypatch.setattr(bullet.BulletWorld, "velocities", exploding)
+    monkeypatch.setattr(bullet.BulletWorld, "state", exploding)
     run = run_levels(LoadUnit.from_dict(SMALL), [0.2])
     level = run.verdict.levels[0]
     assert not run.verdict.valid
@@ -83,3 +84,23 @@ def test_non_finite_state_is_invalid(monkeypatch):
     trace = run_level(LoadUnit.from_dict(SMALL).layout(), PulseProfile(0.2))
     assert not trace.valid
     assert not evaluate(trace).passed
+
+
+def test_velocities_from_one_step_of_poses_are_bullets_own(monkeypatch):
+    # BulletWorld.state derives velocities from the poses of consecutive steps (one pybullet
+    # call per body instead of two); they must be what Bullet reports, through a wrapped level
+    errors = []
+    real = bullet.BulletWorld.state
+
+    def checked(self, indices):
+        pos, quat, lin, ang = real(self, indices)
+        own_lin, own_ang = self.velocities(indices)
+        errors.append(max(np.abs(lin - own_lin).max(), np.abs(ang - own_ang).max()))
+        return pos, quat, lin, ang
+
+    monkeypatch.setattr(bullet.BulletWorld, "state", checked)
+    load = LoadUnit.from_toml("examples/pet_2layer_columnar.toml")
+    wrap = WrapFormat.from_toml("examples/wrap_kraft_2layer.toml", load.load_height_m)
+    run_level(load.layout(), PulseProfile(0.5), wrap=wrap)
+    assert len(errors) > 200
+    assert max(errors) < 1e-9
