@@ -1,38 +1,67 @@
-"""Speed of the virtual bench on this machine, measured side by side in one run.
+"""Speed of one bench level under each setting, measured side by side in one run.
 
-Prints the real-time factor (simulated seconds per wall second) for 1-, 2- and 3-layer columnar
-units at 0.3 g, and the wall time of one 0.5 g level of the 3-layer 48-bundle example, for the
-default settings and a cheaper setting, with the closed-form slip error of each setting.
+Units: the 2- and 3-layer columnar examples unwrapped at 0.3 g, and the 3-layer example in its
+Kraft and LLDPE wraps at 0.5 g. Settings: the defaults; every step simulated
+(`skip_still=False`: what skipping the still stretches saves); the defaults stopping once a
+level is decided failed (`stop_when_decided`, for searches); and the screening fidelity
+(`SimSettings.screening()`). Per unit and setting: CPU seconds per level (median of
+`--repeat`, settings alternated), the steps Bullet simulated, the verdict, and for each setting
+the closed-form slip error of tests/wrapenv/test_bench_mechanics.py (0.6 g, mu_k 0.4).
 
-    python benchmarks/bench_speed.py
+    taskset -c 0 python -m benchmarks.bench_speed
 """
 
 from __future__ import annotations
 
+import argparse
 import os
+import statistics
 import time
-from dataclasses import replace
-
-from wrapenv.bench import SimSettings, run_level
-from wrapenv.load import LoadUnit
-from wrapenv.profile import G, PulseProfile
 
 os.environ.setdefault("OMP_NUM_THREADS", "1")  # one core, as the goal asks
 
-EXAMPLE = {
-    1: "examples/pet_2layer_columnar.toml",
-    2: "examples/pet_2layer_columnar.toml",
-    3: "examples/pet_3layer_columnar.toml",
+from wrapenv import bench  # noqa: E402
+from wrapenv.bench import SimSettings, run_level  # noqa: E402
+from wrapenv.eumos import evaluate  # noqa: E402
+from wrapenv.load import LoadUnit  # noqa: E402
+from wrapenv.profile import G, PulseProfile  # noqa: E402
+from wrapenv.wrap import WrapFormat  # noqa: E402
+
+UNITS = [  # (name, load, wrap, level g)
+    ("2 layers", "examples/pet_2layer_columnar.toml", None, 0.3),
+    ("3 layers", "examples/pet_3layer_columnar.toml", None, 0.3),
+    ("3 layers, Kraft", "examples/pet_3layer_columnar.toml", "examples/wrap_kraft_3layer.toml",
+     0.5),
+    ("3 layers, LLDPE", "examples/pet_3layer_columnar.toml", "examples/wrap_lldpe_3layer.toml",
+     0.5),
+]
+SETTINGS = {
+    "default": SimSettings(),
+    "every step": SimSettings(skip_still=False),
+    "stop when decided": SimSettings(stop_when_decided=True),
+    "screening()": SimSettings.screening(),
 }
 
 
-def timed(layout, profile, settings, repeat=3):
-    best, trace = float("inf"), None
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        trace = run_level(layout, profile, settings)
-        best = min(best, time.perf_counter() - t0)
-    return best, trace
+def counted_level(layout, level_g: float, settings: SimSettings, wrap) -> tuple[float, int, str]:
+    """CPU seconds, Bullet steps and verdict of one level."""
+    steps = 0
+    real = bench.BulletWorld.step
+
+    def counting(world) -> None:
+        nonlocal steps
+        steps += 1
+        real(world)
+
+    setattr(bench.BulletWorld, "step", counting)  # noqa: B010 (mypy: no method assignment)
+    try:
+        t0 = time.process_time()
+        trace = run_level(layout, PulseProfile(level_g), settings, wrap)
+        cpu = time.process_time() - t0
+    finally:
+        setattr(bench.BulletWorld, "step", real)  # noqa: B010
+    verdict = evaluate(trace)
+    return cpu, steps, "pass" if verdict.passed else "fail"
 
 
 def slip_error_pct(settings: SimSettings) -> float:
@@ -51,32 +80,28 @@ def slip_error_pct(settings: SimSettings) -> float:
     return 100 * (-(rel[-1] - rel[0]) / expected - 1)
 
 
-def main() -> None:
-    default = SimSettings()
-    cheap = replace(default, sample_every=2, solver_iterations=10)
-    header = ("layers", "bodies", "setting", "sim s", "wall s", "real-time x")
-    print(" ".join(f"{h:>{w}}" for h, w in zip(header, (6, 6, 8, 6, 7, 11), strict=True)))
-    for layers, path in EXAMPLE.items():
-        load = LoadUnit.from_toml(path)
-        load = LoadUnit(load.name, load.pallet, load.bundle,
-                        replace(load.stack, layers=layers), load.friction)
+def main(argv: list[str] | None = None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--repeat", type=int, default=3)
+    args = parser.parse_args(argv)
+    print(f"CPU s per level, median of {args.repeat}; Bullet steps; verdict")
+    print(f"{'unit':16s} " + " ".join(f"{name:>24s}" for name in SETTINGS))
+    for name, load_path, wrap_path, level in UNITS:
+        load = LoadUnit.from_toml(load_path)
+        wrap = WrapFormat.from_toml(wrap_path, load.load_height_m) if wrap_path else None
         layout = load.layout()
-        for name, s in (("default", default), ("cheap", cheap)):
-            wall, tr = timed(layout, PulseProfile(0.3), s)
-            sim = tr.t_s[-1] + s.settle_s
-            print(f"{layers:>6} {len(layout.bundles) + 1:>6} {name:>8} {sim:6.2f} {wall:7.3f} "
-                  f"{sim / wall:11.1f}")
-    layout = LoadUnit.from_toml(EXAMPLE[3]).layout()
-    print("\none 0.5 g level, 3-layer 48-bundle example (goal <= 0.4 s):")
-    results = {}
-    for name, s in (("default", default), ("cheap", cheap)):
-        wall, tr = timed(layout, PulseProfile(0.5), s)
-        results[name] = wall
-        print(f"  {name:8s} dt=1/{round(1 / s.timestep_s)} s, {s.solver_iterations} iterations, "
-              f"contacts every {s.sample_every} step(s): {wall:.3f} s wall for "
-              f"{tr.t_s[-1] + s.settle_s:.2f} s simulated; closed-form slip error "
-              f"{slip_error_pct(s):+.2f} %")
-    print(f"  ratio default/cheap: {results['default'] / results['cheap']:.2f}")
+        runs: dict[str, list[tuple[float, int, str]]] = {s: [] for s in SETTINGS}
+        for _ in range(args.repeat):
+            for setting, settings in SETTINGS.items():
+                runs[setting].append(counted_level(layout, level, settings, wrap))
+        cells = []
+        for setting in SETTINGS:
+            cpu = statistics.median(r[0] for r in runs[setting])
+            _, steps, verdict = runs[setting][-1]
+            cells.append(f"{cpu:6.2f} s {steps:5d} st {verdict:>4s}")
+        print(f"{name + f' {level} g':16s} " + " ".join(f"{c:>24s}" for c in cells))
+    print("\nclosed-form slip error at 0.6 g: " + ", ".join(
+        f"{setting} {slip_error_pct(settings):+.2f} %" for setting, settings in SETTINGS.items()))
 
 
 if __name__ == "__main__":

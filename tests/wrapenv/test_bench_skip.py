@@ -116,3 +116,17 @@ def test_nothing_is_skipped_where_the_deceleration_could_tip_a_body(monkeypatch)
     trace, simulated = counted_run(monkeypatch, layout, PulseProfile(1.0), SimSettings())
     settle = round(SimSettings().settle_s * 240)
     assert simulated == settle + len(trace.t_s) - 1
+
+
+def test_ending_at_the_first_rest_skips_the_stop_and_agrees_on_a_wrapped_pass(monkeypatch):
+    # screening (simulate_stop=False): the stop only springs the wrapped unit back elastically
+    layout = LoadUnit.from_toml(EXAMPLE_3).layout()
+    wrap = example_wrap("kraft")
+    exact, exact_steps = counted_run(monkeypatch, layout, PulseProfile(0.5), SimSettings(), wrap)
+    first, first_steps = counted_run(monkeypatch, layout, PulseProfile(0.5),
+                                     SimSettings(simulate_stop=False), wrap)
+    assert evaluate(first).passed and evaluate(exact).passed
+    a, b = first.bundle_displacement_m(), exact.bundle_displacement_m()
+    assert np.abs(a[-1] - b[-1]).max() < TOLERANCE_M
+    assert first_steps <= exact_steps - round(SimSettings().rest_hold_s * 240)
+    assert first.t_s[-1] >= PulseProfile(0.5).duration_s  # the trace still covers the pulse
