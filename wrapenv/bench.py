@@ -20,6 +20,7 @@ from wrapenv.eumos import (
 from wrapenv.friction import WRAPPED_SLIP_SPEED_MPS, WRAPPED_STICK_SPEED_MPS, StickSlip
 from wrapenv.load import Layout, LoadUnit
 from wrapenv.profile import Profile, PulseProfile
+from wrapenv.rest import Rest
 from wrapenv.trace import Trace, in_pallet_frame
 from wrapenv.wrap import WrapFormat
 from wrapenv.wrap_physics import WrapNet
@@ -46,8 +47,9 @@ class SimSettings:
     rest_speed_mps: float = 0.005
     rest_hold_s: float = 0.2
     max_rest_wait_s: float = 3.0
-    #: Skip what cannot change: while the sled's acceleration stays constant, a unit that rests
-    #: stays as it is, so the run jumps to the next change of acceleration (see `_Run._rest`).
+    #: Skip what cannot change: while the sled's acceleration stays constant and too low to
+    #: slide or tip anything, a unit that rests stays as it is, so the run records the rest and
+    #: jumps to the next change of acceleration (wrapenv/rest.py gives the argument).
     #: Off: every step is simulated (the tests that check the skip compare both).
     skip_still: bool = True
     #: End a level as soon as its verdict is decided failed (a bundle fallen, the wrap torn,
@@ -57,8 +59,8 @@ class SimSettings:
     stop_when_decided: bool = False
     #: After a rest in the quiet deceleration, simulate the sled's stop (the deceleration let
     #: go) and end at the rest after it. Off: end at the first rest, as if the stop changed
-    #: nothing; it springs a wrapped unit back by tenths of a mm (benchmarks/bench_screening.py)
-    #: and saves a rest hold: for screening.
+    #: nothing, which saves a rest hold: for screening. It springs a passing wrapped unit back
+    #: by up to ~1 mm, but can let a damaged one collapse further (benchmarks/bench_screening.py).
     simulate_stop: bool = True
 
     @classmethod
@@ -186,13 +188,11 @@ class _Run:
         self.speed_limit = float(np.max(np.abs(dv))) + math.sqrt(2 * G * layout.load_height_m) + 1.0
         #: The first step at which the sled has stopped (the run may end from there on).
         self.stop_step = int(np.argmax(np.arange(n_steps) * dt >= profile.duration_s))
-        self.changes = _load_changes(self.accel, self.stop_step if push else None)
-        self.quiet_mps2 = quiet_accel_mps2(layout)
+        self.rest = Rest(layout, self.accel, settings.rest_speed_mps * settings.rest_hold_s,
+                         self.stop_step if push else None)
         self.samples: list[tuple[float, float, np.ndarray, np.ndarray]] = []
         self.invalid = ""
         self.stopped_early = ""
-        self.rest_from: int | None = None  # first step of the current rest under a steady load
-        self.rest_pose = (np.empty(0), np.empty(0))  # poses at `rest_from`
         self.reference: np.ndarray | None = None  # bundle centres in the pallet frame at t = 0
         self.bottom_z = np.array([b.centre_m[2] - b.size_m[2] / 2 for b in layout.bundles])
 
@@ -302,54 +302,22 @@ class _Run:
         return self._rest(step, pos, rot)
 
     def _rest(self, step: int, pos: np.ndarray, rot: np.ndarray) -> int | None:
-        """Follow rest under a steady load; end the run, or skip what cannot change.
-
-        The run ends once everything has rested for `rest_hold_s` after the sled stopped (or
-        `max_rest_wait_s` after it, at the latest). Before that, a unit whose bodies all rest
-        relative to the sled, while the sled's acceleration stays constant and below what could
-        make any body slide or tip on its own (`quiet_accel_mps2`), is in stable static
-        equilibrium: contact and friction forces balance gravity, the steady inertial field and
-        the wrap, whose forces depend only on the poses, which do not change; and no slow
-        instability can be under way (a box just past its tipping level starts to tip
-        imperceptibly). Nothing can change until the load does: the next change of
-        acceleration, for the bench pulse the stop that ends the constant, gentle deceleration
-        after the dwell (most of a level's time). So with `skip_still` the run records the
-        resting state for the steps in between without simulating them and goes on from the
-        change, whose effect (the deceleration let go at the stop) is simulated as always. Left
-        out is only the solver's creep of a resting stack (tests/wrapenv/test_bench_skip.py
-        bounds what it changes). A push is a load of its own: nothing is skipped while it acts.
-        """
+        """End the run once everything has rested for `rest_hold_s` after the sled stopped
+        (or `max_rest_wait_s` after it, at the latest); before that, with `skip_still`,
+        record the steps in which nothing can change and skip them (see wrapenv.rest)."""
         s, dt = self.s, self.s.timestep_s
-        at = np.searchsorted(self.changes, step, "right")
-        if self.rest_from is not None and (self.rest_from < self.changes[at - 1]
-                                           or self._moved(pos, rot)):
-            self.rest_from = None
-        if self.rest_from is None:
-            self.rest_from, self.rest_pose = step, (pos, rot)
-        held = step * dt - self.rest_from * dt >= s.rest_hold_s
+        held = step * dt - self.rest.observe(step, pos, rot) * dt >= s.rest_hold_s
         if step >= self.stop_step:
             waited_out = step * dt >= self.profile.duration_s + s.max_rest_wait_s
             return None if held or waited_out else step
-        if not (held and s.skip_still and abs(self.accel[step]) < self.quiet_mps2
-                and self.push is None):
+        if not (held and s.skip_still):
             return step
-        # Until the next change of load nothing moves; at the sled's stop the run would end.
-        last = min(int(self.changes[at]) - 1, self.stop_step)
-        if not s.simulate_stop and np.abs(self.accel[step:self.stop_step]).max() < self.quiet_mps2:
+        last = self.rest.unchanged_until(step, rot, self.stop_step)
+        if last > step and not s.simulate_stop and self.rest.quiet_between(step, self.stop_step):
             last = self.stop_step  # what is left is quiet: taken to change nothing
         self.samples.extend((k * dt, float(self.accel[k]), pos, rot)
                             for k in range(step + 1, last + 1) if k % s.sample_every == 0)
         return None if last == self.stop_step else last
-
-    def _moved(self, pos: np.ndarray, rot: np.ndarray) -> bool:
-        """Whether a body left where it was when the rest began: by more than the distance
-        `rest_speed_mps` covers in `rest_hold_s` (1 mm), or turned by ten times that in
-        radians per metre (0.01 rad: a bundle's edge moves ~1 mm). A squeezed stack jitters
-        at a few mm/s on the spot; what counts is where the bodies go, not how they shake."""
-        drift = self.s.rest_speed_mps * self.s.rest_hold_s
-        ref_pos, ref_rot = self.rest_pose
-        return bool(np.abs(pos - ref_pos).max() > drift
-                    or np.abs(rot - ref_rot).max() > 10 * drift)
 
     def _trace(self) -> Trace:
         t, a, pos, rot = zip(*self.samples, strict=True)
@@ -370,28 +338,3 @@ class _Run:
             stopped_early=self.stopped_early,
             wrap=self.wrap.report() if self.wrap is not None else None,
         )
-
-
-def quiet_accel_mps2(layout: Layout) -> float:
-    """The sled acceleration below which no body of the unit could start to slide or tip on
-    its own: g times the lowest static friction coefficient of a pair that bears a body, and the
-    lowest width-to-height ratio of a bundle with everything above it (a column tips as one),
-    or of the whole load on its pallet."""
-    f = layout.friction
-    top = layout.load_height_m
-    ratios = [min(b.size_m[:2]) / (top - (b.centre_m[2] - b.size_m[2] / 2))
-              for b in layout.bundles]
-    ratios.append(min(layout.pallet_size_m[:2]) / top)
-    mu = [f.sled_pallet.static, f.pallet_bundle.static]
-    if any(b.layer > 1 for b in layout.bundles):
-        mu.append(f.bundle_bundle.static)
-    return G * min(*mu, *ratios)
-
-
-def _load_changes(accel: np.ndarray, push_end_step: int | None) -> np.ndarray:
-    """Steps at which the load on the unit changes (0 first, and a sentinel past the end):
-    the sled's acceleration differs from the step before, or a push ends."""
-    changes = {0, len(accel)} | set((np.flatnonzero(np.diff(accel) != 0) + 1).tolist())
-    if push_end_step is not None:
-        changes.add(push_end_step)
-    return np.array(sorted(changes))

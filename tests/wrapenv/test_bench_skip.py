@@ -12,10 +12,11 @@ import numpy as np
 import pytest
 
 from wrapenv import bullet
-from wrapenv.bench import SimSettings, quiet_accel_mps2, run_level
+from wrapenv.bench import SimSettings, run_level
 from wrapenv.eumos import evaluate
 from wrapenv.load import LoadUnit
 from wrapenv.profile import G, MeasuredProfile, PulseProfile
+from wrapenv.rest import quiet_accel_mps2
 from wrapenv.wrap import WrapFormat
 
 TOLERANCE_M = 0.002
