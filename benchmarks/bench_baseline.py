@@ -17,18 +17,22 @@ figure per simulated second.
 Each timing is the median of `--repeat` runs, alternated, inside this process (imports and
 interpreter start-up excluded, which only dilutes a ratio towards 1); wall and CPU time are both
 printed (CPU time is less disturbed by other work on the machine). `--whole-process` also times
-each run as a fresh interpreter, imports included, as the issue measured. Run it on one core:
+each run as a fresh interpreter, imports included, as the issue measured; `--instructions`
+counts each run's instructions with valgrind's callgrind (an interpreter that makes the run minus
+one that only imports), which load on the machine does not disturb. Run it on one core:
 
-    taskset -c 0 python -m benchmarks.bench_baseline [--whole-process]
+    taskset -c 0 python -m benchmarks.bench_baseline [--whole-process] [--instructions]
 """
 
 from __future__ import annotations
 
 import argparse
 import os
+import re
 import statistics
 import subprocess
 import sys
+import tempfile
 import time
 from collections.abc import Callable
 from functools import partial
@@ -103,6 +107,23 @@ def in_a_fresh_interpreter(call: str) -> Callable[[], object]:
                                   stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
 
 
+def instructions(call: str) -> int:
+    """Instructions `call` executes: callgrind's count for an interpreter that imports this
+    module and makes the call, minus one that only imports it."""
+    def count(code: str) -> int:
+        with tempfile.TemporaryDirectory() as folder:
+            done = subprocess.run(
+                ["valgrind", "--tool=callgrind", f"--callgrind-out-file={folder}/out",
+                 sys.executable, "-c", code], capture_output=True, text=True, check=True)
+        found = re.search(r"Collected : (\d+)", done.stderr)
+        if found is None:
+            raise RuntimeError(f"no instruction count from valgrind: {done.stderr[-300:]}")
+        return int(found.group(1))
+
+    imports = "from benchmarks.bench_baseline import *"
+    return count(f"{imports}; {call}") - count(imports)
+
+
 def child_cpu_s() -> float:
     usage = os.times()
     return usage.children_user + usage.children_system
@@ -134,6 +155,8 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--repeat", type=int, default=3)
     parser.add_argument("--whole-process", action="store_true",
                         help="also time each run as a fresh interpreter, imports included")
+    parser.add_argument("--instructions", action="store_true",
+                        help="also count each run's instructions (valgrind, minutes per run)")
     args = parser.parse_args(argv)
     load = LoadUnit.from_toml(EXAMPLE)
     trace = run_level(load.layout(), PulseProfile(LEVEL_G),  # warm-up, and how long it lasts
@@ -155,6 +178,14 @@ def main(argv: list[str] | None = None) -> None:
     if args.whole_process:
         compare({name: in_a_fresh_interpreter(code) for name, _, code in runs}, args.repeat,
                 child_cpu_s, "each run a fresh interpreter (imports included)")
+    if args.instructions:
+        counts = {name: instructions(code) for name, _, code in runs}
+        print("\ninstructions (callgrind; the run alone, imports subtracted)")
+        for name, n in counts.items():
+            print(f"{name:32s} {n / 1e9:7.2f} G")
+        bench = runs[0][0]
+        for name, _, _ in runs[1:]:
+            print(f"ratio bench / {name}: {counts[bench] / counts[name]:.2f} (goal <= 1.0)")
 
 
 if __name__ == "__main__":

@@ -60,8 +60,8 @@ class SimSettings:
     stop_when_decided: bool = False
     #: After a rest in the quiet deceleration, simulate the sled's stop (the deceleration let
     #: go) and end at the rest after it. Off: end at the first rest, as if the stop changed
-    #: nothing, which saves a rest hold: for screening. It springs a passing wrapped unit back
-    #: by up to ~1 mm, but can let a damaged one collapse further (benchmarks/bench_screening.py).
+    #: nothing, which saves a rest hold: for screening. A wrapped unit springs back at the stop
+    #: by up to ~1 mm (14 cases, benchmarks/bench_screening.py).
     simulate_stop: bool = True
 
     @classmethod
