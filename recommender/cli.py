@@ -16,6 +16,7 @@ from pathlib import Path
 from calibration import commands
 from recommender import commands as bench_commands
 from recommender.parallel import BACKENDS
+from recommender.uncertainty import TRANSPORT_HOURS
 from wrapenv.config import InputError
 
 #: The bundled example (a link to examples/pet_2layer_columnar.toml, copied into wheels).
@@ -56,6 +57,8 @@ def build_parser() -> argparse.ArgumentParser:
     sim.add_argument("--profile", type=Path, help="drive the sled by a measured profile.csv")
     sim.add_argument("--orientation", choices=("long", "short"),
                      help="pallet side along the motion (default: as the load file lays it out)")
+    sim.add_argument("--hours-since-wrapping", type=_g, default=0.0, metavar="H",
+                     help="test the wrap after its tension relaxed for H hours (default 0)")
     sim.add_argument("--json", type=Path, metavar="OUT", help="write the verdict as JSON")
     sim.add_argument("--plot", type=Path, metavar="OUT.png", help="plot displacement vs time")
 
@@ -86,6 +89,16 @@ def build_parser() -> argparse.ArgumentParser:
                      help="with --backend ray: join this cluster ('auto', 'ray://host:10001'); "
                           "default: start a local Ray instance of --workers CPUs")
     rec.add_argument("--seed", type=int, default=0)
+    rec.add_argument("--orientation", choices=("long", "short", "both"), default="both",
+                     help="pallet side(s) along the motion a program must pass (default both: "
+                          "a load is only as safe as its weaker orientation)")
+    rec.add_argument("--target-long", type=_g, metavar="G",
+                     help="target with the long side along the motion (default --target)")
+    rec.add_argument("--target-short", type=_g, metavar="G",
+                     help="target with the short side along the motion (default --target)")
+    rec.add_argument("--hours-since-wrapping", type=_g, default=TRANSPORT_HOURS, metavar="H",
+                     help=f"hours the wrap relaxes before the road (default {TRANSPORT_HOURS:g}: "
+                          "ASTM D5414 rests a wrapped load 16 h before testing)")
     rec.add_argument("--max-cycle-s", type=_g, default=math.inf, metavar="S",
                      help="only programs the machine runs within S seconds per pallet")
     rec.add_argument("--cycle-weight", type=_g, default=0.0, metavar="W",

@@ -16,9 +16,9 @@ from typing import Any
 
 from tqdm import tqdm
 
-from recommender.search import Evaluation, Problem, SearchSettings, SearchState
+from recommender.search import Evaluation, Problem, SearchSettings, SearchState, Verification
 from recommender.text import program_text, verdict_table
-from wrapenv.bench import BenchRun, run_levels
+from wrapenv.bench import run_levels
 from wrapenv.calibrated import Calibration
 from wrapenv.config import InputError, check_output, write_atomic
 from wrapenv.load import Layout, LoadUnit
@@ -38,12 +38,12 @@ def as_flag(exc: InputError) -> InputError:
     return InputError("arguments", FLAGS.get(exc.field, exc.field), exc.message)
 
 
-def _target(target_g: float) -> None:
-    """A target level the bench can produce, or a usage error naming --target."""
+def _target(target_g: float, flag: str = "--target") -> None:
+    """A target level the bench can produce, or a usage error naming the flag."""
     try:
         PulseProfile(target_g)
     except InputError as exc:
-        raise InputError("arguments", "--target", exc.message) from None
+        raise InputError("arguments", flag, exc.message) from None
 
 
 def _material(key: str) -> None:
@@ -86,6 +86,9 @@ def run_simulate(args: argparse.Namespace) -> int:
         load = calibration.apply(load)
         if wrap is not None:
             wrap = wrap.scaled(calibration.stiffness_scale, calibration.tension_scale)
+    _hours(args.hours_since_wrapping)
+    if wrap is not None:
+        wrap = wrap.relaxed(args.hours_since_wrapping)
     check_output(args.json, "--json")
     check_output(args.plot, "--plot")
     levels = _levels(args)
@@ -100,6 +103,7 @@ def run_simulate(args: argparse.Namespace) -> int:
         out = run.verdict.to_json()
         if wrap is not None and laid is not None:
             out.update(wrap_json(wrap, laid, layout))
+            out["hours_since_wrapping"] = args.hours_since_wrapping
         write_atomic(args.json, (json.dumps(out, indent=2) + "\n").encode())
     if args.plot:
         from recommender.report import plot_displacements
@@ -121,6 +125,22 @@ def wrap_json(simulated: WrapFormat, laid: WrapFormat, layout: Layout) -> dict[s
 # --- recommend ---------------------------------------------------------------------------------
 
 
+def _targets(args: argparse.Namespace) -> tuple[tuple[str, float], ...]:
+    """(orientation, target) pairs: --orientation both (default) searches both sides, each at
+    --target unless --target-long / --target-short says otherwise."""
+    sides = ("long", "short") if args.orientation == "both" else (args.orientation,)
+    given = {"long": args.target_long, "short": args.target_short}
+    for side, target in given.items():
+        if target is not None:
+            _target(target, f"--target-{side}")
+            if side not in sides:
+                raise InputError("arguments", f"--target-{side}",
+                                 f"needs --orientation {side} or both")
+    _target(args.target)
+    return tuple((side, given[side] if given[side] is not None else args.target)
+                 for side in sides)
+
+
 def _settings(args: argparse.Namespace) -> SearchSettings:
     for flag, value, low in (("--samples", args.samples, 1), ("--budget", args.budget, 2),
                              ("--workers", args.workers, 1)):
@@ -133,13 +153,19 @@ def _settings(args: argparse.Namespace) -> SearchSettings:
     if not args.cycle_weight >= 0:
         raise InputError("arguments", "--cycle-weight",
                          f"must be >= 0 (got {args.cycle_weight})")
+    _hours(args.hours_since_wrapping)
     _material(args.material)
-    _target(args.target)
-    return SearchSettings(target_g=args.target, material=args.material, samples=args.samples,
+    return SearchSettings(targets=_targets(args), material=args.material, samples=args.samples,
                           margin_goal=args.margin, max_candidates=args.budget, seed=args.seed,
                           workers=args.workers, popsize=min(8, args.budget),
                           backend=args.backend, ray_address=args.ray_address,
-                          max_cycle_s=args.max_cycle_s, cycle_weight=args.cycle_weight)
+                          max_cycle_s=args.max_cycle_s, cycle_weight=args.cycle_weight,
+                          hours_since_wrapping=args.hours_since_wrapping)
+
+
+def _hours(hours: float) -> None:
+    if not hours >= 0:
+        raise InputError("arguments", "--hours-since-wrapping", f"must be >= 0 (got {hours})")
 
 
 def _checkpoint(args: argparse.Namespace) -> Path | None:
@@ -162,6 +188,8 @@ def _check_outputs(args: argparse.Namespace) -> Path | None:
     check_output(checkpoint, "--checkpoint")
     if args.report is not None and args.report.exists() and not args.report.is_dir():
         raise InputError(str(args.report), "--report", "exists and is not a folder")
+    if args.resume and (checkpoint is None or not checkpoint.exists()):
+        raise InputError(str(checkpoint), "--resume", "no checkpoint to resume from")
     return checkpoint
 
 
@@ -176,14 +204,12 @@ def run_recommend(args: argparse.Namespace) -> int:
     samples = max(8, args.samples)
     if args.method == "ppo":
         t0 = time.perf_counter()
-        run, rate, best = _propose_with_policy(args, problem, samples)
-        _print_recommendation(problem, best, run, rate, samples)
+        best, check = _propose_with_policy(args, problem, samples)
+        _print_recommendation(problem, best, check)
         print(f"policy proposal verified in {time.perf_counter() - t0:.0f} s")
-        _write_outputs(args, problem, best, run, rate, samples, 1)
-        return 0 if run.verdict.passed else 1
+        _write_outputs(args, problem, best, check, 1)
+        return 0 if check.passed else 1
     search = RobustSearch(problem, checkpoint)
-    if args.resume and (checkpoint is None or not checkpoint.exists()):
-        raise InputError(str(checkpoint), "--resume", "no checkpoint to resume from")
     state = search.resume() if args.resume else search.start()
     t0 = time.perf_counter()
     state = _run_search(search, state, settings)
@@ -191,19 +217,22 @@ def run_recommend(args: argparse.Namespace) -> int:
     if checkpoint is not None:
         checkpoint.unlink(missing_ok=True)
     if chosen is None:
-        print(f"no program passed the EUMOS sequence up to {args.target:.2f} g after "
+        print(f"no program passed the EUMOS sequence ({_targets_text(settings)}) after "
               f"{len(state.history)} candidates x {args.samples} samples")
         return 1
-    best, run, rate = chosen
-    _print_recommendation(problem, best, run, rate, samples)
-    simulations = sum(len(e.passed) for e in state.history)
+    best, check = chosen
+    _print_recommendation(problem, best, check)
+    simulations = sum(len(e.passed) for e in state.history) * len(settings.targets)
     print(f"searched {len(state.history)} candidates ({simulations} simulations) in "
           f"{time.perf_counter() - t0:.0f} s ({args.workers} workers, {args.backend})")
-    _write_outputs(args, problem, best, run, rate, samples, simulations,
-                   candidates=len(state.history))
+    _write_outputs(args, problem, best, check, simulations, candidates=len(state.history))
     if args.report:
-        _write_report(args.report, problem, run, best, state, settings.margin_goal)
+        _write_report(args.report, problem, check, best, state, settings.margin_goal)
     return 0
+
+
+def _targets_text(settings: SearchSettings) -> str:
+    return ", ".join(f"{side} side {g:.2f} g" for side, g in settings.targets)
 
 
 def _run_search(search: Any, state: SearchState, settings: SearchSettings) -> SearchState:
@@ -221,20 +250,20 @@ def _run_search(search: Any, state: SearchState, settings: SearchSettings) -> Se
 
 
 def _verified(problem: Problem, state: SearchState, samples: int,
-              workers: int) -> tuple[Evaluation, BenchRun, float] | None:
-    """The lightest robust pass that also passes the whole EUMOS sequence (the search tried
-    the target level only)."""
+              workers: int) -> tuple[Evaluation, Verification] | None:
+    """The lightest robust pass that also passes the whole EUMOS sequence in every orientation
+    (the search tried the target levels only)."""
     from recommender.search import verify
 
     for candidate in state.ranked(problem.settings.margin_goal)[:VERIFY_CANDIDATES]:
-        run, rate = verify(problem, candidate.wrap, samples, workers=workers)
-        if run.verdict.passed:
-            return candidate, run, rate
+        check = verify(problem, candidate.wrap, samples, workers=workers)
+        if check.passed:
+            return candidate, check
     return None
 
 
 def _propose_with_policy(args: argparse.Namespace, problem: Problem,
-                         samples: int) -> tuple[BenchRun, float, Evaluation]:
+                         samples: int) -> tuple[Evaluation, Verification]:
     """A trained policy's program for this unit, answered at once, then verified."""
     from recommender.policy import propose
     from recommender.search import verify
@@ -244,49 +273,64 @@ def _propose_with_policy(args: argparse.Namespace, problem: Problem,
         raise InputError(where, "--policy", "a policy.zip from `wrapbench train` is needed "
                                             "with --method ppo")
     calibration = Calibration.from_json(args.calibration) if args.calibration else None
-    wrap = propose(args.policy, LoadUnit.from_toml(args.load), args.material, args.target,
-                   calibration)
-    run, rate = verify(problem, wrap, samples, workers=args.workers)
+    wrap = propose(args.policy, LoadUnit.from_toml(args.load), args.material,
+                   problem.settings.target_g, calibration)
+    check = verify(problem, wrap, samples, workers=args.workers)
     mass = wrap.material_used_on(problem.layout).mass_kg
-    best = Evaluation((), wrap, mass, wrap.cycle_time_s, (run.verdict.margin,),
-                      (run.verdict.passed,), 0.0)
-    return run, rate, best
+    margin = min(run.verdict.margin for run in check.runs.values())
+    best = Evaluation((), wrap, mass, wrap.cycle_time_s, (margin,), (check.passed,), 0.0)
+    return best, check
 
 
-def _print_recommendation(problem: Problem, best: Evaluation, run: BenchRun, rate: float,
-                          samples: int) -> None:
-    s = problem.settings
-    print(f"recommended wrapping program for {problem.load.name}: passes {s.target_g:.2f} g in "
-          f"{rate:.0%} of {samples} samples of friction and mass (search margin "
-          f"{best.margin:.2f})")
+def _print_recommendation(problem: Problem, best: Evaluation, check: Verification) -> None:
+    s, p = problem.settings, check.probability
+    low, high = p.interval
+    print(f"recommended wrapping program for {problem.load.name}: passes {_targets_text(s)}, "
+          f"{s.hours_since_wrapping:g} h after wrapping, in {p.passed} of {p.samples} samples "
+          f"of what the bench does not know (pass probability {p.estimate:.0%}, 95 % interval "
+          f"{low:.0%}-{high:.0%}; search margin {best.margin:.2f})")
     print(program_text(best.wrap, problem.layout))
-    print(verdict_table(problem.load, run, None))
+    for orientation, run in check.runs.items():
+        print(f"-- {orientation} side along the motion --")
+        print(verdict_table(problem.load, run, orientation))
+    if check.worst is not None:
+        w = check.worst
+        print(f"worst sample: {w.orientation} side, margin {w.margin:.2f}, elastic "
+              f"{1000 * (w.level['elastic_max_m'] or 0):.1f} mm, permanent "
+              f"{1000 * (w.level['permanent_max_m'] or 0):.1f} mm")
 
 
-def _write_outputs(args: argparse.Namespace, problem: Problem, best: Evaluation, run: BenchRun,
-                   rate: float, samples: int, evaluations: int,
-                   candidates: int | None = None) -> None:
+def _write_outputs(args: argparse.Namespace, problem: Problem, best: Evaluation,
+                   check: Verification, evaluations: int, candidates: int | None = None) -> None:
     if args.json:
+        weakest = check.runs[check.weakest]
         out = {**wrap_json(problem.simulated(best.wrap), best.wrap, problem.layout),
                "program": best.wrap.to_json().get("program"),
-               "verdict": run.verdict.to_json(), "robust_pass_rate": rate,
-               "robust_samples": samples, "search_margin": best.margin,
+               "verdict": {**weakest.verdict.to_json(), "orientation": check.weakest},
+               "orientations": {o: run.verdict.to_json() for o, run in check.runs.items()},
+               "targets": {o: g for o, g in problem.settings.targets},
+               "hours_since_wrapping": problem.settings.hours_since_wrapping,
+               "robust_pass_rate": check.probability.estimate,
+               "pass_probability": check.probability.to_json(),
+               "worst_sample": asdict(check.worst) if check.worst is not None else None,
+               "robust_samples": check.probability.samples, "search_margin": best.margin,
                "evaluations": evaluations, "candidates": candidates,
-               "method": args.method, "target_g": args.target}
+               "method": args.method, "target_g": problem.settings.target_g}
         write_atomic(args.json, (json.dumps(out, indent=2) + "\n").encode())
     if args.wrap_out:
         write_atomic(args.wrap_out, best.wrap.to_toml().encode())
 
 
-def _write_report(folder: Path, problem: Problem, run: BenchRun, best: Evaluation,
+def _write_report(folder: Path, problem: Problem, check: Verification, best: Evaluation,
                   state: SearchState, margin_goal: float) -> None:
     from recommender.report import plot_displacements, plot_search, write_video
 
     folder.mkdir(parents=True, exist_ok=True)
+    run = check.runs[check.weakest]
     plot_displacements(run, folder / "displacement.png", title=problem.load.name)
     plot_search(state.history, best, folder / "search.png", margin_goal)
-    write_video(run.traces[-1], problem.layout, problem.simulated(best.wrap),
-                folder / "test.mp4")
+    write_video(run.traces[-1], problem.load.layout(check.weakest),  # type: ignore[arg-type]
+                problem.simulated(best.wrap), folder / "test.mp4")
 
 
 # --- train -------------------------------------------------------------------------------------

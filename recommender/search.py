@@ -3,9 +3,10 @@
 A candidate is a program of `wrapenv.design.ProgramSpace`: whole numbers of bottom, top and
 reinforcement wraps (integer variables: pycma rounds them in `ask` and keeps their spread from
 collapsing below one wrap, its integer handling), a spiral overlap, a reinforcement height and
-four tensions. It counts as passing only if it passes the target level in each of K samples of
-the uncertain parameters: friction of every pair drawn around its (calibrated) value with its
-standard deviation, bundle masses within ±5 %. The objective (minimised) is the kg of web laid
+four tensions. It counts as passing only if it passes the target level of every orientation
+searched (long and short side along the motion, each with its target) in each of K samples of
+the uncertain parameters (`recommender.uncertainty`: friction, masses, the web's stiffness and
+tension, its relaxation since wrapping). The objective (minimised) is the kg of web laid
 relative to the machine's default program, plus a penalty that grows with the shortfall of the
 worst sample's margin below the wanted margin, plus an optional price on cycle time; a program
 slower than the cycle-time limit is rejected without a simulation. A blown-up simulation is a
@@ -33,18 +34,15 @@ import cma
 import numpy as np
 
 from recommender.parallel import executor
+from recommender.uncertainty import TRANSPORT_HOURS, PassProbability, Sample, Uncertainty
 from wrapenv.bench import BenchRun, SimSettings, run_levels
 from wrapenv.calibrated import Calibration
 from wrapenv.config import InputError, read_json, write_atomic
 from wrapenv.design import INTEGER_INDICES, N_PARAMS, ProgramSpace
-from wrapenv.load import PAIRS, FrictionPair, Layout, LoadUnit
+from wrapenv.load import Layout, LoadUnit
 from wrapenv.profile import PulseProfile, eumos_levels
 from wrapenv.wrap import WrapFormat
 
-#: Friction standard deviation assumed for a pair without calibration (CTU Code figures are
-#: quoted to about ±0.03).
-DEFAULT_FRICTION_STD = 0.03
-MASS_SPREAD = 0.05
 #: Objective penalty per unit of margin shortfall (below the margin goal): a tenth of margin is
 #: worth the web of one machine-default program.
 PENALTY_PER_MARGIN = 10.0
@@ -64,9 +62,15 @@ COORDINATE_STDS = (5.0, 5.0, 3.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0)
 CHECKPOINT_FORMAT = "wrapbench-search/1"
 
 
+#: A load is only as safe as its weaker orientation: road rules ask 0.8 g forward and 0.5 g
+#: sideways and rearward (EN 12195-1); the default searches both sides at 0.5 g.
+BOTH_SIDES = (("long", 0.5), ("short", 0.5))
+
+
 @dataclass(frozen=True)
 class SearchSettings:
-    target_g: float = 0.5
+    #: (orientation, target level in g) pairs every candidate must pass.
+    targets: tuple[tuple[str, float], ...] = BOTH_SIDES
     material: str = "kraft"
     samples: int = 3               # K robust samples per candidate
     margin_goal: float = 0.2       # wanted margin of the worst sample (0.2: 80 % of each limit)
@@ -81,11 +85,18 @@ class SearchSettings:
     ray_address: str | None = None  # None: a local Ray instance; "auto" or "ray://...": a cluster
     max_cycle_s: float = math.inf  # programs slower than this are rejected
     cycle_weight: float = 0.0      # objective per second of cycle, in reference masses
+    hours_since_wrapping: float = TRANSPORT_HOURS
     sim: SimSettings = SimSettings()
+
+    @property
+    def target_g(self) -> float:
+        """The highest target of any orientation."""
+        return max(g for _, g in self.targets)
 
     def identity(self) -> dict[str, Any]:
         """What makes two searches the same search (a checkpoint must match it)."""
-        return {"target_g": self.target_g, "material": self.material, "samples": self.samples,
+        return {"targets": [list(t) for t in self.targets], "material": self.material,
+                "hours_since_wrapping": self.hours_since_wrapping, "samples": self.samples,
                 "margin_goal": self.margin_goal, "popsize": self.popsize,
                 "sigma0": self.sigma0, "seed": self.seed, "max_cycle_s": _json_float(
                     self.max_cycle_s), "cycle_weight": self.cycle_weight}
@@ -142,32 +153,26 @@ class Problem:
 
     load: LoadUnit
     layout: Layout
-    friction_std: dict[str, tuple[float, float]]  # pair -> (static std, kinetic std)
+    uncertainty: Uncertainty
     space: ProgramSpace
     settings: SearchSettings
     reference_mass_kg: float
     #: Web of the heaviest program of the space, in reference masses.
     heaviest_ratio: float
-    stiffness_scale: float = 1.0
-    tension_scale: float = 1.0
 
     @classmethod
     def build(cls, load: LoadUnit, settings: SearchSettings,
               calibration: Calibration | None = None) -> Problem:
-        std = {p: (DEFAULT_FRICTION_STD, DEFAULT_FRICTION_STD) for p in PAIRS}
-        scales = (1.0, 1.0)
         if calibration is not None:
             load = calibration.apply(load)
-            for name, pair in calibration.friction.items():
-                std[name] = (pair.static_std or DEFAULT_FRICTION_STD,
-                             pair.kinetic_std or DEFAULT_FRICTION_STD)
-            scales = (calibration.stiffness_scale, calibration.tension_scale)
-        PulseProfile(settings.target_g)  # validates the target against the bench
+        for _, target in settings.targets:
+            PulseProfile(target)  # validates every target against the bench
         layout = load.layout()
         space = ProgramSpace.for_layout(layout, settings.material)
         reference = space.reference_mass_kg(layout)
         heaviest = space.wrap(space.high).material_used_on(layout).mass_kg / reference
-        return cls(load, layout, std, space, settings, reference, heaviest, *scales)
+        uncertainty = Uncertainty.of(calibration, settings.hours_since_wrapping)
+        return cls(load, layout, uncertainty, space, settings, reference, heaviest)
 
     def values(self, x: np.ndarray) -> np.ndarray:
         """ProgramSpace values of a search vector: wraps as they are, the continuous
@@ -182,23 +187,17 @@ class Problem:
         return self.space.wrap(self.values(x))
 
     def simulated(self, wrap: WrapFormat) -> WrapFormat:
-        """The wrap as the calibrated bench sees it (stiffness and tension scaled)."""
-        return wrap.scaled(self.stiffness_scale, self.tension_scale)
+        """The wrap as the (calibrated) bench sees it at the nominal values: stiffness and
+        tension scaled, tension relaxed for the hours since wrapping."""
+        return self.uncertainty.nominal(wrap)
+
+    def sample(self, seed: int) -> Sample:
+        """The uncertain parameters drawn for one seed."""
+        return self.uncertainty.draw(self.load, seed)
 
     def sample_load(self, seed: int) -> LoadUnit:
         """The load with friction and masses drawn within their uncertainty."""
-        rng = np.random.default_rng(seed)
-        pairs = {}
-        for name in PAIRS:
-            nominal = self.load.friction.pair(name)
-            s_std, k_std = self.friction_std[name]
-            static = max(0.05, nominal.static + rng.normal(0, s_std))
-            kinetic = min(static, max(0.04, nominal.kinetic + rng.normal(0, k_std)))
-            pairs[name] = FrictionPair(static, kinetic)
-        bundle = self.load.bundle
-        bundle = replace(bundle, mass_kg=bundle.mass_kg * rng.uniform(1 - MASS_SPREAD,
-                                                                      1 + MASS_SPREAD))
-        return replace(self.load, bundle=bundle, friction=replace(self.load.friction, **pairs))
+        return self.sample(seed).load(self.load)
 
     def objective(self, wrap: WrapFormat, mass_kg: float, margins: list[float],
                   passed: list[bool]) -> float:
@@ -221,12 +220,32 @@ class Problem:
         return None if cycle <= limit else SLOW_PENALTY * (1 + (cycle - limit) / limit)
 
 
-def _trial(problem: Problem, wrap: WrapFormat, seed: int) -> tuple[bool, float]:
-    """Pass and margin of a program on one sampled load at the target level (in a worker)."""
-    load = problem.sample_load(seed)
-    v = run_levels(load, [problem.settings.target_g], problem.settings.sim,
-                   wrap=problem.simulated(wrap)).verdict
-    return v.passed, v.margin
+@dataclass(frozen=True)
+class Trial:
+    """A program in one sample, every orientation at its target: the weakest one's figures."""
+
+    passed: bool
+    margin: float
+    orientation: str
+    level: dict[str, Any]  # the weakest orientation's level verdict (simulate's JSON)
+    sample: dict[str, Any]
+
+
+def _trial(problem: Problem, wrap: WrapFormat, seed: int) -> Trial:
+    """A program in one sample of the uncertain parameters (in a worker)."""
+    sample = problem.sample(seed)
+    load, laid = sample.load(problem.load), sample.wrap(wrap)
+    weakest: Trial | None = None
+    passed = True
+    for orientation, target in problem.settings.targets:
+        verdict = run_levels(load, [target], problem.settings.sim, orientation=orientation,
+                             wrap=laid).verdict
+        passed &= verdict.passed
+        if weakest is None or verdict.margin < weakest.margin:
+            weakest = Trial(verdict.passed, verdict.margin, orientation,
+                            verdict.levels[-1].to_json(), sample.to_json())
+    assert weakest is not None
+    return replace(weakest, passed=passed)
 
 
 Progress = Callable[[int, int, SearchState], None]
@@ -279,9 +298,11 @@ class RobustSearch:
 
     def _identity(self) -> dict[str, Any]:
         p = self.problem
+        u = p.uncertainty
         return {"load": json.loads(json.dumps(p.load.to_dict())), **p.settings.identity(),
-                "stiffness_scale": p.stiffness_scale, "tension_scale": p.tension_scale,
-                "friction_std": {k: list(v) for k, v in p.friction_std.items()}}
+                "stiffness_scale": [u.stiffness_scale, u.stiffness_scale_std],
+                "tension_scale": [u.tension_scale, u.tension_scale_std],
+                "friction_std": {k: list(v) for k, v in u.friction_std.items()}}
 
     def _replay(self, state: SearchState, generation: dict[str, list[Any]]) -> None:
         """A checkpointed generation told again: its programs rebuilt, nothing simulated."""
@@ -335,9 +356,9 @@ class RobustSearch:
                    [pool.submit(_trial, problem, w, seed) for seed in seeds] for w in wraps]
         evaluations = []
         for x, fs in zip(xs, futures, strict=True):
-            results = [f.result() for f in fs]
-            evaluations.append(self._evaluation(x, [m for _, m in results],
-                                                [p for p, _ in results]))
+            trials = [f.result() for f in fs]
+            evaluations.append(self._evaluation(x, [t.margin for t in trials],
+                                                [t.passed for t in trials]))
         self._record(state, xs, evaluations)
 
     def _record(self, state: SearchState, xs: np.ndarray, evaluations: list[Evaluation]) -> None:
@@ -355,22 +376,44 @@ class RobustSearch:
         state.stale_generations = 0 if improved else state.stale_generations + 1
 
 
+@dataclass(frozen=True)
+class Verification:
+    """A program run the way a lab would see it: the EUMOS sequence of every orientation on the
+    nominal load, and its pass probability over fresh samples of what is not known."""
+
+    runs: dict[str, BenchRun]  # orientation -> the nominal EUMOS sequence up to its target
+    probability: PassProbability
+    worst: Trial | None  # the sample with the smallest margin
+
+    @property
+    def passed(self) -> bool:
+        return all(run.verdict.passed for run in self.runs.values())
+
+    @property
+    def weakest(self) -> str:
+        """The orientation with the smallest nominal margin."""
+        return min(self.runs, key=lambda o: self.runs[o].verdict.margin)
+
+
 def verify(problem: Problem, wrap: WrapFormat, samples: int, seed: int = 12345,
-           workers: int = 1) -> tuple[BenchRun, float]:
-    """The EUMOS sequence on the nominal load, and the pass rate at the target over `samples`
-    fresh samples of the uncertain parameters."""
-    run = run_levels(problem.load, eumos_levels(problem.settings.target_g), problem.settings.sim,
-                     stop_at_failure=True, wrap=problem.simulated(wrap))
+           workers: int = 1) -> Verification:
+    """The EUMOS sequence in every orientation on the nominal load, and the pass rate at the
+    targets over `samples` fresh samples of the uncertain parameters."""
     s = problem.settings
+    runs = {orientation: run_levels(problem.load, eumos_levels(target), s.sim,
+                                    orientation=orientation, stop_at_failure=True,
+                                    wrap=problem.simulated(wrap))
+            for orientation, target in s.targets}
     with executor(s.backend, workers, s.ray_address) as pool:
-        results = list(pool.map(_trial, [problem] * samples, [wrap] * samples,
-                                [seed + k for k in range(samples)]))
-    rate = sum(1 for passed, _ in results if passed) / samples if samples else math.nan
-    return run, rate
+        trials = list(pool.map(_trial, [problem] * samples, [wrap] * samples,
+                               [seed + k for k in range(samples)]))
+    worst = min(trials, key=lambda t: t.margin, default=None)
+    return Verification(runs, PassProbability(sum(t.passed for t in trials), samples), worst)
 
 
 def _json_float(x: float) -> float | str:
     return x if math.isfinite(x) else "inf"
 
 
-__all__ = ["Evaluation", "Problem", "RobustSearch", "SearchSettings", "SearchState", "verify"]
+__all__ = ["Evaluation", "Problem", "RobustSearch", "SearchSettings", "SearchState", "Trial",
+           "Verification", "verify"]

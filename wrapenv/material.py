@@ -5,6 +5,7 @@ Every figure is sourced, derived or marked assumed in docs/materials.md ([S], [D
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 from wrapenv.config import Table
@@ -14,6 +15,28 @@ MAX_STRAIN = 10.0
 MATERIAL_KINDS = ("film", "paper")
 #: Highest film pre-stretch accepted: 400 %, the top of what powered pre-stretch reaches [S].
 MAX_PRESTRETCH = 4.0
+
+
+@dataclass(frozen=True)
+class Relaxation:
+    """How a wrap's tension falls while it stands (constant length): a Prony series,
+    T(t) / T0 = plateau + sum(a_i exp(-t / tau_i)), with the a_i summing to 1 - plateau."""
+
+    plateau: float = 1.0
+    terms: tuple[tuple[float, float], ...] = ()  # (amplitude, time constant in hours)
+
+    def retained(self, hours: float) -> float:
+        """Fraction of the wrapping tension left after `hours`."""
+        return self.plateau + sum(a * math.exp(-hours / tau) for a, tau in self.terms)
+
+
+#: LLDPE at 23 °C: 26 % lost in 30 days, most of it in the first 2 h (Dunno & Symanski 2021);
+#: the Prony fit to those endpoints is docs/materials.md L5 [A].
+FILM_RELAXATION = Relaxation(0.74, ((0.18, 0.5), (0.08, 72.0)))
+#: Kraft paper: no published relaxation of wrapped paper was found; paper relaxes by a fifth to
+#: a quarter at constant strain (docs/materials.md, P5) [A].
+PAPER_RELAXATION = Relaxation(0.80, ((0.10, 1.0), (0.10, 100.0)))
+NO_RELAXATION = Relaxation()
 
 
 @dataclass(frozen=True)
@@ -32,6 +55,8 @@ class Material:
     #: The pre-stretch (fraction: 2.5 = 250 %) the card's applied figures are for; None: the web
     #: is not pre-stretched.
     prestretch: float | None = None
+    #: How its wrapping tension relaxes while the wrapped load stands.
+    relaxation: Relaxation = NO_RELAXATION
 
     @property
     def yield_force_n_per_m(self) -> float:
@@ -61,6 +86,7 @@ MATERIALS: dict[str, Material] = {
         hardening_ratio=0.1125,  # [D] P2: tangent 45 kN/m / 4e5 -> breaks at ≈ 6.0 kN/m (P3)
         cd_ratio=0.6,  # [A] CD strength 4000 N/m / MD 6000 N/m, rounded down
         kind="paper",
+        relaxation=PAPER_RELAXATION,  # [A] P5
     ),
     "lldpe": Material(  # card 2b, cast film as applied after 250 % pre-stretch
         name="LLDPE cast stretch film (applied)",
@@ -72,6 +98,7 @@ MATERIALS: dict[str, Material] = {
         cd_ratio=0.5,  # [A] no public figure
         kind="film",
         prestretch=2.5,  # [S] powered pre-stretch of 200-300 % typical
+        relaxation=FILM_RELAXATION,  # [S]/[A] L5
     ),
 }
 #: Web tension per layer for a 0.5 m web, newtons: [A] P4 (paper), [S] L4 (film).
@@ -93,13 +120,31 @@ def custom_material(t: Table) -> Material:
     hardening = t.number("hardening_ratio", 0.1, minimum=0.0)
     cd_ratio = t.number("cd_ratio", 0.5, positive=True, maximum=1.0)
     kind = t.choice("kind", MATERIAL_KINDS, "film")
+    relaxation = _relaxation(t.table("relaxation")) if t.has("relaxation") else NO_RELAXATION
     prestretch = (t.number("prestretch", minimum=0.0, maximum=MAX_PRESTRETCH)
                   if t.has("prestretch") else None)
     if prestretch is not None and kind == "paper":
         raise t.error("prestretch", "paper is not pre-stretched")
     t.done()
     return Material(name, grammage, stiffness, strains["yield_strain"], strains["break_strain"],
-                    hardening, cd_ratio, kind, prestretch)
+                    hardening, cd_ratio, kind, prestretch, relaxation)
+
+
+def _relaxation(t: Table) -> Relaxation:
+    """A custom card's `relaxation = {plateau = ..., terms = [[amplitude, tau_h], ...]}`."""
+    plateau = t.number("plateau", positive=True, maximum=1.0)
+    terms = []
+    for i, term in enumerate(t.array("terms") if t.has("terms") else []):
+        if (not isinstance(term, list) or len(term) != 2
+                or not all(isinstance(v, int | float) and not isinstance(v, bool) for v in term)
+                or not (term[0] >= 0 and term[1] > 0 and math.isfinite(term[1]))):
+            raise t.error(f"terms[{i}]", f"must be [amplitude >= 0, time constant in hours > 0] "
+                                         f"(got {term!r})")
+        terms.append((float(term[0]), float(term[1])))
+    if not math.isclose(plateau + sum(a for a, _ in terms), 1.0, abs_tol=1e-6):
+        raise t.error("terms", f"amplitudes must add up to 1 - plateau ({1 - plateau:g})")
+    t.done()
+    return Relaxation(plateau, tuple(terms))
 
 
 def tension_limit_n(material: Material, web_width_m: float) -> float:

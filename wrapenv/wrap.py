@@ -27,6 +27,7 @@ from wrapenv.material import (
     DEFAULT_TENSION_N,
     MATERIALS,
     MAX_PRESTRETCH,
+    NO_RELAXATION,
     Material,
     check_tension,
     custom_material,
@@ -152,7 +153,10 @@ class WrapFormat:
         named = MATERIALS.get(self.material_key) == self.material
         if named:
             return self.material_key
-        return {k: v for k, v in asdict(self.material).items() if v is not None}
+        out = {k: v for k, v in asdict(self.material).items() if v is not None}
+        if self.material.relaxation == NO_RELAXATION:
+            del out["relaxation"]
+        return out
 
     def to_dict(self) -> dict[str, Any]:
         """The WRAP.toml content (what `from_dict` reads back): the program, or the bands."""
@@ -189,6 +193,15 @@ class WrapFormat:
             self.material, stiffness_n_per_m=self.material.stiffness_n_per_m * stiffness_scale)
         bands = tuple(replace(b, tension_n=b.tension_n * tension_scale) for b in self.bands)
         return replace(self, material=material, bands=bands)
+
+    def relaxed(self, hours: float) -> WrapFormat:
+        """The wrap after standing `hours` since wrapping: every band's tension scaled by the
+        material's relaxation law (the web's length and stiffness are what they were)."""
+        if hours < 0:
+            raise InputError("wrap", "hours_since_wrapping", f"must be >= 0 (got {hours})")
+        kept = self.material.relaxation.retained(hours)
+        return replace(self, bands=tuple(replace(b, tension_n=b.tension_n * kept)
+                                         for b in self.bands))
 
     def with_bands(self, bands: Iterable[Band]) -> WrapFormat:
         return replace(self, bands=tuple(bands), program=None, passes=())

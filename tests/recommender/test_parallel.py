@@ -23,8 +23,8 @@ TINY = {
     "stack": {"layers": 2, "pattern": "explicit", "positions": [[0.0, 0.0]]},
     "fixture": {"pallet_stopper": True},
 }
-SMALL_SEARCH = SearchSettings(target_g=0.5, samples=2, popsize=3, max_candidates=3, patience=9,
-                              workers=2)
+SMALL_SEARCH = SearchSettings(targets=(("long", 0.5),), samples=2, popsize=3, max_candidates=3,
+                              patience=9, workers=2)
 
 
 def _history(backend: str) -> list[tuple]:

@@ -14,11 +14,11 @@ import pytest
 from recommender.cli import EXAMPLE_LOAD, main
 from recommender.search import (
     CHECKPOINT_FORMAT,
-    MASS_SPREAD,
     Problem,
     RobustSearch,
     SearchSettings,
 )
+from recommender.uncertainty import MASS_SPREAD
 from wrapenv.calibrated import Calibration
 from wrapenv.config import InputError
 from wrapenv.load import LoadUnit
@@ -33,7 +33,9 @@ SMALL = {
               "positions": [[-0.15, -0.1], [0.15, -0.1], [-0.15, 0.1], [0.15, 0.1]]},
     "fixture": {"pallet_stopper": True},
 }
-FAST = SearchSettings(target_g=0.5, samples=2, popsize=4, max_candidates=8, workers=2)
+#: One orientation, no relaxation: the search's own behaviour, at the least cost.
+FAST = SearchSettings(targets=(("long", 0.5),), samples=2, popsize=4, max_candidates=8,
+                      workers=2, hours_since_wrapping=0.0)
 
 
 @pytest.fixture
@@ -116,7 +118,7 @@ def test_programs_over_the_cycle_limit_are_not_simulated_and_score_worst(small_l
 
 def test_target_above_the_bench_is_a_clear_error(small_load):
     with pytest.raises(InputError, match="10 m/s"):
-        Problem.build(small_load, SearchSettings(target_g=1.2))
+        Problem.build(small_load, SearchSettings(targets=(("long", 1.2),)))
 
 
 def test_search_finds_a_robust_pass_and_resumes_from_its_checkpoint(small_load, tmp_path):
@@ -137,7 +139,8 @@ def test_search_finds_a_robust_pass_and_resumes_from_its_checkpoint(small_load, 
     assert best is not None and best.robust_pass
 
 
-@pytest.mark.parametrize("other", [{"material": "lldpe"}, {"target_g": 0.6}, {"seed": 3}])
+@pytest.mark.parametrize("other", [{"material": "lldpe"}, {"targets": (("long", 0.6),)},
+                                   {"seed": 3}, {"hours_since_wrapping": 16.0}])
 def test_resume_refuses_another_search_s_checkpoint(small_load, tmp_path, other,
                                                     assert_input_error):
     ckpt = tmp_path / "search.json"
@@ -175,7 +178,12 @@ def test_recommend_writes_the_contract_json_and_a_wrap_simulate_accepts(load_fil
     assert "spiral up" in text and "cycle time" in text
     result = json.loads(out.read_text())
     assert {"format", "program", "material_used", "cycle_time_s", "verdict",
-            "robust_pass_rate", "evaluations", "method"} <= set(result)
+            "robust_pass_rate", "evaluations", "method", "pass_probability", "worst_sample",
+            "orientations", "hours_since_wrapping"} <= set(result)
+    assert set(result["orientations"]) == {"long", "short"}  # both sides by default
+    assert result["hours_since_wrapping"] == 16.0
+    p = result["pass_probability"]
+    assert p["low95"] <= p["estimate"] == result["robust_pass_rate"] <= p["high95"]
     assert {"area_m2", "mass_kg", "web_length_m", "revolutions"} <= set(result["material_used"])
     assert result["method"] == "cmaes" and 0 <= result["robust_pass_rate"] <= 1
     assert result["verdict"]["highest_passed_g"] == pytest.approx(0.5)
@@ -248,3 +256,45 @@ def test_the_bundled_example_is_package_data_and_the_readme_example():
     assert EXAMPLE_LOAD.read_bytes() == (root / "examples/pet_2layer_columnar.toml").read_bytes()
     pyproject = tomllib.loads((root / "pyproject.toml").read_text())
     assert "data/*.toml" in pyproject["tool"]["setuptools"]["package-data"]["recommender"]
+
+
+#: One tall, thin bundle on high friction: it tips rather than slides, about 0.12 / 0.40 = 0.3 g
+#: with its thin side along the motion (a rigid block tips at a / g = width / height), 1 g the
+#: long way round.
+TIPPY = {
+    "name": "tippy",
+    "pallet": {"preset": "EUR"},
+    "bundle": {"length_m": 0.40, "width_m": 0.12, "height_m": 0.40, "mass_kg": 8.0},
+    "stack": {"layers": 1, "pattern": "explicit", "positions": [[0.0, 0.0]]},
+    "friction": {"pallet_bundle": {"static": 0.7, "kinetic": 0.6}},
+    "fixture": {"pallet_stopper": True},
+}
+
+
+def test_a_load_that_passes_long_but_fails_short_gets_a_program_that_passes_both(
+        load_file, tmp_path, capsys):
+    load = load_file(base=TIPPY)
+    assert main(["simulate", str(load), "--level", "0.4", "--orientation", "long"]) == 0
+    assert main(["simulate", str(load), "--level", "0.4", "--orientation", "short"]) == 1
+    out = tmp_path / "rec.json"
+    code = main(["recommend", str(load), "--target", "0.4", "--budget", "8", "--samples", "2",
+                 "--workers", "2", "--json", str(out)])
+    capsys.readouterr()
+    assert code == 0
+    result = json.loads(out.read_text())
+    for side in ("long", "short"):
+        assert result["orientations"][side]["levels"][-1]["passed"], side
+    assert result["verdict"]["orientation"] in ("long", "short")
+
+
+@pytest.mark.parametrize("argv, field", [
+    (["--target-short", "1.5"], "--target-short"),
+    (["--orientation", "long", "--target-short", "0.5"], "--target-short"),
+    (["--hours-since-wrapping", "-1"], "--hours-since-wrapping"),
+])
+def test_bad_orientation_targets_and_hours_exit_2(argv, field, load_file, tmp_path, capsys):
+    code = main(["recommend", str(load_file(base=SMALL)), *argv,
+                 "--json", str(tmp_path / "out.json")])
+    err = capsys.readouterr().err.strip()
+    assert code == 2 and "\n" not in err and field in err
+    assert not (tmp_path / "out.json").exists()

@@ -306,6 +306,16 @@ BAD_WRAPS = {
     "custom zero cd ratio": ({"material": {**CUSTOM, "cd_ratio": 0.0}}, "material.cd_ratio"),
     "custom name not a string": ({"material": {**CUSTOM, "name": 7}}, "material.name"),
     "custom unknown key": ({"material": {**CUSTOM, "colour": "clear"}}, "material.colour"),
+    "custom relaxation not adding up": (
+        {"material": {**CUSTOM, "relaxation": {"plateau": 0.7, "terms": [[0.2, 1.0]]}}},
+        "material.relaxation.terms"),
+    "custom relaxation of a negative time": (
+        {"material": {**CUSTOM, "relaxation": {"plateau": 0.7, "terms": [[0.3, -1.0]]}}},
+        "material.relaxation.terms[0]"),
+    "custom relaxation above 1": ({"material": {**CUSTOM, "relaxation": {"plateau": 1.5}}},
+                                  "material.relaxation.plateau"),
+    "custom paper pre-stretched": ({"material": {**CUSTOM, "kind": "paper", "prestretch": 1.0}},
+                                   "material.prestretch"),
     # The custom film breaks at 300 + 0.1 x 3000 x 0.4 = 420 N/m, 210 N on a 0.5 m web.
     "tension above a custom material's break force": (
         {"material": dict(CUSTOM), "band.0.tension_n": 200.0}, "band[1].tension_n"),
