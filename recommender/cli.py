@@ -9,6 +9,7 @@ from __future__ import annotations
 import argparse
 import math
 import os
+import signal
 import sys
 from collections.abc import Sequence
 from pathlib import Path
@@ -32,10 +33,14 @@ class _Parser(argparse.ArgumentParser):
 
 
 def _g(text: str) -> float:
+    """A finite number (argparse names this function in its message: "invalid number value")."""
     value = float(text)
     if not math.isfinite(value):
         raise argparse.ArgumentTypeError(f"not a finite number: {text!r}")
     return value
+
+
+_g.__name__ = "number"
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -53,7 +58,8 @@ def build_parser() -> argparse.ArgumentParser:
                      help="EUMOS sequence from --start up to --target, stopping at the first "
                           "failure (the default when no level or profile is given)")
     sim.add_argument("--target", type=_g, default=0.5, metavar="G", help="default 0.5 g")
-    sim.add_argument("--start", type=_g, default=0.2, metavar="G", help="default 0.2 g")
+    sim.add_argument("--start", type=_g, metavar="G",
+                     help="first level (default 0.2 g, or the target when it is lower)")
     sim.add_argument("--profile", type=Path, help="drive the sled by a measured profile.csv")
     sim.add_argument("--orientation", choices=("long", "short"),
                      help="pallet side along the motion (default: as the load file lays it out)")
@@ -132,21 +138,37 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+class _Terminated(KeyboardInterrupt):
+    """SIGTERM, unwound like Ctrl-C so that what a command half wrote is removed on the way
+    out (the default action would end the process and leave its worker processes behind)."""
+
+
+def _terminate(signum: int, frame: object) -> None:
+    raise _Terminated
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
+    command = {"simulate": bench_commands.run_simulate,
+               "recommend": bench_commands.run_recommend,
+               "train": bench_commands.run_train,
+               "synth": commands.run_synth, "track": commands.run_track,
+               "calibrate": commands.run_calibrate}[args.command]
+    handlers = {signal.SIGTERM: signal.signal(signal.SIGTERM, _terminate),
+                signal.SIGINT: signal.getsignal(signal.SIGINT)}
     try:
-        command = {"simulate": bench_commands.run_simulate,
-                   "recommend": bench_commands.run_recommend,
-                   "train": bench_commands.run_train,
-                   "synth": commands.run_synth, "track": commands.run_track,
-                   "calibrate": commands.run_calibrate}
-        return command[args.command](args)
+        return command(args)
     except InputError as exc:
         sys.stderr.write(f"wrapbench {args.command}: {exc}\n")
         return 2
-    except KeyboardInterrupt:
-        sys.stderr.write(f"wrapbench {args.command}: interrupted, nothing written\n")
-        return 130
+    except KeyboardInterrupt as exc:
+        signal.signal(signal.SIGINT, signal.SIG_IGN)  # a second Ctrl-C: no traceback
+        notes = getattr(exc, "__notes__", None) or ["interrupted, nothing written"]
+        sys.stderr.write(f"wrapbench {args.command}: {notes[-1]}\n")
+        return 128 + (signal.SIGTERM if isinstance(exc, _Terminated) else signal.SIGINT)
+    finally:
+        for signum, handler in handlers.items():
+            signal.signal(signum, handler)
 
 
 

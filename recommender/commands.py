@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 import time
 from dataclasses import asdict
@@ -28,6 +29,8 @@ from wrapenv.wrap import WrapFormat
 
 #: Robust passes tried, lightest first, until one passes the whole EUMOS sequence.
 VERIFY_CANDIDATES = 3
+#: More worker processes than this many per core only queue for the same cores.
+MAX_WORKERS_PER_CORE = 4
 #: Flags of the domain's fields, for messages that name what the user typed.
 FLAGS = {"target_g": "--target", "start_g": "--start", "level_g": "--level",
          "material": "--material"}
@@ -146,6 +149,10 @@ def _settings(args: argparse.Namespace) -> SearchSettings:
                              ("--workers", args.workers, 1)):
         if value < low:
             raise InputError("arguments", flag, f"must be >= {low} (got {value})")
+    most = MAX_WORKERS_PER_CORE * (os.cpu_count() or 1) if args.backend == "process" else 4096
+    if args.workers > most:
+        raise InputError("arguments", "--workers", f"must be <= {most} on the {args.backend} "
+                         f"backend (got {args.workers}): a simulation keeps a core busy")
     if not (0 <= args.margin < 1):
         raise InputError("arguments", "--margin", f"must be in [0, 1) (got {args.margin})")
     if not args.max_cycle_s > 0:
@@ -212,7 +219,13 @@ def run_recommend(args: argparse.Namespace) -> int:
     search = RobustSearch(problem, checkpoint)
     state = search.resume() if args.resume else search.start()
     t0 = time.perf_counter()
-    state = _run_search(search, state, settings)
+    try:
+        state = _run_search(search, state, settings)
+    except KeyboardInterrupt as exc:
+        if checkpoint is not None and checkpoint.exists():
+            exc.add_note(f"interrupted, nothing written; the search so far is kept in "
+                         f"{checkpoint} (--resume continues it)")
+        raise
     chosen = _verified(problem, state, samples, args.workers)
     if checkpoint is not None:
         checkpoint.unlink(missing_ok=True)

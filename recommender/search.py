@@ -133,7 +133,10 @@ class SearchState:
     stale_generations: int = 0
 
     def finished(self, settings: SearchSettings) -> bool:
-        return bool(self.es.stop() or len(self.history) >= settings.max_candidates
+        """Done when CMA-ES stops, when another generation would try more candidates than
+        the budget, or after `patience` generations without a lighter robust pass."""
+        return bool(self.es.stop()
+                    or len(self.history) + self.es.popsize > settings.max_candidates
                     or self.stale_generations >= settings.patience)
 
     def ranked(self, margin_goal: float) -> list[Evaluation]:

@@ -152,8 +152,15 @@ class MeasuredProfile:
 Profile = PulseProfile | MeasuredProfile
 
 
-def eumos_levels(target_g: float = 0.5, start_g: float = 0.2) -> list[float]:
-    """The EUMOS 40509 sequence: start (0.2 or 0.3 g), then +0.1 g up to and including target."""
+#: Where a bench lab starts the sequence (0.2 or 0.3 g, paper section 2).
+START_G = 0.2
+
+
+def eumos_levels(target_g: float = 0.5, start_g: float | None = None) -> list[float]:
+    """The EUMOS 40509 sequence: start (0.2 or 0.3 g), then +0.1 g up to and including target.
+    Without a start, 0.2 g, or the target itself when it is lower."""
+    if start_g is None:
+        start_g = min(START_G, target_g) if math.isfinite(target_g) else START_G
     if not _level_ok(target_g):
         raise InputError("test sequence", "target_g",
                          f"must be in (0, {MAX_LEVEL_TEXT}] g, the bench's 10 m/s² "

@@ -298,3 +298,23 @@ def test_bad_orientation_targets_and_hours_exit_2(argv, field, load_file, tmp_pa
     err = capsys.readouterr().err.strip()
     assert code == 2 and "\n" not in err and field in err
     assert not (tmp_path / "out.json").exists()
+
+
+def test_the_budget_is_the_most_candidates_ever_tried(small_load):
+    """A generation that would pass the budget is not started (a budget of 10 at 8 a
+    generation tries 8, not 16)."""
+    ten = SearchSettings(**{**FAST.__dict__, "popsize": 4, "max_candidates": 6})
+    problem = Problem.build(small_load, ten)
+    state = RobustSearch(problem).run(RobustSearch(problem).start())
+    assert len(state.history) == 4
+
+
+def test_too_many_workers_and_absurd_arguments_exit_2(load_file, tmp_path, capsys):
+    load = load_file(base=SMALL)
+    code = main(["recommend", str(load), "--workers", "1000", "--json", str(tmp_path / "o")])
+    err = capsys.readouterr().err.strip()
+    assert code == 2 and "--workers" in err and "\n" not in err
+    with pytest.raises(SystemExit) as exit_:
+        main(["simulate", str(load), "--level", "abc"])
+    assert exit_.value.code == 2
+    assert "invalid number value: 'abc'" in capsys.readouterr().err

@@ -290,3 +290,8 @@ def test_nan_time_is_reported_in_the_time_column(tmp_path, assert_input_error):
     with pytest.raises(InputError) as info:
         MeasuredProfile.from_csv(path)
     assert_input_error(info.value, str(path), "t_s")
+
+
+def test_a_target_below_the_usual_start_is_a_sequence_of_one_level():
+    assert eumos_levels(0.1) == [0.1]
+    assert eumos_levels(0.5) == [0.2, 0.3, 0.4, 0.5]
