@@ -459,7 +459,7 @@ def write_video(path: Path, frames: Iterable[np.ndarray], fps: float, size: tupl
     """Encode RGB frames; returns how many. Motion-JPEG from OpenCV's own encoder, the one that
     honours the quality setting (FFmpeg's ignores it): every frame is coded on its own, and
     textures keep their sub-pixel position where mp4v (no quality control) smears motion."""
-    writer = cv2.VideoWriter(str(path), cv2.CAP_OPENCV_MJPEG, cv2.VideoWriter_fourcc(*FOURCC),
+    writer = cv2.VideoWriter(str(path), cv2.CAP_OPENCV_MJPEG, cv2.VideoWriter.fourcc(*FOURCC),
                              fps, size)
     if not (writer.isOpened() and writer.set(cv2.VIDEOWRITER_PROP_QUALITY, JPEG_QUALITY)):
         raise RuntimeError(f"OpenCV cannot write {FOURCC} video at quality {JPEG_QUALITY}"

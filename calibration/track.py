@@ -353,7 +353,7 @@ class _Run:
     # -- debug video -------------------------------------------------------------------------
 
     def _open_writer(self, path: Path) -> None:
-        self.writer = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"mp4v"), self.rec.fps,
+        self.writer = cv2.VideoWriter(str(path), cv2.VideoWriter.fourcc(*"mp4v"), self.rec.fps,
                                       self.size)
         if not self.writer.isOpened():
             raise InputError(str(path), "", "cannot write the debug video there")
@@ -530,9 +530,10 @@ def _size(width_px: float, height_px: float) -> tuple[int, int]:
 
 def _ranges(frames: list[int]) -> str:
     """[1, 2, 3, 7] -> "1-3, 7"."""
-    out, start = [], frames[0]
-    for prev, cur in zip(frames, [*frames[1:], None], strict=True):
-        if cur != prev + 1:
-            out.append(f"{start}-{prev}" if prev > start else f"{start}")
-            start = cur
+    out, start = [], 0
+    for k in range(1, len(frames) + 1):
+        if k == len(frames) or frames[k] != frames[k - 1] + 1:
+            first, last = frames[start], frames[k - 1]
+            out.append(f"{first}-{last}" if last > first else f"{first}")
+            start = k
     return ", ".join(out)

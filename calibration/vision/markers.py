@@ -48,8 +48,8 @@ class MarkerDetector:
             return {}
         found: dict[int, np.ndarray] = {}
         seen: set[int] = set()
-        for c, i in zip(corners, ids.ravel(), strict=True):
-            i = int(i)
+        for c, raw_id in zip(corners, ids.ravel(), strict=True):
+            i = int(raw_id)
             if i in seen:
                 found.pop(i, None)
                 continue
