@@ -178,7 +178,8 @@ class _Run:
         frames = self.video.frames()
         bgr = next(frames, None)
         if bgr is None:
-            raise InputError(str(self.rec.video), "", "the first frame does not decode")
+            raise InputError(str(self.rec.video), "", "no whole frame decodes" if
+                             self.video.truncated else "the first frame does not decode")
         first = self.frame(0, bgr)
         found = self.detector.detect(first) if self.detector is not None else {}
         objects = self._objects(first, found)
@@ -209,10 +210,11 @@ class _Run:
 
     def _result(self, objects: list[TrackedObject], poses: _Poses,
                 markers: MarkerTracks | None, frames: int) -> TrackResult:
-        if frames < self.video.stated:
+        if self.video.truncated:
             self.warnings.append(f"{self.rec.video.name}: the container states "
-                                 f"{self.video.stated} frames, only {frames} decode; tracked "
-                                 "those")
+                                 f"{self.video.stated} frames, only {self.video.decoded} decode "
+                                 "(a truncated file?) and the last may be cut short: dropped; "
+                                 f"tracked frames 0-{frames - 1}")
         self.warnings += poses.warnings()
         paths = poses.paths(self.pixmap, self.rec.fps)
         if markers is not None:

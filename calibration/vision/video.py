@@ -1,5 +1,13 @@
 """Reading a recording's video: its stated frame count, rate and size, and its frames decoded
-ahead on a second thread."""
+ahead on a second thread; a cut-off end told apart from a whole one.
+
+A file cut short (a copy interrupted, a camera that lost power) still opens: the container's
+header states every frame, FFmpeg decodes those whose data is there and then the one the file
+was cut inside, with its missing rows grey. To the tracker that frame looks like any other and
+the objects crossing the cut come out tens of millimetres off. So when fewer frames decode than
+the container states, the last one is not trusted: it is dropped and `truncated` says so (a file
+cut exactly between two frames loses one good frame to this).
+"""
 
 from __future__ import annotations
 
@@ -27,6 +35,7 @@ class VideoReader:
         self.size = (int(self.cap.get(cv2.CAP_PROP_FRAME_WIDTH)),
                      int(self.cap.get(cv2.CAP_PROP_FRAME_HEIGHT)))
         self.decoded = 0
+        self.truncated = False
 
     def __enter__(self) -> VideoReader:
         return self
@@ -35,15 +44,19 @@ class VideoReader:
         self.cap.release()
 
     def frames(self) -> Iterator[np.ndarray]:
-        """Every frame that decodes; the next one decodes on another thread while the caller
-        works on this one (OpenCV releases the GIL: decoding is a fifth of the time per
+        """Every trusted frame. A frame is handed out once the one after it has decoded (or
+        failed to: the file ends there), and the one after that decodes on another thread
+        while the caller works (OpenCV releases the GIL: decoding is a fifth of the time per
         frame)."""
         with ThreadPoolExecutor(1) as reader:
-            current = self._read()
+            current, following = self._read(), self._read()
             while current is not None:
-                pending = reader.submit(self._read)
+                if following is None and self.decoded < self.stated:
+                    self.truncated = True  # `current` may be the frame the file was cut inside
+                    return
+                pending = reader.submit(self._read) if following is not None else None
                 yield current
-                current = pending.result()
+                current, following = following, pending.result() if pending else None
 
     def _read(self) -> np.ndarray | None:
         ok, bgr = self.cap.read()

@@ -116,6 +116,23 @@ def test_corrupt_video_is_an_input_error(two_layer: Recording, tmp_path: Path) -
         track(rec)
 
 
+def test_truncated_video_loses_its_cut_frame_not_its_accuracy(two_layer: Recording,
+                                                               tmp_path: Path) -> None:
+    """A file cut three quarters through: the frame it was cut inside decodes half grey and
+    was tracked 70 mm off; it is dropped, with a warning naming the frames kept."""
+    folder = _copy(two_layer, tmp_path)
+    video = folder / two_layer.video.name
+    data = video.read_bytes()
+    video.write_bytes(data[:len(data) * 3 // 4])
+    rec = Recording.read(folder)
+    result = track(rec)
+    _check_accuracy(rec, result.trajectories)
+    frames = len(result.trajectories.objects["sled"].t_s)
+    assert 0 < frames < len(Truth.read(folder).objects["sled"].t_s) - 1
+    cut = [w for w in result.warnings if w.startswith(video.name)]
+    assert len(cut) == 1 and "cut short" in cut[0] and f"frames 0-{frames - 1}" in cut[0], cut
+
+
 def test_unmatched_template_names_the_file(two_layer: Recording, tmp_path: Path) -> None:
     folder = _copy(two_layer, tmp_path)
     rng = np.random.default_rng(0)
