@@ -185,8 +185,7 @@ def opencv_tracker(kind: str, model: str | None = None) -> cv2.Tracker:
     if kind == "mil":
         return cv2.TrackerMIL.create()
     if kind not in OPENCV_TRACKERS:
-        known = ", ".join(OWN_TRACKERS + OPENCV_TRACKERS)
-        raise ValueError(f"unknown tracker {kind!r}; known: {known}")
+        raise ValueError(f"{kind!r} is not one of OpenCV's trackers ({', '.join(OPENCV_TRACKERS)})")
     if model is None:
         raise ValueError(f"tracker {kind!r} needs its ONNX model file, which is not available")
     try:
@@ -208,6 +207,16 @@ def _deep_tracker(kind: str, model: str) -> cv2.Tracker:
     vit = cv2.TrackerVit.Params()
     vit.net = model
     return cv2.TrackerVit.create(vit)
+
+
+def check_tracker(kind: str) -> None:
+    """`ValueError` unless trackers of `kind` can be made here: OpenCV's network trackers cannot
+    without their ONNX models, so a run would follow nothing."""
+    if kind in OPENCV_TRACKERS:
+        opencv_tracker(kind)
+    elif kind not in OWN_TRACKERS:
+        raise ValueError(f"unknown tracker {kind!r}; known: "
+                         f"{', '.join(OWN_TRACKERS + OPENCV_TRACKERS)}")
 
 
 def make_tracker(kind: str, frame: Frame, centre: tuple[float, float],

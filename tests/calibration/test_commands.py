@@ -152,3 +152,13 @@ def test_calibrate_refuses_too_short_trajectories(slide_dir, tmp_path, capsys):
 def test_calibrate_rejects_bad_arguments(args, needle, slide_dir, tmp_path, capsys):
     assert main(["calibrate", str(slide_dir), "--out", str(tmp_path / "c.json"), *args]) == 2
     _one_line_error(capsys, needle)
+
+
+@pytest.mark.parametrize("tracker", ["dasiamrpn", "nano", "vit"])
+def test_track_with_an_unavailable_tracker_is_refused(tracker, recording_dir, tmp_path, capsys):
+    """OpenCV's network trackers need ONNX models this install lacks: refused before any work,
+    where every object used to be dropped with a warning and a header-only CSV written."""
+    out = tmp_path / "paths.csv"
+    assert main(["track", str(recording_dir), "--out", str(out), "--tracker", tracker]) == 2
+    _one_line_error(capsys, "--tracker", tracker, "ONNX")
+    assert not out.exists()
