@@ -102,8 +102,10 @@ def run_track(args: argparse.Namespace) -> int:
         raise InputError("arguments", "--tracker", str(exc)) from None
     rec = Recording.read(args.recording)
     out = args.out if args.out is not None else rec.folder / "trajectories.csv"
-    check_output(out, "--out")
-    check_output(args.debug_video, "--debug-video")
+    check_output(out, "--out", inputs=rec.inputs())
+    check_output(args.debug_video, "--debug-video", inputs=rec.inputs())
+    if args.debug_video is not None and _same_place(args.debug_video, out):
+        raise InputError(str(out), "--debug-video", "is also --out")
     t0 = time.perf_counter()
     with tqdm(desc="frames", unit="frame", leave=False, disable=None) as bar:
         def progress(frame: int, frames: int) -> None:
@@ -126,6 +128,11 @@ def run_track(args: argparse.Namespace) -> int:
         for name, e in errors.items():
             print(f"{name:>44s}  {1e3 * e.rms_m:6.2f}  {1e3 * e.max_m:6.2f}")
     return 0
+
+
+def _same_place(a: Path, b: Path) -> bool:
+    """Two output paths naming one file (neither need exist yet)."""
+    return a.resolve() == b.resolve() or (a.exists() and b.exists() and os.path.samefile(a, b))
 
 
 def add_calibrate(sub: argparse._SubParsersAction) -> None:

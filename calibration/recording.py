@@ -180,6 +180,12 @@ class Recording:
         return cls(folder, video, setup.fps, setup.px_per_m, setup.origin_px, profile, load,
                    wrap, setup.markers, template)
 
+    def inputs(self) -> tuple[Path, ...]:
+        """The folder's files a run reads, which no output may replace."""
+        names = (SETUP, PROFILE, LOAD, WRAP, TRUTH)
+        return (self.video, *(self.folder / n for n in names),
+                *((self.template,) if self.template is not None else ()))
+
     def camera(self, width: int, height: int) -> SideCamera:
         """The side camera of this recording (`SideCamera.project` gives pixels)."""
         return SideCamera(width, height, self.px_per_m, self.origin_px)

@@ -39,7 +39,7 @@ from calibration.recording import (
     write_truth,
 )
 from wrapenv.bench import SLED_DECK_M, SLED_MARGIN_M, STOPPER_SIZE_M, SimSettings, run_level
-from wrapenv.config import InputError, write_atomic
+from wrapenv.config import InputError, check_output_folder, write_atomic
 from wrapenv.load import PAIRS, Friction, FrictionPair, Layout, LoadUnit
 from wrapenv.profile import PulseProfile
 from wrapenv.render import Renderer, SideCamera, is_paper, torn_net
@@ -142,8 +142,7 @@ def synthesize(load: LoadUnit, out_dir: str | Path, *, wrap: WrapFormat | None =
 
 def _check_arguments(out_dir: Path, size: tuple[int, int], fps: float, jitter: float,
                      pre_roll_s: float, marker_size_m: float) -> None:
-    if out_dir.exists() and (not out_dir.is_dir() or any(out_dir.iterdir())):
-        raise InputError(str(out_dir), "", "exists and is not an empty folder")
+    check_output_folder(out_dir, "")
     if not (len(size) == 2 and all(isinstance(v, int) and v >= 64 for v in size)):
         raise InputError("arguments", "size", f"must be two whole numbers >= 64 (got {size})")
     if not (math.isfinite(fps) and fps > 0):

@@ -101,7 +101,7 @@ def _check_time_base(rec: Recording, video: VideoReader) -> None:
 def _debug(path: Path | None, fps: float, size: tuple[int, int]
            ) -> AbstractContextManager[DebugVideo | None]:
     """The debug video, closed on leaving; nothing when none was asked for."""
-    return closing(DebugVideo(path, fps, size)) if path is not None else nullcontext()
+    return DebugVideo(path, fps, size) if path is not None else nullcontext()
 
 
 class _Poses:

@@ -4,6 +4,8 @@ so a person can see at a glance where a tracker went wrong."""
 from __future__ import annotations
 
 import math
+import os
+import tempfile
 from pathlib import Path
 
 import cv2
@@ -17,15 +19,28 @@ YELLOW, RED, WHITE = (0, 255, 255), (0, 0, 255), (255, 255, 255)
 
 
 class DebugVideo:
-    """An mp4v file the annotated frames are written to, in order."""
+    """An mp4v file the annotated frames are written to, in order; it appears at `path` when
+    the `with` block ends normally, and not at all when it raises (an interrupted run)."""
 
     def __init__(self, path: Path, fps: float, size: tuple[int, int]) -> None:
-        self.writer = cv2.VideoWriter(str(path), cv2.VideoWriter.fourcc(*"mp4v"), fps, size)
+        self.path = path
+        fd, name = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=path.suffix)
+        os.close(fd)
+        self.partial = Path(name)
+        self.writer = cv2.VideoWriter(name, cv2.VideoWriter.fourcc(*"mp4v"), fps, size)
         if not self.writer.isOpened():
+            self.partial.unlink()
             raise InputError(str(path), "", "cannot write the debug video there")
 
-    def close(self) -> None:
+    def __enter__(self) -> DebugVideo:
+        return self
+
+    def __exit__(self, kind: type[BaseException] | None, *exc: object) -> None:
         self.writer.release()
+        if kind is None:
+            os.replace(self.partial, self.path)
+        else:
+            self.partial.unlink(missing_ok=True)
 
     def draw(self, bgr: np.ndarray, index: int, objects: list[TrackedObject],
              poses: dict[str, Pose]) -> None:

@@ -162,3 +162,35 @@ def test_track_with_an_unavailable_tracker_is_refused(tracker, recording_dir, tm
     assert main(["track", str(recording_dir), "--out", str(out), "--tracker", tracker]) == 2
     _one_line_error(capsys, "--tracker", tracker, "ONNX")
     assert not out.exists()
+
+
+@pytest.mark.parametrize("out, needle", [("folder", "is a folder"),
+                                         ("/proc/t.csv", "cannot write into /proc"),
+                                         ("rec/video.avi", "is an input"),
+                                         ("rec/setup.toml", "is an input")])
+def test_track_refuses_an_unusable_output_before_tracking(out, needle, recording_dir, tmp_path,
+                                                          capsys):
+    """Found before the work, one line and nothing touched: a folder and /proc used to fail
+    after tracking with a traceback, an input was silently overwritten."""
+    rec = tmp_path / "rec"
+    shutil.copytree(recording_dir, rec)
+    (tmp_path / "folder").mkdir()
+    before = {p.name: p.read_bytes() for p in rec.iterdir()}
+    path = out if out.startswith("/") else str(tmp_path / out)
+    for flag in ("--out", "--debug-video"):
+        assert main(["track", str(rec), flag, path]) == 2
+        _one_line_error(capsys, flag, needle)
+        assert {p.name: p.read_bytes() for p in rec.iterdir()} == before
+        assert list((tmp_path / "folder").iterdir()) == []
+
+
+def test_track_refuses_one_file_for_two_outputs(recording_dir, tmp_path, capsys):
+    out = tmp_path / "same.csv"
+    assert main(["track", str(recording_dir), "--out", str(out), "--debug-video", str(out)]) == 2
+    _one_line_error(capsys, "--debug-video", "--out")
+    assert not out.exists()
+
+
+def test_synth_refuses_an_unwritable_place_before_simulating(load_path, capsys):
+    assert main(["synth", str(load_path), "--out", "/proc/rec"]) == 2
+    _one_line_error(capsys, "/proc/rec", "cannot write into /proc")

@@ -116,6 +116,16 @@ def test_corrupt_video_is_an_input_error(two_layer: Recording, tmp_path: Path) -
         track(rec)
 
 
+def test_an_interrupted_run_leaves_no_debug_video(two_layer: Recording, tmp_path: Path) -> None:
+    def interrupt(frame: int, frames: int) -> None:
+        if frame == 5:
+            raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        track(two_layer, debug_video=tmp_path / "debug.mp4", progress=interrupt)
+    assert list(tmp_path.iterdir()) == []
+
+
 def test_truncated_video_loses_its_cut_frame_not_its_accuracy(two_layer: Recording,
                                                                tmp_path: Path) -> None:
     """A file cut three quarters through: the frame it was cut inside decodes half grey and
