@@ -11,8 +11,11 @@ import argparse
 import json
 import math
 import os
+import signal
 import sys
 import time
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 from tqdm import tqdm
@@ -64,6 +67,20 @@ def _size(text: str) -> tuple[int, int]:
     return w, h
 
 
+@contextmanager
+def terminate_as_interrupt() -> Iterator[None]:
+    """SIGTERM unwinds like Ctrl-C (KeyboardInterrupt) inside the block, so what a command has
+    half written is removed on the way out; the default action would just end the process."""
+    def interrupt(signum: int, frame: object) -> None:
+        raise KeyboardInterrupt
+
+    previous = signal.signal(signal.SIGTERM, interrupt)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
 def run_synth(args: argparse.Namespace) -> int:
     from calibration.synth import synthesize
 
@@ -75,9 +92,11 @@ def run_synth(args: argparse.Namespace) -> int:
             raise InputError("arguments", flag, f"must be > 0 (got {value})")
     t0 = time.perf_counter()
     try:
-        rec = synthesize(load, args.out, wrap=wrap, level_g=args.level, seed=args.seed,
-                         size=args.size, fps=args.fps, friction_jitter=args.friction_jitter,
-                         stiffness_scale=args.stiffness_scale, tension_scale=args.tension_scale)
+        with terminate_as_interrupt():
+            rec = synthesize(load, args.out, wrap=wrap, level_g=args.level, seed=args.seed,
+                             size=args.size, fps=args.fps, friction_jitter=args.friction_jitter,
+                             stiffness_scale=args.stiffness_scale,
+                             tension_scale=args.tension_scale)
     except ValueError as exc:  # an unphysical simulation: nothing to record
         if isinstance(exc, InputError):
             raise
@@ -112,8 +131,9 @@ def run_track(args: argparse.Namespace) -> int:
             bar.total = frames
             bar.update(frame + 1 - bar.n)
 
-        result = track(rec, tracker=args.tracker, debug_video=args.debug_video,
-                       progress=progress)
+        with terminate_as_interrupt():
+            result = track(rec, tracker=args.tracker, debug_video=args.debug_video,
+                           progress=progress)
     wall = time.perf_counter() - t0
     result.trajectories.to_csv(out)
     for warning in result.warnings:

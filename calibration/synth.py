@@ -13,11 +13,13 @@ is the pulse's start) until the unit rests. World x = sled x + x in the sled fra
 
 from __future__ import annotations
 
+import fcntl
 import math
 import os
 import shutil
 import tempfile
 from collections.abc import Iterable, Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -59,6 +61,8 @@ TEXTURE_OVERSAMPLING = 2.0
 BLUR_SIGMA_PX = 0.6
 NOISE_GREY = 2.0
 LIGHT_DRIFT = 0.05
+#: A recording is written in a hidden folder `.{name}.XXXX{STAGING_SUFFIX}` beside it, then renamed.
+STAGING_SUFFIX = ".synth-partial"
 #: Codec, file and container: Motion-JPEG at this quality (see `write_video`).
 FOURCC, VIDEO_NAME, JPEG_QUALITY = "MJPG", "video.avi", 100
 
@@ -111,13 +115,7 @@ def synthesize(load: LoadUnit, out_dir: str | Path, *, wrap: WrapFormat | None =
         "size": list(size),
     }
     truth = Truth(params, _tracks(layout, states))
-    parent = out_dir.parent
-    parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(dir=parent, prefix=f".{out_dir.name}."))
-    try:
-        umask = os.umask(0)
-        os.umask(umask)
-        tmp.chmod(0o777 & ~umask)  # mkdtemp makes it private; a recording is an ordinary folder
+    with _staging(out_dir) as tmp:
         scene = _Scene(layout, camera, seed, markers,
                        torn_net(true_wrap, layout, trace) if true_wrap is not None else None,
                        None if wrap is None else (PAPER_ALPHA if is_paper(wrap) else FILM_ALPHA))
@@ -131,13 +129,51 @@ def synthesize(load: LoadUnit, out_dir: str | Path, *, wrap: WrapFormat | None =
         if wrap is not None:
             write_atomic(tmp / WRAP, wrap.to_toml().encode())
         write_truth(tmp, truth)
+    return Recording.read(out_dir)
+
+
+@contextmanager
+def _staging(out_dir: Path) -> Iterator[Path]:
+    """A hidden folder beside `out_dir` to write the recording in, renamed to `out_dir` when
+    the block ends and removed if it raises: the recording appears whole or not at all. The
+    folder is locked while this process lives, so staging folders of runs that were killed
+    (nothing unwinds SIGKILL) are told from running ones and removed here."""
+    parent = out_dir.parent
+    parent.mkdir(parents=True, exist_ok=True)
+    _remove_stale_staging(parent)
+    tmp = Path(tempfile.mkdtemp(dir=parent, prefix=f".{out_dir.name}.", suffix=STAGING_SUFFIX))
+    lock = os.open(tmp, os.O_RDONLY)
+    try:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        umask = os.umask(0)
+        os.umask(umask)
+        tmp.chmod(0o777 & ~umask)  # mkdtemp makes it private; a recording is an ordinary folder
+        yield tmp
         if out_dir.exists():
-            out_dir.rmdir()  # empty, checked above
+            out_dir.rmdir()  # empty, checked before the work
         tmp.rename(out_dir)
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise
-    return Recording.read(out_dir)
+    finally:
+        os.close(lock)
+
+
+def _remove_stale_staging(parent: Path) -> None:
+    """Staging folders in `parent` whose lock no live process holds."""
+    for folder in parent.glob(f".*{STAGING_SUFFIX}"):
+        try:
+            fd = os.open(folder, os.O_RDONLY)
+        except OSError:
+            continue
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            continue  # a running synth's
+        else:
+            shutil.rmtree(folder, ignore_errors=True)
+        finally:
+            os.close(fd)
 
 
 def _check_arguments(out_dir: Path, size: tuple[int, int], fps: float, jitter: float,
