@@ -24,14 +24,34 @@ from wrapenv.config import InputError, check_output, write_atomic
 from wrapenv.load import Friction, LoadUnit
 from wrapenv.wrap import WrapFormat
 
+#: `synthesize`'s arguments, as its errors name them (source, field), and the flags that set
+#: them.
+SYNTH_FLAGS = {("arguments", "size"): "--size", ("arguments", "fps"): "--fps",
+               ("arguments", "friction_jitter"): "--friction-jitter",
+               ("profile", "level_g"): "--level"}
 
-def add_synth(sub: argparse._SubParsersAction, level_type) -> None:
+
+def level_g(text: str) -> float:
+    """argparse's type for a test level in g; its errors name the value expected (argparse
+    would print "invalid <this function's name> value" for a bare ValueError)."""
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    if not math.isfinite(value):
+        raise argparse.ArgumentTypeError(f"expected a level in g such as 0.4 (got {text!r})")
+    return value
+
+
+def add_synth(sub: argparse._SubParsersAction, level_type: object = None) -> None:
+    """The synth subcommand. `level_type` is not used (levels are parsed by `level_g`): it is
+    accepted until recommender.cli stops passing its own."""
     p = sub.add_parser("synth", help="make a synthetic bench recording with ground truth")
     p.add_argument("load", type=Path, help="LOAD.toml")
     p.add_argument("--out", type=Path, required=True, metavar="DIR",
                    help="recording folder to create (must not exist or be empty)")
     p.add_argument("--wrap", type=Path, metavar="WRAP.toml", help="wrap the unit in this format")
-    p.add_argument("--level", type=level_type, default=0.4, metavar="G",
+    p.add_argument("--level", type=level_g, default=0.4, metavar="G",
                    help="test level in g (default 0.4)")
     p.add_argument("--seed", type=int, default=0, help="textures, noise and friction jitter")
     p.add_argument("--size", type=_size, default=(1920, 1200), metavar="WxH",
@@ -97,9 +117,12 @@ def run_synth(args: argparse.Namespace) -> int:
                              size=args.size, fps=args.fps, friction_jitter=args.friction_jitter,
                              stiffness_scale=args.stiffness_scale,
                              tension_scale=args.tension_scale)
-    except ValueError as exc:  # an unphysical simulation: nothing to record
-        if isinstance(exc, InputError):
+    except InputError as exc:
+        option = SYNTH_FLAGS.get((exc.source, exc.field))
+        if option is None:
             raise
+        raise InputError("arguments", option, exc.message) from None
+    except ValueError as exc:  # an unphysical simulation: nothing to record
         sys.stderr.write(f"wrapbench synth: {exc}; no recording written\n")
         return 1
     frames = round(rec.profile.t_s[-1] * rec.fps) + 1

@@ -34,6 +34,9 @@ PROFILE_COLUMNS = ("t_s", "accel_mps2", "vel_mps", "pos_m")
 TRACK_KEYS = ("t_s", "x_m", "z_m", "angle_rad")
 #: Relative tolerance between setup.toml's fps and the container's (containers store rationals).
 FPS_TOLERANCE = 1e-3
+#: Longest profile (s) [A]: a test is a pulse and a few seconds of run-out (the source paper's
+#: recordings last 8 to 10 s); longer is a unit mistake, such as t_s in milliseconds.
+MAX_PROFILE_S = 120.0
 #: Slack on time comparisons: the profile may end this much before the last frame's time.
 TIME_SLACK_S = 1e-6
 
@@ -93,6 +96,9 @@ class SledProfile:
             raise InputError(str(path), "t_s", "needs at least two samples")
         if np.any(np.diff(t) <= 0):
             raise InputError(str(path), "t_s", "must increase strictly")
+        if t[-1] - t[0] > MAX_PROFILE_S:
+            raise InputError(str(path), "t_s", f"spans {t[-1] - t[0]:g} s, more than the "
+                             f"{MAX_PROFILE_S:g} s a bench test lasts (in milliseconds?)")
         integrated = cls.from_accel(t, a)
         return cls(t, a, columns.get("vel_mps", integrated.vel_mps),
                    columns.get("pos_m", integrated.pos_m))
@@ -113,7 +119,7 @@ def _read_csv(path: Path) -> dict[str, np.ndarray]:
     """The profile's known columns as arrays; t_s and accel_mps2 required, all finite."""
     src = str(path)
     try:
-        with path.open(newline="") as fh:
+        with path.open(newline="", encoding="utf-8-sig") as fh:  # Excel starts with a BOM
             rows = [r for r in csv.reader(fh) if r]
     except (OSError, UnicodeDecodeError) as exc:
         raise InputError(src, "", f"cannot read file ({exc})") from None
@@ -169,7 +175,7 @@ class Recording:
         template = None
         if setup.template is not None:
             template = folder / setup.template
-            if cv2.imread(str(template)) is None:
+            if not template.is_file() or cv2.imread(str(template)) is None:
                 raise InputError(str(setup_path), setup.template_field,
                                  f"{setup.template} is missing or not an image")
         video = _find_video(folder)

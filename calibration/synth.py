@@ -61,6 +61,15 @@ TEXTURE_OVERSAMPLING = 2.0
 BLUR_SIGMA_PX = 0.6
 NOISE_GREY = 2.0
 LIGHT_DRIFT = 0.05
+#: Image sides (px) a recording may have [A]: from 64 (the test is then a few pixels: it is made
+#: but nothing in it can be tracked) to a DCI 4K camera's width; beyond, a frame's float buffers
+#: (0.2 GB each at 4096 x 4096) run to gigabytes.
+SIZE_RANGE_PX = (64, 4096)
+#: Highest frame rate (fps): a high-speed camera's [A] (the source paper filmed at 20 fps);
+#: a test's few seconds are then thousands of frames, already an hour to render.
+MAX_FPS = 1000.0
+#: Longest still pre-roll (s) before the pulse [A].
+MAX_PRE_ROLL_S = 10.0
 #: A recording is written in a hidden folder `.{name}.XXXX{STAGING_SUFFIX}` beside it, then renamed.
 STAGING_SUFFIX = ".synth-partial"
 #: Codec, file and container: Motion-JPEG at this quality (see `write_video`).
@@ -179,14 +188,17 @@ def _remove_stale_staging(parent: Path) -> None:
 def _check_arguments(out_dir: Path, size: tuple[int, int], fps: float, jitter: float,
                      pre_roll_s: float, marker_size_m: float) -> None:
     check_output_folder(out_dir, "")
-    if not (len(size) == 2 and all(isinstance(v, int) and v >= 64 for v in size)):
-        raise InputError("arguments", "size", f"must be two whole numbers >= 64 (got {size})")
-    if not (math.isfinite(fps) and fps > 0):
-        raise InputError("arguments", "fps", f"must be > 0 (got {fps})")
+    low, high = SIZE_RANGE_PX
+    if not (len(size) == 2 and all(isinstance(v, int) and low <= v <= high for v in size)):
+        raise InputError("arguments", "size", f"must be two whole numbers >= {low} and "
+                         f"<= {high} (got {size})")
+    if not (math.isfinite(fps) and 0 < fps <= MAX_FPS):
+        raise InputError("arguments", "fps", f"must be > 0 and <= {MAX_FPS:g} (got {fps})")
     if not (math.isfinite(jitter) and 0 <= jitter < 1):
         raise InputError("arguments", "friction_jitter", f"must be in [0, 1) (got {jitter})")
-    if not (math.isfinite(pre_roll_s) and pre_roll_s >= 0):
-        raise InputError("arguments", "pre_roll_s", f"must be >= 0 (got {pre_roll_s})")
+    if not (math.isfinite(pre_roll_s) and 0 <= pre_roll_s <= MAX_PRE_ROLL_S):
+        raise InputError("arguments", "pre_roll_s",
+                         f"must be >= 0 and <= {MAX_PRE_ROLL_S:g} s (got {pre_roll_s})")
     if not (math.isfinite(marker_size_m) and 0 < marker_size_m <= SLED_DECK_M * 0.75):
         raise InputError("arguments", "marker_size_m",
                          f"must be in (0, {SLED_DECK_M * 0.75:g}] m to fit the sled's side"
@@ -377,8 +389,8 @@ class _Scene:
         # antialiasing: the warp samples at half the texture's resolution
         self.textures = [cv2.GaussianBlur(t, (0, 0), TEXTURE_OVERSAMPLING / 2.5).astype(np.float32)
                          for t in self.textures]
-        side = max(4, round(markers.size_m * tpm))
         aruco = markers.aruco()
+        side = max(aruco.markerSize + 2, round(markers.size_m * tpm))  # its bits and border
         self.marker_images = {p.id: textures.marker_image(aruco, p.id, side).astype(np.float32)
                               for p in markers.placements}
         self.marker_face = markers.size_m * (1 + 2 * round(side * textures.QUIET_ZONE) / side)

@@ -187,6 +187,9 @@ class _Run:
         found = self.detector.detect(first) if self.detector is not None else {}
         objects = self._objects(first, found)
         trackers = self._trackers(first, [o for o in objects if o.name not in self.carriers])
+        if not trackers and not self.carriers:
+            raise InputError(str(self.rec.video), "", "no object can be followed from frame 0 "
+                             f"({self.warnings[-1] if self.warnings else 'none found'})")
         poses = _Poses({o.name: Pose(*o.centre_px) for o in objects if o.name in trackers})
         with closing(MultiTracker(trackers, poses.latest())) as multi, \
                 _debug(debug_video, self.rec.fps, self.video.size) as debug:

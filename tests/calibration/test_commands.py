@@ -57,11 +57,13 @@ def test_track_writes_into_the_recording_by_default(recording_dir, tmp_path, cap
 
 
 @pytest.mark.parametrize("args, needles", [
-    (["--size", "10x10"], ["size", ">= 64"]),
-    (["--fps", "0"], ["fps"]),
-    (["--friction-jitter", "1.5"], ["friction_jitter"]),
+    (["--size", "10x10"], ["--size", ">= 64"]),
+    (["--size", "100000x100000"], ["--size", "<= 4096"]),
+    (["--fps", "0"], ["--fps"]),
+    (["--fps", "100000"], ["--fps", "<= 1000"]),
+    (["--friction-jitter", "1.5"], ["--friction-jitter"]),
     (["--stiffness-scale", "nan"], ["--stiffness-scale"]),
-    (["--level", "3"], ["level_g", "1.019"]),
+    (["--level", "3"], ["--level", "1.019"]),
 ])
 def test_synth_rejects_bad_arguments_and_writes_nothing(args, needles, tmp_path, load_path,
                                                         capsys):
@@ -194,3 +196,27 @@ def test_track_refuses_one_file_for_two_outputs(recording_dir, tmp_path, capsys)
 def test_synth_refuses_an_unwritable_place_before_simulating(load_path, capsys):
     assert main(["synth", str(load_path), "--out", "/proc/rec"]) == 2
     _one_line_error(capsys, "/proc/rec", "cannot write into /proc")
+
+
+@pytest.mark.parametrize("value", ["abc", "nan"])
+def test_synth_level_that_is_not_a_number_is_named_readably(value, load_path, tmp_path, capsys):
+    """argparse names the type function in its message: it was "invalid _g value"."""
+    with pytest.raises(SystemExit) as exit_:
+        main(["synth", str(load_path), "--out", str(tmp_path / "rec"), "--level", value])
+    assert exit_.value.code == 2
+    line = _one_line_error(capsys, "--level", "a level in g", repr(value))
+    assert "_g" not in line
+    assert not (tmp_path / "rec").exists()
+
+
+def test_a_tiny_recording_is_made_but_not_tracked_as_if_it_were_fine(tmp_path, capsys):
+    """64x64 tripped an OpenCV assertion drawing markers of under 6 px; now it is made, and
+    track, which can follow nothing in it (11 px/m), says so instead of writing a header-only
+    CSV."""
+    rec = tmp_path / "rec"
+    assert main(["synth", "examples/pet_2layer_columnar.toml", "--out", str(rec), "--size",
+                 "64x64", "--fps", "5"]) == 0
+    capsys.readouterr()
+    assert main(["track", str(rec)]) == 2
+    _one_line_error(capsys, "video.avi", "no object can be followed")
+    assert not (rec / "trajectories.csv").exists()

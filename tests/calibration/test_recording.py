@@ -194,3 +194,35 @@ def test_bad_truth_is_one_input_error(change, field, copy_of, assert_input_error
     with pytest.raises(InputError) as err:
         Truth.read(folder)
     assert_input_error(err.value, str(path), field)
+
+
+def test_profile_in_milliseconds_is_refused(copy_of, assert_input_error):
+    """t_s written in ms makes a 3000 s test: the sled would creep and a replay run for hours."""
+    folder = copy_of()
+    path = folder / "profile.csv"
+    lines = path.read_text().splitlines()
+    rows = [line.split(",") for line in lines[1:]]
+    path.write_text("\n".join([lines[0]] + [",".join([repr(1000 * float(r[0])), *r[1:]])
+                                            for r in rows]) + "\n")
+    with pytest.raises(InputError) as err:
+        Recording.read(folder)
+    assert_input_error(err.value, str(path), "t_s")
+    assert "milliseconds" in str(err.value)
+
+
+def test_profile_with_a_byte_order_mark_reads(copy_of):
+    """Excel's "CSV UTF-8" starts the file with U+FEFF, which hid the first column's name."""
+    folder = copy_of()
+    path = folder / "profile.csv"
+    plain = Recording.read(folder).profile
+    path.write_bytes(b"\xef\xbb\xbf" + path.read_bytes())
+    np.testing.assert_array_equal(Recording.read(folder).profile.t_s, plain.t_s)
+
+
+def test_missing_template_is_one_line_without_opencv_noise(copy_of, capfd, assert_input_error):
+    folder = copy_of()
+    (folder / "template.png").unlink()
+    with pytest.raises(InputError) as err:
+        Recording.read(folder)
+    assert_input_error(err.value, str(folder / "setup.toml"), "template")
+    assert capfd.readouterr().err == ""
