@@ -20,7 +20,7 @@ from pathlib import Path
 
 from tqdm import tqdm
 
-from wrapenv.config import InputError, check_output, write_atomic
+from wrapenv.config import InputError, check_output, printable, write_atomic
 from wrapenv.load import Friction, LoadUnit
 from wrapenv.wrap import WrapFormat
 
@@ -126,7 +126,7 @@ def run_synth(args: argparse.Namespace) -> int:
         sys.stderr.write(f"wrapbench synth: {exc}; no recording written\n")
         return 1
     frames = round(rec.profile.t_s[-1] * rec.fps) + 1
-    print(f"wrote {rec.folder}: {rec.video.name} {args.size[0]}x{args.size[1]}, "
+    print(f"wrote {printable(str(rec.folder))}: {rec.video.name} {args.size[0]}x{args.size[1]}, "
           f"{frames} frames at {rec.fps:g} fps, {rec.px_per_m:g} px/m, level {args.level:.2f} g"
           f"{', wrapped' if wrap else ''}, in {time.perf_counter() - t0:.0f} s")
     return 0
@@ -163,8 +163,8 @@ def run_track(args: argparse.Namespace) -> int:
         sys.stderr.write(f"wrapbench track: warning: {warning}\n")
     objects = result.trajectories.objects
     frames = max((len(p.t_s) for p in objects.values()), default=0)
-    print(f"wrote {out}: {len(objects)} objects ({', '.join(objects)}), {frames} frames in "
-          f"{wall:.1f} s ({frames / wall:.0f} frames/s, tracker {args.tracker})")
+    print(f"wrote {printable(str(out))}: {len(objects)} objects ({', '.join(objects)}), "
+          f"{frames} frames in {wall:.1f} s ({frames / wall:.0f} frames/s, tracker {args.tracker})")
     if (rec.folder / "truth.json").exists():
         errors = error_vs_truth(result.trajectories, Truth.read(rec.folder).objects)
         print("error against truth.json (displacement):  object  RMS mm  max mm")

@@ -208,6 +208,18 @@ def _check_writable(folder: Path, source: str, flag: str) -> None:
     os.unlink(probe)
 
 
+def printable(text: str, limit: int = 200) -> str:
+    """`text` safe to print on one line: characters that are not printable (escape codes, line
+    breaks, zero-width) written as Python escapes, and at most `limit` characters, the middle
+    dropped (a 100 kB load name would bury the output)."""
+    safe = "".join(c if c.isprintable() else repr(c)[1:-1] for c in text)
+    if len(safe) <= limit:
+        return safe
+    note = f" ... ({len(safe) - limit} more characters) ... "
+    keep = max(limit - len(note), 2)
+    return safe[:keep // 2] + note + safe[len(safe) - (keep - keep // 2):]
+
+
 def write_atomic(path: str | Path, data: bytes) -> None:
     """Write a file so readers see the old content or the whole new one, never a part."""
     path = Path(path)

@@ -220,3 +220,12 @@ def test_a_tiny_recording_is_made_but_not_tracked_as_if_it_were_fine(tmp_path, c
     assert main(["track", str(rec)]) == 2
     _one_line_error(capsys, "video.avi", "no object can be followed")
     assert not (rec / "trajectories.csv").exists()
+
+
+def test_printed_paths_cannot_drive_the_terminal(recording_dir, tmp_path, capsys):
+    """A name with escape codes (here a folder's) is printed escaped, not obeyed."""
+    rec = tmp_path / "rec\x1b[2J"
+    shutil.copytree(recording_dir, rec)
+    assert main(["track", str(rec)]) == 0
+    out = capsys.readouterr().out
+    assert "\x1b" not in out and "rec\\x1b[2J" in out

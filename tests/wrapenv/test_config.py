@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from wrapenv.config import InputError, check_output, check_output_folder
+from wrapenv.config import InputError, check_output, check_output_folder, printable
 
 ROOT = os.geteuid() == 0
 
@@ -79,3 +79,10 @@ def test_an_output_folder_must_be_new_or_empty_and_creatable(tmp_path: Path) -> 
                          (Path("/proc/rec"), "cannot write into /proc")):
         with pytest.raises(InputError, match=needle):
             check_output_folder(path, "--out")
+
+
+def test_printable_escapes_control_characters_and_truncates() -> None:
+    assert printable("L\x1b[31mred\x07 é 中") == "L\\x1b[31mred\\x07 é 中"
+    assert printable("a\nb\tc\u200bd") == "a\\nb\\tc\\u200bd"
+    long = printable("x" * 100_000, limit=80)
+    assert len(long) <= 80 and long.startswith("x" * 20) and "99920 more characters" in long
