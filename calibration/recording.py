@@ -60,7 +60,7 @@ class MarkerPlacement:
 @dataclass(frozen=True)
 class MarkerSpec:
     dictionary: str                  # a cv2.aruco predefined dictionary name, "DICT_4X4_50"
-    size_m: float                    # side of the black square
+    size_m: float | None             # side of the black square; None: not given (optional)
     placements: tuple[MarkerPlacement, ...]
 
     def aruco(self) -> cv2.aruco.Dictionary:
@@ -254,7 +254,7 @@ def _marker_spec(t: Table) -> MarkerSpec:
     names = aruco_dictionaries()
     if dictionary not in names:
         raise t.error("dictionary", f"unknown ArUco dictionary {dictionary!r} (e.g. DICT_4X4_50)")
-    size = t.number("size_m", positive=True)
+    size = t.number("size_m", positive=True) if t.has("size_m") else None
     placements = []
     raw = t.array("placement") if t.has("placement") else []
     for i, item in enumerate(raw):
@@ -402,8 +402,9 @@ def setup_toml(fps: float, px_per_m: float, origin_px: tuple[float, float],
               "", "[camera]", f"px_per_m = {_num(px_per_m)}",
               f"origin_px = [{_num(origin_px[0])}, {_num(origin_px[1])}]"]
     if markers is not None:
-        lines += ["", "[markers]", f"dictionary = {json.dumps(markers.dictionary)}",
-                  f"size_m = {_num(markers.size_m)}"]
+        lines += ["", "[markers]", f"dictionary = {json.dumps(markers.dictionary)}"]
+        if markers.size_m is not None:
+            lines.append(f"size_m = {_num(markers.size_m)}")
         for p in markers.placements:
             lines += ["", "[[markers.placement]]", f"id = {p.id}",
                       f"object = {json.dumps(p.object)}",

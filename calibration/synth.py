@@ -290,6 +290,13 @@ def _markers(layout: Layout, wrapped: bool, size_m: float) -> MarkerSpec:
     return MarkerSpec(MARKER_DICTIONARY, size_m, tuple(placements))
 
 
+def _drawn_size_m(markers: MarkerSpec) -> float:
+    """The side of the markers synth draws, which it always states (setup.toml may not)."""
+    if markers.size_m is None:
+        raise ValueError("synth draws markers of a stated size")
+    return markers.size_m
+
+
 def _fit_camera(layout: Layout, s: _States, markers: MarkerSpec, size: tuple[int, int]
                 ) -> SideCamera:
     """The largest whole px_per_m at which the whole test fits the image with margins: every
@@ -299,7 +306,7 @@ def _fit_camera(layout: Layout, s: _States, markers: MarkerSpec, size: tuple[int
     corners = np.einsum("fbij,bcj->fbci", s.rot, half[:, None] * signs[None]) + s.pos[:, :, None]
     xs = [(corners[..., 0] + s.sled_x_m[:, None, None]).ravel()]
     zs = [corners[..., 2].ravel(), [-SLED_DECK_M]]
-    reach = markers.size_m * (0.5 + textures.QUIET_ZONE)
+    reach = _drawn_size_m(markers) * (0.5 + textures.QUIET_ZONE)
     for p in markers.placements:
         if p.object == "sled":
             xs.append(s.sled_x_m + p.offset_m[0] - reach)
@@ -390,10 +397,11 @@ class _Scene:
         self.textures = [cv2.GaussianBlur(t, (0, 0), TEXTURE_OVERSAMPLING / 2.5).astype(np.float32)
                          for t in self.textures]
         aruco = markers.aruco()
-        side = max(aruco.markerSize + 2, round(markers.size_m * tpm))  # its bits and border
+        size_m = _drawn_size_m(markers)
+        side = max(aruco.markerSize + 2, round(size_m * tpm))  # its bits and border
         self.marker_images = {p.id: textures.marker_image(aruco, p.id, side).astype(np.float32)
                               for p in markers.placements}
-        self.marker_face = markers.size_m * (1 + 2 * round(side * textures.QUIET_ZONE) / side)
+        self.marker_face = size_m * (1 + 2 * round(side * textures.QUIET_ZONE) / side)
         names = [b.name for b in layout.bundles]
         self.marker_body = {p.id: 0 if p.object == "sled" else 1 if p.object == "pallet"
                             else 2 + names.index(p.object) for p in markers.placements}

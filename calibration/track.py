@@ -26,16 +26,15 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from calibration.recording import Recording
+from calibration.recording import MarkerSpec, Recording
 from calibration.trajectories import ObjectPath, Trajectories
 from calibration.vision.checks import frame_ranges, swap_warnings
 from calibration.vision.debug_video import DebugVideo
-from calibration.vision.marker_tracks import MARKER_BOX_SIDES, MarkerTracks
+from calibration.vision.marker_tracks import MarkerTracks
 from calibration.vision.markers import MarkerDetector
 from calibration.vision.objects import (
     TrackedObject,
     View,
-    box_size,
     bundles,
     match_template,
     sled_and_pallet,
@@ -53,6 +52,7 @@ from calibration.vision.tracking import (
     make_tracker,
 )
 from calibration.vision.video import VideoReader
+from wrapenv.bench import SLED_DECK_M
 from wrapenv.config import InputError
 
 DEFAULT_TRACKER = "ncc+flow"
@@ -96,6 +96,17 @@ def _check_time_base(rec: Recording, video: VideoReader) -> None:
         raise InputError(str(rec.folder / "profile.csv"), "t_s",
                          f"ends at {rec.profile.t_s[-1]:g} s, before the video's last frame at "
                          f"{end:g} s")
+
+
+def _sled_marker_reach(spec: MarkerSpec | None) -> tuple[float, ...]:
+    """x (sled frame) the region of interest must reach for the sled's markers: their centres
+    +- a side (half a side and as much again for the quiet zone and blur). A marker of unknown
+    size is taken as large as the deck's face, the largest square that fits there."""
+    if spec is None:
+        return ()
+    side = spec.size_m if spec.size_m is not None else SLED_DECK_M
+    return tuple(p.offset_m[0] + s * side for p in spec.placements for s in (-1, 1)
+                 if p.object == "sled")
 
 
 def _debug(path: Path | None, fps: float, size: tuple[int, int]
@@ -157,10 +168,7 @@ class _Run:
         #: objects followed through their markers: the load's, when the web hides it
         self.carriers = ({p.object for p in spec.placements if p.object != "sled"}
                          if spec and recording.wrap is not None else set())
-        #: the sled's markers, which the region of interest must reach (centre +- half a side)
-        sled_marker_x = tuple(p.offset_m[0] + s * spec.size_m for p in spec.placements
-                              for s in (-1, 1) if p.object == "sled") if spec else ()
-        self.roi_extent = unit_extent_m(self.layout, sled_marker_x)
+        self.roi_extent = unit_extent_m(self.layout, _sled_marker_reach(spec))
 
     def frame(self, index: int, bgr: np.ndarray) -> Frame:
         """Grayscale of the frame's region of interest (the whole frame for OpenCV's trackers)."""
@@ -259,7 +267,6 @@ class _Run:
         spec = self.rec.markers
         if self.detector is None or spec is None or not self.carriers:
             return None
-        side = MARKER_BOX_SIDES * spec.size_m * self.pixmap.px_per_m
+        side = None if spec.size_m is None else spec.size_m * self.pixmap.px_per_m
         placements = [p for p in spec.placements if p.object in self.carriers]
-        return MarkerTracks(placements, box_size(side, side), self.detector, multi, self.pixmap,
-                            self.warnings)
+        return MarkerTracks(placements, side, self.detector, multi, self.pixmap, self.warnings)

@@ -18,7 +18,14 @@ import numpy as np
 from calibration.recording import MarkerPlacement
 from calibration.trajectories import ObjectPath
 from calibration.vision.checks import frame_ranges
-from calibration.vision.markers import MarkerDetector, angle_rad, centre_px, rigid_pose
+from calibration.vision.markers import (
+    MarkerDetector,
+    angle_rad,
+    centre_px,
+    rigid_pose,
+    side_px,
+)
+from calibration.vision.objects import box_size
 from calibration.vision.roi import PixelMap
 from calibration.vision.tracking import LOST_SCORE, Frame, MultiTracker, PatchTracker, Pose
 
@@ -40,13 +47,15 @@ def marker_name(marker_id: int) -> str:
 
 class MarkerTracks:
     """Each carried marker followed by a patch tracker on its box from the frame ArUco first
-    sees it in (see the module docstring); warnings go to `warnings`."""
+    sees it in (see the module docstring); warnings go to `warnings`. `side_px`: the markers'
+    side in the image, None when setup.toml does not give their size: then each box is sized
+    from the marker's corners where ArUco first finds it."""
 
-    def __init__(self, placements: list[MarkerPlacement], box_px: tuple[int, int],
+    def __init__(self, placements: list[MarkerPlacement], side_px: float | None,
                  detector: MarkerDetector, multi: MultiTracker, pixmap: PixelMap,
                  warnings: list[str]) -> None:
         self.placements = {p.id: p for p in placements}
-        self.box, self.detector, self.multi = box_px, detector, multi
+        self.side_px, self.detector, self.multi = side_px, detector, multi
         self.pixmap, self.warnings = pixmap, warnings
         #: the object's rotation in the frame its marker was first seen (0 at rest, frame 0)
         self.theta0: dict[int, float] = {}
@@ -63,8 +72,10 @@ class MarkerTracks:
             if placement is None or i in self.theta0 or i in self.unusable:
                 continue
             centre = centre_px(corners)
+            side = MARKER_BOX_SIDES * (self.side_px or side_px(corners))
             try:
-                tracker = PatchTracker(frame, (float(centre[0]), float(centre[1])), self.box)
+                tracker = PatchTracker(frame, (float(centre[0]), float(centre[1])),
+                                       box_size(side, side))
             except ValueError as exc:
                 self.unusable.add(i)
                 self.warnings.append(f"marker {i} ({placement.object}): cannot be followed "

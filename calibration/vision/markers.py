@@ -63,6 +63,11 @@ def centre_px(corners: np.ndarray) -> np.ndarray:
     return corners.mean(axis=0)
 
 
+def side_px(corners: np.ndarray) -> float:
+    """A marker's side in the image: the mean length of its four edges."""
+    return float(np.linalg.norm(corners - np.roll(corners, 1, axis=0), axis=1).mean())
+
+
 def angle_rad(corners: np.ndarray) -> float:
     """Rotation of a marker from upright, world convention (counter-clockwise, z up): the mean
     direction of its top and bottom edges."""

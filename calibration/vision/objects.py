@@ -74,16 +74,20 @@ def sled_and_pallet(view: View, sled_x0_m: float) -> list[TrackedObject]:
 def sled_start_m(view: View, found: dict[int, np.ndarray],
                  sled_offsets_m: dict[int, tuple[float, float]], warnings: list[str]) -> float:
     """The sled's x at frame 0: from its markers (`found`: ArUco's corners by id) when they are
-    seen, else the profile's; the distance between two of them checks setup.toml's scale."""
+    seen, else the profile's; the distance between two of them checks setup.toml's scale (it
+    needs no marker size), and a warning says when it cannot."""
+    seen = {i: (found[i], offset) for i, offset in sled_offsets_m.items() if i in found}
+    if not seen:
+        warnings.append("sled markers not found in frame 0: the sled starts where profile.csv "
+                        "puts it and setup.toml's camera.px_per_m is not cross-checked")
+        return view.sled_x0_m
+    if len(seen) == 1:
+        warnings.append(f"only one sled marker ({next(iter(seen))}) seen in frame 0: "
+                        "setup.toml's camera.px_per_m is not cross-checked")
     scale = scale_warning(baseline_scale(found, sled_offsets_m), view.pixmap.px_per_m)
     if scale:
         warnings.append(scale)
-    seen = [(found[i], offset) for i, offset in sled_offsets_m.items() if i in found]
-    if not seen:
-        warnings.append("sled markers not found in frame 0: the sled starts where profile.csv "
-                        "puts it")
-        return view.sled_x0_m
-    return object_pose(seen, view.pixmap).x_m
+    return object_pose(list(seen.values()), view.pixmap).x_m
 
 
 def front_row(layout: Layout) -> dict[str, tuple[float, float, float, float]]:

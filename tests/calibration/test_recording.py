@@ -4,6 +4,7 @@ one `InputError` naming file and field for each way a folder can be wrong."""
 from __future__ import annotations
 
 import shutil
+import tomllib
 from collections.abc import Callable
 from pathlib import Path
 
@@ -58,7 +59,6 @@ def test_setup_round_trips_markers_and_template():
     spec = MarkerSpec("DICT_5X5_100", 0.05,
                       (MarkerPlacement(7, "pallet", (0.5, 0.0)),
                        MarkerPlacement(9, "L2C1R1", (-0.1, 0.12))))
-    import tomllib
     data = tomllib.loads(setup_toml(25.0, 412.0, (960.5, 1001.0), spec, "t.png"))
     assert data["template"] == "t.png" and data["recording"]["fps"] == 25.0
     assert data["camera"] == {"px_per_m": 412.0, "origin_px": [960.5, 1001.0]}
@@ -226,3 +226,14 @@ def test_missing_template_is_one_line_without_opencv_noise(copy_of, capfd, asser
         Recording.read(folder)
     assert_input_error(err.value, str(folder / "setup.toml"), "template")
     assert capfd.readouterr().err == ""
+
+
+def test_marker_size_is_optional(copy_of):
+    """CONTRACTS.md: `markers.size_m` may be left out (a lab may not know the printed size)."""
+    folder = copy_of()
+    _edit("setup.toml", "size_m = 0.075\n", "")(folder)
+    rec = Recording.read(folder)
+    assert rec.markers is not None and rec.markers.size_m is None
+    assert len(rec.markers.placements) == 2
+    written = tomllib.loads(setup_toml(10.0, 240.0, (0.0, 0.0), rec.markers))
+    assert "size_m" not in written["markers"]

@@ -102,6 +102,52 @@ def test_scale_check_on_the_sled_markers(recording_dir: Path, tmp_path: Path) ->
     assert any("px/m" in w and "(-2.9 %)" in w for w in warnings), warnings
 
 
+def _without_marker_size(folder: Path, tmp_path: Path) -> Path:
+    copy = tmp_path / "no-size"
+    shutil.copytree(folder, copy)
+    setup = copy / "setup.toml"
+    text, n = re.subn(r"size_m = [0-9.]+\n", "", setup.read_text())
+    assert n == 1
+    setup.write_text(text)
+    return copy
+
+
+def test_wrapped_unit_without_marker_size(wrapped_dir: Path, tmp_path: Path) -> None:
+    """Without setup.toml's markers.size_m the markers still name and locate every object:
+    their boxes are sized from the corners ArUco finds, as accurately as from the size."""
+    rec = Recording.read(_without_marker_size(wrapped_dir, tmp_path))
+    assert rec.markers is not None and rec.markers.size_m is None
+    result = track(rec)
+    assert set(result.trajectories.objects) == {"sled", "pallet", "L1C1R1", "L1C2R1", "L2C1R1",
+                                                "L2C2R1"}
+    _check_accuracy(rec, result.trajectories)
+    assert result.warnings == []
+
+
+def test_scale_check_without_marker_size(recording_dir: Path, tmp_path: Path) -> None:
+    """The sled markers' distance checks the scale from their placements: no size needed."""
+    folder = _without_marker_size(recording_dir, tmp_path)
+    setup = folder / "setup.toml"
+    setup.write_text(re.sub(r"px_per_m = ([0-9.]+)",
+                            lambda m: f"px_per_m = {1.03 * float(m.group(1))!r}",
+                            setup.read_text()))
+    warnings = track(Recording.read(folder)).warnings
+    assert any("px/m" in w and "(-2.9 %)" in w for w in warnings), warnings
+
+
+def test_scale_left_unchecked_is_said(recording_dir: Path, tmp_path: Path) -> None:
+    """With one sled marker declared there is no distance to check the scale by: a warning,
+    where the check used to be skipped silently."""
+    folder = tmp_path / "one"
+    shutil.copytree(recording_dir, folder)
+    setup = folder / "setup.toml"
+    blocks = setup.read_text().split("[[markers.placement]]")
+    setup.write_text("[[markers.placement]]".join(blocks[:2]))
+    warnings = track(Recording.read(folder)).warnings
+    assert warnings == ["only one sled marker (0) seen in frame 0: setup.toml's camera.px_per_m "
+                        "is not cross-checked"], warnings
+
+
 def _copy(rec: Recording, tmp_path: Path) -> Path:
     folder = tmp_path / "copy"
     shutil.copytree(rec.folder, folder)
