@@ -14,7 +14,7 @@ import os
 import signal
 import sys
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
@@ -101,6 +101,18 @@ def terminate_as_interrupt() -> Iterator[None]:
         signal.signal(signal.SIGTERM, previous)
 
 
+@contextmanager
+def _frame_bar() -> Iterator[Callable[[int, int], None]]:
+    """A progress bar of frames on stderr (none when stderr is not a terminal), fed by a
+    `progress(frame, frames)` callback."""
+    with tqdm(desc="frames", unit="frame", leave=False, disable=None) as bar:
+        def progress(frame: int, frames: int) -> None:
+            bar.total = frames
+            bar.update(frame - bar.n)
+
+        yield progress
+
+
 def run_synth(args: argparse.Namespace) -> int:
     from calibration.synth import synthesize
 
@@ -112,11 +124,11 @@ def run_synth(args: argparse.Namespace) -> int:
             raise InputError("arguments", flag, f"must be > 0 (got {value})")
     t0 = time.perf_counter()
     try:
-        with terminate_as_interrupt():
+        with terminate_as_interrupt(), _frame_bar() as progress:
             rec = synthesize(load, args.out, wrap=wrap, level_g=args.level, seed=args.seed,
                              size=args.size, fps=args.fps, friction_jitter=args.friction_jitter,
                              stiffness_scale=args.stiffness_scale,
-                             tension_scale=args.tension_scale)
+                             tension_scale=args.tension_scale, progress=progress)
     except InputError as exc:
         option = SYNTH_FLAGS.get((exc.source, exc.field))
         if option is None:
@@ -149,11 +161,7 @@ def run_track(args: argparse.Namespace) -> int:
     if args.debug_video is not None and _same_place(args.debug_video, out):
         raise InputError(str(out), "--debug-video", "is also --out")
     t0 = time.perf_counter()
-    with tqdm(desc="frames", unit="frame", leave=False, disable=None) as bar:
-        def progress(frame: int, frames: int) -> None:
-            bar.total = frames
-            bar.update(frame + 1 - bar.n)
-
+    with _frame_bar() as progress:
         with terminate_as_interrupt():
             result = track(rec, tracker=args.tracker, debug_video=args.debug_video,
                            progress=progress)

@@ -18,7 +18,7 @@ import math
 import os
 import shutil
 import tempfile
-from collections.abc import Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
@@ -90,12 +90,14 @@ def synthesize(load: LoadUnit, out_dir: str | Path, *, wrap: WrapFormat | None =
                level_g: float = 0.4, seed: int = 0, size: tuple[int, int] = (1920, 1200),
                fps: float = 20.0, friction_jitter: float = 0.0, pre_roll_s: float = 0.25,
                stiffness_scale: float = 1.0, tension_scale: float = 1.0,
-               marker_size_m: float = 0.06, settings: SimSettings | None = None) -> Recording:
+               marker_size_m: float = 0.06, settings: SimSettings | None = None,
+               progress: Callable[[int, int], None] | None = None) -> Recording:
     """Simulate one level of `load` and write its recording folder to `out_dir` (which must not
     exist or be empty). `friction_jitter` draws the true friction of each pair from the load's
     values times U(1 - j, 1 + j) (seeded); the wrap's stiffness and tension are scaled as a
     calibration would find them. load.toml and wrap.toml hold the load and wrap as given, the
-    truth holds what was simulated. Returns the recording as `Recording.read` reads it."""
+    truth holds what was simulated; `progress(frame, frames)` is called as each frame is
+    written. Returns the recording as `Recording.read` reads it."""
     out_dir = Path(out_dir)
     _check_arguments(out_dir, size, fps, friction_jitter, pre_roll_s, marker_size_m)
     pulse = PulseProfile(level_g)
@@ -129,7 +131,7 @@ def synthesize(load: LoadUnit, out_dir: str | Path, *, wrap: WrapFormat | None =
                        torn_net(true_wrap, layout, trace) if true_wrap is not None else None,
                        None if wrap is None else (PAPER_ALPHA if is_paper(wrap) else FILM_ALPHA))
         with scene:
-            write_video(tmp / VIDEO_NAME, scene.frames(states), fps, size)
+            write_video(tmp / VIDEO_NAME, scene.frames(states, progress), fps, size)
             write_atomic(tmp / "template.png", _png(scene.template(states)))
         write_profile(tmp, profile)
         write_setup(tmp, fps, camera.px_per_m, camera.origin_px,  # type: ignore[arg-type]
@@ -490,9 +492,12 @@ class _Scene:
         self._draw_markers(image, shade, mask, pos, rot, sled_x)
         return self._camera_effects(image, i, float(s.t_s[i]), float(s.t_s[-1]))
 
-    def frames(self, s: _States) -> Iterator[np.ndarray]:
+    def frames(self, s: _States, progress: Callable[[int, int], None] | None = None
+               ) -> Iterator[np.ndarray]:
         for i in range(len(s.t_s)):
             yield self.frame(s, i)
+            if progress:
+                progress(i + 1, len(s.t_s))
 
     def template(self, s: _States) -> np.ndarray:
         """The front of bundle L1C1R1 (or the first bundle) at rest as the camera sees it,

@@ -192,3 +192,11 @@ def test_sigterm_leaves_no_staging_folder(tmp_path, small_load):
     assert proc.returncode == 130, err
     assert err.strip().splitlines() == ["wrapbench synth: interrupted, nothing written"]
     assert list((tmp_path / "runs").iterdir()) == []
+
+
+def test_progress_is_reported_per_frame(tmp_path, small_load):
+    calls = []
+    rec = synthesize(small_load, tmp_path / "rec", progress=lambda k, n: calls.append((k, n)),
+                     **TINY)
+    frames = len(Truth.read(rec.folder).objects["sled"].t_s)
+    assert calls == [(k, frames) for k in range(1, frames + 1)]
