@@ -27,17 +27,15 @@ import cv2
 import numpy as np
 
 from calibration import textures
+from calibration.camera_setup import MarkerPlacement, MarkerSpec, write_setup
 from calibration.recording import (
     LOAD,
     WRAP,
-    MarkerPlacement,
-    MarkerSpec,
     ObjectTrack,
     Recording,
     SledProfile,
     Truth,
     write_profile,
-    write_setup,
     write_truth,
 )
 from wrapenv.bench import SLED_DECK_M, SLED_MARGIN_M, STOPPER_SIZE_M, SimSettings, run_level

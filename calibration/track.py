@@ -26,7 +26,8 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from calibration.recording import MarkerSpec, Recording
+from calibration.camera_setup import MarkerSpec
+from calibration.recording import Recording
 from calibration.trajectories import ObjectPath, Trajectories
 from calibration.vision.checks import frame_ranges, swap_warnings
 from calibration.vision.debug_video import DebugVideo

@@ -15,7 +15,7 @@ import math
 
 import numpy as np
 
-from calibration.recording import MarkerPlacement
+from calibration.camera_setup import MarkerPlacement
 from calibration.trajectories import ObjectPath
 from calibration.vision.checks import frame_ranges
 from calibration.vision.markers import (

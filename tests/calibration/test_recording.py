@@ -4,21 +4,13 @@ one `InputError` naming file and field for each way a folder can be wrong."""
 from __future__ import annotations
 
 import shutil
-import tomllib
 from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-from calibration.recording import (
-    MarkerPlacement,
-    MarkerSpec,
-    Recording,
-    SledProfile,
-    Truth,
-    setup_toml,
-)
+from calibration.recording import Recording, SledProfile, Truth
 from wrapenv.config import InputError, read_toml
 
 
@@ -53,17 +45,6 @@ def test_profile_round_trips_through_csv(tmp_path):
     back = SledProfile.read(tmp_path / "profile.csv")
     for key in ("t_s", "accel_mps2", "vel_mps", "pos_m"):
         np.testing.assert_array_equal(getattr(back, key), getattr(profile, key))
-
-
-def test_setup_round_trips_markers_and_template():
-    spec = MarkerSpec("DICT_5X5_100", 0.05,
-                      (MarkerPlacement(7, "pallet", (0.5, 0.0)),
-                       MarkerPlacement(9, "L2C1R1", (-0.1, 0.12))))
-    data = tomllib.loads(setup_toml(25.0, 412.0, (960.5, 1001.0), spec, "t.png"))
-    assert data["template"] == "t.png" and data["recording"]["fps"] == 25.0
-    assert data["camera"] == {"px_per_m": 412.0, "origin_px": [960.5, 1001.0]}
-    assert data["markers"]["placement"][1] == {"id": 9, "object": "L2C1R1",
-                                               "offset_m": [-0.1, 0.12]}
 
 
 def _edit(name: str, old: str, new: str) -> Callable[[Path], None]:
@@ -235,5 +216,3 @@ def test_marker_size_is_optional(copy_of):
     rec = Recording.read(folder)
     assert rec.markers is not None and rec.markers.size_m is None
     assert len(rec.markers.placements) == 2
-    written = tomllib.loads(setup_toml(10.0, 240.0, (0.0, 0.0), rec.markers))
-    assert "size_m" not in written["markers"]
