@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from vision_frames import texture
 
-from calibration.synth import write_video
+from calibration.filming import write_video
 from calibration.vision.video import VideoReader
 
 FRAMES = 12
