@@ -24,6 +24,7 @@ import cv2
 import numpy as np
 
 from calibration.camera_setup import SETUP, MarkerSpec, Setup, check_markers, exact
+from calibration.vision.video import open_video
 from wrapenv.config import InputError, read_json, read_toml, write_atomic
 from wrapenv.load import LoadUnit
 from wrapenv.render import SideCamera
@@ -169,7 +170,7 @@ class Recording:
 
     def video_size(self) -> tuple[int, int]:
         """(width, height) of the video's frames."""
-        cap = _open_video(self.video)
+        cap = open_video(self.video)
         try:
             return (int(cap.get(cv2.CAP_PROP_FRAME_WIDTH)), int(cap.get(cv2.CAP_PROP_FRAME_HEIGHT)))
         finally:
@@ -184,17 +185,9 @@ def _find_video(folder: Path) -> Path:
     raise InputError(str(folder / VIDEOS[0]), "", f"missing (neither {' nor '.join(VIDEOS)})")
 
 
-def _open_video(path: Path) -> cv2.VideoCapture:
-    cap = cv2.VideoCapture(str(path))
-    if not cap.isOpened():
-        cap.release()
-        raise InputError(str(path), "", "cannot open the video (unknown or damaged container)")
-    return cap
-
-
 def _check_video(path: Path, fps: float, setup_src: str) -> int:
     """The number of frames, after checking that they decode and run at `fps`."""
-    cap = _open_video(path)
+    cap = open_video(path)
     try:
         ok, _ = cap.read()
         frames = int(cap.get(cv2.CAP_PROP_FRAME_COUNT))

@@ -11,6 +11,7 @@ cut exactly between two frames loses one good frame to this).
 
 from __future__ import annotations
 
+import os
 from collections.abc import Iterator
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
@@ -20,16 +21,26 @@ import numpy as np
 
 from wrapenv.config import InputError
 
+# FFmpeg's own log (read when OpenCV first opens a video) would print lines such as "[mjpeg @
+# 0x...] overread 8" on a damaged file; what matters is said once, as an error or a warning.
+os.environ.setdefault("OPENCV_FFMPEG_LOGLEVEL", "-8")  # AV_LOG_QUIET
+
+
+def open_video(path: Path) -> cv2.VideoCapture:
+    """An opened capture of the video at `path`; `InputError` when it cannot be opened."""
+    cap = cv2.VideoCapture(str(path))
+    if not cap.isOpened():
+        cap.release()
+        raise InputError(str(path), "", "cannot open the video (unknown or damaged container)")
+    return cap
+
 
 class VideoReader:
     """A video's frames in order (BGR); `stated` frames per the container, `decoded` so far."""
 
     def __init__(self, path: Path) -> None:
         self.path = path
-        self.cap = cv2.VideoCapture(str(path))
-        if not self.cap.isOpened():
-            self.cap.release()
-            raise InputError(str(path), "", "cannot open the video")
+        self.cap = open_video(path)
         self.stated = int(self.cap.get(cv2.CAP_PROP_FRAME_COUNT))
         self.fps = float(self.cap.get(cv2.CAP_PROP_FPS))
         self.size = (int(self.cap.get(cv2.CAP_PROP_FRAME_WIDTH)),
