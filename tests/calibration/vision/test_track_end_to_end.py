@@ -89,11 +89,16 @@ def test_wrapped_small_follows_marker_patches(wrapped_dir: Path) -> None:
     assert result.warnings == []
 
 
-def test_scale_check_on_the_sled_markers(recording_dir: Path, tmp_path: Path) -> None:
-    """The distance between the sled's markers agrees with setup.toml's scale; 3 % off warns."""
-    assert not any("px/m" in w for w in track(Recording.read(recording_dir)).warnings)
+@pytest.mark.parametrize("marker_size", [True, False], ids=["size_m", "no size_m"])
+def test_scale_check_on_the_sled_markers(marker_size: bool, recording_dir: Path,
+                                         tmp_path: Path) -> None:
+    """The distance between the sled's markers agrees with setup.toml's scale; 3 % off warns.
+    The distance comes from their placements: markers.size_m is not needed."""
     folder = tmp_path / "scaled"
     shutil.copytree(recording_dir, folder)
+    if not marker_size:
+        _drop_marker_size(folder)
+    assert not any("px/m" in w for w in track(Recording.read(folder)).warnings)
     setup = folder / "setup.toml"
     setup.write_text(re.sub(r"px_per_m = ([0-9.]+)",
                             lambda m: f"px_per_m = {1.03 * float(m.group(1))!r}",
@@ -102,37 +107,26 @@ def test_scale_check_on_the_sled_markers(recording_dir: Path, tmp_path: Path) ->
     assert any("px/m" in w and "(-2.9 %)" in w for w in warnings), warnings
 
 
-def _without_marker_size(folder: Path, tmp_path: Path) -> Path:
-    copy = tmp_path / "no-size"
-    shutil.copytree(folder, copy)
-    setup = copy / "setup.toml"
+def _drop_marker_size(folder: Path) -> None:
+    setup = folder / "setup.toml"
     text, n = re.subn(r"size_m = [0-9.]+\n", "", setup.read_text())
     assert n == 1
     setup.write_text(text)
-    return copy
 
 
 def test_wrapped_unit_without_marker_size(wrapped_dir: Path, tmp_path: Path) -> None:
     """Without setup.toml's markers.size_m the markers still name and locate every object:
     their boxes are sized from the corners ArUco finds, as accurately as from the size."""
-    rec = Recording.read(_without_marker_size(wrapped_dir, tmp_path))
+    folder = tmp_path / "no-size"
+    shutil.copytree(wrapped_dir, folder)
+    _drop_marker_size(folder)
+    rec = Recording.read(folder)
     assert rec.markers is not None and rec.markers.size_m is None
     result = track(rec)
     assert set(result.trajectories.objects) == {"sled", "pallet", "L1C1R1", "L1C2R1", "L2C1R1",
                                                 "L2C2R1"}
     _check_accuracy(rec, result.trajectories)
     assert result.warnings == []
-
-
-def test_scale_check_without_marker_size(recording_dir: Path, tmp_path: Path) -> None:
-    """The sled markers' distance checks the scale from their placements: no size needed."""
-    folder = _without_marker_size(recording_dir, tmp_path)
-    setup = folder / "setup.toml"
-    setup.write_text(re.sub(r"px_per_m = ([0-9.]+)",
-                            lambda m: f"px_per_m = {1.03 * float(m.group(1))!r}",
-                            setup.read_text()))
-    warnings = track(Recording.read(folder)).warnings
-    assert any("px/m" in w and "(-2.9 %)" in w for w in warnings), warnings
 
 
 def test_scale_left_unchecked_is_said(recording_dir: Path, tmp_path: Path) -> None:
