@@ -27,7 +27,7 @@ import cv2
 import numpy as np
 
 from calibration.camera_setup import MarkerSpec
-from calibration.recording import Recording
+from calibration.recording import FPS_TOLERANCE, Recording
 from calibration.trajectories import ObjectPath, Trajectories
 from calibration.vision.checks import frame_ranges, swap_warnings
 from calibration.vision.debug_video import DebugVideo
@@ -57,8 +57,6 @@ from wrapenv.bench import SLED_DECK_M
 from wrapenv.config import InputError
 
 DEFAULT_TRACKER = "ncc+flow"
-#: Container and setup frame rates may differ by this fraction.
-FPS_TOLERANCE = 1e-3
 
 Progress = Callable[[int, int], None]
 
@@ -112,7 +110,8 @@ def _sled_marker_reach(spec: MarkerSpec | None) -> tuple[float, ...]:
 
 def _debug(path: Path | None, fps: float, size: tuple[int, int]
            ) -> AbstractContextManager[DebugVideo | None]:
-    """The debug video, closed on leaving; nothing when none was asked for."""
+    """The debug video, whole when the block ends normally and absent when it raises; nothing
+    when none was asked for."""
     return DebugVideo(path, fps, size) if path is not None else nullcontext()
 
 
