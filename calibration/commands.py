@@ -11,7 +11,6 @@ import argparse
 import json
 import math
 import os
-import signal
 import sys
 import time
 from collections.abc import Callable, Iterator
@@ -43,9 +42,8 @@ def level_g(text: str) -> float:
     return value
 
 
-def add_synth(sub: argparse._SubParsersAction, level_type: object = None) -> None:
-    """The synth subcommand. `level_type` is not used (levels are parsed by `level_g`): it is
-    accepted until recommender.cli stops passing its own."""
+def add_synth(sub: argparse._SubParsersAction) -> None:
+    """The synth subcommand."""
     p = sub.add_parser("synth", help="make a synthetic bench recording with ground truth")
     p.add_argument("load", type=Path, help="LOAD.toml")
     p.add_argument("--out", type=Path, required=True, metavar="DIR",
@@ -88,20 +86,6 @@ def _size(text: str) -> tuple[int, int]:
 
 
 @contextmanager
-def terminate_as_interrupt() -> Iterator[None]:
-    """SIGTERM unwinds like Ctrl-C (KeyboardInterrupt) inside the block, so what a command has
-    half written is removed on the way out; the default action would just end the process."""
-    def interrupt(signum: int, frame: object) -> None:
-        raise KeyboardInterrupt
-
-    previous = signal.signal(signal.SIGTERM, interrupt)
-    try:
-        yield
-    finally:
-        signal.signal(signal.SIGTERM, previous)
-
-
-@contextmanager
 def _frame_bar() -> Iterator[Callable[[int, int], None]]:
     """A progress bar of frames on stderr (none when stderr is not a terminal), fed by a
     `progress(frame, frames)` callback."""
@@ -117,14 +101,14 @@ def run_synth(args: argparse.Namespace) -> int:
     from calibration.synth import synthesize
 
     load = LoadUnit.from_toml(args.load)
-    wrap = WrapFormat.from_toml(args.wrap) if args.wrap else None
+    wrap = WrapFormat.from_toml(args.wrap, load.load_height_m) if args.wrap else None
     for flag, value in (("--stiffness-scale", args.stiffness_scale),
                         ("--tension-scale", args.tension_scale)):
         if not (math.isfinite(value) and value > 0):
             raise InputError("arguments", flag, f"must be > 0 (got {value})")
     t0 = time.perf_counter()
     try:
-        with terminate_as_interrupt(), _frame_bar() as progress:
+        with _frame_bar() as progress:
             rec = synthesize(load, args.out, wrap=wrap, level_g=args.level, seed=args.seed,
                              size=args.size, fps=args.fps, friction_jitter=args.friction_jitter,
                              stiffness_scale=args.stiffness_scale,
@@ -162,9 +146,8 @@ def run_track(args: argparse.Namespace) -> int:
         raise InputError(str(out), "--debug-video", "is also --out")
     t0 = time.perf_counter()
     with _frame_bar() as progress:
-        with terminate_as_interrupt():
-            result = track(rec, tracker=args.tracker, debug_video=args.debug_video,
-                           progress=progress)
+        result = track(rec, tracker=args.tracker, debug_video=args.debug_video,
+                       progress=progress)
     wall = time.perf_counter() - t0
     result.trajectories.to_csv(out)
     for warning in result.warnings:

@@ -15,6 +15,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from calibration import commands
+from calibration.commands import level_g
 from recommender import commands as bench_commands
 from recommender.parallel import BACKENDS
 from recommender.uncertainty import TRANSPORT_HOURS
@@ -32,15 +33,15 @@ class _Parser(argparse.ArgumentParser):
         sys.exit(2)
 
 
-def _g(text: str) -> float:
-    """A finite number (argparse names this function in its message: "invalid number value")."""
-    value = float(text)
+def _number(text: str) -> float:
+    """argparse's type for a finite number (hours, seconds, weights); its errors say so."""
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
     if not math.isfinite(value):
-        raise argparse.ArgumentTypeError(f"not a finite number: {text!r}")
+        raise argparse.ArgumentTypeError(f"expected a number (got {text!r})")
     return value
-
-
-_g.__name__ = "number"
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -52,18 +53,18 @@ def build_parser() -> argparse.ArgumentParser:
                      help="wrap the unit by this program or these bands (default: unwrapped)")
     sim.add_argument("--calibration", type=Path,
                      help="CAL.json with fitted friction (and wrap stiffness and tension scales)")
-    sim.add_argument("--level", type=_g, action="append", metavar="G",
+    sim.add_argument("--level", type=level_g, action="append", metavar="G",
                      help="test level in g (repeatable)")
     sim.add_argument("--eumos", action="store_true",
                      help="EUMOS sequence from --start up to --target, stopping at the first "
                           "failure (the default when no level or profile is given)")
-    sim.add_argument("--target", type=_g, default=0.5, metavar="G", help="default 0.5 g")
-    sim.add_argument("--start", type=_g, metavar="G",
+    sim.add_argument("--target", type=level_g, default=0.5, metavar="G", help="default 0.5 g")
+    sim.add_argument("--start", type=level_g, metavar="G",
                      help="first level (default 0.2 g, or the target when it is lower)")
     sim.add_argument("--profile", type=Path, help="drive the sled by a measured profile.csv")
     sim.add_argument("--orientation", choices=("long", "short"),
                      help="pallet side along the motion (default: as the load file lays it out)")
-    sim.add_argument("--hours-since-wrapping", type=_g, default=0.0, metavar="H",
+    sim.add_argument("--hours-since-wrapping", type=_number, default=0.0, metavar="H",
                      help="test the wrap after its tension relaxed for H hours (default 0)")
     sim.add_argument("--json", type=Path, metavar="OUT", help="write the verdict as JSON")
     sim.add_argument("--plot", type=Path, metavar="OUT.png", help="plot displacement vs time")
@@ -74,7 +75,7 @@ def build_parser() -> argparse.ArgumentParser:
                      help="LOAD.toml (default: the bundled 2-layer example)")
     rec.add_argument("--calibration", type=Path, help="CAL.json (friction and its uncertainty)")
     rec.add_argument("--material", default="kraft", help="kraft (default) or lldpe")
-    rec.add_argument("--target", type=_g, default=0.5, metavar="G", help="default 0.5 g")
+    rec.add_argument("--target", type=level_g, default=0.5, metavar="G", help="default 0.5 g")
     rec.add_argument("--method", choices=("cmaes", "ppo"), default="cmaes",
                      help="cmaes: robust search (default); ppo: a trained policy's proposal, "
                           "verified in simulation (needs --policy)")
@@ -98,16 +99,16 @@ def build_parser() -> argparse.ArgumentParser:
     rec.add_argument("--orientation", choices=("long", "short", "both"), default="both",
                      help="pallet side(s) along the motion a program must pass (default both: "
                           "a load is only as safe as its weaker orientation)")
-    rec.add_argument("--target-long", type=_g, metavar="G",
+    rec.add_argument("--target-long", type=level_g, metavar="G",
                      help="target with the long side along the motion (default --target)")
-    rec.add_argument("--target-short", type=_g, metavar="G",
+    rec.add_argument("--target-short", type=level_g, metavar="G",
                      help="target with the short side along the motion (default --target)")
-    rec.add_argument("--hours-since-wrapping", type=_g, default=TRANSPORT_HOURS, metavar="H",
+    rec.add_argument("--hours-since-wrapping", type=_number, default=TRANSPORT_HOURS, metavar="H",
                      help=f"hours the wrap relaxes before the road (default {TRANSPORT_HOURS:g}: "
                           "ASTM D5414 rests a wrapped load 16 h before testing)")
-    rec.add_argument("--max-cycle-s", type=_g, default=math.inf, metavar="S",
+    rec.add_argument("--max-cycle-s", type=_number, default=math.inf, metavar="S",
                      help="only programs the machine runs within S seconds per pallet")
-    rec.add_argument("--cycle-weight", type=_g, default=0.0, metavar="W",
+    rec.add_argument("--cycle-weight", type=_number, default=0.0, metavar="W",
                      help="price of cycle time: W machine-default programs' web per second "
                           "(default 0: web only)")
     rec.add_argument("--checkpoint", type=Path, metavar="FILE",
@@ -129,10 +130,10 @@ def build_parser() -> argparse.ArgumentParser:
     tr.add_argument("--envs", type=int, default=os.cpu_count() or 1,
                     help="parallel environments (default: all cores)")
     tr.add_argument("--material", default="kraft")
-    tr.add_argument("--target", type=_g, default=0.5, metavar="G")
+    tr.add_argument("--target", type=level_g, default=0.5, metavar="G")
     tr.add_argument("--seed", type=int, default=0)
 
-    commands.add_synth(sub, _g)
+    commands.add_synth(sub)
     commands.add_track(sub)
     commands.add_calibrate(sub)
     return parser

@@ -21,7 +21,7 @@ from recommender.search import Evaluation, Problem, SearchSettings, SearchState,
 from recommender.text import program_text, verdict_table
 from wrapenv.bench import run_levels
 from wrapenv.calibrated import Calibration
-from wrapenv.config import InputError, check_output, write_atomic
+from wrapenv.config import InputError, check_output, printable, write_atomic
 from wrapenv.load import Layout, LoadUnit
 from wrapenv.material import MATERIALS
 from wrapenv.profile import MeasuredProfile, PulseProfile, eumos_levels
@@ -92,8 +92,9 @@ def run_simulate(args: argparse.Namespace) -> int:
     _hours(args.hours_since_wrapping)
     if wrap is not None:
         wrap = wrap.relaxed(args.hours_since_wrapping)
-    check_output(args.json, "--json")
-    check_output(args.plot, "--plot")
+    inputs = [p for p in (args.load, args.wrap, args.calibration, args.profile) if p]
+    check_output(args.json, "--json", inputs=inputs)
+    check_output(args.plot, "--plot", inputs=inputs)
     levels = _levels(args)
     if laid is not None:
         _warn("simulate", laid.warnings())
@@ -189,10 +190,11 @@ def _checkpoint(args: argparse.Namespace) -> Path | None:
 
 
 def _check_outputs(args: argparse.Namespace) -> Path | None:
-    check_output(args.json, "--json")
-    check_output(args.wrap_out, "--wrap-out")
+    inputs = [p for p in (args.load, args.calibration, args.policy) if p]
+    check_output(args.json, "--json", inputs=inputs)
+    check_output(args.wrap_out, "--wrap-out", inputs=inputs)
     checkpoint = _checkpoint(args)
-    check_output(checkpoint, "--checkpoint")
+    check_output(checkpoint, "--checkpoint", inputs=inputs)
     if args.report is not None and args.report.exists() and not args.report.is_dir():
         raise InputError(str(args.report), "--report", "exists and is not a folder")
     if args.resume and (checkpoint is None or not checkpoint.exists()):
@@ -298,7 +300,8 @@ def _propose_with_policy(args: argparse.Namespace, problem: Problem,
 def _print_recommendation(problem: Problem, best: Evaluation, check: Verification) -> None:
     s, p = problem.settings, check.probability
     low, high = p.interval
-    print(f"recommended wrapping program for {problem.load.name}: passes {_targets_text(s)}, "
+    print(f"recommended wrapping program for {printable(problem.load.name)}: passes "
+          f"{_targets_text(s)}, "
           f"{s.hours_since_wrapping:g} h after wrapping, in {p.passed} of {p.samples} samples "
           f"of what the bench does not know (pass probability {p.estimate:.0%}, 95 % interval "
           f"{low:.0%}-{high:.0%}; search margin {best.margin:.2f})")
@@ -359,7 +362,11 @@ def run_train(args: argparse.Namespace) -> int:
     _target(args.target)
     if args.out.exists() and not args.out.is_dir():
         raise InputError(str(args.out), "--out", "exists and is not a folder")
-    args.out.mkdir(parents=True, exist_ok=True)
+    try:
+        args.out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise InputError(str(args.out), "--out", f"cannot be created ({exc.strerror})") from None
+    check_output(args.out / "policy.zip", "--out")
     settings = TrainSettings(timesteps=args.timesteps, n_envs=args.envs, material=args.material,
                              target_g=args.target, seed=args.seed)
     path = train(settings, args.out)

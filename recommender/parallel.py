@@ -70,12 +70,11 @@ class ProcessPool(ProcessPoolExecutor):
     """
 
     def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None,
-                 tb: TracebackType | None) -> bool:
+                 tb: TracebackType | None) -> None:
         if exc_type is None:
             self.shutdown(wait=True)
         else:
             self.terminate()
-        return False
 
     def terminate(self) -> None:
         previous = signal.signal(signal.SIGINT, signal.SIG_IGN)

@@ -84,7 +84,7 @@ def write_video(trace: Trace, layout: Layout, wrap: WrapFormat | None, path: str
     step = max(1, round(1 / (fps * float(np.median(np.diff(trace.t_s))))))
     net = torn_net(wrap, layout, trace) if wrap is not None else None
     tmp = path.with_name(f".{path.stem}.tmp.mp4")
-    writer = cv2.VideoWriter(str(tmp), cv2.VideoWriter_fourcc(*"mp4v"), fps, size)
+    writer = cv2.VideoWriter(str(tmp), cv2.VideoWriter.fourcc(*"mp4v"), fps, size)
     try:
         with Renderer(layout, fitting_camera(layout, *size)) as renderer:
             for i in range(0, len(trace.t_s), step):

@@ -4,6 +4,7 @@ operator enters it, with the web it lays and the time it takes."""
 from __future__ import annotations
 
 from wrapenv.bench import BenchRun
+from wrapenv.config import printable
 from wrapenv.eumos import LevelVerdict
 from wrapenv.load import Layout, LoadUnit
 from wrapenv.program import Pass, Program
@@ -32,7 +33,7 @@ def verdict_table(load: LoadUnit, run: BenchRun, orientation: str | None) -> str
     layout = load.layout(orientation)  # type: ignore[arg-type]
     v = run.verdict
     lines = [
-        f"{load.name}: {len(layout.bundles)} bundles, {load.stack.layers} layers "
+        f"{printable(load.name)}: {len(layout.bundles)} bundles, {load.stack.layers} layers "
         f"({load.stack.pattern}), load height {v.load_height_m:.3f} m, {load.mass_kg:.0f} kg",
         f"EUMOS 40509 limits: elastic <= {100 * v.load_height_m:.1f} mm, permanent <= "
         f"{50 * v.load_height_m:.1f} mm, lowest 20 cm < 40 mm, no damage",
@@ -69,7 +70,8 @@ def program_text(wrap: WrapFormat, layout: Layout) -> str:
     """The program step by step (what the carriage does, in order), then the web it lays and
     the cycle time. A band form is listed as the full-width revolutions a machine needs."""
     what = "wrapping program" if wrap.program is not None else "bands, laid as"
-    lines = [f"{what}: {wrap.material.name}, web {wrap.web_width_m:.2f} m, {wrap.rpm:g} rpm",
+    lines = [f"{what}: {printable(wrap.material.name)}, web {wrap.web_width_m:.2f} m, "
+             f"{wrap.rpm:g} rpm",
              "step  zone           wraps  overlap  carriage (web's lower edge)        tension N"]
     lines += [_step(i, p, wrap, layout.load_height_m) for i, p in enumerate(wrap.passes, 1)]
     used = wrap.material_used_on(layout)

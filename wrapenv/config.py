@@ -39,17 +39,33 @@ def read_toml(path: str | Path) -> dict[str, Any]:
 
 
 def read_json(path: str | Path) -> dict[str, Any]:
-    """Parse a JSON object file, turning I/O and syntax errors into `InputError`."""
+    """Parse a JSON object file, turning I/O and syntax errors into `InputError`. A key given
+    twice in one object is an error (JSON allows it and keeps the last: a silent typo)."""
     path = Path(path)
     try:
-        data = json.loads(path.read_text())
+        data = json.loads(path.read_text(), object_pairs_hook=_unique_keys)
     except OSError as exc:
         raise InputError(str(path), "", f"cannot read file ({exc.strerror or exc})") from None
+    except _DuplicateKey as exc:
+        raise InputError(str(path), str(exc), "given twice") from None
     except (json.JSONDecodeError, UnicodeDecodeError) as exc:
         raise InputError(str(path), "", f"malformed JSON ({exc})") from None
     if not isinstance(data, dict):
         raise InputError(str(path), "", "expected a JSON object at the top level")
     return data
+
+
+class _DuplicateKey(ValueError):
+    pass
+
+
+def _unique_keys(pairs: list[tuple[str, Any]]) -> dict[str, Any]:
+    out: dict[str, Any] = {}
+    for key, value in pairs:
+        if key in out:
+            raise _DuplicateKey(key)
+        out[key] = value
+    return out
 
 
 class Table:

@@ -174,8 +174,8 @@ def test_stale_staging_folders_are_cleaned_live_ones_kept(tmp_path, small_load):
 
 
 def test_sigterm_leaves_no_staging_folder(tmp_path, small_load):
-    """SIGTERM during the encoding (the staging folder exists) unwinds like Ctrl-C: exit 130,
-    one line, no recording and no hidden folder."""
+    """SIGTERM during the encoding (the staging folder exists) unwinds like Ctrl-C: exit 143
+    (128 + SIGTERM), one line, no recording and no hidden folder."""
     load = tmp_path / "load.toml"
     load.write_text(small_load.to_toml())
     out = tmp_path / "runs" / "rec"
@@ -189,7 +189,7 @@ def test_sigterm_leaves_no_staging_folder(tmp_path, small_load):
         time.sleep(0.05)
     proc.send_signal(signal.SIGTERM)
     _, err = proc.communicate(timeout=60)
-    assert proc.returncode == 130, err
+    assert proc.returncode == 143, err
     assert err.strip().splitlines() == ["wrapbench synth: interrupted, nothing written"]
     assert list((tmp_path / "runs").iterdir()) == []
 

@@ -317,4 +317,4 @@ def test_too_many_workers_and_absurd_arguments_exit_2(load_file, tmp_path, capsy
     with pytest.raises(SystemExit) as exit_:
         main(["simulate", str(load), "--level", "abc"])
     assert exit_.value.code == 2
-    assert "invalid number value: 'abc'" in capsys.readouterr().err
+    assert "expected a level in g such as 0.4 (got 'abc')" in capsys.readouterr().err

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from wrapenv.config import InputError, check_output, check_output_folder, printable
+from wrapenv.config import InputError, check_output, check_output_folder, printable, read_json
 
 ROOT = os.geteuid() == 0
 
@@ -86,3 +86,11 @@ def test_printable_escapes_control_characters_and_truncates() -> None:
     assert printable("a\nb\tc\u200bd") == "a\\nb\\tc\\u200bd"
     long = printable("x" * 100_000, limit=80)
     assert len(long) <= 80 and long.startswith("x" * 20) and "99920 more characters" in long
+
+
+def test_a_json_key_given_twice_is_an_error_naming_it(tmp_path, assert_input_error):
+    path = tmp_path / "CAL.json"
+    path.write_text('{"wrap": {"stiffness_scale": 1.0, "stiffness_scale": 2.0}}')
+    with pytest.raises(InputError) as info:
+        read_json(path)
+    assert_input_error(info.value, str(path), "stiffness_scale")

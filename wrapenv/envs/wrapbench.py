@@ -257,9 +257,10 @@ class WrapBenchEnv(gym.Env):
         self.settings = settings
         self.calibration = _calibration(calibration)
 
-        self.action_space = spaces.Box(-1.0, 1.0, (N_PARAMS,), np.float32)
+        self.action_space: spaces.Box = spaces.Box(-1.0, 1.0, (N_PARAMS,), np.float32)
         high = np.array([h for _, h in OBS_FEATURES], np.float32)
-        self.observation_space = spaces.Box(np.zeros_like(high), high, dtype=np.float32)
+        self.observation_space: spaces.Box = spaces.Box(np.zeros_like(high), high,
+                                                        dtype=np.float32)
 
         self._renderer: Renderer | None = None
         self._last: tuple[Trace, WrapFormat] | None = None
@@ -444,7 +445,7 @@ class WrapBenchRandomEnv(WrapBenchEnv):
     def sample_unit(self, rng: np.random.Generator) -> LoadUnit:
         """A load unit drawn from the distribution of the class docstring."""
         for _ in range(RANDOM_MAX_TRIES):
-            data = {
+            data: dict[str, Any] = {
                 "name": "random unit",
                 "pallet": {"preset": "EUR"},
                 "bundle": {
