@@ -15,7 +15,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from wrapenv.bench import BenchRun  # noqa: E402
-from wrapenv.config import write_atomic  # noqa: E402
+from wrapenv.config import printable, write_atomic  # noqa: E402
 from wrapenv.eumos import ELASTIC_LIMIT_FRACTION, PERMANENT_LIMIT_FRACTION  # noqa: E402
 from wrapenv.load import Layout  # noqa: E402
 from wrapenv.render import Renderer, fitting_camera, torn_net  # noqa: E402
@@ -43,7 +43,8 @@ def plot_displacements(run: BenchRun, path: str | Path, title: str = "") -> byte
     axes[-1, 0].set_xlabel("time from pulse start [s]")
     axes[0, 0].legend(fontsize=6, ncol=4, loc="upper right")
     if title:
-        fig.suptitle(title, fontsize=11)
+        # a load's name is the user's: bounded, and never read as mathtext ("$" would be)
+        fig.suptitle(printable(title, 120), fontsize=11, parse_math=False)
     fig.tight_layout()
     return _save(fig, path)
 
