@@ -53,7 +53,7 @@ class Figure:
 
 
 @dataclass(frozen=True)
-class Tested:
+class OrientationRun:
     """One orientation's bench run: the EUMOS levels run on the unit laid out as `layout`."""
 
     orientation: str | None  # "long" | "short" | None (as the load file lays it out)
@@ -77,7 +77,7 @@ class Robustness:
 class Page:
     heading: str
     load: LoadUnit
-    tested: tuple[Tested, ...]
+    tested: tuple[OrientationRun, ...]
     wrap: WrapFormat | None  # as the operator enters it (None: unwrapped)
     hours_since_wrapping: float
     inputs: tuple[tuple[str, str], ...]  # (what, file name)
@@ -116,7 +116,7 @@ def _facts(rows: Iterable[tuple[str, str]]) -> str:
     return f'<table class="facts"><tbody>{body}</tbody></table>\n'
 
 
-def _side(t: Tested) -> str:
+def _side(t: OrientationRun) -> str:
     along = t.layout.pallet_size_m[0]
     if t.orientation is None:
         return f"pallet length ({along:.3f} m) along the motion, as the load file lays it out"
@@ -167,7 +167,7 @@ def _wrap_section(wrap: WrapFormat | None, layout: Layout, hours: float) -> str:
                           f"{used.web_length_m:.1f} m laid, {used.roll_length_m:.1f} m from the "
                           f"roll, {used.revolutions:.1f} revolutions"),
              ("Cycle time", f"{cycle:.0f} s per pallet, {3600 / cycle:.0f} pallets/h"),
-             ("Tested", f"{hours:g} h after wrapping" + (
+             ("OrientationRun", f"{hours:g} h after wrapping" + (
                  " (the tension relaxed by the material's law)" if hours > 0 else ""))]
     steps = [(str(i), *map(_t, step_cells(p, wrap, layout.load_height_m)))
              for i, p in enumerate(wrap.passes, 1)]
@@ -219,12 +219,12 @@ def _level_row(level: LevelVerdict) -> list[str]:
     return cells
 
 
-def _highest(t: Tested) -> str:
+def _highest(t: OrientationRun) -> str:
     best = t.run.verdict.highest_passed_g
     return "none" if best is None else f"{best:.2f} g"
 
 
-def _levels_section(t: Tested) -> str:
+def _levels_section(t: OrientationRun) -> str:
     v = t.run.verdict
     limits = _limits(v.load_height_m)
     head = (["Level"] + [f"{name}<br><small>limit {limits[key]}</small>" for key, name in CRITERIA]
@@ -250,8 +250,9 @@ def _verdict(page: Page) -> str:
 def _robust_section(r: Robustness) -> str:
     p = r.probability
     low, high = p.interval
-    facts = [("Pass probability", f"{p.estimate:.0%} ({p.passed} of {p.samples} samples; 95 % "
-                                  f"interval {low:.0%}–{high:.0%}, Wilson)"),
+    facts = [("Pass probability", f"{100 * p.estimate:.0f} % ({p.passed} of {p.samples} "
+                                  f"samples; 95 % interval {100 * low:.0f} %–{100 * high:.0f} %, "
+                                  "Wilson)"),
              ("Search", "a trained policy's proposal, verified in simulation"
               if r.candidates is None else
               f"{r.candidates} candidate programs; margin of the worst sample "
@@ -368,7 +369,7 @@ def simulate_page(stage: Path, load: LoadUnit, run: BenchRun, laid: WrapFormat |
     layout = load.layout(orientation)  # type: ignore[arg-type]
     figures = (_displacement(run, stage, load.name, "the levels in the table above"),
                _tension_map(run, layout, stage, load.name))
-    return Page("Bench test report", load, (Tested(orientation, layout, run),), laid, hours,
+    return Page("Bench test report", load, (OrientationRun(orientation, layout, run),), laid, hours,
                 _inputs(inputs), figures, _video(run, layout, simulated, stage))
 
 
@@ -381,7 +382,7 @@ def recommend_page(stage: Path, problem: Problem, check: Verification, best: Eva
 
     s, load, weakest = problem.settings, problem.load, check.weakest
     targets = dict(s.targets)
-    tested = tuple(Tested(o, load.layout(o), run, targets[o])  # type: ignore[arg-type]
+    tested = tuple(OrientationRun(o, load.layout(o), run, targets[o])  # type: ignore[arg-type]
                    for o, run in check.runs.items())
     run, layout = check.runs[weakest], load.layout(weakest)  # type: ignore[arg-type]
     which = f"the {weakest} side along the motion, the weaker"
