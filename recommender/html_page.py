@@ -159,7 +159,7 @@ def _wrap_section(wrap: WrapFormat | None, layout: Layout, hours: float) -> str:
                           f"{used.web_length_m:.1f} m laid, {used.roll_length_m:.1f} m from the "
                           f"roll, {used.revolutions:.1f} revolutions"),
              ("Cycle time", f"{cycle:.0f} s per pallet, {3600 / cycle:.0f} pallets/h"),
-             ("OrientationRun", f"{hours:g} h after wrapping" + (
+             ("Tested", f"{hours:g} h after wrapping" + (
                  " (the tension relaxed by the material's law)" if hours > 0 else ""))]
     steps = [(str(i), *map(_t, step_cells(p, wrap, layout.load_height_m)))
              for i, p in enumerate(wrap.passes, 1)]

@@ -148,7 +148,7 @@ def test_sections_name_the_load_the_program_as_entered_the_web_and_the_cycle():
     assert re.fullmatch(r"[\d.]+ m² \([\d.]+ kg\), [\d.]+ m laid, .* revolutions",
                         facts["Web laid"])
     assert re.fullmatch(r"\d+ s per pallet, \d+ pallets/h", facts["Cycle time"])
-    assert facts["OrientationRun"].startswith("16 h after wrapping")
+    assert facts["Tested"].startswith("16 h after wrapping")
     friction = parsed.table("num")  # the first: friction pairs, then the program's steps
     assert friction[0] == ["Friction pair", "static", "kinetic"]
     assert ["sled–pallet", "0.450", "0.340"] in friction
