@@ -2,13 +2,12 @@
 lab would issue after a bench test, as one HTML page (recommender/html_page.py) that needs
 nothing else to show or print, beside the figures it inlines and the test video.
 
-The folder is checked before any simulation; the report is made in a hidden staging folder and
-moved in whole, the page last, so an interrupted report leaves nothing.
+The folder is checked before any simulation; the report is made in a staging folder and copied
+in once whole, the page last, so an interrupted report leaves nothing.
 """
 
 from __future__ import annotations
 
-import os
 import shutil
 import tempfile
 from collections.abc import Callable, Iterable, Mapping
@@ -115,17 +114,18 @@ def check_report_folder(folder: Path, inputs: Iterable[str | Path], flag: str = 
 
 
 def write_report(folder: Path, make: Callable[[Path], Page]) -> Path:
-    """`make(stage)` writes the figures and the video into a hidden staging folder inside
-    `folder` and returns the page; then every file is moved in, the page last. An interrupted
-    report leaves nothing (and no folder it created)."""
+    """`make(stage)` writes the figures and the video into a staging folder and returns the
+    page; then each file is written into `folder` atomically, the page last. The stage is a
+    temporary folder of the system's, so an interrupted report leaves nothing in `folder` (nor
+    the folder if it made it), and a killed one leaves its stage where temporary files go."""
     folder = Path(folder)
     created = not folder.exists()
-    folder.mkdir(parents=True, exist_ok=True)
-    stage = Path(tempfile.mkdtemp(dir=folder, prefix=".report-"))
+    stage = Path(tempfile.mkdtemp(prefix="wrapbench-report-"))
     try:
         write_atomic(stage / PAGE, render(make(stage)).encode())
+        folder.mkdir(parents=True, exist_ok=True)
         for path in sorted(stage.iterdir(), key=lambda p: p.name == PAGE):
-            os.replace(path, folder / path.name)
+            write_atomic(folder / path.name, path.read_bytes())
     except BaseException:
         if created:
             shutil.rmtree(folder, ignore_errors=True)
