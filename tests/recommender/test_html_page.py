@@ -149,6 +149,10 @@ def test_sections_name_the_load_the_program_as_entered_the_web_and_the_cycle():
                         facts["Web laid"])
     assert re.fullmatch(r"\d+ s per pallet, \d+ pallets/h", facts["Cycle time"])
     assert facts["Tested"].startswith("16 h after wrapping")
+    bands = WrapFormat.from_dict({"material": "lldpe", "web_width_m": 0.5, "band": [
+        {"from_m": 0.0, "to_m": 0.45, "layers": 3, "tension_n": 250.0}]}, "wrap.toml", 0.804)
+    assert Parsed(render(page(wrap=bands))).facts()["band 1"] == "0.000–0.450 m, 3 layers at 250 N"
+    assert "None: the unit was tested unwrapped." in render(page(wrap=None))
     friction = parsed.table("num")  # the first: friction pairs, then the program's steps
     assert friction[0] == ["Friction pair", "static", "kinetic"]
     assert ["sled–pallet", "0.450", "0.340"] in friction
