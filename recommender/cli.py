@@ -68,6 +68,9 @@ def build_parser() -> argparse.ArgumentParser:
                      help="test the wrap after its tension relaxed for H hours (default 0)")
     sim.add_argument("--json", type=Path, metavar="OUT", help="write the verdict as JSON")
     sim.add_argument("--plot", type=Path, metavar="OUT.png", help="plot displacement vs time")
+    sim.add_argument("--report", type=Path, metavar="DIR",
+                     help="write report.html (the one-page test report), its figures and "
+                          "test.mp4/test.webm (the highest level run) into DIR")
 
     rec = sub.add_parser("recommend", help="search the wrapping program with the least web that "
                                            "passes EUMOS 40509 up to the target")
@@ -119,8 +122,9 @@ def build_parser() -> argparse.ArgumentParser:
     rec.add_argument("--wrap-out", type=Path, metavar="WRAP.toml",
                      help="write the recommended program as a WRAP.toml")
     rec.add_argument("--report", type=Path, metavar="DIR",
-                     help="write displacement.png, search.png and test.mp4 (the recommended "
-                          "program's test at the target level) into DIR")
+                     help="write report.html (the one-page report), displacement.png, "
+                          "search.png and test.mp4/test.webm (the recommended program's test "
+                          "at the target level) into DIR")
 
     tr = sub.add_parser("train", help="train a PPO policy on random load units "
                                       "(wrapenv/WrapBenchRandom-v1)")

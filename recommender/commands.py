@@ -17,6 +17,12 @@ from typing import Any
 
 from tqdm import tqdm
 
+from recommender.html_report import (
+    check_report_folder,
+    recommend_page,
+    simulate_page,
+    write_report,
+)
 from recommender.search import Evaluation, Problem, SearchSettings, SearchState, Verification
 from recommender.text import program_text, verdict_table
 from wrapenv.bench import run_levels
@@ -95,6 +101,8 @@ def run_simulate(args: argparse.Namespace) -> int:
     inputs = [p for p in (args.load, args.wrap, args.calibration, args.profile) if p]
     check_output(args.json, "--json", inputs=inputs)
     check_output(args.plot, "--plot", inputs=inputs)
+    if args.report is not None:
+        check_report_folder(args.report, inputs)
     levels = _levels(args)
     if laid is not None:
         _warn("simulate", laid.warnings())
@@ -113,6 +121,11 @@ def run_simulate(args: argparse.Namespace) -> int:
         from recommender.report import plot_displacements
 
         plot_displacements(run, args.plot, title=load.name)
+    if args.report:
+        given = {"load unit": args.load, "wrap": args.wrap, "calibration": args.calibration,
+                 "sled profile": args.profile}
+        write_report(args.report, lambda stage: simulate_page(
+            stage, load, run, laid, wrap, args.orientation, args.hours_since_wrapping, given))
     return 0 if run.verdict.passed else 1
 
 
@@ -195,8 +208,8 @@ def _check_outputs(args: argparse.Namespace) -> Path | None:
     check_output(args.wrap_out, "--wrap-out", inputs=inputs)
     checkpoint = _checkpoint(args)
     check_output(checkpoint, "--checkpoint", inputs=inputs)
-    if args.report is not None and args.report.exists() and not args.report.is_dir():
-        raise InputError(str(args.report), "--report", "exists and is not a folder")
+    if args.report is not None:
+        check_report_folder(args.report, inputs)
     if args.resume and (checkpoint is None or not checkpoint.exists()):
         raise InputError(str(checkpoint), "--resume", "no checkpoint to resume from")
     return checkpoint
@@ -217,6 +230,8 @@ def run_recommend(args: argparse.Namespace) -> int:
         _print_recommendation(problem, best, check)
         print(f"policy proposal verified in {time.perf_counter() - t0:.0f} s")
         _write_outputs(args, problem, best, check, 1)
+        if args.report:
+            _write_report(args, problem, check, best, None)
         return 0 if check.passed else 1
     search = RobustSearch(problem, checkpoint)
     state = search.resume() if args.resume else search.start()
@@ -242,7 +257,7 @@ def run_recommend(args: argparse.Namespace) -> int:
           f"{time.perf_counter() - t0:.0f} s ({args.workers} workers, {args.backend})")
     _write_outputs(args, problem, best, check, simulations, candidates=len(state.history))
     if args.report:
-        _write_report(args.report, problem, check, best, state, settings.margin_goal)
+        _write_report(args, problem, check, best, state)
     return 0
 
 
@@ -337,16 +352,12 @@ def _write_outputs(args: argparse.Namespace, problem: Problem, best: Evaluation,
         write_atomic(args.wrap_out, best.wrap.to_toml().encode())
 
 
-def _write_report(folder: Path, problem: Problem, check: Verification, best: Evaluation,
-                  state: SearchState, margin_goal: float) -> None:
-    from recommender.report import plot_displacements, plot_search, write_video
-
-    folder.mkdir(parents=True, exist_ok=True)
-    run = check.runs[check.weakest]
-    plot_displacements(run, folder / "displacement.png", title=problem.load.name)
-    plot_search(state.history, best, folder / "search.png", margin_goal)
-    write_video(run.traces[-1], problem.load.layout(check.weakest),  # type: ignore[arg-type]
-                problem.simulated(best.wrap), folder / "test.mp4")
+def _write_report(args: argparse.Namespace, problem: Problem, check: Verification,
+                  best: Evaluation, state: SearchState | None) -> None:
+    """report.html and its files (state None: a policy's proposal, no search)."""
+    given = {"load unit": args.load, "calibration": args.calibration, "policy": args.policy}
+    write_report(args.report, lambda stage: recommend_page(stage, problem, check, best, state,
+                                                           given))
 
 
 # --- train -------------------------------------------------------------------------------------

@@ -59,11 +59,17 @@ def _carriage(p: Pass, wrap: WrapFormat, load_height_m: float) -> str:
     return text + (f" (web {above:.2f} m above the load)" if above > 1e-9 else "")
 
 
-def _step(i: int, p: Pass, wrap: WrapFormat, load_height_m: float) -> str:
+def step_cells(p: Pass, wrap: WrapFormat, load_height_m: float) -> tuple[str, ...]:
+    """One step of a program as an operator reads it (printed and in the HTML report): zone,
+    wraps, overlap, carriage (the web's lower edge), tension in N."""
     turns = f"{p.turns:g}" if p.travel_m == 0 else f"{p.turns:.2f}"
     overlap = f"{100 * (1 - p.rise_m / wrap.web_width_m):.0f} %" if p.travel_m > 0 else "-"
-    return (f"{i:4d}  {p.zone:<14}{turns:>6}  {overlap:>7}  "
-            f"{_carriage(p, wrap, load_height_m):<34}{p.tension_n:>9.1f}")
+    return p.zone, turns, overlap, _carriage(p, wrap, load_height_m), f"{p.tension_n:.1f}"
+
+
+def _step(i: int, p: Pass, wrap: WrapFormat, load_height_m: float) -> str:
+    zone, turns, overlap, carriage, tension = step_cells(p, wrap, load_height_m)
+    return f"{i:4d}  {zone:<14}{turns:>6}  {overlap:>7}  {carriage:<34}{tension:>9}"
 
 
 def program_text(wrap: WrapFormat, layout: Layout) -> str:
