@@ -1,6 +1,6 @@
 """A trained PPO policy against random actions and against the CMA-ES search.
 
-1. Held-out random units (drawn like `WrapBenchRandom-v0` draws them, from a stream no training
+1. Held-out random units (drawn like `WrapBenchRandom-v1` draws them, from a stream no training
    env uses), target level only: pass rate and mean material of the policy's proposals and of
    uniformly random actions.
 2. Every example load: `wrapbench recommend` with CMA-ES (its defaults) and with
@@ -24,6 +24,8 @@ from pathlib import Path
 import numpy as np
 
 from recommender.policy import evaluate, held_out_loads
+from recommender.text import program_summary
+from wrapenv.program import Program, Reinforcement
 
 EXAMPLES = ("examples/pet_2layer_columnar.toml", "examples/pet_3layer_columnar.toml",
             "examples/pet_3layer_interlocked.toml")
@@ -52,9 +54,10 @@ def recommend(load: str, method: list[str], target_g: float) -> str:
         if code != 0 or not out.exists():
             return f"exit {code}, no passing format, {wall:.0f} s"
         r = json.loads(out.read_text())
-    bands = " + ".join(f"{b['layers']}x {b['from_m']:.2f}-{b['to_m']:.2f} m"
-                       for b in r["format"]["band"])
-    return (f"{r['material_used']['mass_kg']:.3f} kg ({bands}), highest "
+    program = program_summary(Program(**{
+        k: v for k, v in r["program"].items() if k != "reinforcement"},
+        reinforcements=tuple(Reinforcement(**x) for x in r["program"].get("reinforcement", []))))
+    return (f"{r['material_used']['mass_kg']:.3f} kg ({program}), highest "
             f"{r['verdict']['highest_passed_g']:.1f} g, robust {r['robust_pass_rate']:.0%}, "
             f"{r['evaluations']} simulations, {wall:.0f} s")
 

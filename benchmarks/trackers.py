@@ -20,7 +20,7 @@ from benchmarks.bench_track import CACHE, cached_recording
 from calibration.recording import Recording, Truth
 from calibration.track import track
 from calibration.trajectories import error_vs_truth
-from calibration.vision.tracking import OPENCV_TRACKERS, OWN_TRACKERS, opencv_tracker
+from calibration.vision.tracking import OPENCV_TRACKERS, OWN_TRACKERS, check_tracker
 
 RECORDINGS = (("examples/pet_2layer_columnar.toml", 0.4, None),
               ("examples/pet_3layer_columnar.toml", 0.3, None))
@@ -52,12 +52,11 @@ def main() -> None:
         print("| tracker   | RMS avg | RMS max | max (mm) | swaps |    fps |")
         print("|-----------|---------|---------|----------|-------|--------|")
         for kind in OWN_TRACKERS + OPENCV_TRACKERS:
-            if kind in OPENCV_TRACKERS:
-                try:
-                    opencv_tracker(kind)
-                except ValueError as exc:
-                    print(f"| {kind:9} | unavailable: {exc} |")
-                    continue
+            try:
+                check_tracker(kind)
+            except ValueError as exc:
+                print(f"| {kind:9} | unavailable: {exc} |")
+                continue
             print(row(rec, kind), flush=True)
 
 

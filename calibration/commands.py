@@ -13,22 +13,43 @@ import math
 import os
 import sys
 import time
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 from tqdm import tqdm
 
-from wrapenv.config import InputError, check_output, write_atomic
+from wrapenv.config import InputError, check_output, printable, write_atomic
 from wrapenv.load import Friction, LoadUnit
 from wrapenv.wrap import WrapFormat
 
+#: `synthesize`'s arguments, as its errors name them (source, field), and the flags that set
+#: them.
+SYNTH_FLAGS = {("arguments", "size"): "--size", ("arguments", "fps"): "--fps",
+               ("arguments", "friction_jitter"): "--friction-jitter",
+               ("profile", "level_g"): "--level"}
 
-def add_synth(sub: argparse._SubParsersAction, level_type) -> None:
+
+def level_g(text: str) -> float:
+    """argparse's type for a test level in g; its errors name the value expected (argparse
+    would print "invalid <this function's name> value" for a bare ValueError)."""
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    if not math.isfinite(value):
+        raise argparse.ArgumentTypeError(f"expected a level in g such as 0.4 (got {text!r})")
+    return value
+
+
+def add_synth(sub: argparse._SubParsersAction) -> None:
+    """The synth subcommand."""
     p = sub.add_parser("synth", help="make a synthetic bench recording with ground truth")
     p.add_argument("load", type=Path, help="LOAD.toml")
     p.add_argument("--out", type=Path, required=True, metavar="DIR",
                    help="recording folder to create (must not exist or be empty)")
     p.add_argument("--wrap", type=Path, metavar="WRAP.toml", help="wrap the unit in this format")
-    p.add_argument("--level", type=level_type, default=0.4, metavar="G",
+    p.add_argument("--level", type=level_g, default=0.4, metavar="G",
                    help="test level in g (default 0.4)")
     p.add_argument("--seed", type=int, default=0, help="textures, noise and friction jitter")
     p.add_argument("--size", type=_size, default=(1920, 1200), metavar="WxH",
@@ -64,27 +85,44 @@ def _size(text: str) -> tuple[int, int]:
     return w, h
 
 
+@contextmanager
+def _frame_bar() -> Iterator[Callable[[int, int], None]]:
+    """A progress bar of frames on stderr (none when stderr is not a terminal), fed by a
+    `progress(frame, frames)` callback."""
+    with tqdm(desc="frames", unit="frame", leave=False, disable=None) as bar:
+        def progress(frame: int, frames: int) -> None:
+            bar.total = frames
+            bar.update(frame - bar.n)
+
+        yield progress
+
+
 def run_synth(args: argparse.Namespace) -> int:
     from calibration.synth import synthesize
 
     load = LoadUnit.from_toml(args.load)
-    wrap = WrapFormat.from_toml(args.wrap) if args.wrap else None
+    wrap = WrapFormat.from_toml(args.wrap, load.load_height_m) if args.wrap else None
     for flag, value in (("--stiffness-scale", args.stiffness_scale),
                         ("--tension-scale", args.tension_scale)):
         if not (math.isfinite(value) and value > 0):
             raise InputError("arguments", flag, f"must be > 0 (got {value})")
     t0 = time.perf_counter()
     try:
-        rec = synthesize(load, args.out, wrap=wrap, level_g=args.level, seed=args.seed,
-                         size=args.size, fps=args.fps, friction_jitter=args.friction_jitter,
-                         stiffness_scale=args.stiffness_scale, tension_scale=args.tension_scale)
-    except ValueError as exc:  # an unphysical simulation: nothing to record
-        if isinstance(exc, InputError):
+        with _frame_bar() as progress:
+            rec = synthesize(load, args.out, wrap=wrap, level_g=args.level, seed=args.seed,
+                             size=args.size, fps=args.fps, friction_jitter=args.friction_jitter,
+                             stiffness_scale=args.stiffness_scale,
+                             tension_scale=args.tension_scale, progress=progress)
+    except InputError as exc:
+        option = SYNTH_FLAGS.get((exc.source, exc.field))
+        if option is None:
             raise
+        raise InputError("arguments", option, exc.message) from None
+    except ValueError as exc:  # an unphysical simulation: nothing to record
         sys.stderr.write(f"wrapbench synth: {exc}; no recording written\n")
         return 1
     frames = round(rec.profile.t_s[-1] * rec.fps) + 1
-    print(f"wrote {rec.folder}: {rec.video.name} {args.size[0]}x{args.size[1]}, "
+    print(f"wrote {printable(str(rec.folder))}: {rec.video.name} {args.size[0]}x{args.size[1]}, "
           f"{frames} frames at {rec.fps:g} fps, {rec.px_per_m:g} px/m, level {args.level:.2f} g"
           f"{', wrapped' if wrap else ''}, in {time.perf_counter() - t0:.0f} s")
     return 0
@@ -94,17 +132,20 @@ def run_track(args: argparse.Namespace) -> int:
     from calibration.recording import Recording, Truth
     from calibration.track import track
     from calibration.trajectories import error_vs_truth
+    from calibration.vision.tracking import check_tracker
 
+    try:
+        check_tracker(args.tracker)
+    except ValueError as exc:
+        raise InputError("arguments", "--tracker", str(exc)) from None
     rec = Recording.read(args.recording)
     out = args.out if args.out is not None else rec.folder / "trajectories.csv"
-    check_output(out, "--out")
-    check_output(args.debug_video, "--debug-video")
+    check_output(out, "--out", inputs=rec.inputs())
+    check_output(args.debug_video, "--debug-video", inputs=rec.inputs())
+    if args.debug_video is not None and _same_place(args.debug_video, out):
+        raise InputError(str(out), "--debug-video", "is also --out")
     t0 = time.perf_counter()
-    with tqdm(desc="frames", unit="frame", leave=False, disable=None) as bar:
-        def progress(frame: int, frames: int) -> None:
-            bar.total = frames
-            bar.update(frame + 1 - bar.n)
-
+    with _frame_bar() as progress:
         result = track(rec, tracker=args.tracker, debug_video=args.debug_video,
                        progress=progress)
     wall = time.perf_counter() - t0
@@ -113,14 +154,19 @@ def run_track(args: argparse.Namespace) -> int:
         sys.stderr.write(f"wrapbench track: warning: {warning}\n")
     objects = result.trajectories.objects
     frames = max((len(p.t_s) for p in objects.values()), default=0)
-    print(f"wrote {out}: {len(objects)} objects ({', '.join(objects)}), {frames} frames in "
-          f"{wall:.1f} s ({frames / wall:.0f} frames/s, tracker {args.tracker})")
+    print(f"wrote {printable(str(out))}: {len(objects)} objects ({', '.join(objects)}), "
+          f"{frames} frames in {wall:.1f} s ({frames / wall:.0f} frames/s, tracker {args.tracker})")
     if (rec.folder / "truth.json").exists():
         errors = error_vs_truth(result.trajectories, Truth.read(rec.folder).objects)
         print("error against truth.json (displacement):  object  RMS mm  max mm")
         for name, e in errors.items():
             print(f"{name:>44s}  {1e3 * e.rms_m:6.2f}  {1e3 * e.max_m:6.2f}")
     return 0
+
+
+def _same_place(a: Path, b: Path) -> bool:
+    """Two output paths naming one file (neither need exist yet)."""
+    return a.resolve() == b.resolve() or (a.exists() and b.exists() and os.path.samefile(a, b))
 
 
 def add_calibrate(sub: argparse._SubParsersAction) -> None:

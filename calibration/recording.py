@@ -1,9 +1,10 @@
 """The recording folder of a bench test (CONTRACTS.md, "Recording folder"): read, validate, write.
 
 A recording is what the tracker reads and the calibration fits to: the side camera's video, the
-sled's profile, the camera mapping and markers (`setup.toml`), the load (and wrap) as tested, and
-for synthetic recordings the true object tracks (`truth.json`). Every problem with a folder is one
-`InputError` naming the file and the field, so `wrapbench track` can exit 2 with one line.
+sled's profile, the camera mapping and markers (`setup.toml`, read by `camera_setup`), the load
+(and wrap) as tested, and for synthetic recordings the true object tracks (`truth.json`). Every
+problem with a folder is one `InputError` naming the file and the field, so `wrapbench track` can
+exit 2 with one line.
 
 Coordinates: world x along the sled's motion, z up, z = 0 the sled surface; the camera is fixed to
 the ground, so world x = sled x + x in the sled frame. Pixels: u = u0 + px_per_m x,
@@ -22,46 +23,25 @@ from typing import Any
 import cv2
 import numpy as np
 
-from wrapenv.config import InputError, Table, read_json, read_toml, write_atomic
+from calibration.camera_setup import SETUP, MarkerSpec, Setup, check_markers, exact
+from calibration.vision.video import open_video
+from wrapenv.config import InputError, read_json, read_toml, write_atomic
 from wrapenv.load import LoadUnit
 from wrapenv.render import SideCamera
 from wrapenv.wrap import WrapFormat
 
-SETUP, PROFILE, TRUTH = "setup.toml", "profile.csv", "truth.json"
+PROFILE, TRUTH = "profile.csv", "truth.json"
 LOAD, WRAP = "load.toml", "wrap.toml"
 VIDEOS = ("video.mp4", "video.avi")
 PROFILE_COLUMNS = ("t_s", "accel_mps2", "vel_mps", "pos_m")
 TRACK_KEYS = ("t_s", "x_m", "z_m", "angle_rad")
 #: Relative tolerance between setup.toml's fps and the container's (containers store rationals).
 FPS_TOLERANCE = 1e-3
+#: Longest profile (s) [A]: a test is a pulse and a few seconds of run-out (the source paper's
+#: recordings last 8 to 10 s); longer is a unit mistake, such as t_s in milliseconds.
+MAX_PROFILE_S = 120.0
 #: Slack on time comparisons: the profile may end this much before the last frame's time.
 TIME_SLACK_S = 1e-6
-
-
-def aruco_dictionaries() -> tuple[str, ...]:
-    """Names of OpenCV's predefined ArUco dictionaries (``DICT_4X4_50``, ...)."""
-    return tuple(n for n in dir(cv2.aruco) if n.startswith("DICT_")
-                 and isinstance(getattr(cv2.aruco, n), int))
-
-
-@dataclass(frozen=True)
-class MarkerPlacement:
-    """One ArUco marker fixed to an object (printed on the web, bolted to the sled)."""
-
-    id: int
-    object: str                      # "sled", "pallet" or a bundle name "L2C1R1"
-    #: marker centre minus object centre, in the object's frame (x along motion, z up), at rest
-    offset_m: tuple[float, float]
-
-
-@dataclass(frozen=True)
-class MarkerSpec:
-    dictionary: str                  # a cv2.aruco predefined dictionary name, "DICT_4X4_50"
-    size_m: float                    # side of the black square
-    placements: tuple[MarkerPlacement, ...]
-
-    def aruco(self) -> cv2.aruco.Dictionary:
-        return cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, self.dictionary))
 
 
 @dataclass(frozen=True, eq=False)
@@ -93,27 +73,25 @@ class SledProfile:
             raise InputError(str(path), "t_s", "needs at least two samples")
         if np.any(np.diff(t) <= 0):
             raise InputError(str(path), "t_s", "must increase strictly")
+        if t[-1] - t[0] > MAX_PROFILE_S:
+            raise InputError(str(path), "t_s", f"spans {t[-1] - t[0]:g} s, more than the "
+                             f"{MAX_PROFILE_S:g} s a bench test lasts (in milliseconds?)")
         integrated = cls.from_accel(t, a)
         return cls(t, a, columns.get("vel_mps", integrated.vel_mps),
                    columns.get("pos_m", integrated.pos_m))
 
     def to_csv(self) -> bytes:
         rows = [",".join(PROFILE_COLUMNS)]
-        rows += [",".join(_num(v) for v in row) for row in
+        rows += [",".join(exact(v) for v in row) for row in
                  zip(self.t_s, self.accel_mps2, self.vel_mps, self.pos_m, strict=True)]
         return ("\n".join(rows) + "\n").encode()
-
-
-def _num(value: float) -> str:
-    """A float written so that it reads back equal."""
-    return repr(float(value))
 
 
 def _read_csv(path: Path) -> dict[str, np.ndarray]:
     """The profile's known columns as arrays; t_s and accel_mps2 required, all finite."""
     src = str(path)
     try:
-        with path.open(newline="") as fh:
+        with path.open(newline="", encoding="utf-8-sig") as fh:  # Excel starts with a BOM
             rows = [r for r in csv.reader(fh) if r]
     except (OSError, UnicodeDecodeError) as exc:
         raise InputError(src, "", f"cannot read file ({exc})") from None
@@ -159,17 +137,17 @@ class Recording:
         if not folder.is_dir():
             raise InputError(str(folder), "", "not a folder")
         setup_path = folder / SETUP
-        setup = _Setup.parse(read_toml(setup_path), str(setup_path))
+        setup = Setup.parse(read_toml(setup_path), str(setup_path))
         load = LoadUnit.from_toml(folder / LOAD)
         wrap_path = folder / WRAP
         wrap = (WrapFormat.from_toml(wrap_path, load.layout().load_height_m)
                 if wrap_path.exists() else None)
         if setup.markers is not None:
-            _check_markers(setup.markers, load, str(setup_path))
+            check_markers(setup.markers, load, str(setup_path))
         template = None
         if setup.template is not None:
             template = folder / setup.template
-            if cv2.imread(str(template)) is None:
+            if not template.is_file() or cv2.imread(str(template)) is None:
                 raise InputError(str(setup_path), setup.template_field,
                                  f"{setup.template} is missing or not an image")
         video = _find_video(folder)
@@ -180,98 +158,24 @@ class Recording:
         return cls(folder, video, setup.fps, setup.px_per_m, setup.origin_px, profile, load,
                    wrap, setup.markers, template)
 
+    def inputs(self) -> tuple[Path, ...]:
+        """The folder's files a run reads, which no output may replace."""
+        names = (SETUP, PROFILE, LOAD, WRAP, TRUTH)
+        return (self.video, *(self.folder / n for n in names),
+                *((self.template,) if self.template is not None else ()))
+
     def camera(self, width: int, height: int) -> SideCamera:
         """The side camera of this recording (`SideCamera.project` gives pixels)."""
         return SideCamera(width, height, self.px_per_m, self.origin_px)
 
     def video_size(self) -> tuple[int, int]:
         """(width, height) of the video's frames."""
-        cap = _open_video(self.video)
+        cap = open_video(self.video)
         try:
             return (int(cap.get(cv2.CAP_PROP_FRAME_WIDTH)), int(cap.get(cv2.CAP_PROP_FRAME_HEIGHT)))
         finally:
             cap.release()
 
-
-@dataclass(frozen=True)
-class _Setup:
-    fps: float
-    px_per_m: float
-    origin_px: tuple[float, float]
-    markers: MarkerSpec | None
-    template: str | None
-    template_field: str
-
-    @classmethod
-    def parse(cls, data: dict[str, Any], src: str) -> _Setup:
-        top = Table(data, src)
-        template, where = None, "template"
-        if top.has("template"):
-            template = top.string("template")
-        rec = top.table("recording", required=True)
-        fps = rec.number("fps", positive=True)
-        if rec.has("template"):
-            template, where = rec.string("template"), "recording.template"
-        rec.done()
-        cam = top.table("camera", required=True)
-        px_per_m = cam.number("px_per_m", positive=True)
-        origin = _pair(cam, "origin_px")
-        cam.done()
-        markers = None
-        if top.has("markers"):
-            table = top.table("markers")
-            if table.has("template"):
-                template, where = table.string("template"), "markers.template"
-            markers = _marker_spec(table)
-        top.done()
-        return cls(fps, px_per_m, origin, markers, template, where)
-
-
-def _pair(t: Table, key: str) -> tuple[float, float]:
-    """Two finite numbers, e.g. ``origin_px = [960.0, 1020.0]``."""
-    raw = t.array(key)
-    ok = len(raw) == 2 and all(isinstance(v, int | float) and not isinstance(v, bool)
-                               and math.isfinite(v) for v in raw)
-    if not ok:
-        raise t.error(key, f"must be two finite numbers (got {raw!r})")
-    return float(raw[0]), float(raw[1])
-
-
-def _marker_spec(t: Table) -> MarkerSpec:
-    dictionary = t.string("dictionary")
-    names = aruco_dictionaries()
-    if dictionary not in names:
-        raise t.error("dictionary", f"unknown ArUco dictionary {dictionary!r} (e.g. DICT_4X4_50)")
-    size = t.number("size_m", positive=True)
-    placements = []
-    raw = t.array("placement") if t.has("placement") else []
-    for i, item in enumerate(raw):
-        p = Table(item, t.source, t.field(f"placement[{i}]"))
-        marker_id = p.integer("id", minimum=0)
-        obj = p.string("object")
-        offset = _pair(p, "offset_m")
-        p.done()
-        placements.append(MarkerPlacement(marker_id, obj, offset))
-    t.done()
-    return MarkerSpec(dictionary, size, tuple(placements))
-
-
-def _check_markers(spec: MarkerSpec, load: LoadUnit, src: str) -> None:
-    """Ids the dictionary holds, each once, on objects the load has."""
-    count = spec.aruco().bytesList.shape[0]
-    objects = {"sled", "pallet"} | {b.name for b in load.layout().bundles}
-    seen: set[int] = set()
-    for i, p in enumerate(spec.placements):
-        where = f"markers.placement[{i}]"
-        if p.id >= count:
-            raise InputError(src, f"{where}.id", f"{spec.dictionary} has ids 0 to {count - 1}"
-                             f" (got {p.id})")
-        if p.id in seen:
-            raise InputError(src, f"{where}.id", f"duplicate marker id {p.id}")
-        seen.add(p.id)
-        if p.object not in objects:
-            raise InputError(src, f"{where}.object", f"no object {p.object!r} in the load"
-                             " (sled, pallet or a bundle name such as L1C1R1)")
 
 
 def _find_video(folder: Path) -> Path:
@@ -281,17 +185,9 @@ def _find_video(folder: Path) -> Path:
     raise InputError(str(folder / VIDEOS[0]), "", f"missing (neither {' nor '.join(VIDEOS)})")
 
 
-def _open_video(path: Path) -> cv2.VideoCapture:
-    cap = cv2.VideoCapture(str(path))
-    if not cap.isOpened():
-        cap.release()
-        raise InputError(str(path), "", "cannot open the video (unknown or damaged container)")
-    return cap
-
-
 def _check_video(path: Path, fps: float, setup_src: str) -> int:
     """The number of frames, after checking that they decode and run at `fps`."""
-    cap = _open_video(path)
+    cap = open_video(path)
     try:
         ok, _ = cap.read()
         frames = int(cap.get(cv2.CAP_PROP_FRAME_COUNT))
@@ -375,34 +271,6 @@ def _track(item: Any, src: str, where: str) -> ObjectTrack:
                              f" {len(item['t_s'])}")
         arrays.append(values)
     return ObjectTrack(*arrays)
-
-
-# --- writing (synthetic recordings) -----------------------------------------------------------
-
-def setup_toml(fps: float, px_per_m: float, origin_px: tuple[float, float],
-               markers: MarkerSpec | None = None, template: str | None = None) -> str:
-    """The setup.toml text (contract keys, template at the top level)."""
-    lines = ["# Recording setup: side camera looking along +y, u = u0 + px_per_m x,"
-             " v = v0 - px_per_m z."]
-    if template is not None:
-        lines.append(f"template = {json.dumps(template)}")
-    lines += ["", "[recording]", f"fps = {_num(fps)}",
-              "", "[camera]", f"px_per_m = {_num(px_per_m)}",
-              f"origin_px = [{_num(origin_px[0])}, {_num(origin_px[1])}]"]
-    if markers is not None:
-        lines += ["", "[markers]", f"dictionary = {json.dumps(markers.dictionary)}",
-                  f"size_m = {_num(markers.size_m)}"]
-        for p in markers.placements:
-            lines += ["", "[[markers.placement]]", f"id = {p.id}",
-                      f"object = {json.dumps(p.object)}",
-                      f"offset_m = [{_num(p.offset_m[0])}, {_num(p.offset_m[1])}]"]
-    return "\n".join(lines) + "\n"
-
-
-def write_setup(folder: str | Path, fps: float, px_per_m: float, origin_px: tuple[float, float],
-                markers: MarkerSpec | None = None, template: str | None = None) -> None:
-    write_atomic(Path(folder) / SETUP,
-                 setup_toml(fps, px_per_m, origin_px, markers, template).encode())
 
 
 def write_profile(folder: str | Path, profile: SledProfile) -> None:

@@ -35,6 +35,12 @@ def _size(size_m: tuple[float, float], px_per_m: float) -> tuple[int, int]:
     return max(2, round(size_m[0] * px_per_m)), max(2, round(size_m[1] * px_per_m))
 
 
+def _rgb(values: np.ndarray) -> tuple[int, int, int]:
+    """A colour for cv2's drawing functions (plain ints)."""
+    r, g, b = (int(v) for v in values)
+    return r, g, b
+
+
 def brand_name(rng: np.random.Generator) -> str:
     letters = rng.choice(list(string.ascii_uppercase), 5)
     return "".join(letters)
@@ -70,9 +76,9 @@ def label_design(size_m: tuple[float, float], px_per_m: float, seed: int) -> np.
     rng = np.random.default_rng([seed, 1])
     w, h = _size(size_m, px_per_m)
     s = px_per_m / 1000  # texture pixels per millimetre
-    liquid = tuple(int(c) for c in np.array([150, 190, 215]) + rng.integers(-25, 25, 3))
-    colour = tuple(int(c) for c in rng.integers(20, 170, 3))
-    accent = tuple(int(c) for c in 255 - np.array(colour))
+    liquid = _rgb(np.array([150, 190, 215]) + rng.integers(-25, 25, 3))
+    colour = _rgb(rng.integers(20, 170, 3))
+    accent = _rgb(255 - np.array(colour))
     image = np.full((h, w, 3), (235, 240, 245), np.uint8)
     bottles = max(1, round(size_m[0] / 0.095))
     pitch = w / bottles

@@ -35,9 +35,12 @@ class ObjectPath:
 class PathLike(Protocol):
     """Per-frame arrays like `ObjectPath`'s (e.g. `calibration.recording.ObjectTrack`)."""
 
-    t_s: np.ndarray
-    x_m: np.ndarray
-    z_m: np.ndarray
+    @property
+    def t_s(self) -> np.ndarray: ...
+    @property
+    def x_m(self) -> np.ndarray: ...
+    @property
+    def z_m(self) -> np.ndarray: ...
 
 
 @dataclass(frozen=True)

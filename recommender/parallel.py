@@ -8,8 +8,10 @@ it is imported only when asked for.
 
 from __future__ import annotations
 
+import signal
 from collections.abc import Callable
 from concurrent.futures import Executor, Future, ProcessPoolExecutor
+from types import TracebackType
 from typing import Any
 
 from wrapenv.config import InputError
@@ -29,7 +31,7 @@ class RayExecutor(Executor):
         try:
             import ray
         except ImportError:
-            raise InputError("--backend", "ray",
+            raise InputError("arguments", "--backend",
                              "Ray is not installed (pip install .[ray])") from None
         self._ray = ray
         self._remote: dict[Callable, Any] = {}
@@ -41,8 +43,12 @@ class RayExecutor(Executor):
                 options.update(num_cpus=workers, object_store_memory=RAY_OBJECT_STORE_BYTES)
             try:
                 ray.init(**options)
-            except ConnectionError as exc:
-                raise InputError("--ray-address", str(address), f"cannot join ({exc})") from None
+            except (ConnectionError, RuntimeError, ValueError, ImportError) as exc:
+                # ray:// needs the client extra (pip install "ray[client]"); a wrong address
+                # fails to connect: either way one line, not Ray's traceback
+                reason = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc)
+                raise InputError("arguments", "--ray-address",
+                                 f"cannot join {address!r} ({reason})") from None
 
     def submit(self, fn: Callable, /, *args: Any, **kwargs: Any) -> Future:
         if fn not in self._remote:
@@ -55,10 +61,40 @@ class RayExecutor(Executor):
         self._owns_instance = False
 
 
+class ProcessPool(ProcessPoolExecutor):
+    """Worker processes that are stopped, not waited for, when the caller is interrupted.
+
+    `ProcessPoolExecutor` leaving a `with` block by an exception still waits for every queued
+    simulation (minutes, and a Ctrl-C seemed to hang); here the queue is cancelled and the
+    workers terminated at once, with further Ctrl-C ignored while they go.
+    """
+
+    def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None,
+                 tb: TracebackType | None) -> None:
+        if exc_type is None:
+            self.shutdown(wait=True)
+        else:
+            self.terminate()
+
+    def terminate(self) -> None:
+        previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+        try:
+            # Python 3.11 has no public way to stop the workers (3.14 adds terminate_workers)
+            workers = list((self._processes or {}).values())
+            self.shutdown(wait=False, cancel_futures=True)
+            for process in workers:
+                process.terminate()
+            for process in workers:
+                process.join(timeout=5)
+        finally:
+            signal.signal(signal.SIGINT, previous)
+
+
 def executor(backend: str, workers: int, address: str | None = None) -> Executor:
     """An executor of `workers` parallel simulations on the named backend."""
     if backend == "process":
-        return ProcessPoolExecutor(max_workers=workers)
+        return ProcessPool(max_workers=workers)
     if backend == "ray":
         return RayExecutor(workers, address)
-    raise InputError("--backend", backend, f"unknown backend (one of {', '.join(BACKENDS)})")
+    raise InputError("arguments", "--backend",
+                     f"unknown backend {backend!r} (one of {', '.join(BACKENDS)})")

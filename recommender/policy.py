@@ -1,10 +1,16 @@
-"""A PPO policy that proposes a wrap format for a load unit at once, trained on random units.
+"""A PPO policy that proposes a wrapping program for a load unit at once, trained on random units.
 
 The robust search (`recommender.search`) spends hundreds of simulations on one unit; a policy
-trained once on `wrapenv/WrapBenchRandom-v0` (a new random unit every one-step episode) answers
+trained once on `wrapenv/WrapBenchRandom-v1` (a new random unit every one-step episode) answers
 for any unit in milliseconds, and the caller then verifies its proposal in simulation. The
-episode is a contextual bandit: the observation describes the unit, the action is the format
-vector of `wrapenv.design.FormatSpace`, the reward is the env's (pass, margin, material).
+episode is a contextual bandit: the observation describes the unit, the action is a program of
+`wrapenv.design.ProgramSpace`, the reward is the env's (pass, margin, web laid).
+
+Every policy file (the final one and each checkpoint) carries `POLICY_META` inside its zip: the
+env, material, target and the names of the observation's and the action's entries it was
+trained on. A policy is refused, in one line, by a bench that observes or acts otherwise or for
+another material; and it is loaded without unpickling anything from the file (SB3 keeps its
+spaces and schedules pickled: `load_policy` supplies them itself).
 
 `train` writes into one folder: ``policy.zip`` (the final policy), ``checkpoints/`` (SB3
 checkpoints every `TrainSettings.checkpoint_every` timesteps, so a long run that is stopped still
@@ -15,8 +21,10 @@ be followed and plotted while training runs).
 from __future__ import annotations
 
 import csv
+import json
 import math
 import os
+import zipfile
 from dataclasses import dataclass
 from pathlib import Path
 from typing import IO, Any
@@ -24,18 +32,24 @@ from typing import IO, Any
 import numpy as np
 import torch
 from stable_baselines3 import PPO
+from stable_baselines3.common.buffers import RolloutBuffer
 from stable_baselines3.common.callbacks import BaseCallback, CallbackList, CheckpointCallback
 from stable_baselines3.common.env_util import make_vec_env
+from stable_baselines3.common.policies import ActorCriticPolicy
 from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv
 
 import wrapenv  # noqa: F401  (registers the env ids used by gym.make)
 from wrapenv.calibrated import Calibration
-from wrapenv.design import N_PARAMS
+from wrapenv.config import InputError
+from wrapenv.design import N_PARAMS, NAMES
 from wrapenv.envs import WrapBenchEnv, WrapBenchRandomEnv
+from wrapenv.envs.wrapbench import OBS_NAMES
 from wrapenv.load import LoadUnit
 from wrapenv.wrap import WrapFormat
 
-ENV_ID = "wrapenv/WrapBenchRandom-v0"
+ENV_ID = "wrapenv/WrapBenchRandom-v1"
+#: The file inside every policy zip that says what the policy was trained on.
+POLICY_META = "wrapbench.json"
 #: What the env workers pass to gym.make: the "module:id" form imports wrapenv (which registers
 #: the id) in a SubprocVecEnv worker too, whose fresh interpreter has not imported it when the
 #: parent's main module is not ours (under pytest, or any host program).
@@ -152,14 +166,16 @@ def train(settings: TrainSettings, out_dir: Path) -> Path:
         model = PPO("MlpPolicy", vec_env, n_steps=settings.n_steps,
                     batch_size=settings.batch_size, learning_rate=settings.learning_rate,
                     seed=settings.seed, device="cpu", verbose=0)
+        meta = policy_meta(settings)
         # save_freq counts vector steps, each n_envs timesteps
-        checkpoint = CheckpointCallback(max(1, settings.checkpoint_every // settings.n_envs),
-                                        str(checkpoints), name_prefix=CHECKPOINT_PREFIX)
+        checkpoint = _StampedCheckpoints(meta, max(1, settings.checkpoint_every // settings.n_envs),
+                                         str(checkpoints), name_prefix=CHECKPOINT_PREFIX)
         model.learn(settings.timesteps, callback=CallbackList([checkpoint, log]),
                     progress_bar=settings.progress_bar)
         path = out_dir / POLICY_FILE
         partial = out_dir / f".{POLICY_FILE}.partial.zip"
         model.save(partial)
+        stamp(partial, meta)
         os.replace(partial, path)  # never a half-written policy.zip
         return path
     finally:
@@ -168,13 +184,92 @@ def train(settings: TrainSettings, out_dir: Path) -> Path:
         torch.set_num_threads(threads)
 
 
-def load_policy(policy_path: Path) -> PPO:
-    """The trained policy, on the CPU (no env needed to predict)."""
-    return PPO.load(Path(policy_path), device="cpu")
+def policy_meta(settings: TrainSettings) -> dict[str, Any]:
+    """What a policy was trained on, as `POLICY_META` records it."""
+    return {"env_id": ENV_ID, "material": settings.material, "target_g": settings.target_g,
+            "observation": list(OBS_NAMES), "action": list(NAMES)}
 
 
-def _policy(policy: PPO | Path | str) -> PPO:
-    return policy if isinstance(policy, PPO) else load_policy(Path(policy))
+def stamp(path: Path, meta: dict[str, Any]) -> None:
+    """Add `POLICY_META` to a policy zip SB3 has written."""
+    with zipfile.ZipFile(path, "a") as archive:
+        archive.writestr(POLICY_META, json.dumps(meta))
+
+
+class _StampedCheckpoints(CheckpointCallback):
+    """SB3's checkpoints, each stamped with what the policy was trained on."""
+
+    def __init__(self, meta: dict[str, Any], *args: Any, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        self.meta = meta
+
+    def _on_step(self) -> bool:
+        saved = self.n_calls % self.save_freq == 0
+        result = super()._on_step()
+        if saved:
+            stamp(Path(self._checkpoint_path(extension="zip")), self.meta)
+        return result
+
+
+def _trusted_objects() -> dict[str, Any]:
+    """SB3 pickles these entries of a policy zip; `load_policy` supplies them instead, so
+    nothing from the file is unpickled (the weights are read by torch's weights_only loader)."""
+    env = WrapBenchEnv(levels="target")
+    try:
+        return {"policy_class": ActorCriticPolicy, "rollout_buffer_class": RolloutBuffer,
+                "observation_space": env.observation_space, "action_space": env.action_space,
+                "lr_schedule": _constant(0.0), "clip_range": _constant(0.2),
+                # training state, not needed to predict
+                **dict.fromkeys(("_last_obs", "_last_original_obs", "_last_episode_starts",
+                                 "ep_info_buffer", "ep_success_buffer"))}
+    finally:
+        env.close()
+
+
+def _constant(value: float) -> Any:
+    return lambda _progress: value
+
+
+def read_meta(path: Path) -> dict[str, Any]:
+    """The policy's `POLICY_META`, or a one-line error for anything else."""
+    try:
+        with zipfile.ZipFile(path) as archive:
+            meta = json.loads(archive.read(POLICY_META))
+            data = json.loads(archive.read("data"))
+    except (OSError, zipfile.BadZipFile, KeyError, ValueError) as exc:
+        raise InputError(str(path), "policy", f"not a policy written by `wrapbench train` "
+                                              f"({exc})") from None
+    if not isinstance(meta, dict) or not isinstance(data, dict):
+        raise InputError(str(path), "policy", "not a policy written by `wrapbench train`")
+    meta["_pickled"] = sorted(k for k, v in data.items()
+                              if isinstance(v, dict) and ":serialized:" in v)
+    return meta
+
+
+def load_policy(policy_path: Path, material: str | None = None) -> PPO:
+    """The trained policy, on the CPU, if it was trained for this bench (and `material`)."""
+    path = Path(policy_path)
+    meta = read_meta(path)
+    if meta.get("observation") != list(OBS_NAMES) or meta.get("action") != list(NAMES):
+        raise InputError(str(path), "observation", f"the policy was trained on "
+                         f"{meta.get('env_id', 'another env')}, which observes or acts otherwise"
+                         f" than {ENV_ID}: train a new one")
+    if material is not None and meta.get("material") != material:
+        raise InputError(str(path), "material", f"the policy was trained for "
+                         f"{meta.get('material')!r}, not {material!r}")
+    trusted = _trusted_objects()
+    unknown = set(meta["_pickled"]) - set(trusted)
+    if unknown:
+        raise InputError(str(path), "policy", f"holds pickled entries {sorted(unknown)}, which "
+                                              "are not loaded")
+    try:
+        return PPO.load(path, device="cpu", custom_objects=trusted)
+    except (OSError, ValueError, KeyError, RuntimeError) as exc:
+        raise InputError(str(path), "policy", f"cannot be loaded ({exc})") from None
+
+
+def _policy(policy: PPO | Path | str, material: str) -> PPO:
+    return policy if isinstance(policy, PPO) else load_policy(Path(policy), material)
 
 
 def _env(load: LoadUnit, material: str, target_g: float,
@@ -195,7 +290,7 @@ def propose(policy_path: Path | PPO, load: LoadUnit, material: str, target_g: fl
     """Deterministic action of the trained policy for this unit's observation, decoded to a
     format (answers instantly; the caller verifies it in simulation). An already loaded `PPO`
     is accepted too, so evaluations over many units load the file once."""
-    model = _policy(policy_path)
+    model = _policy(policy_path, material)
     env = _env(load, material, target_g, calibration)
     try:
         obs, _ = env.reset(seed=0)
@@ -222,7 +317,7 @@ def evaluate(policy_or_none: PPO | Path | None, loads: list[LoadUnit], material:
     """Each unit tested (target level only) with the policy's proposal, or with a uniformly
     random action from np.random.default_rng(seed) when the policy is None (one draw per unit,
     in order): the per-unit detail behind `pass_rate`, for comparing material too."""
-    model = None if policy_or_none is None else _policy(policy_or_none)
+    model = None if policy_or_none is None else _policy(policy_or_none, material)
     rng = np.random.default_rng(seed)
     trials = []
     for load in loads:

@@ -1,5 +1,6 @@
 """Reports for people: displacement against time with the EUMOS limits drawn, the search's
-material against margin, and a video of a simulated test."""
+material against margin, and a video of a simulated test. Each writes its file and returns what
+the one-page report (recommender/html_report.py) inlines: the PNG, or the video's still."""
 
 from __future__ import annotations
 
@@ -14,7 +15,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from wrapenv.bench import BenchRun  # noqa: E402
-from wrapenv.config import write_atomic  # noqa: E402
+from wrapenv.config import printable, write_atomic  # noqa: E402
 from wrapenv.eumos import ELASTIC_LIMIT_FRACTION, PERMANENT_LIMIT_FRACTION  # noqa: E402
 from wrapenv.load import Layout  # noqa: E402
 from wrapenv.render import Renderer, fitting_camera, torn_net  # noqa: E402
@@ -22,7 +23,7 @@ from wrapenv.trace import Trace  # noqa: E402
 from wrapenv.wrap import WrapFormat  # noqa: E402
 
 
-def plot_displacements(run: BenchRun, path: str | Path, title: str = "") -> None:
+def plot_displacements(run: BenchRun, path: str | Path, title: str = "") -> bytes:
     """One panel per level: each bundle's displacement in the pallet frame against time."""
     n = len(run.traces)
     fig, axes = plt.subplots(n, 1, figsize=(9, 2.8 * n + 0.6), squeeze=False, sharex=True)
@@ -42,15 +43,13 @@ def plot_displacements(run: BenchRun, path: str | Path, title: str = "") -> None
     axes[-1, 0].set_xlabel("time from pulse start [s]")
     axes[0, 0].legend(fontsize=6, ncol=4, loc="upper right")
     if title:
-        fig.suptitle(title, fontsize=11)
+        # a load's name is the user's: bounded, and never read as mathtext ("$" would be)
+        fig.suptitle(printable(title, 120), fontsize=11, parse_math=False)
     fig.tight_layout()
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=110)
-    plt.close(fig)
-    write_atomic(path, buf.getvalue())
+    return _save(fig, path)
 
 
-def plot_search(history: list, best, path: str | Path, margin_goal: float) -> None:
+def plot_search(history: list, best, path: str | Path, margin_goal: float) -> bytes:
     """Every candidate of a search: material against its worst sample's margin, robust passes
     in green, the recommendation circled: where the search found the cheap side of safe."""
     fig, ax = plt.subplots(figsize=(7, 4.5))
@@ -71,25 +70,60 @@ def plot_search(history: list, best, path: str | Path, margin_goal: float) -> No
     ax.set_title(f"search: {len(history)} candidates", fontsize=10)
     ax.legend(fontsize=7)
     fig.tight_layout()
+    return _save(fig, path)
+
+
+def _save(fig: plt.Figure, path: str | Path) -> bytes:
+    """Write a figure as PNG (atomically) and return the PNG."""
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=110)
     plt.close(fig)
     write_atomic(path, buf.getvalue())
+    return buf.getvalue()
+
+
+#: Codec and container by file suffix: MPEG-4 part 2 in MP4 for players (OpenCV's wheels write
+#: no H.264), VP8 for browsers, which do not play MPEG-4 part 2. The VP8 goes through OpenCV's
+#: Matroska muxer (WebM is a subset of Matroska): its WebM muxer takes the same stream but
+#: prints a warning about the codec tag on stderr.
+CODECS = {".mp4": ("mp4v", ".mp4"), ".webm": ("VP80", ".mkv")}
 
 
 def write_video(trace: Trace, layout: Layout, wrap: WrapFormat | None, path: str | Path,
-                size: tuple[int, int] = (960, 600), fps: int = 20) -> None:
-    """An MP4 of one simulated level from the side camera, at the recordings' 20 fps."""
-    path = Path(path)
+                size: tuple[int, int] = (960, 600), fps: int = 20,
+                also: tuple[Path, ...] = ()) -> bytes:
+    """An MP4 of one simulated level from the side camera, at the recordings' 20 fps, and the
+    same frames in every file of `also` (`CODECS` by suffix), each written whole or not at all.
+    Returns the frame of the largest displacement as PNG: the video's still for print."""
+    paths = [Path(path), *also]
     step = max(1, round(1 / (fps * float(np.median(np.diff(trace.t_s))))))
+    shown = range(0, len(trace.t_s), step)
+    displacement = trace.bundle_displacement_m().max(axis=1)
+    peak = max(shown, key=lambda i: displacement[i])
     net = torn_net(wrap, layout, trace) if wrap is not None else None
-    tmp = path.with_name(f".{path.stem}.tmp.mp4")
-    writer = cv2.VideoWriter(str(tmp), cv2.VideoWriter_fourcc(*"mp4v"), fps, size)
+    codecs = [CODECS[p.suffix] for p in paths]
+    tmps = [p.with_name(f".{p.stem}.tmp{muxer}") for p, (_, muxer) in zip(paths, codecs,
+                                                                          strict=True)]
+    writers = [cv2.VideoWriter(str(t), cv2.VideoWriter.fourcc(*codec), fps, size)
+               for t, (codec, _) in zip(tmps, codecs, strict=True)]
     try:
-        with Renderer(layout, fitting_camera(layout, *size)) as renderer:
-            for i in range(0, len(trace.t_s), step):
-                frame = renderer.trace_frame(trace, i, net)
-                writer.write(cv2.cvtColor(frame, cv2.COLOR_RGB2BGR))
-    finally:
-        writer.release()
-    tmp.replace(path)
+        try:
+            if not all(w.isOpened() for w in writers):
+                raise RuntimeError(f"OpenCV cannot write {', '.join(map(str, paths))}")
+            with Renderer(layout, fitting_camera(layout, *size)) as renderer:
+                for i in shown:
+                    frame = cv2.cvtColor(renderer.trace_frame(trace, i, net), cv2.COLOR_RGB2BGR)
+                    for writer in writers:
+                        writer.write(frame)
+                    if i == peak:
+                        still = cv2.imencode(".png", frame)[1].tobytes()
+        finally:
+            for writer in writers:
+                writer.release()
+    except BaseException:
+        for t in tmps:
+            t.unlink(missing_ok=True)
+        raise
+    for t, p in zip(tmps, paths, strict=True):
+        t.replace(p)
+    return still

@@ -119,6 +119,20 @@ BASE_WRAP: dict[str, Any] = {
 }
 
 
+#: A WRAP.toml with a machine program: Kraft, the contract's example.
+BASE_PROGRAM: dict[str, Any] = {
+    "material": "kraft",
+    "web_width_m": 0.5,
+    "program": {
+        "bottom_wraps": 3, "bottom_from_m": 0.0, "bottom_tension_n": 400.0,
+        "up_overlap": 0.5, "middle_tension_n": 250.0,
+        "top_wraps": 2, "top_overhang_m": 0.05, "top_tension_n": 300.0,
+        "down_overlap": 0.3, "rpm": 12.0,
+        "reinforcement": [{"from_m": 0.40, "wraps": 2, "tension_n": 300.0}],
+    },
+}
+
+
 @pytest.fixture
 def wrap_data() -> Callable[[dict[str, Any] | None], dict[str, Any]]:
     """``wrap_data({"band.0.layers": 0})``: BASE_WRAP with that change, as parsed TOML."""
@@ -126,13 +140,22 @@ def wrap_data() -> Callable[[dict[str, Any] | None], dict[str, Any]]:
 
 
 @pytest.fixture
+def program_data() -> Callable[[dict[str, Any] | None], dict[str, Any]]:
+    """``program_data({"program.top_wraps": 1})``: BASE_PROGRAM with that change, parsed."""
+    return lambda changes=None: changed(BASE_PROGRAM, changes)
+
+
+@pytest.fixture
 def wrap_file(tmp_path: Path) -> Callable[..., Path]:
     """``wrap_file({"band.0.layers": 0})`` writes BASE_WRAP with that change to tmp_path;
-    ``wrap_file(text="...")`` writes the text as is."""
+    ``wrap_file(text="...")`` writes the text as is; ``program=True`` starts from BASE_PROGRAM
+    instead."""
 
-    def write(changes: dict[str, Any] | None = None, *, text: str | None = None) -> Path:
+    def write(changes: dict[str, Any] | None = None, *, text: str | None = None,
+              program: bool = False) -> Path:
         path = tmp_path / "wrap.toml"
-        path.write_text(to_toml(changed(BASE_WRAP, changes)) if text is None else text)
+        data = changed(BASE_PROGRAM if program else BASE_WRAP, changes)
+        path.write_text(to_toml(data) if text is None else text)
         return path
 
     return write

@@ -39,17 +39,33 @@ def read_toml(path: str | Path) -> dict[str, Any]:
 
 
 def read_json(path: str | Path) -> dict[str, Any]:
-    """Parse a JSON object file, turning I/O and syntax errors into `InputError`."""
+    """Parse a JSON object file, turning I/O and syntax errors into `InputError`. A key given
+    twice in one object is an error (JSON allows it and keeps the last: a silent typo)."""
     path = Path(path)
     try:
-        data = json.loads(path.read_text())
+        data = json.loads(path.read_text(), object_pairs_hook=_unique_keys)
     except OSError as exc:
         raise InputError(str(path), "", f"cannot read file ({exc.strerror or exc})") from None
+    except _DuplicateKey as exc:
+        raise InputError(str(path), str(exc), "given twice") from None
     except (json.JSONDecodeError, UnicodeDecodeError) as exc:
         raise InputError(str(path), "", f"malformed JSON ({exc})") from None
     if not isinstance(data, dict):
         raise InputError(str(path), "", "expected a JSON object at the top level")
     return data
+
+
+class _DuplicateKey(ValueError):
+    pass
+
+
+def _unique_keys(pairs: list[tuple[str, Any]]) -> dict[str, Any]:
+    out: dict[str, Any] = {}
+    for key, value in pairs:
+        if key in out:
+            raise _DuplicateKey(key)
+        out[key] = value
+    return out
 
 
 class Table:
@@ -161,11 +177,63 @@ class _Required:
 _REQUIRED: Any = _Required()
 
 
-def check_output(path: Path | None, flag: str) -> None:
-    """An output's folder must exist before any work starts, so a long run does not end in a
-    failed write (`path` None: the output was not asked for)."""
-    if path is not None and not Path(path).resolve().parent.is_dir():
+def check_output(path: Path | None, flag: str, *, inputs: Iterable[str | Path] = ()) -> None:
+    """An output file must be writable before any work starts, so a long run does not end in
+    a failed write (`path` None: the output was not asked for): not a folder or a device, not
+    one of the run's `inputs` (by any name), in an existing folder a file can be created in."""
+    if path is None:
+        return
+    path = Path(path)
+    if path.is_dir():
+        raise InputError(str(path), flag, "is a folder; name a file to write")
+    if path.exists() and not path.is_file():
+        raise InputError(str(path), flag, "not a regular file")
+    for source in inputs:
+        if path.exists() and Path(source).exists() and os.path.samefile(path, source):
+            raise InputError(str(path), flag, f"is an input ({source}): writing it would "
+                             "destroy it")
+    folder = path.resolve().parent
+    if not folder.is_dir():
         raise InputError(str(path), flag, "the folder to write into does not exist")
+    _check_writable(folder, str(path), flag)
+
+
+def check_output_folder(path: Path, flag: str) -> None:
+    """An output folder (created whole at the end) must be new or empty, and creatable: the
+    nearest folder above it that exists must take new entries. Nothing is created."""
+    path = Path(path)
+    if path.exists() and (not path.is_dir() or any(path.iterdir())):
+        raise InputError(str(path), flag, "exists and is not an empty folder")
+    above = path.absolute().parent
+    while not above.exists():
+        above = above.parent
+    if not above.is_dir():
+        raise InputError(str(path), flag, f"{above} is not a folder")
+    _check_writable(above, str(path), flag)
+
+
+def _check_writable(folder: Path, source: str, flag: str) -> None:
+    """Create and remove a file in `folder`: one test for permissions, read-only file systems
+    and /proc alike (`os.access` says yes to root in read-only folders and in /proc)."""
+    try:
+        fd, probe = tempfile.mkstemp(dir=folder, prefix=".wrapbench-probe-")
+    except OSError as exc:
+        raise InputError(source, flag, f"cannot write into {folder} "
+                         f"({exc.strerror or exc})") from None
+    os.close(fd)
+    os.unlink(probe)
+
+
+def printable(text: str, limit: int = 200) -> str:
+    """`text` safe to print on one line: characters that are not printable (escape codes, line
+    breaks, zero-width) written as Python escapes, and at most `limit` characters, the middle
+    dropped (a 100 kB load name would bury the output)."""
+    safe = "".join(c if c.isprintable() else repr(c)[1:-1] for c in text)
+    if len(safe) <= limit:
+        return safe
+    note = f" ... ({len(safe) - limit} more characters) ... "
+    keep = max(limit - len(note), 2)
+    return safe[:keep // 2] + note + safe[len(safe) - (keep - keep // 2):]
 
 
 def write_atomic(path: str | Path, data: bytes) -> None:

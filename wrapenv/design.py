@@ -1,60 +1,69 @@
-"""The space of wrap formats a search or a policy chooses from, as a vector in [-1, 1]^8.
+"""The space of wrapping programs a search or a policy chooses from.
 
-A wrapping machine's program has three zones (paper, section 3): a bottom zone that ties the load
-to the pallet, a middle zone, and a top zone that closes the envelope. The vector holds, in this
-order:
+A program (wrapenv.program) mixes whole numbers of wraps with continuous settings. The space
+names each parameter and its range. A search works on the values themselves (the wraps are
+integer variables, for pycma's integer handling); a policy acts in [-1, 1]^9, which `decode`
+maps linearly onto the ranges, rounding the wraps.
 
-    0-2  layers of the bottom, middle and top band      -> 0 .. max_layers (rounded; the bottom
-                                                           band, the anchor, has at least one)
-    3    top of the bottom band                          -> pallet top + 0.05 m .. 45 % of the load
-    4    bottom of the top band                          -> 55 % of the load .. top - 0.05 m
-    5-7  web tension of the bottom, middle and top band -> 5 % .. 50 % of the web's yield force
+    index  parameter              range
+    0      bottom_wraps           0 .. 6 revolutions parked at the sled surface (whole)
+    1      top_wraps              0 .. 6 revolutions parked high (whole)
+    2      reinforcement_wraps    0 .. 4 revolutions parked at index 4's height (whole; 0: none)
+    3      up_overlap             0 .. 0.75 of the web: a spiral of 1 to 4 layers
+    4      reinforcement_from_m   0 .. load top - web width: where the reinforcement's web starts
+    5-8    tension of the bottom, middle (spiral), top and reinforcement wraps: 5 % .. 50 % of
+           one layer's yield force (machines keep about half the limit for the corners, P4)
 
-The bottom band always starts at the sled surface (it wraps the pallet: the anchor) and the top
-band always reaches the top of the load. Out-of-range values are clipped; NaN is an error.
+Fixed for every program of the space: the bottom wraps start at the sled surface (they tie the
+pallet to the load), the top wraps' web ends `TOP_OVERHANG_M` above the load and folds over, no
+spiral down (a higher overlap lays the same layers in one pass), the machine's speed.
 """
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
 
 from wrapenv.config import InputError
 from wrapenv.load import Layout
-from wrapenv.wrap import MATERIALS, Band, Material, WrapFormat
+from wrapenv.material import MATERIALS, Material
+from wrapenv.program import Program, Reinforcement
+from wrapenv.wrap import WrapFormat
 
-N_PARAMS = 8
 WEB_WIDTH_M = 0.5
-MAX_LAYERS = 6
+MAX_WRAPS = 6
+MAX_REINFORCEMENT_WRAPS = 4
+MAX_OVERLAP = 0.75
+#: The top wraps' web reaches this far above the load and folds over its edge [A]: enough to
+#: tie the top layer's corners without laying web into the air.
+TOP_OVERHANG_M = 0.05
 #: Tension range as a fraction of one layer's yield force over the web width. Machines set the
 #: tension at about half the limit because corners cause tension peaks (docs/materials.md, P4):
 #: Kraft 80-800 N, LLDPE 9-94 N on a 0.5 m web (measured here: Kraft at 90 % tore on the bench).
 TENSION_FRACTIONS = (0.05, 0.5)
-BAND_MARGIN_M = 0.05
-#: The reference a format's material is measured against: this many layers over the whole
-#: height of the load (round the pallet below its top, round the load's outline above it).
-REFERENCE_LAYERS = 3
+NAMES = ("bottom_wraps", "top_wraps", "reinforcement_wraps", "up_overlap",
+         "reinforcement_from_m", "bottom_tension_n", "middle_tension_n", "top_tension_n",
+         "reinforcement_tension_n")
+INTEGER_INDICES = (0, 1, 2)
+N_PARAMS = len(NAMES)
 
 
 @dataclass(frozen=True)
-class FormatSpace:
-    """Maps vectors in [-1, 1]^8 to wrap formats for one load unit and one material."""
+class ProgramSpace:
+    """Programs for one load unit and one material, as vectors of `NAMES` values."""
 
     material_key: str
     load_height_m: float
-    pallet_top_m: float
-    max_layers: int = MAX_LAYERS
     web_width_m: float = WEB_WIDTH_M
 
     @classmethod
-    def for_layout(cls, layout: Layout, material_key: str, **kwargs) -> FormatSpace:
+    def for_layout(cls, layout: Layout, material_key: str) -> ProgramSpace:
         if material_key not in MATERIALS:
-            raise InputError("arguments", "--material",
+            raise InputError("arguments", "material",
                              f"must be one of {', '.join(map(repr, MATERIALS))} "
                              f"(got {material_key!r})")
-        return cls(material_key, layout.load_height_m, layout.pallet_size_m[2], **kwargs)
+        return cls(material_key, layout.load_height_m)
 
     @property
     def material(self) -> Material:
@@ -65,57 +74,70 @@ class FormatSpace:
         limit = self.material.yield_force_n_per_m * self.web_width_m
         return TENSION_FRACTIONS[0] * limit, TENSION_FRACTIONS[1] * limit
 
-    def reference_mass_kg(self, layout: Layout) -> float:
-        """Material of `REFERENCE_LAYERS` layers over the whole height of this unit."""
-        full = WrapFormat(self.material, self.web_width_m,
-                          (Band(0.0, layout.load_height_m, REFERENCE_LAYERS, 1.0),),
-                          self.material_key)
-        return full.material_used_on(layout).mass_kg
+    @property
+    def low(self) -> np.ndarray:
+        t0, _ = self.tension_range_n
+        return np.array([0, 0, 0, 0.0, 0.0, t0, t0, t0, t0])
 
-    def _bounds(self) -> tuple[tuple[float, float], tuple[float, float]]:
-        h = self.load_height_m
-        low = (self.pallet_top_m + BAND_MARGIN_M, max(0.45 * h, self.pallet_top_m + 0.1))
-        high = (min(0.55 * h, h - 0.1), h - BAND_MARGIN_M)
-        return low, high
+    @property
+    def high(self) -> np.ndarray:
+        _, t1 = self.tension_range_n
+        reach = max(0.0, self.load_height_m - self.web_width_m)
+        return np.array([MAX_WRAPS, MAX_WRAPS, MAX_REINFORCEMENT_WRAPS, MAX_OVERLAP, reach,
+                         t1, t1, t1, t1])
+
+    def program(self, values: np.ndarray) -> Program:
+        """The program of a vector of values (clipped to the ranges, wraps rounded)."""
+        v = np.clip(_finite(values), self.low, self.high)
+        wraps = [int(round(float(x))) for x in v[list(INTEGER_INDICES)]]
+        reinforcement = (Reinforcement(round(float(v[4]), 4), wraps[2], round(float(v[8]), 1)),
+                         ) if wraps[2] else ()
+        return Program(
+            bottom_wraps=wraps[0], bottom_tension_n=round(float(v[5]), 1),
+            up_overlap=round(float(v[3]), 4), middle_tension_n=round(float(v[6]), 1),
+            top_wraps=wraps[1], top_overhang_m=TOP_OVERHANG_M,
+            top_tension_n=round(float(v[7]), 1), reinforcements=reinforcement,
+        )
+
+    def wrap(self, values: np.ndarray) -> WrapFormat:
+        """The wrap a vector of values lays on this unit."""
+        return self.laid(self.program(values))
+
+    def laid(self, program: Program) -> WrapFormat:
+        return WrapFormat.from_program(self.material, self.web_width_m, program,
+                                       self.load_height_m, self.material_key)
 
     def decode(self, action: np.ndarray) -> WrapFormat:
-        """The wrap format of a vector (clipped to [-1, 1]; NaN raises `ValueError`)."""
-        a = np.asarray(action, dtype=float).reshape(-1)
-        if a.shape != (N_PARAMS,):
-            raise ValueError(f"a wrap format vector has {N_PARAMS} values, got {a.shape[0]}")
-        if not np.all(np.isfinite(a)):
-            raise ValueError(f"a wrap format vector must be finite, got {a.tolist()}")
-        u = (np.clip(a, -1.0, 1.0) + 1.0) / 2.0          # 0 .. 1
-        layers = [round(float(x) * self.max_layers) for x in u[:3]]
-        layers[0] = max(layers[0], 1)
-        (lo0, lo1), (hi0, hi1) = self._bounds()
-        bottom_top = lo0 + u[3] * (lo1 - lo0)
-        top_bottom = hi0 + u[4] * (hi1 - hi0)
-        t0, t1 = self.tension_range_n
-        tension = [t0 + float(x) * (t1 - t0) for x in u[5:]]
-        h = self.load_height_m
-        spans = ((0.0, bottom_top), (bottom_top, top_bottom), (top_bottom, h))
-        bands = tuple(Band(round(float(a_), 4), round(float(b_), 4), n, round(t, 1))
-                      for (a_, b_), n, t in zip(spans, layers, tension, strict=True) if n > 0)
-        return WrapFormat(self.material, self.web_width_m, bands, self.material_key)
+        """The wrap of a policy's action in [-1, 1]^9 (clipped; NaN raises `ValueError`)."""
+        a = np.clip(_finite(action), -1.0, 1.0)
+        return self.wrap(self.low + (a + 1.0) / 2.0 * (self.high - self.low))
 
-    def encode(self, wrap: WrapFormat) -> np.ndarray:
-        """A vector that decodes to (nearly) this three-band format: a search's starting point."""
-        bottom, *rest = sorted(wrap.bands, key=lambda b: b.from_m)
-        top = rest[-1] if rest and rest[-1].to_m >= self.load_height_m - 1e-6 else None
-        middle = rest[0] if rest and rest[0] is not top else None
-        (lo0, lo1), (hi0, hi1) = self._bounds()
-        t0, t1 = self.tension_range_n
-        u = [
-            bottom.layers / self.max_layers,
-            (middle.layers if middle else 0) / self.max_layers,
-            (top.layers if top else 0) / self.max_layers,
-            _frac(bottom.to_m, lo0, lo1),
-            _frac(top.from_m if top else hi1, hi0, hi1),
-            *(_frac(b.tension_n, t0, t1) for b in (bottom, middle or bottom, top or bottom)),
-        ]
-        return np.clip(2 * np.array(u) - 1, -1, 1)
+    def values(self, program: Program) -> np.ndarray:
+        """The vector of a program of this space (a search's starting point)."""
+        r = program.reinforcements[0] if program.reinforcements else None
+        t0, _ = self.tension_range_n
+        return np.array([program.bottom_wraps, program.top_wraps, r.wraps if r else 0,
+                         program.up_overlap, r.from_m if r else 0.0,
+                         program.bottom_tension_n, program.middle_tension_n,
+                         program.top_tension_n, r.tension_n if r else t0], float)
+
+    def machine_default(self) -> Program:
+        """What a wrapper does out of the box: 3 bottom wraps, a spiral up at 50 % overlap, 3
+        top wraps, every tension at half the web's yield force."""
+        half = self.material.yield_force_n_per_m * self.web_width_m / 2
+        return Program(bottom_wraps=3, bottom_tension_n=half, up_overlap=0.5,
+                       middle_tension_n=half, top_wraps=3, top_overhang_m=TOP_OVERHANG_M,
+                       top_tension_n=half)
+
+    def reference_mass_kg(self, layout: Layout) -> float:
+        """Web of the machine's default program on this unit: what material is measured by."""
+        return self.laid(self.machine_default()).material_used_on(layout).mass_kg
 
 
-def _frac(x: float, lo: float, hi: float) -> float:
-    return 0.5 if math.isclose(hi, lo) else (x - lo) / (hi - lo)
+def _finite(vector: np.ndarray) -> np.ndarray:
+    v = np.asarray(vector, dtype=float).reshape(-1)
+    if v.shape != (N_PARAMS,):
+        raise ValueError(f"a program vector has {N_PARAMS} values, got {v.shape[0]}")
+    if not np.all(np.isfinite(v)):
+        raise ValueError(f"a program vector must be finite, got {v.tolist()}")
+    return v

@@ -7,11 +7,12 @@ of the pallet at z = 0 and the pallet centred on x = y = 0.
 
 from __future__ import annotations
 
-import json
 import math
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Literal
+
+import tomli_w
 
 from wrapenv.config import InputError, Table, read_toml
 
@@ -183,12 +184,8 @@ class LoadUnit:
         }
 
     def to_toml(self) -> str:
-        data = self.to_dict()
-        lines = ["# Load unit (LOAD.toml); metres, kilograms.", f"name = {_toml(data['name'])}"]
-        for table in ("pallet", "bundle", "stack", "friction", "fixture"):
-            lines.append(f"\n[{table}]")
-            lines += [f"{k} = {_toml(v)}" for k, v in data[table].items()]
-        return "\n".join(lines) + "\n"
+        """The LOAD.toml text, written by a TOML library (every name reads back equal)."""
+        return "# Load unit (LOAD.toml); metres, kilograms.\n" + tomli_w.dumps(self.to_dict())
 
     @classmethod
     def from_toml(cls, path: str | Path) -> LoadUnit:
@@ -209,19 +206,6 @@ class LoadUnit:
         unit = cls(name, pallet, bundle, stack, friction, stopper)
         _check_geometry(unit, source)
         return unit
-
-
-def _toml(value: object) -> str:
-    """A TOML value that reads back equal: floats by repr, strings as JSON-style strings."""
-    if isinstance(value, bool):
-        return "true" if value else "false"
-    if isinstance(value, str):
-        return json.dumps(value, ensure_ascii=False)
-    if isinstance(value, dict):
-        return "{ " + ", ".join(f"{k} = {_toml(v)}" for k, v in value.items()) + " }"
-    if isinstance(value, list):
-        return "[" + ", ".join(_toml(v) for v in value) + "]"
-    return repr(value)
 
 
 def _sized(t: Table, kind: type, presets: dict) -> Pallet | Bundle:

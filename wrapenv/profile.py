@@ -152,14 +152,21 @@ class MeasuredProfile:
 Profile = PulseProfile | MeasuredProfile
 
 
-def eumos_levels(target_g: float = 0.5, start_g: float = 0.2) -> list[float]:
-    """The EUMOS 40509 sequence: start (0.2 or 0.3 g), then +0.1 g up to and including target."""
+#: Where a bench lab starts the sequence (0.2 or 0.3 g, paper section 2).
+START_G = 0.2
+
+
+def eumos_levels(target_g: float = 0.5, start_g: float | None = None) -> list[float]:
+    """The EUMOS 40509 sequence: start (0.2 or 0.3 g), then +0.1 g up to and including target.
+    Without a start, 0.2 g, or the target itself when it is lower."""
+    if start_g is None:
+        start_g = min(START_G, target_g) if math.isfinite(target_g) else START_G
     if not _level_ok(target_g):
-        raise InputError("arguments", "--target",
+        raise InputError("test sequence", "target_g",
                          f"must be in (0, {MAX_LEVEL_TEXT}] g, the bench's 10 m/s² "
                          f"(got {target_g})")
     if not (math.isfinite(start_g) and 0 < start_g <= target_g + 1e-9):
-        raise InputError("arguments", "--start", f"must be in (0, target] (got {start_g})")
+        raise InputError("test sequence", "start_g", f"must be in (0, target] (got {start_g})")
     n = math.floor((target_g - start_g) / LEVEL_STEP_G + 1e-9)
     levels = [round(start_g + i * LEVEL_STEP_G, 3) for i in range(n + 1)]
     if levels[-1] < target_g - 1e-9:

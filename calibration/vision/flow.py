@@ -12,18 +12,31 @@ neighbour or of the web that entered the box do not pull the estimate.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import astuple, dataclass, replace
 
 import cv2
 import numpy as np
 
+
+@dataclass(frozen=True)
+class Farneback:
+    """`cv2.calcOpticalFlowFarneback`'s settings, in its argument order."""
+
+    pyr_scale: float = 0.5
+    levels: int = 0
+    winsize: int = 7
+    iterations: int = 1
+    poly_n: int = 5
+    poly_sigma: float = 1.1
+    flags: int = 0
+
+
 #: Farnebäck settings for residuals under a pixel: one level, a small window, one iteration
 #: (on the 1920x1200 benchmark a second iteration or a 9 px window changed no error by 0.01 mm
 #: and cost 20 % of the speed).
-FARNEBACK = dict(pyr_scale=0.5, levels=0, winsize=7, iterations=1, poly_n=5, poly_sigma=1.1,
-                 flags=0)
+FARNEBACK = Farneback()
 #: Farnebäck settings for whole frame-to-frame motions (several px): a pyramid, a wider window.
-FARNEBACK_LARGE = dict(FARNEBACK, levels=2, winsize=15, iterations=3)
+FARNEBACK_LARGE = replace(FARNEBACK, levels=2, winsize=15, iterations=3)
 #: Cauchy scale (px) of the robust second pass.
 ROBUST_SCALE_PX = 0.5
 
@@ -72,10 +85,12 @@ class RigidFlow:
     pixel grid and its moments are computed once per object."""
 
     def __init__(self, reference: np.ndarray, ref_centre: tuple[float, float], border: int = 6,
-                 farneback: dict | None = None) -> None:
+                 farneback: Farneback = FARNEBACK) -> None:
         self.reference = reference
-        self.farneback = FARNEBACK if farneback is None else farneback
+        self.farneback = astuple(farneback)
         h, w = reference.shape
+        #: Farnebäck's output, reused: an object's flow is measured on one thread at a time
+        self.flow = np.zeros((h, w, 2), np.float32)
         ys, xs = np.mgrid[0:h, 0:w].astype(np.float32)
         self.du = xs - np.float32(ref_centre[0])
         self.dv = ys - np.float32(ref_centre[1])
@@ -85,7 +100,7 @@ class RigidFlow:
 
     def measure(self, warped: np.ndarray) -> RigidMotion:
         """Fit translation + rotation to Farnebäck's flow from the reference to `warped`."""
-        flow = cv2.calcOpticalFlowFarneback(self.reference, warped, None, **self.farneback)
+        flow = cv2.calcOpticalFlowFarneback(self.reference, warped, self.flow, *self.farneback)
         fu, fv = flow[..., 0], flow[..., 1]
         motion = self._fit(fu, fv, self.weights)
         ru = fu - (motion.du + motion.dtheta * self.dv)

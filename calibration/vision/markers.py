@@ -48,8 +48,8 @@ class MarkerDetector:
             return {}
         found: dict[int, np.ndarray] = {}
         seen: set[int] = set()
-        for c, i in zip(corners, ids.ravel(), strict=True):
-            i = int(i)
+        for c, raw_id in zip(corners, ids.ravel(), strict=True):
+            i = int(raw_id)
             if i in seen:
                 found.pop(i, None)
                 continue
@@ -61,6 +61,11 @@ class MarkerDetector:
 def centre_px(corners: np.ndarray) -> np.ndarray:
     """A marker's centre: the mean of its corners (exact under the orthographic camera)."""
     return corners.mean(axis=0)
+
+
+def side_px(corners: np.ndarray) -> float:
+    """A marker's side in the image: the mean length of its four edges."""
+    return float(np.linalg.norm(corners - np.roll(corners, 1, axis=0), axis=1).mean())
 
 
 def angle_rad(corners: np.ndarray) -> float:

@@ -14,6 +14,9 @@ import numpy as np
 from wrapenv.bench import SLED_DECK_M
 from wrapenv.load import Layout
 
+#: Margin of the region of interest around the unit: bundles slide and tip within it.
+ROI_MARGIN_M = 0.25
+
 
 @dataclass(frozen=True)
 class PixelMap:

@@ -117,7 +117,7 @@ class PatchTracker:
         crop = warp_to_reference(frame.gray, frame.local(pose), pose.theta, self.ref_centre,
                                  self.box_size, m)
         scores = ncc(crop, self.reference)
-        row, col = np.unravel_index(int(np.argmax(scores)), scores.shape)
+        row, col = (int(k) for k in np.unravel_index(int(np.argmax(scores)), scores.shape))
         dc, dr = subpixel_peak(scores, row, col)
         t = rotation_px(pose.theta) @ np.array([col + dc - m, row + dr - m])
         return replace(pose, u=pose.u + t[0], v=pose.v + t[1]), float(scores[row, col])
@@ -183,22 +183,40 @@ def opencv_tracker(kind: str, model: str | None = None) -> cv2.Tracker:
     """An OpenCV tracker by name; the deep ones need their ONNX model file (`model`), which is
     not bundled with opencv-python-headless: without one they raise `ValueError`."""
     if kind == "mil":
-        return cv2.TrackerMIL_create()
-    factories = {"dasiamrpn": (cv2.TrackerDaSiamRPN_Params, cv2.TrackerDaSiamRPN_create, "model"),
-                 "nano": (cv2.TrackerNano_Params, cv2.TrackerNano_create, "backbone"),
-                 "vit": (cv2.TrackerVit_Params, cv2.TrackerVit_create, "net")}
-    if kind not in factories:
-        known = ", ".join(OWN_TRACKERS + OPENCV_TRACKERS)
-        raise ValueError(f"unknown tracker {kind!r}; known: {known}")
-    params_cls, create, field = factories[kind]
+        return cv2.TrackerMIL.create()
+    if kind not in OPENCV_TRACKERS:
+        raise ValueError(f"{kind!r} is not one of OpenCV's trackers ({', '.join(OPENCV_TRACKERS)})")
     if model is None:
         raise ValueError(f"tracker {kind!r} needs its ONNX model file, which is not available")
-    params = params_cls()
-    setattr(params, field, model)
     try:
-        return create(params)
+        return _deep_tracker(kind, model)
     except cv2.error as exc:
         raise ValueError(f"tracker {kind!r} cannot load {model}: {exc.msg.strip()}") from None
+
+
+def _deep_tracker(kind: str, model: str) -> cv2.Tracker:
+    """One of OpenCV's network trackers from its ONNX file (each names the file differently)."""
+    if kind == "dasiamrpn":
+        siam = cv2.TrackerDaSiamRPN.Params()
+        siam.model = model
+        return cv2.TrackerDaSiamRPN.create(siam)
+    if kind == "nano":
+        nano = cv2.TrackerNano.Params()
+        nano.backbone = model
+        return cv2.TrackerNano.create(nano)
+    vit = cv2.TrackerVit.Params()
+    vit.net = model
+    return cv2.TrackerVit.create(vit)
+
+
+def check_tracker(kind: str) -> None:
+    """`ValueError` unless trackers of `kind` can be made here: OpenCV's network trackers cannot
+    without their ONNX models, so a run would follow nothing."""
+    if kind in OPENCV_TRACKERS:
+        opencv_tracker(kind)
+    elif kind not in OWN_TRACKERS:
+        raise ValueError(f"unknown tracker {kind!r}; known: "
+                         f"{', '.join(OWN_TRACKERS + OPENCV_TRACKERS)}")
 
 
 def make_tracker(kind: str, frame: Frame, centre: tuple[float, float],
@@ -248,7 +266,7 @@ class MultiTracker:
         def one(name: str) -> tuple[Pose, float]:
             return self.trackers[name].update(frame, self.history[name].predict(sled_u))
 
-        run: Callable = self.pool.map if self.pool else map  # type: ignore[assignment]
+        run: Callable = self.pool.map if self.pool else map
         results = dict(zip(self.trackers, run(one, self.trackers), strict=True))
         for name, (pose, _) in results.items():
             self.history[name].push(pose, sled_u)

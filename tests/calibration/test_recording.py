@@ -10,14 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from calibration.recording import (
-    MarkerPlacement,
-    MarkerSpec,
-    Recording,
-    SledProfile,
-    Truth,
-    setup_toml,
-)
+from calibration.recording import Recording, SledProfile, Truth
 from wrapenv.config import InputError, read_toml
 
 
@@ -52,18 +45,6 @@ def test_profile_round_trips_through_csv(tmp_path):
     back = SledProfile.read(tmp_path / "profile.csv")
     for key in ("t_s", "accel_mps2", "vel_mps", "pos_m"):
         np.testing.assert_array_equal(getattr(back, key), getattr(profile, key))
-
-
-def test_setup_round_trips_markers_and_template():
-    spec = MarkerSpec("DICT_5X5_100", 0.05,
-                      (MarkerPlacement(7, "pallet", (0.5, 0.0)),
-                       MarkerPlacement(9, "L2C1R1", (-0.1, 0.12))))
-    import tomllib
-    data = tomllib.loads(setup_toml(25.0, 412.0, (960.5, 1001.0), spec, "t.png"))
-    assert data["template"] == "t.png" and data["recording"]["fps"] == 25.0
-    assert data["camera"] == {"px_per_m": 412.0, "origin_px": [960.5, 1001.0]}
-    assert data["markers"]["placement"][1] == {"id": 9, "object": "L2C1R1",
-                                               "offset_m": [-0.1, 0.12]}
 
 
 def _edit(name: str, old: str, new: str) -> Callable[[Path], None]:
@@ -194,3 +175,44 @@ def test_bad_truth_is_one_input_error(change, field, copy_of, assert_input_error
     with pytest.raises(InputError) as err:
         Truth.read(folder)
     assert_input_error(err.value, str(path), field)
+
+
+def test_profile_in_milliseconds_is_refused(copy_of, assert_input_error):
+    """t_s written in ms makes a 3000 s test: the sled would creep and a replay run for hours."""
+    folder = copy_of()
+    path = folder / "profile.csv"
+    lines = path.read_text().splitlines()
+    rows = [line.split(",") for line in lines[1:]]
+    path.write_text("\n".join([lines[0]] + [",".join([repr(1000 * float(r[0])), *r[1:]])
+                                            for r in rows]) + "\n")
+    with pytest.raises(InputError) as err:
+        Recording.read(folder)
+    assert_input_error(err.value, str(path), "t_s")
+    assert "milliseconds" in str(err.value)
+
+
+def test_profile_with_a_byte_order_mark_reads(copy_of):
+    """Excel's "CSV UTF-8" starts the file with U+FEFF, which hid the first column's name."""
+    folder = copy_of()
+    path = folder / "profile.csv"
+    plain = Recording.read(folder).profile
+    path.write_bytes(b"\xef\xbb\xbf" + path.read_bytes())
+    np.testing.assert_array_equal(Recording.read(folder).profile.t_s, plain.t_s)
+
+
+def test_missing_template_is_one_line_without_opencv_noise(copy_of, capfd, assert_input_error):
+    folder = copy_of()
+    (folder / "template.png").unlink()
+    with pytest.raises(InputError) as err:
+        Recording.read(folder)
+    assert_input_error(err.value, str(folder / "setup.toml"), "template")
+    assert capfd.readouterr().err == ""
+
+
+def test_marker_size_is_optional(copy_of):
+    """CONTRACTS.md: `markers.size_m` may be left out (a lab may not know the printed size)."""
+    folder = copy_of()
+    _edit("setup.toml", "size_m = 0.075\n", "")(folder)
+    rec = Recording.read(folder)
+    assert rec.markers is not None and rec.markers.size_m is None
+    assert len(rec.markers.placements) == 2

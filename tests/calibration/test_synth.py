@@ -4,12 +4,20 @@ seed gives the same recording."""
 
 from __future__ import annotations
 
+import fcntl
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
 import cv2
 import numpy as np
 import pytest
 
 from calibration.recording import Recording, Truth
-from calibration.synth import synthesize
+from calibration.synth import STAGING_SUFFIX, synthesize
 from wrapenv.config import InputError
 
 ROW1 = {"L1C1R1", "L1C2R1", "L2C1R1", "L2C2R1"}
@@ -141,3 +149,54 @@ def test_refuses_a_folder_in_use(tmp_path, small_load, assert_input_error):
         synthesize(small_load, tmp_path / "busy", level_g=0.1, size=(320, 200))
     assert_input_error(err.value, str(tmp_path / "busy"), "")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["busy"]  # no temporary left
+
+
+TINY = {"level_g": 0.1, "size": (320, 200), "fps": 5.0, "pre_roll_s": 0.0}
+
+
+def test_stale_staging_folders_are_cleaned_live_ones_kept(tmp_path, small_load):
+    """A run killed (SIGKILL) leaves its hidden staging folder; the next run in that folder
+    removes it, but not the staging folder of a run still going (it holds a lock on it), nor
+    other hidden folders."""
+    stale = tmp_path / f".old.x1{STAGING_SUFFIX}"
+    live = tmp_path / f".busy.x2{STAGING_SUFFIX}"
+    mine = tmp_path / ".config"
+    for folder in (stale, live, mine):
+        folder.mkdir()
+        (folder / "video.avi").write_bytes(b"partial")
+    fd = os.open(live, os.O_RDONLY)
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        synthesize(small_load, tmp_path / "rec", **TINY)
+    finally:
+        os.close(fd)
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted([live.name, mine.name, "rec"])
+
+
+def test_sigterm_leaves_no_staging_folder(tmp_path, small_load):
+    """SIGTERM during the encoding (the staging folder exists) unwinds like Ctrl-C: exit 143
+    (128 + SIGTERM), one line, no recording and no hidden folder."""
+    load = tmp_path / "load.toml"
+    load.write_text(small_load.to_toml())
+    out = tmp_path / "runs" / "rec"
+    proc = subprocess.Popen([sys.executable, "-m", "recommender.cli", "synth", str(load),
+                             "--out", str(out), "--size", "640x400", "--fps", "40"],
+                            stderr=subprocess.PIPE, text=True,
+                            env={**os.environ, "PYTHONPATH": str(Path.cwd())})
+    deadline = time.monotonic() + 120
+    while not any((tmp_path / "runs").glob(f".rec.*{STAGING_SUFFIX}")):
+        assert proc.poll() is None and time.monotonic() < deadline, proc.stderr.read()
+        time.sleep(0.05)
+    proc.send_signal(signal.SIGTERM)
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 143, err
+    assert err.strip().splitlines() == ["wrapbench synth: interrupted, nothing written"]
+    assert list((tmp_path / "runs").iterdir()) == []
+
+
+def test_progress_is_reported_per_frame(tmp_path, small_load):
+    calls = []
+    rec = synthesize(small_load, tmp_path / "rec", progress=lambda k, n: calls.append((k, n)),
+                     **TINY)
+    frames = len(Truth.read(rec.folder).objects["sled"].t_s)
+    assert calls == [(k, frames) for k in range(1, frames + 1)]

@@ -5,12 +5,15 @@ from __future__ import annotations
 import json
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
 
 from recommender.cli import main
 from wrapenv.profile import PulseProfile
+
+EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
 
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 
@@ -344,22 +347,53 @@ def test_missing_wrap_file_exits_2_naming_it(load_file, tmp_path, capsys):
     assert "no.toml" in one_line(capsys.readouterr().err)
 
 
-def test_wrapped_run_reports_the_wrap_material_and_recipe(load_file, tmp_path, capsys):
+def test_wrapped_run_reports_the_bands_and_the_web_a_machine_lays_for_them(load_file,
+                                                                         tmp_path, capsys):
     load = load_file(base=TINY_LOAD)
     out_json = tmp_path / "verdict.json"
     code = run(["simulate", str(load), "--wrap", str(wrap_file(tmp_path)), "--level", "0.3",
                 "--json", str(out_json)])
     out, err = capsys.readouterr()
     assert code == 0, err
-    assert "material used" in out and "bottom wraps 2" in out
+    assert "material used" in out and "cycle time" in out
+    assert "warning" in err and "band[0]" in err  # 0.45 m of paper on a 0.5 m web
     verdict = json.loads(out_json.read_text())
     assert verdict["format"]["material"] == "kraft"
-    assert verdict["format"]["band"][0]["layers"] == 2
-    # 2 layers: 0.144 m round the pallet (perimeter 4.0 m), then 0.306 m round the two bundles
-    # (outline 0.68 x 0.19 m, perimeter 1.74 m); kraft is 0.09 kg/m²
+    assert verdict["format"]["bands"][0]["layers"] == 2
+    # 2 full-width revolutions: 0.144 m round the pallet (perimeter 4.0 m), then 0.356 m round
+    # the two bundles (outline 0.68 x 0.19 m, perimeter 1.74 m; the web above the 0.474 m load
+    # folds over its edge); kraft is 0.09 kg/m²
     used = verdict["material_used"]
-    area = 2 * (0.144 * 4.0 + 0.306 * 1.74)
+    area = 2 * (0.144 * 4.0 + 0.356 * 1.74)
     assert used["area_m2"] == pytest.approx(area, rel=1e-3)
     assert used["mass_kg"] == pytest.approx(area * 0.09, rel=1e-3)
+    assert used["revolutions"] == 2
     wrap = verdict["levels"][0]["wrap"]
     assert wrap["torn"] is False and 0 < wrap["peak_utilisation"] < 1
+
+
+def test_a_program_is_simulated_as_the_bands_its_web_lays(load_file, tmp_path, capsys):
+    load = load_file(base=TINY_LOAD)
+    out_json = tmp_path / "verdict.json"
+    code = run(["simulate", str(load), "--wrap", str(EXAMPLES / "program_kraft_default.toml"),
+                "--level", "0.3", "--json", str(out_json)])
+    out, err = capsys.readouterr()
+    assert code in (0, 1) and err == ""  # (the paper tears at 800 N on this unit: issue 12)
+    assert "wrapping program" in out and "spiral up" in out and "pallets/h" in out
+    verdict = json.loads(out_json.read_text())
+    assert verdict["format"]["program"]["bottom_wraps"] == 3
+    assert verdict["format"]["bands"][0] == {"from_m": 0.0, "to_m": 0.474, "layers": 3,
+                                             "tension_n": 800.0}
+    assert verdict["material_used"]["revolutions"] == pytest.approx(6.0 + 0.024 / 0.25)
+    assert verdict["cycle_time_s"] == pytest.approx(6.096 * 5 + 15.0)
+    assert verdict["pallets_per_hour"] == pytest.approx(3600 / verdict["cycle_time_s"], rel=1e-3)
+
+
+def test_paper_asked_to_rope_exits_2_naming_the_field(load_file, tmp_path, capsys):
+    text = (EXAMPLES / "program_kraft_default.toml").read_text() + "roping = true\n"
+    wrap = tmp_path / "roped.toml"
+    wrap.write_text(text)
+    code = run(["simulate", str(load_file(base=TINY_LOAD)), "--wrap", str(wrap),
+                "--json", str(tmp_path / "out.json")])
+    assert code == 2 and ": program.roping: " in one_line(capsys.readouterr().err)
+    assert not (tmp_path / "out.json").exists()

@@ -23,8 +23,8 @@ TINY = {
     "stack": {"layers": 2, "pattern": "explicit", "positions": [[0.0, 0.0]]},
     "fixture": {"pallet_stopper": True},
 }
-SMALL_SEARCH = SearchSettings(target_g=0.5, samples=2, popsize=3, max_candidates=3, patience=9,
-                              workers=2)
+SMALL_SEARCH = SearchSettings(targets=(("long", 0.5),), samples=2, popsize=3, max_candidates=3,
+                              patience=9, workers=2)
 
 
 def _history(backend: str) -> list[tuple]:
@@ -51,7 +51,7 @@ def test_a_ray_instance_started_by_the_search_is_stopped_after_it():
 
 
 def test_unknown_backend_is_an_input_error():
-    with pytest.raises(InputError, match="--backend: cluster: unknown backend"):
+    with pytest.raises(InputError, match="--backend: unknown backend 'cluster'"):
         executor("cluster", 2)
 
 
@@ -71,3 +71,9 @@ def test_ray_backend_without_ray_installed_says_how_to_install(monkeypatch, caps
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "pip install .[ray]" in err[0]
     assert list(tmp_path.iterdir()) == []
+
+
+def test_a_ray_address_that_cannot_be_joined_is_one_line_naming_the_flag():
+    pytest.importorskip("ray")
+    with pytest.raises(InputError, match="--ray-address: cannot join 'ray://127.0.0.1:1'"):
+        RayExecutor(1, "ray://127.0.0.1:1")

@@ -1,15 +1,19 @@
 """The PPO policy (recommender/policy.py): training writes the policy, checkpoints and an episode
-log; a policy proposes a valid format for any unit; held-out units are reproducible and differ
-from the training envs'; and (slow) a short training run beats random actions on held-out units.
+log; a policy proposes a valid program for any unit; a policy file says what it was trained on
+and is refused by a bench it does not fit, without unpickling anything; held-out units are
+reproducible and differ from the training envs'; and (slow) a short training run beats random
+actions on held-out units.
 
-Every step of `wrapenv/WrapBenchRandom-v0` simulates a random unit of 1-3 layers, about 1-3 s
+Every step of `wrapenv/WrapBenchRandom-v1` simulates a random unit of 1-3 layers, about 1-3 s
 each on one core, so the fast training test runs only 8 timesteps (about 20-30 s).
 """
 
 from __future__ import annotations
 
 import csv
+import json
 import time
+import zipfile
 from pathlib import Path
 
 import numpy as np
@@ -18,6 +22,7 @@ import pytest
 from recommender.policy import (
     CHECKPOINT_DIR,
     LOG_COLUMNS,
+    POLICY_META,
     TrainSettings,
     evaluate,
     held_out_loads,
@@ -26,7 +31,8 @@ from recommender.policy import (
     propose,
     train,
 )
-from wrapenv.design import MAX_LAYERS, FormatSpace
+from wrapenv.config import InputError
+from wrapenv.design import MAX_REINFORCEMENT_WRAPS, MAX_WRAPS, N_PARAMS, ProgramSpace
 from wrapenv.envs import WrapBenchRandomEnv
 from wrapenv.load import LoadUnit
 from wrapenv.wrap import WrapFormat
@@ -94,22 +100,75 @@ def test_train_with_two_subprocess_envs(tmp_path):
         assert [int(r["timesteps"]) for r in csv.DictReader(f)] == [1, 2, 3, 4]
 
 
-def test_propose_returns_a_valid_format_for_the_unit(trained):
+def test_propose_returns_a_program_for_the_unit(trained):
     path, _ = trained
     load = held_out_loads(1, seed=3)[0]
-    t0 = time.perf_counter()
-    wrap = propose(path, load, "kraft", 0.5)
-    assert time.perf_counter() - t0 < 5  # no simulation: the caller verifies
+    wrap = propose(path, load, "kraft", 0.5)  # no simulation: the caller verifies
     assert isinstance(wrap, WrapFormat) and wrap.material_key == "kraft"
-    height = load.layout().load_height_m
-    bands = sorted(wrap.bands, key=lambda b: b.from_m)
-    assert bands[0].from_m == 0.0 and bands[0].layers >= 1  # the anchor wraps the pallet
-    assert all(0 < b.layers <= MAX_LAYERS and b.to_m <= height + 1e-9 for b in bands)
+    program = wrap.program
+    assert program is not None
+    assert 0 <= program.bottom_wraps <= MAX_WRAPS and 0 <= program.top_wraps <= MAX_WRAPS
+    assert all(r.wraps <= MAX_REINFORCEMENT_WRAPS for r in program.reinforcements)
+    assert max(b.to_m for b in wrap.bands) <= load.layout().load_height_m + 1e-9
     # deterministic, and the same with the policy already loaded
     assert propose(path, load, "kraft", 0.5) == wrap
     assert propose(load_policy(path), load, "kraft", 0.5) == wrap
-    # the observation carries the material: an LLDPE proposal is an LLDPE format
-    assert propose(path, load, "lldpe", 0.5).material_key == "lldpe"
+
+
+def test_every_policy_file_says_what_it_was_trained_on(trained):
+    path, out = trained
+    for file in [path, *sorted((out / CHECKPOINT_DIR).iterdir())]:
+        with zipfile.ZipFile(file) as archive:
+            meta = json.loads(archive.read(POLICY_META))
+        assert meta["material"] == "kraft" and meta["env_id"] == "wrapenv/WrapBenchRandom-v1"
+        assert len(meta["observation"]) == 31 and len(meta["action"]) == N_PARAMS
+
+
+def test_a_policy_is_refused_for_another_material(trained, assert_input_error):
+    path, _ = trained
+    with pytest.raises(InputError) as info:
+        propose(path, held_out_loads(1, seed=3)[0], "lldpe", 0.5)
+    assert_input_error(info.value, str(path), "material")
+
+
+def _rewritten(path: Path, out: Path, meta: dict | None = None, data: dict | None = None) -> Path:
+    """A copy of a policy zip with its metadata or SB3 data replaced."""
+    with zipfile.ZipFile(path) as src, zipfile.ZipFile(out, "w") as dst:
+        for item in src.namelist():
+            content = src.read(item)
+            if item == POLICY_META and meta is not None:
+                content = json.dumps(meta).encode()
+            if item == "data" and data is not None:
+                content = json.dumps(data).encode()
+            dst.writestr(item, content)
+    return out
+
+
+def test_a_policy_of_another_observation_is_refused_in_one_line(trained, tmp_path,
+                                                               assert_input_error):
+    path, _ = trained
+    with zipfile.ZipFile(path) as archive:
+        meta = json.loads(archive.read(POLICY_META))
+    old = _rewritten(path, tmp_path / "old.zip", meta={**meta, "observation": meta[
+        "observation"][:27]})
+    with pytest.raises(InputError) as info:
+        load_policy(old)
+    assert_input_error(info.value, str(old), "observation")
+
+
+def test_a_policy_is_loaded_without_unpickling_what_the_file_holds(trained, tmp_path):
+    path, _ = trained
+    with zipfile.ZipFile(path) as archive:
+        data = json.loads(archive.read("data"))
+    # a pickled entry the loader does not know: refused, never unpickled
+    data["exploit"] = {":type:": "<class 'x'>", ":serialized:": "gASVAAAAAAAAAAB9lC4="}
+    evil = _rewritten(path, tmp_path / "evil.zip", data=data)
+    with pytest.raises(InputError, match="exploit"):
+        load_policy(evil)
+    not_a_zip = tmp_path / "bad.zip"
+    not_a_zip.write_bytes(b"PK not really")
+    with pytest.raises(InputError, match="not a policy"):
+        load_policy(not_a_zip)
 
 
 def test_held_out_loads_are_reproducible_random_units_unseen_in_training():
@@ -130,11 +189,11 @@ def test_pass_rate_counts_passes_of_random_or_policy_actions(trained):
                                                                 "bundle": HEAVY_BUNDLE})]
     trials = evaluate(None, loads, "kraft", 0.3, seed=1)
     assert [t.load for t in trials] == ["tiny", "heavy"]
-    assert all(t.valid and 0 < t.material_kg < 1 for t in trials)
+    assert all(t.valid and 0 < t.material_kg < 5 for t in trials)
     # the random actions are one uniform draw per unit from default_rng(seed), in order
     rng = np.random.default_rng(1)
-    space = FormatSpace.for_layout(loads[0].layout(), "kraft")
-    assert trials[0].wrap == space.decode(rng.uniform(-1, 1, 8))
+    space = ProgramSpace.for_layout(loads[0].layout(), "kraft")
+    assert trials[0].wrap == space.decode(rng.uniform(-1, 1, N_PARAMS))
     assert pass_rate(None, loads, "kraft", 0.3, seed=1) == sum(t.passed for t in trials) / 2
     path, _ = trained
     mine = evaluate(path, loads, "kraft", 0.3, seed=1)

@@ -1,10 +1,10 @@
-"""The robust CMA-ES search: uncertain samples, objective, checkpoint and resume, and the
-`recommend` command's contract on a load that simulates in a fraction of a second."""
+"""The robust CMA-ES search over wrapping programs: uncertain samples, objective, integer wraps,
+the cycle-time limit, checkpoint (data) and resume, and the `recommend` command's contract on a
+load that simulates in a fraction of a second."""
 
 from __future__ import annotations
 
 import json
-import pickle
 import tomllib
 from pathlib import Path
 
@@ -13,13 +13,12 @@ import pytest
 
 from recommender.cli import EXAMPLE_LOAD, main
 from recommender.search import (
-    MASS_SPREAD,
+    CHECKPOINT_FORMAT,
     Problem,
     RobustSearch,
     SearchSettings,
-    SearchState,
-    _objective,
 )
+from recommender.uncertainty import MASS_SPREAD
 from wrapenv.calibrated import Calibration
 from wrapenv.config import InputError
 from wrapenv.load import LoadUnit
@@ -34,7 +33,9 @@ SMALL = {
               "positions": [[-0.15, -0.1], [0.15, -0.1], [-0.15, 0.1], [0.15, 0.1]]},
     "fixture": {"pallet_stopper": True},
 }
-FAST = SearchSettings(target_g=0.5, samples=2, popsize=4, max_candidates=8, workers=2)
+#: One orientation, no relaxation: the search's own behaviour, at the least cost.
+FAST = SearchSettings(targets=(("long", 0.5),), samples=2, popsize=4, max_candidates=8,
+                      workers=2, hours_since_wrapping=0.0)
 
 
 @pytest.fixture
@@ -68,33 +69,95 @@ def test_calibrated_std_widens_the_samples(small_load):
 
 def test_any_failing_candidate_scores_worse_than_any_passing_one(small_load):
     problem = Problem.build(small_load, FAST)
-    heaviest = problem.wrap(np.ones(8))
-    lightest = problem.wrap(-np.ones(8))
+    heaviest = problem.space.wrap(problem.space.high)
+    lightest = problem.space.wrap(problem.space.low)
     layout = small_load.layout()
-    passing = _objective(problem, heaviest, heaviest.material_used_on(layout).mass_kg, [0.3])
-    failing = _objective(problem, lightest, lightest.material_used_on(layout).mass_kg, [-0.01])
+    passing = problem.objective(heaviest, heaviest.material_used_on(layout).mass_kg, [0.3],
+                                [True])
+    failing = problem.objective(lightest, lightest.material_used_on(layout).mass_kg, [-0.01],
+                                [False])
     assert failing > passing
+    # a pass short of the margin goal scores worse than with it, better than any failure
+    short = problem.objective(heaviest, heaviest.material_used_on(layout).mass_kg, [0.1],
+                              [True])
+    assert passing < short < failing
+
+
+def test_the_objective_is_the_web_relative_to_the_machine_s_default_program(small_load):
+    problem = Problem.build(small_load, FAST)
+    default = problem.space.laid(problem.space.machine_default())
+    mass = default.material_used_on(small_load.layout()).mass_kg
+    assert mass == pytest.approx(problem.reference_mass_kg)
+    # at half the yield force every tension is at the top of the searched range (5-50 %):
+    # the tension price adds its whole 0.05
+    assert problem.objective(default, mass, [0.5], [True]) == pytest.approx(1.0 + 0.05)
+
+
+def test_wraps_are_integer_variables_of_the_search(small_load):
+    search = RobustSearch(Problem.build(small_load, FAST))
+    state = search.start()
+    assert state.es.opts["integer_variables"] == [0, 1, 2]
+    for x in state.es.ask():
+        assert all(float(v).is_integer() for v in x[:3]), x
+        assert 0 <= x[0] <= 6 and 0 <= x[2] <= 4
+
+
+def test_programs_over_the_cycle_limit_are_not_simulated_and_score_worst(small_load):
+    # the start (2 bottom wraps, a spiral of 0.94 turns, 1 top wrap) takes 35 s at 12 rpm
+    slow = SearchSettings(**{**FAST.__dict__, "max_cycle_s": 38.0, "max_candidates": 8})
+    problem = Problem.build(small_load, slow)
+    state = RobustSearch(problem).run(RobustSearch(problem).start())
+    over = [e for e in state.history if e.cycle_s > 38.0]
+    under = [e for e in state.history if e.cycle_s <= 38.0]
+    assert over and under, "the start is chosen to straddle the limit"
+    assert all(e.margins == () and not e.robust_pass for e in over)
+    assert min(e.objective for e in over) > max(e.objective for e in under)
+    best = state.best(slow.margin_goal)
+    assert best is None or best.cycle_s <= 38.0
 
 
 def test_target_above_the_bench_is_a_clear_error(small_load):
     with pytest.raises(InputError, match="10 m/s"):
-        Problem.build(small_load, SearchSettings(target_g=1.2))
+        Problem.build(small_load, SearchSettings(targets=(("long", 1.2),)))
 
 
 def test_search_finds_a_robust_pass_and_resumes_from_its_checkpoint(small_load, tmp_path):
-    ckpt = tmp_path / "search.ckpt"
-    problem = Problem.build(small_load, FAST)
-    search = RobustSearch(problem, ckpt)
-    state = search.start()
+    ckpt = tmp_path / "search.json"
     one = SearchSettings(**{**FAST.__dict__, "max_candidates": 4})
-    RobustSearch(Problem.build(small_load, one), ckpt).run(state)  # "interrupted" after 1 gen
-    saved = pickle.loads(ckpt.read_bytes())
-    assert isinstance(saved, SearchState) and saved.generation == 1
-    resumed = search.run(search.resume())
+    first = RobustSearch(Problem.build(small_load, one), ckpt)
+    stopped = first.run(first.start())  # "interrupted" after one generation
+    saved = json.loads(ckpt.read_text())  # data, not a pickle
+    assert saved["format"] == CHECKPOINT_FORMAT and len(saved["generations"]) == 1
+    search = RobustSearch(Problem.build(small_load, FAST), ckpt)
+    replayed = search.resume()
+    assert replayed.generation == 1 and replayed.history == stopped.history
+    assert np.allclose(replayed.es.mean, stopped.es.mean) and replayed.es.sigma == stopped.es.sigma
+    resumed = search.run(replayed)
     assert resumed.generation >= 2 and len(resumed.history) >= 8
-    assert resumed.history[:4] == saved.history[:4]   # nothing of the first generation lost
+    assert resumed.history[:4] == stopped.history   # nothing of the first generation lost
     best = resumed.best(FAST.margin_goal)
     assert best is not None and best.robust_pass
+
+
+@pytest.mark.parametrize("other", [{"material": "lldpe"}, {"targets": (("long", 0.6),)},
+                                   {"seed": 3}, {"hours_since_wrapping": 16.0}])
+def test_resume_refuses_another_search_s_checkpoint(small_load, tmp_path, other,
+                                                    assert_input_error):
+    ckpt = tmp_path / "search.json"
+    one = SearchSettings(**{**FAST.__dict__, "max_candidates": 4})
+    RobustSearch(Problem.build(small_load, one), ckpt).run(
+        RobustSearch(Problem.build(small_load, one), ckpt).start())
+    mine = SearchSettings(**{**FAST.__dict__, **other})
+    with pytest.raises(InputError) as info:
+        RobustSearch(Problem.build(small_load, mine), ckpt).resume()
+    assert_input_error(info.value, str(ckpt), f"problem.{next(iter(other))}")
+
+
+def test_resume_refuses_a_file_that_is_no_checkpoint(small_load, tmp_path):
+    ckpt = tmp_path / "search.json"
+    ckpt.write_text('{"format": "pickle"}')
+    with pytest.raises(InputError, match="not a wrapbench search checkpoint"):
+        RobustSearch(Problem.build(small_load, FAST), ckpt).resume()
 
 
 def test_resume_without_a_checkpoint_is_a_clear_error(small_load, tmp_path):
@@ -108,18 +171,28 @@ def test_recommend_writes_the_contract_json_and_a_wrap_simulate_accepts(load_fil
     load = load_file(base=SMALL)
     out, wrap = tmp_path / "rec.json", tmp_path / "rec_wrap.toml"
     code = main(["recommend", str(load), "--budget", "8", "--samples", "2", "--workers", "2",
-                 "--json", str(out), "--wrap-out", str(wrap),
-                 "--checkpoint", str(tmp_path / "s.ckpt")])
+                 "--json", str(out), "--wrap-out", str(wrap)])
     text = capsys.readouterr().out
     assert code == 0
-    assert "recommended wrap" in text and "material used" in text and "bottom wraps" in text
+    assert "recommended wrapping program" in text and "material used" in text
+    assert "spiral up" in text and "cycle time" in text
     result = json.loads(out.read_text())
-    assert {"format", "material_used", "verdict", "robust_pass_rate", "evaluations",
-            "method"} <= set(result)
+    assert {"format", "program", "material_used", "cycle_time_s", "verdict",
+            "robust_pass_rate", "evaluations", "method", "pass_probability", "worst_sample",
+            "orientations", "hours_since_wrapping"} <= set(result)
+    assert set(result["orientations"]) == {"long", "short"}  # both sides by default
+    assert result["hours_since_wrapping"] == 16.0
+    p = result["pass_probability"]
+    assert p["low95"] <= p["estimate"] == result["robust_pass_rate"] <= p["high95"]
+    assert {"area_m2", "mass_kg", "web_length_m", "revolutions"} <= set(result["material_used"])
     assert result["method"] == "cmaes" and 0 <= result["robust_pass_rate"] <= 1
     assert result["verdict"]["highest_passed_g"] == pytest.approx(0.5)
-    assert WrapFormat.from_toml(wrap).to_dict() == result["format"]
-    assert not (tmp_path / "s.ckpt").exists(), "the checkpoint goes when the search ends"
+    height = LoadUnit.from_toml(load).load_height_m
+    written = WrapFormat.from_toml(wrap, height)
+    assert written.to_json()["program"] == result["program"] == result["format"]["program"]
+    assert written.material_used_on(LoadUnit.from_toml(load).layout()).mass_kg == pytest.approx(
+        result["material_used"]["mass_kg"])
+    assert not list(tmp_path.glob("*checkpoint*")), "the checkpoint goes when the search ends"
     assert main(["simulate", str(load), "--wrap", str(wrap), "--level", "0.5"]) == 0
 
 
@@ -130,10 +203,12 @@ def test_recommend_writes_the_contract_json_and_a_wrap_simulate_accepts(load_fil
     (["--workers", "0"], "--workers"),
     (["--margin", "1.5"], "--margin"),
     (["--resume"], "--resume"),
+    (["--max-cycle-s", "0"], "--max-cycle-s"),
+    (["--cycle-weight", "-1"], "--cycle-weight"),
 ])
 def test_bad_recommend_arguments_exit_2_with_one_line(argv, field, load_file, tmp_path, capsys):
     load = load_file(base=SMALL)
-    code = main(["recommend", str(load), *argv, "--checkpoint", str(tmp_path / "none.ckpt"),
+    code = main(["recommend", str(load), *argv, "--checkpoint", str(tmp_path / "none.json"),
                  "--json", str(tmp_path / "out.json")])
     err = capsys.readouterr().err.strip()
     assert code == 2 and "\n" not in err and field in err
@@ -144,9 +219,12 @@ def test_ppo_method_answers_from_a_policy_and_verifies_it(load_file, tmp_path, c
     import gymnasium as gym
     from stable_baselines3 import PPO
 
+    from recommender.policy import TrainSettings, policy_meta, stamp
+
     load = load_file(base=SMALL)
-    env = gym.make("wrapenv/WrapBench-v0", load=str(load))
+    env = gym.make("wrapenv/WrapBench-v1", load=str(load))
     PPO("MlpPolicy", env, n_steps=64, batch_size=32, device="cpu", seed=0).save(tmp_path / "p")
+    stamp(tmp_path / "p.zip", policy_meta(TrainSettings()))
     env.close()
     out = tmp_path / "ppo.json"
     code = main(["recommend", str(load), "--method", "ppo", "--policy", str(tmp_path / "p.zip"),
@@ -178,3 +256,65 @@ def test_the_bundled_example_is_package_data_and_the_readme_example():
     assert EXAMPLE_LOAD.read_bytes() == (root / "examples/pet_2layer_columnar.toml").read_bytes()
     pyproject = tomllib.loads((root / "pyproject.toml").read_text())
     assert "data/*.toml" in pyproject["tool"]["setuptools"]["package-data"]["recommender"]
+
+
+#: One tall, thin bundle on high friction: it tips rather than slides, about 0.12 / 0.40 = 0.3 g
+#: with its thin side along the motion (a rigid block tips at a / g = width / height), 1 g the
+#: long way round.
+TIPPY = {
+    "name": "tippy",
+    "pallet": {"preset": "EUR"},
+    "bundle": {"length_m": 0.40, "width_m": 0.12, "height_m": 0.40, "mass_kg": 8.0},
+    "stack": {"layers": 1, "pattern": "explicit", "positions": [[0.0, 0.0]]},
+    "friction": {"pallet_bundle": {"static": 0.7, "kinetic": 0.6}},
+    "fixture": {"pallet_stopper": True},
+}
+
+
+def test_a_load_that_passes_long_but_fails_short_gets_a_program_that_passes_both(
+        load_file, tmp_path, capsys):
+    load = load_file(base=TIPPY)
+    assert main(["simulate", str(load), "--level", "0.4", "--orientation", "long"]) == 0
+    assert main(["simulate", str(load), "--level", "0.4", "--orientation", "short"]) == 1
+    out = tmp_path / "rec.json"
+    code = main(["recommend", str(load), "--target", "0.4", "--budget", "8", "--samples", "2",
+                 "--workers", "2", "--json", str(out)])
+    capsys.readouterr()
+    assert code == 0
+    result = json.loads(out.read_text())
+    for side in ("long", "short"):
+        assert result["orientations"][side]["levels"][-1]["passed"], side
+    assert result["verdict"]["orientation"] in ("long", "short")
+
+
+@pytest.mark.parametrize("argv, field", [
+    (["--target-short", "1.5"], "--target-short"),
+    (["--orientation", "long", "--target-short", "0.5"], "--target-short"),
+    (["--hours-since-wrapping", "-1"], "--hours-since-wrapping"),
+])
+def test_bad_orientation_targets_and_hours_exit_2(argv, field, load_file, tmp_path, capsys):
+    code = main(["recommend", str(load_file(base=SMALL)), *argv,
+                 "--json", str(tmp_path / "out.json")])
+    err = capsys.readouterr().err.strip()
+    assert code == 2 and "\n" not in err and field in err
+    assert not (tmp_path / "out.json").exists()
+
+
+def test_the_budget_is_the_most_candidates_ever_tried(small_load):
+    """A generation that would pass the budget is not started (a budget of 10 at 8 a
+    generation tries 8, not 16)."""
+    ten = SearchSettings(**{**FAST.__dict__, "popsize": 4, "max_candidates": 6})
+    problem = Problem.build(small_load, ten)
+    state = RobustSearch(problem).run(RobustSearch(problem).start())
+    assert len(state.history) == 4
+
+
+def test_too_many_workers_and_absurd_arguments_exit_2(load_file, tmp_path, capsys):
+    load = load_file(base=SMALL)
+    code = main(["recommend", str(load), "--workers", "1000", "--json", str(tmp_path / "o")])
+    err = capsys.readouterr().err.strip()
+    assert code == 2 and "--workers" in err and "\n" not in err
+    with pytest.raises(SystemExit) as exit_:
+        main(["simulate", str(load), "--level", "abc"])
+    assert exit_.value.code == 2
+    assert "expected a level in g such as 0.4 (got 'abc')" in capsys.readouterr().err

@@ -20,11 +20,12 @@ from stable_baselines3.common.env_checker import check_env as sb3_check_env
 
 import wrapenv
 from wrapenv.config import InputError
+from wrapenv.design import N_PARAMS
 from wrapenv.envs import OBS_NAMES, WrapBenchEnv, WrapBenchRandomEnv
 from wrapenv.load import LoadUnit
 
-ENV_ID = "wrapenv/WrapBench-v0"
-RANDOM_ID = "wrapenv/WrapBenchRandom-v0"
+ENV_ID = "wrapenv/WrapBench-v1"
+RANDOM_ID = "wrapenv/WrapBenchRandom-v1"
 TINY_LOAD = """name = "tiny"
 [pallet]
 preset = "EUR"
@@ -35,8 +36,14 @@ layers = 1
 pattern = "explicit"
 positions = [[-0.2, 0.0], [0.2, 0.0]]
 """
-CHEAP, EXPENSIVE = -np.ones(8, np.float32), np.ones(8, np.float32)
-INFO_KEYS = {"format", "verdict", "material_used", "passed", "margin", "valid", "reward_terms"}
+#: One bottom wrap at the lowest tension and a touching spiral; everything at its maximum.
+CHEAP = np.array([-2 / 3, -1, -1, -1, -1, -1, -1, -1, -1], np.float32)
+EXPENSIVE = np.ones(N_PARAMS, np.float32)
+#: The machine's default program: 3 bottom and 3 top wraps, a 50 % spiral (0.5 / 0.75 of the
+#: overlap range), no reinforcement, every tension at half the yield force (the range's top).
+DEFAULT = np.array([0, 0, -1, 1 / 3, 0, 1, 1, 1, 1], np.float32)
+INFO_KEYS = {"format", "verdict", "material_used", "cycle_time_s", "passed", "margin", "valid",
+             "reward_terms"}
 
 
 @pytest.fixture(scope="module")
@@ -65,7 +72,7 @@ def test_gym_make_steps_one_step_episode(tiny, env_id):
     env = gym.make(env_id, load=str(tiny), levels="target", target_g=0.3)
     obs, info = env.reset(seed=1)
     assert env.observation_space.contains(obs)
-    obs, reward, terminated, truncated, info = env.step(np.zeros(8, np.float32))
+    obs, reward, terminated, truncated, info = env.step(np.zeros(N_PARAMS, np.float32))
     assert terminated is True and truncated is False
     assert isinstance(reward, float) and info["passed"]
     env.close()
@@ -81,9 +88,9 @@ def test_default_kwargs_use_the_bundled_example():
 
 def test_spaces_and_observation_features(tiny):
     env = make(tiny, material="lldpe")
-    assert env.action_space == gym.spaces.Box(-1, 1, (8,), np.float32)
+    assert env.action_space == gym.spaces.Box(-1, 1, (9,), np.float32)
     space = env.observation_space
-    assert space.dtype == np.float32 and space.shape == (len(OBS_NAMES),) == (27,)
+    assert space.dtype == np.float32 and space.shape == (len(OBS_NAMES),) == (31,)
     obs, _ = env.reset(seed=0)
     assert space.contains(obs)
     named = dict(zip(OBS_NAMES, obs.tolist(), strict=True))
@@ -98,7 +105,15 @@ def test_spaces_and_observation_features(tiny):
     assert named["friction_sled_pallet_kinetic"] == pytest.approx(0.34)
     assert named["target_g"] == pytest.approx(0.3)
     assert named["friction_bundle_bundle_static_std"] == 0.0
-    assert (named["material_kraft"], named["material_lldpe"]) == (0, 1)
+    # the web by its card's figures (LLDPE as applied, docs/materials.md card 2b)
+    assert named["material_grammage"] == pytest.approx(0.0098 / 0.1)
+    assert named["material_log_stiffness"] == pytest.approx(np.log10(2500) / 6)
+    assert (named["material_yield_strain"], named["material_break_strain"]) == pytest.approx(
+        (0.15, 0.55))
+    assert named["material_break_force"] == pytest.approx(0.13)
+    assert named["material_is_paper"] == 0.0
+    kraft, _ = make(tiny, material="kraft").reset(seed=0)
+    assert dict(zip(OBS_NAMES, kraft.tolist(), strict=True))["material_is_paper"] == 1.0
 
 
 def test_calibration_sets_friction_and_its_std(tiny, tmp_path):
@@ -150,7 +165,7 @@ def test_sb3_check_env(tiny):
 
 
 def test_same_seed_and_action_give_identical_results(tiny):
-    action = np.random.default_rng(3).uniform(-1, 1, 8).astype(np.float32)
+    action = np.random.default_rng(3).uniform(-1, 1, N_PARAMS).astype(np.float32)
     results = []
     for _ in range(2):
         env = make(tiny)
@@ -167,20 +182,20 @@ def test_same_seed_and_action_give_identical_results(tiny):
 def test_out_of_range_actions_are_clipped_and_nan_raises(tiny):
     env = make(tiny)
     env.reset(seed=0)
-    wild = np.array([5.0, -7.0, 1.5, 3.0, -2.0, 9.0, -9.0, 1.0], np.float32)
+    wild = np.array([5.0, -7.0, 1.5, 3.0, -2.0, 9.0, -9.0, 1.0, 4.0], np.float32)
     assert env.decode(wild) == env.decode(np.clip(wild, -1, 1))
     _, r_wild, _, _, i_wild = env.step(wild)
     _, r_clip, _, _, i_clip = env.step(np.clip(wild, -1, 1))
     assert r_wild == r_clip and i_wild == i_clip
-    bad = np.zeros(8, np.float32)
+    bad = np.zeros(N_PARAMS, np.float32)
     bad[2] = np.nan
     with pytest.raises(ValueError, match="finite"):
         env.step(bad)
-    with pytest.raises(ValueError, match="8 values"):
+    with pytest.raises(ValueError, match="9 values"):
         env.step(np.zeros(5, np.float32))
 
 
-def test_cheaper_passing_format_scores_higher(tiny):
+def test_cheaper_passing_program_scores_higher(tiny):
     env = make(tiny)
     env.reset(seed=0)
     _, r_cheap, _, _, cheap = env.step(CHEAP)
@@ -194,8 +209,13 @@ def test_cheaper_passing_format_scores_higher(tiny):
         assert terms["verdict"] == pytest.approx(1 + min(info["margin"], 0.5))
         ratio = info["material_used"]["mass_kg"] / env.reference_mass_kg
         assert terms["material"] == pytest.approx(-ratio)
-    # all-zero actions are 3 layers on every band over the whole height: the reference
-    assert env.step(np.zeros(8, np.float32))[4]["reward_terms"]["material"] == pytest.approx(-1)
+    # the machine's default program is the reference
+    default = env.step(DEFAULT)[4]
+    assert default["format"]["program"] == {
+        "bottom_wraps": 3, "bottom_from_m": 0.0, "bottom_tension_n": 800.0, "up_overlap": 0.5,
+        "middle_tension_n": 800.0, "top_wraps": 3, "top_overhang_m": 0.05,
+        "top_tension_n": 800.0}
+    assert default["reward_terms"]["material"] == pytest.approx(-1)
 
 
 def test_material_weight_scales_the_material_term(tiny):
@@ -207,7 +227,7 @@ def test_material_weight_scales_the_material_term(tiny):
 def test_info_keys_and_verdict_json(tiny):
     env = make(tiny, levels="eumos", target_g=0.3)
     env.reset()
-    *_, info = env.step(np.zeros(8, np.float32))
+    *_, info = env.step(np.zeros(N_PARAMS, np.float32))
     assert INFO_KEYS <= set(info)
     assert set(info["verdict"]) == {"valid", "load_height_m", "levels", "highest_passed_g"}
     assert [lv["level_g"] for lv in info["verdict"]["levels"]] == [0.2, 0.3]
@@ -215,7 +235,9 @@ def test_info_keys_and_verdict_json(tiny):
     assert {"level_g", "passed", "elastic_max_m", "permanent_max_m", "permanent_low20_m",
             "pallet_slip_m", "damage", "criteria", "bodies", "wrap"} <= set(level)
     assert {"area_m2", "mass_kg"} <= set(info["material_used"])
-    assert info["format"]["material"] == "kraft" and info["format"]["band"]
+    assert info["format"]["material"] == "kraft" and info["format"]["bands"]
+    assert info["format"]["program"]["up_overlap"] == pytest.approx(0.375)
+    assert info["cycle_time_s"] > 0
     assert info["valid"] is True and isinstance(info["margin"], float)
 
 
@@ -237,7 +259,7 @@ def test_render_frames_and_close_twice(tiny):
 def test_random_env_units_follow_the_seed():
     env = WrapBenchRandomEnv(levels="target")
     with pytest.raises(gym.error.ResetNeeded):
-        env.step(np.zeros(8, np.float32))
+        env.step(np.zeros(N_PARAMS, np.float32))
     obs = {seed: env.reset(seed=seed)[0] for seed in range(6)}
     again, _ = env.reset(seed=3)
     np.testing.assert_array_equal(obs[3], again)
@@ -270,7 +292,7 @@ def test_async_vector_env_steps_and_closes(tiny):
                         levels="target", target_g=0.3)
     try:
         obs, _ = envs.reset(seed=0)
-        assert obs.shape == (2, 27)
+        assert obs.shape == (2, 31)
         obs, reward, terminated, truncated, info = envs.step(np.stack([CHEAP, EXPENSIVE]))
         assert terminated.tolist() == [True, True] and truncated.tolist() == [False, False]
         assert reward[0] > reward[1]
@@ -282,12 +304,12 @@ def test_many_steps_do_not_grow_memory(tiny):
     env = make(tiny, render_mode="rgb_array")
     rng = np.random.default_rng(0)
     env.reset(seed=0)
-    env.step(np.zeros(8, np.float32))
+    env.step(np.zeros(N_PARAMS, np.float32))
     env.render()
     before = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
     for i in range(30):
         env.reset(seed=i)
-        env.step(rng.uniform(-1, 1, 8).astype(np.float32))
+        env.step(rng.uniform(-1, 1, N_PARAMS).astype(np.float32))
         if i % 10 == 0:
             env.render()
     grown_mb = (resource.getrusage(resource.RUSAGE_SELF).ru_maxrss - before) / 1024

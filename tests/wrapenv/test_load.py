@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import re
+import tomllib
+from dataclasses import replace
 from pathlib import Path
 
 import pytest
@@ -417,3 +419,10 @@ def test_from_dict_names_its_source_in_errors(assert_input_error):
         LoadUnit.from_dict(minimal(bundle={"preset": "PET6x1.5L", "mass_kgs": 1}),
                            source="inline")
     assert_input_error(info.value, "inline", "bundle.mass_kgs")
+
+
+@pytest.mark.parametrize("name", ["PET 6×1.5 L \"bundles\"", "del\x7f and escape \x1b[31m",
+                                  "tab\tand back\\slash"])
+def test_to_toml_reads_back_equal_whatever_the_name(name):
+    unit = replace(LoadUnit.from_toml(EXAMPLES / "pet_3layer_interlocked.toml"), name=name)
+    assert LoadUnit.from_dict(tomllib.loads(unit.to_toml())) == unit

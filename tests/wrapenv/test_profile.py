@@ -175,14 +175,14 @@ def test_eumos_levels_every_level_can_be_run():
 def test_eumos_target_beyond_the_bench_is_rejected(target, assert_input_error):
     with pytest.raises(InputError) as info:
         eumos_levels(target)
-    assert_input_error(info.value, "arguments", "--target")
+    assert_input_error(info.value, "test sequence", "target_g")
 
 
 @pytest.mark.parametrize("start", [0.0, 0.6, math.nan])
 def test_eumos_start_outside_0_to_target_is_rejected(start, assert_input_error):
     with pytest.raises(InputError) as info:
         eumos_levels(0.5, start_g=start)
-    assert_input_error(info.value, "arguments", "--start")
+    assert_input_error(info.value, "test sequence", "start_g")
 
 
 # --- measured profile.csv ------------------------------------------------------------------
@@ -290,3 +290,8 @@ def test_nan_time_is_reported_in_the_time_column(tmp_path, assert_input_error):
     with pytest.raises(InputError) as info:
         MeasuredProfile.from_csv(path)
     assert_input_error(info.value, str(path), "t_s")
+
+
+def test_a_target_below_the_usual_start_is_a_sequence_of_one_level():
+    assert eumos_levels(0.1) == [0.1]
+    assert eumos_levels(0.5) == [0.2, 0.3, 0.4, 0.5]

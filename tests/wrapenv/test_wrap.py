@@ -1,5 +1,6 @@
-"""Specification of WRAP.toml and the wrap format: material cards, layers and pretension by
-height, material used, the machine recipe, writing back, calibration scaling, bad input."""
+"""Specification of WRAP.toml: material cards, the band form and the program form, layers and
+pretension by height, material used, writing back, calibration scaling, bad input. (How a
+program lays its web: test_program.py.)"""
 
 from __future__ import annotations
 
@@ -12,12 +13,12 @@ import pytest
 
 from wrapenv.config import InputError
 from wrapenv.load import LoadUnit
+from wrapenv.program import Outline
 from wrapenv.wrap import (
     DEFAULT_TENSION_N,
     MATERIALS,
     Band,
     Material,
-    RecipeRow,
     WrapFormat,
 )
 
@@ -152,53 +153,51 @@ def test_an_empty_height_interval_is_a_programming_error():
 
 def test_material_used_goes_round_the_pallet_below_its_top_and_round_the_load_above():
     wrap = fmt(Band(0.0, 1.0, 2, 250.0), Band(1.0, 1.5, 1, 250.0))
-    used = wrap.material_used(pallet_top_m=0.2, pallet_perimeter_m=4.0, load_perimeter_m=3.0)
+    used = wrap.material_used(Outline(pallet_top_m=0.2, pallet_perimeter_m=4.0,
+                                      load_perimeter_m=3.0))
     area = 2 * (0.2 * 4.0 + 0.8 * 3.0) + 1 * (0.5 * 3.0)  # 7.9 m²
     assert used.area_m2 == pytest.approx(area)
     assert used.mass_kg == pytest.approx(area * 0.090)
-    assert used.length_m == pytest.approx(area / 0.5)
+    assert used.web_length_m == pytest.approx(area / 0.5)
+    assert used.revolutions == 2 * 2 + 1
 
 
-# --- machine recipe ------------------------------------------------------------------------
+# --- the program form ----------------------------------------------------------------------
 
 
-def test_recipe_parks_the_carriage_for_short_bands_and_passes_over_tall_ones():
-    # Given out of order: the recipe lists zones from the bottom up.
-    wrap = fmt(Band(1.2, 1.5, 2, 90.0), Band(0.3, 1.2, 2, 80.0), Band(0.0, 0.3, 3, 100.0))
-    recipe = wrap.machine_recipe()
-    assert recipe.rows == (
-        RecipeRow("bottom", 0.0, 0.3, 0.0, 3, 0, 100.0),
-        RecipeRow("middle", 0.3, 1.2, 0.3, 4, 2, 80.0),  # 0.9 m: 2 revolutions a pass
-        RecipeRow("top", 1.2, 1.5, 1.2, 2, 0, 90.0),
-    )
-    assert (recipe.bottom_wraps, recipe.top_wraps) == (3, 2)
-    assert (recipe.carriage_passes, recipe.revolutions) == (2, 9)
+def test_a_program_is_read_as_the_contract_writes_it(program_data):
+    wrap = WrapFormat.from_dict(program_data(), "wrap.toml", load_height_m=0.804)
+    p = wrap.program
+    assert p is not None and wrap.material_key == "kraft"
+    assert (p.bottom_wraps, p.bottom_from_m, p.bottom_tension_n) == (3, 0.0, 400.0)
+    assert (p.up_overlap, p.middle_tension_n, p.down_overlap, p.rpm) == (0.5, 250.0, 0.3, 12.0)
+    assert (p.top_wraps, p.top_overhang_m, p.top_tension_n) == (2, 0.05, 300.0)
+    assert [(r.from_m, r.wraps, r.tension_n) for r in p.reinforcements] == [(0.4, 2, 300.0)]
+    assert [q.zone for q in wrap.passes] == [
+        "bottom", "spiral up", "reinforcement", "spiral up", "top", "spiral down"]
+    assert wrap.bands and max(b.to_m for b in wrap.bands) == pytest.approx(0.804)
 
 
-def test_a_band_exactly_one_or_two_web_widths_tall_is_not_rounded_up():
-    recipe = fmt(Band(0.45, 0.95, 1, 250.0), Band(0.1, 1.1, 3, 250.0)).machine_recipe()
-    assert [(r.revolutions, r.passes) for r in recipe.rows] == [(6, 3), (1, 0)]
+@pytest.mark.parametrize("example", ["program_kraft_default.toml", "program_lldpe_default.toml",
+                                     "program_lldpe_reinforced.toml"])
+def test_program_examples_read_back_equal(example):
+    wrap = WrapFormat.from_toml(EXAMPLES / example, load_height_m=1.134)
+    assert wrap.program is not None
+    again = WrapFormat.from_dict(tomllib.loads(wrap.to_toml()), "again", load_height_m=1.134)
+    assert again == wrap
 
 
-def test_bottom_zone_is_only_a_band_touching_the_pallet():
-    high = fmt(Band(0.3, 0.6, 2, 250.0), Band(0.6, 1.0, 2, 250.0)).machine_recipe()
-    assert [r.zone for r in high.rows] == ["middle", "top"]
-    assert high.bottom_wraps == 0 and high.top_wraps == 2
-    single = fmt(Band(0.0, 1.1, 2, 250.0)).machine_recipe()
-    assert [r.zone for r in single.rows] == ["bottom"]
-    assert single.bottom_wraps == 0 and single.carriage_passes == 2  # too tall to park
+def test_a_program_is_laid_from_the_load_s_height_so_it_needs_one(program_data):
+    with pytest.raises(ValueError, match="height"):
+        WrapFormat.from_dict(program_data())
 
 
-def test_recipe_table_and_json_carry_the_rows_and_totals():
-    recipe = WrapFormat.from_toml(EXAMPLES / "wrap_kraft_3layer.toml").machine_recipe()
-    text = recipe.table()
-    assert [line.split()[0] for line in text.splitlines()[1:4]] == ["bottom", "middle", "top"]
-    assert "bottom wraps 3" in text and "top wraps 2" in text and "revolutions 6" in text
-    data = json.loads(json.dumps(recipe.to_json()))
-    assert data["rows"][0] == {"zone": "bottom", "from_m": 0.0, "to_m": 0.45, "carriage_m": 0.0,
-                               "revolutions": 3, "passes": 0, "tension_n": 250.0}
-    assert (data["bottom_wraps"], data["top_wraps"]) == (3, 2)
-    assert (data["carriage_passes"], data["revolutions"]) == (0, 6)
+def test_the_json_of_a_program_names_it_and_the_bands_it_lays(program_data):
+    wrap = WrapFormat.from_dict(program_data(), load_height_m=0.804)
+    data = json.loads(json.dumps(wrap.to_json()))
+    assert data["program"]["bottom_wraps"] == 3 and data["program"]["reinforcement"][0]["wraps"]
+    assert len(data["bands"]) == len(wrap.bands)
+    assert data["bands"][0] == {"from_m": 0.0, "to_m": 0.5, "layers": 3, "tension_n": 400.0}
 
 
 # --- writing back --------------------------------------------------------------------------
@@ -224,7 +223,7 @@ def test_to_dict_names_a_card_and_writes_a_custom_material_in_full(wrap_data):
     custom = WrapFormat(Material("m", 0.01, 3000.0, 0.1, 0.5), 0.5, (Band(0, 1, 1, 50.0),))
     assert custom.to_dict()["material"] == {
         "name": "m", "grammage_kg_m2": 0.01, "stiffness_n_per_m": 3000.0, "yield_strain": 0.1,
-        "break_strain": 0.5, "hardening_ratio": 0.1, "cd_ratio": 0.5}
+        "break_strain": 0.5, "hardening_ratio": 0.1, "cd_ratio": 0.5, "kind": "film"}
 
 
 # --- calibration scaling -------------------------------------------------------------------
@@ -307,6 +306,16 @@ BAD_WRAPS = {
     "custom zero cd ratio": ({"material": {**CUSTOM, "cd_ratio": 0.0}}, "material.cd_ratio"),
     "custom name not a string": ({"material": {**CUSTOM, "name": 7}}, "material.name"),
     "custom unknown key": ({"material": {**CUSTOM, "colour": "clear"}}, "material.colour"),
+    "custom relaxation not adding up": (
+        {"material": {**CUSTOM, "relaxation": {"plateau": 0.7, "terms": [[0.2, 1.0]]}}},
+        "material.relaxation.terms"),
+    "custom relaxation of a negative time": (
+        {"material": {**CUSTOM, "relaxation": {"plateau": 0.7, "terms": [[0.3, -1.0]]}}},
+        "material.relaxation.terms[0]"),
+    "custom relaxation above 1": ({"material": {**CUSTOM, "relaxation": {"plateau": 1.5}}},
+                                  "material.relaxation.plateau"),
+    "custom paper pre-stretched": ({"material": {**CUSTOM, "kind": "paper", "prestretch": 1.0}},
+                                   "material.prestretch"),
     # The custom film breaks at 300 + 0.1 x 3000 x 0.4 = 420 N/m, 210 N on a 0.5 m web.
     "tension above a custom material's break force": (
         {"material": dict(CUSTOM), "band.0.tension_n": 200.0}, "band[1].tension_n"),
@@ -366,3 +375,57 @@ def test_missing_wrap_file_is_rejected_naming_the_file(tmp_path, assert_input_er
     with pytest.raises(InputError, match="cannot read") as info:
         WrapFormat.from_toml(path)
     assert_input_error(info.value, str(path), "")
+
+
+BAD_PROGRAMS = {
+    # id: (changes to BASE_PROGRAM of conftest, expected dotted field)
+    "negative bottom wraps": ({"program.bottom_wraps": -1}, "program.bottom_wraps"),
+    "fractional top wraps": ({"program.top_wraps": 1.5}, "program.top_wraps"),
+    "overlap of 1": ({"program.up_overlap": 1.0}, "program.up_overlap"),
+    "overlap above 1": ({"program.down_overlap": 1.2}, "program.down_overlap"),
+    "a gap wider than the web": ({"program.up_overlap": -1.5}, "program.up_overlap"),
+    "negative overhang": ({"program.top_overhang_m": -0.01}, "program.top_overhang_m"),
+    "overhang of the whole web": ({"program.top_overhang_m": 0.5}, "program.top_overhang_m"),
+    "reinforcement above the load": ({"program.reinforcement": [
+        {"from_m": 0.9, "wraps": 2, "tension_n": 300.0}]}, "program.reinforcement[0].from_m"),
+    "reinforcement below the sled": ({"program.reinforcement": [
+        {"from_m": -0.1, "wraps": 2, "tension_n": 300.0}]}, "program.reinforcement[0].from_m"),
+    "reinforcement of no wraps": ({"program.reinforcement": [
+        {"from_m": 0.3, "wraps": 0, "tension_n": 300.0}]}, "program.reinforcement[0].wraps"),
+    "bottom wraps parked above the load": ({"program.bottom_from_m": 0.9},
+                                           "program.bottom_from_m"),
+    "zero tension": ({"program.middle_tension_n": 0.0}, "program.middle_tension_n"),
+    "tension above the web's break force": ({"program.top_tension_n": 3000.0},
+                                            "program.top_tension_n"),
+    "missing tension": ({"program.bottom_tension_n": None}, "program.bottom_tension_n"),
+    "program and bands in one file": ({"band": [{"from_m": 0.0, "to_m": 0.5, "layers": 1,
+                                                 "tension_n": 100.0}]}, "program"),
+    "paper roped": ({"program.roping": True}, "program.roping"),
+    "paper pre-stretched": ({"program.prestretch": 2.5}, "program.prestretch"),
+    "film pre-stretched 500 %": ({"material": "lldpe", "program.prestretch": 5.0,
+                                  "program.bottom_tension_n": 90.0,
+                                  "program.middle_tension_n": 90.0,
+                                  "program.top_tension_n": 90.0,
+                                  "program.reinforcement": []}, "program.prestretch"),
+    "zero rpm": ({"program.rpm": 0.0}, "program.rpm"),
+    "unknown program key": ({"program.spiral_up": 2}, "program.spiral_up"),
+    "unknown machine key": ({"machine.speed": 2}, "machine.speed"),
+}
+
+
+@pytest.mark.parametrize("changes, field", BAD_PROGRAMS.values(), ids=BAD_PROGRAMS.keys())
+def test_bad_program_is_rejected_with_one_line_naming_file_and_field(
+        changes, field, wrap_file, assert_input_error):
+    path = wrap_file(changes, program=True)
+    with pytest.raises(InputError) as info:
+        WrapFormat.from_toml(path, load_height_m=0.804)
+    assert_input_error(info.value, str(path), field)
+
+
+def test_film_may_be_roped_and_pre_stretched(wrap_file):
+    path = wrap_file({"material": "lldpe", "program.roping": True, "program.prestretch": 3.0,
+                      "program.bottom_tension_n": 90.0, "program.middle_tension_n": 70.0,
+                      "program.top_tension_n": 80.0, "program.reinforcement": []},
+                     program=True)
+    program = WrapFormat.from_toml(path, load_height_m=0.804).program
+    assert program is not None and program.roping and program.prestretch == 3.0

@@ -1,7 +1,7 @@
-"""Gymnasium environments of the virtual bench: choose a wrap format, see it tested.
+"""Gymnasium environments of the virtual bench: choose a wrapping program, see it tested.
 
-One step is one wrap format put through the bench (EUMOS 40509 sequence or only the target
-level) on a load unit; the episode then ends. `WrapBenchEnv` keeps one load unit,
+One step is one wrapping program laid on a load unit and put through the bench (EUMOS 40509
+sequence or only the target level); the episode then ends. `WrapBenchEnv` keeps one load unit,
 `WrapBenchRandomEnv` draws a new one at every reset. See the class docstrings for the spaces,
 the reward and the arguments.
 """
@@ -21,18 +21,18 @@ from gymnasium.error import ResetNeeded
 from wrapenv.bench import BenchRun, SimSettings, run_levels
 from wrapenv.calibrated import Calibration
 from wrapenv.config import InputError
-from wrapenv.design import N_PARAMS, FormatSpace
+from wrapenv.design import N_PARAMS, ProgramSpace
 from wrapenv.eumos import Verdict
 from wrapenv.load import PAIRS, PATTERNS, Friction, FrictionPair, Layout, LoadUnit
+from wrapenv.material import MATERIALS, Material
 from wrapenv.profile import eumos_levels
 from wrapenv.render import Renderer, fitting_camera, rest_state, torn_net
 from wrapenv.trace import Trace
-from wrapenv.wrap import MATERIALS, WrapFormat
+from wrapenv.wrap import WrapFormat
 
 #: The bundled example the env tests formats on when no load is given (a source checkout's
 #: examples/ folder, next to the package; recommender/cli.py's EXAMPLE_LOAD).
 DEFAULT_LOAD = Path(__file__).resolve().parents[2] / "examples" / "pet_2layer_columnar.toml"
-MATERIAL_KEYS: tuple[str, ...] = tuple(MATERIALS)  # ("kraft", "lldpe"): the one-hot's order
 LEVEL_MODES: tuple[str, ...] = ("eumos", "target")
 
 # Scales of the observation's features (divisors), chosen so usual loads land in [0, 1].
@@ -57,7 +57,12 @@ OBS_FEATURES: tuple[tuple[str, float], ...] = (
     *((f"friction_{pair}_{kind}", 2.0) for pair in PAIRS for kind in ("static", "kinetic")),
     ("target_g", 1.1),
     *((f"friction_{pair}_{kind}_std", 2.0) for pair in PAIRS for kind in ("static", "kinetic")),
-    *((f"material_{m}", 1.0) for m in MATERIAL_KEYS),
+    ("material_grammage", 10.0),
+    ("material_log_stiffness", 10.0),
+    ("material_yield_strain", 10.0),
+    ("material_break_strain", 10.0),
+    ("material_break_force", 10.0),
+    ("material_is_paper", 1.0),
 )
 OBS_NAMES: tuple[str, ...] = tuple(name for name, _ in OBS_FEATURES)
 
@@ -80,29 +85,31 @@ class WrapBenchEnv(gym.Env):
     """
     ## Description
     The virtual EUMOS 40509 acceleration bench (ESTL sled) as a one-step decision problem: the
-    agent chooses a wrap format (stretch paper or film, three bands) for a pallet load unit, the
-    bench wraps the unit, runs the test and judges it, and the reward says whether the unit
-    passed, by how much, and how much material the format used. Passing with less material
-    scores higher.
+    agent chooses a wrapping program (what a spiral wrapper runs: bottom wraps, a spiral up,
+    top wraps, a reinforcement, a tension per zone) for a pallet load unit; the machine's web is
+    laid, the bench runs the test and judges it, and the reward says whether the unit passed,
+    by how much, and how much web the program laid. Passing with less web scores higher.
 
     ## Action Space
-    `Box(-1, 1, (8,), float32)`, decoded by `wrapenv.design.FormatSpace` for the unit and the
-    `material` (the ranges are FormatSpace's; its module docstring is the reference):
+    `Box(-1, 1, (9,), float32)`, mapped linearly onto the ranges of
+    `wrapenv.design.ProgramSpace` for the unit and the `material` (its module docstring is the
+    reference), whole numbers of wraps rounded:
 
-    | index | meaning                                   | -1 ... 1 maps to                         |
-    |-------|-------------------------------------------|------------------------------------------|
-    | 0-2   | layers of the bottom, middle, top band    | 0 ... 6 (rounded; bottom >= 1)           |
-    | 3     | top of the bottom band                    | pallet top + 0.05 m ... 45 % of the load |
-    | 4     | bottom of the top band                    | 55 % of the load ... top - 0.05 m        |
-    | 5-7   | web tension of the bottom, middle, top    | 5 % ... 50 % of one layer's yield force  |
+    | index | meaning                                         | -1 ... 1 maps to                  |
+    |-------|-------------------------------------------------|-----------------------------------|
+    | 0     | bottom wraps (carriage parked at the sled)      | 0 ... 6                           |
+    | 1     | top wraps (web 5 cm above the load, folded)     | 0 ... 6                           |
+    | 2     | reinforcement wraps (0: none)                   | 0 ... 4                           |
+    | 3     | spiral up overlap                               | 0 ... 0.75 (1 to 4 layers)        |
+    | 4     | reinforcement's lower edge                      | 0 ... load top - web width        |
+    | 5-8   | tension: bottom, spiral, top, reinforcement     | 5 % ... 50 % of one layer's yield |
 
-    The bottom band starts at the sled surface (it wraps the pallet: the anchor); a band with 0
-    layers is left out. Values outside [-1, 1] are clipped (5.0 acts as 1.0); a NaN (or
-    infinite) value raises `ValueError`, as does a vector of another length.
+    Values outside [-1, 1] are clipped (5.0 acts as 1.0); a NaN (or infinite) value raises
+    `ValueError`, as does a vector of another length.
 
     ## Observation Space
-    `Box(0, high, (27,), float32)`: features of the load unit and of the task, constant within
-    an episode (the "state" is the unit the format is for). Scales are divisors:
+    `Box(0, high, (31,), float32)`: features of the load unit, the task and the web, constant
+    within an episode (the "state" is the unit the program is for). Scales are divisors:
 
     | index | feature                                                     | scale         |
     |-------|-------------------------------------------------------------|---------------|
@@ -117,18 +124,23 @@ class WrapBenchEnv(gym.Env):
     | 18    | target level                                                | g             |
     | 19-24 | calibration standard deviation of each of 12-17             | coefficient   |
     |       | (0 without a calibration, or for a pair it does not give)   |               |
-    | 25-26 | material one-hot: kraft, lldpe                              | 0 or 1        |
+    | 25    | web grammage                                                | / 0.1 kg/m²   |
+    | 26    | log10 of the web's stiffness (N/m per unit strain)          | / 6           |
+    | 27-28 | yield strain, break strain                                  | as is         |
+    | 29    | breaking force per metre of web                             | / 10 kN/m     |
+    | 30    | 1 for paper (no cling, no pre-stretch), 0 for film          | 0 or 1        |
 
-    Upper bounds of the space: 10 for indexes 0-8, 2 for friction and its std, 1.1 g for the
-    target, 1 for the one-hots (`OBS_FEATURES`); a load whose features fall outside is rejected
-    at construction with `InputError`.
+    The web is described by its card's figures, not by its name, so a new material card keeps
+    the observation's shape. Upper bounds of the space: 10 for indexes 0-8 and 25-29, 2 for
+    friction and its std, 1.1 g for the target, 1 for the one-hots (`OBS_FEATURES`); a load
+    whose features fall outside is rejected at construction with `InputError`.
 
     ## Rewards
     With `m` = `Verdict.margin` (the smallest of 1 - figure / limit over the elastic, permanent
     and lowest-20-cm displacements, over the levels run; -1 at best with damage, -1 for an
-    invalid simulation) and `ratio` = material mass of the format / reference mass (the mass of
-    3 layers of the material over the whole load height, round the pallet below its top and
-    round the load's outline above it, `reference_mass_kg`):
+    invalid simulation) and `ratio` = kg of web the program laid / reference mass (the web of
+    the machine's default program on this unit: 3 bottom wraps, a 50 % spiral, 3 top wraps,
+    `reference_mass_kg`):
 
         reward = reward_verdict + reward_material
         reward_verdict  =  1 + min(m, 0.5)    if the unit passed every level run
@@ -136,11 +148,11 @@ class WrapBenchEnv(gym.Env):
         reward_material = -material_weight * ratio
 
     `reward_verdict` is in [1, 1.5] for a pass (m >= 0) and in [-2, -1] for a failure (m <= 0);
-    the cap at 0.5 stops rewarding margin beyond half the limits, so among safe formats the
-    cheaper wins. `ratio` is in (0, 2] (at most 6 layers everywhere), so with
-    `material_weight <= 1` every pass scores above every failure. A simulation that blew up
-    (`info["valid"] is False`) is rewarded as a failure with m = -1. The two terms are returned
-    in `info["reward_terms"]` (keys "verdict" and "material").
+    the cap at 0.5 stops rewarding margin beyond half the limits, so among safe programs the
+    cheaper wins. `ratio` stays below 2 (the heaviest program of the space lays about 1.8 x
+    the default's web), so with `material_weight <= 1` every pass scores above every failure.
+    A simulation that blew up (`info["valid"] is False`) is rewarded as a failure with m = -1.
+    The two terms are returned in `info["reward_terms"]` (keys "verdict" and "material").
 
     ## Starting State
     The load unit stacked on the still sled, unwrapped. `WrapBenchEnv` has no randomness: every
@@ -154,13 +166,13 @@ class WrapBenchEnv(gym.Env):
     `gymnasium.make` too.
 
     ## Info
-    `reset`: "load" (the unit's name), "reference_mass_kg". `step`: "format" (the WRAP.toml
-    content of the decoded format, before calibration scaling), "verdict" (the `wrapbench
-    simulate --json` verdict), "material_used" (area_m2, mass_kg, length_m), "passed",
-    "margin", "valid", "material_ratio", "reward_terms".
+    `reset`: "load" (the unit's name), "reference_mass_kg". `step`: "format" (the program and
+    the bands it laid, before calibration scaling), "verdict" (the `wrapbench simulate --json`
+    verdict), "material_used" (area_m2, mass_kg, web_length_m, roll_length_m, revolutions),
+    "cycle_time_s", "passed", "margin", "valid", "material_ratio", "reward_terms".
 
     ## Arguments
-    `gymnasium.make("wrapenv/WrapBench-v0", **kwargs)`, all keyword-only and checked at
+    `gymnasium.make("wrapenv/WrapBench-v1", **kwargs)`, all keyword-only and checked at
     construction (`InputError`, a `ValueError`, for bad values; `TypeError` for wrong types):
 
     | argument          | default                           | meaning                              |
@@ -189,7 +201,12 @@ class WrapBenchEnv(gym.Env):
     torn are drawn torn).
 
     ## Version History
-    * v0: initial version (one-step episodes, 8-parameter three-band formats, 27 features).
+    * v1: the action is a wrapping program (9 parameters, whole numbers of wraps) whose web is
+      costed as the machine lays it, every revolution a full web width; the reward's reference
+      is the machine's default program; the material is observed by its card's figures (31
+      features, the same shape for any card).
+    * v0: initial version (one-step episodes, 8-parameter three-band formats of arbitrary
+      height, 27 features with a material one-hot). Removed: no spiral wrapper lays such bands.
     """
 
     metadata = {"render_modes": ["rgb_array"], "render_fps": 20}
@@ -222,9 +239,8 @@ class WrapBenchEnv(gym.Env):
         self.target_g, self.start_g = _level("target_g", target_g), _level("start_g", start_g)
         try:
             self._sequence = eumos_levels(self.target_g, self.start_g)
-        except InputError as exc:
-            field = "target_g" if exc.field == "--target" else "start_g"
-            raise InputError("arguments", field, exc.message) from None
+        except InputError as exc:  # the sequence names the argument it rejects
+            raise InputError("arguments", exc.field, exc.message) from None
         if levels not in LEVEL_MODES:
             raise InputError("arguments", "levels",
                              f"must be one of {', '.join(map(repr, LEVEL_MODES))} (got {levels!r})")
@@ -241,15 +257,16 @@ class WrapBenchEnv(gym.Env):
         self.settings = settings
         self.calibration = _calibration(calibration)
 
-        self.action_space = spaces.Box(-1.0, 1.0, (N_PARAMS,), np.float32)
+        self.action_space: spaces.Box = spaces.Box(-1.0, 1.0, (N_PARAMS,), np.float32)
         high = np.array([h for _, h in OBS_FEATURES], np.float32)
-        self.observation_space = spaces.Box(np.zeros_like(high), high, dtype=np.float32)
+        self.observation_space: spaces.Box = spaces.Box(np.zeros_like(high), high,
+                                                        dtype=np.float32)
 
         self._renderer: Renderer | None = None
         self._last: tuple[Trace, WrapFormat] | None = None
         self.unit: LoadUnit | None = None  # the unit as simulated (calibration applied)
         self.layout: Layout | None = None
-        self.format_space: FormatSpace | None = None
+        self.program_space: ProgramSpace | None = None
         self.reference_mass_kg = math.nan
         self._obs = np.zeros(len(OBS_FEATURES), np.float32)
         if not self.draws_units:
@@ -260,9 +277,9 @@ class WrapBenchEnv(gym.Env):
         return self.calibration.apply(load) if self.calibration is not None else load
 
     def _set_unit(self, unit: LoadUnit) -> None:
-        """Make `unit` (friction as simulated) the unit formats are tested on."""
+        """Make `unit` (friction as simulated) the unit programs are tested on."""
         layout = unit.layout()
-        space = FormatSpace.for_layout(layout, self.material)
+        space = ProgramSpace.for_layout(layout, self.material)
         obs = self._features(unit, layout)
         outside = np.flatnonzero(~((obs >= 0) & (obs <= self.observation_space.high)))
         if len(outside):
@@ -272,7 +289,7 @@ class WrapBenchEnv(gym.Env):
         if self.layout is not None and self.layout != layout and self._renderer is not None:
             self._renderer.close()
             self._renderer = None
-        self.unit, self.layout, self.format_space = unit, layout, space
+        self.unit, self.layout, self.program_space = unit, layout, space
         self.reference_mass_kg = space.reference_mass_kg(layout)
         self._obs = obs
         self._last = None
@@ -300,7 +317,7 @@ class WrapBenchEnv(gym.Env):
             *friction,
             self.target_g,
             *std,
-            *(float(self.material == m) for m in MATERIAL_KEYS),
+            *_material_features(MATERIALS[self.material]),
         ]
         return np.array(values, np.float32)
 
@@ -323,10 +340,10 @@ class WrapBenchEnv(gym.Env):
         """The unit of a new episode: the same one (here), a drawn one (WrapBenchRandomEnv)."""
 
     def decode(self, action: np.ndarray) -> WrapFormat:
-        """The wrap format an action stands for on the current unit (clipped; NaN raises)."""
+        """The wrap an action's program lays on the current unit (clipped; NaN raises)."""
         self._require_unit()
-        assert self.format_space is not None
-        return self.format_space.decode(action)
+        assert self.program_space is not None
+        return self.program_space.decode(action)
 
     def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
         wrap = self.decode(action)
@@ -344,9 +361,10 @@ class WrapBenchEnv(gym.Env):
         terms = reward_terms(verdict, ratio, self.material_weight)
         self._last = (run.traces[-1], simulated)
         info = {
-            "format": wrap.to_dict(),
+            "format": wrap.to_json(),
             "verdict": verdict.to_json(),
             "material_used": asdict(used),
+            "cycle_time_s": wrap.cycle_time_s,
             "passed": verdict.passed,
             "margin": float(verdict.margin),
             "valid": verdict.valid,
@@ -404,6 +422,7 @@ class WrapBenchRandomEnv(WrapBenchEnv):
     As `WrapBenchEnv`, without `load`. The material is fixed per env instance.
 
     ## Version History
+    * v1: programs instead of bands, material observed by its card (see `WrapBenchEnv`).
     * v0: initial version.
     """
 
@@ -426,7 +445,7 @@ class WrapBenchRandomEnv(WrapBenchEnv):
     def sample_unit(self, rng: np.random.Generator) -> LoadUnit:
         """A load unit drawn from the distribution of the class docstring."""
         for _ in range(RANDOM_MAX_TRIES):
-            data = {
+            data: dict[str, Any] = {
                 "name": "random unit",
                 "pallet": {"preset": "EUR"},
                 "bundle": {
@@ -456,6 +475,13 @@ class WrapBenchRandomEnv(WrapBenchEnv):
             except InputError:
                 continue
         raise RuntimeError(f"no valid load unit in {RANDOM_MAX_TRIES} draws")
+
+
+def _material_features(card: Material) -> list[float]:
+    """The web as the observation sees it (rows 25-30 of the class docstring)."""
+    return [card.grammage_kg_m2 / 0.1, math.log10(card.stiffness_n_per_m) / 6,
+            card.yield_strain, card.break_strain, card.break_force_n_per_m / 1e4,
+            float(card.kind == "paper")]
 
 
 def reward_terms(verdict: Verdict, material_ratio: float,

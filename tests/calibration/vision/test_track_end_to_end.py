@@ -89,17 +89,57 @@ def test_wrapped_small_follows_marker_patches(wrapped_dir: Path) -> None:
     assert result.warnings == []
 
 
-def test_scale_check_on_the_sled_markers(recording_dir: Path, tmp_path: Path) -> None:
-    """The distance between the sled's markers agrees with setup.toml's scale; 3 % off warns."""
-    assert not any("px/m" in w for w in track(Recording.read(recording_dir)).warnings)
+@pytest.mark.parametrize("marker_size", [True, False], ids=["size_m", "no size_m"])
+def test_scale_check_on_the_sled_markers(marker_size: bool, recording_dir: Path,
+                                         tmp_path: Path) -> None:
+    """The distance between the sled's markers agrees with setup.toml's scale; 3 % off warns.
+    The distance comes from their placements: markers.size_m is not needed."""
     folder = tmp_path / "scaled"
     shutil.copytree(recording_dir, folder)
+    if not marker_size:
+        _drop_marker_size(folder)
+    assert not any("px/m" in w for w in track(Recording.read(folder)).warnings)
     setup = folder / "setup.toml"
     setup.write_text(re.sub(r"px_per_m = ([0-9.]+)",
                             lambda m: f"px_per_m = {1.03 * float(m.group(1))!r}",
                             setup.read_text()))
     warnings = track(Recording.read(folder)).warnings
     assert any("px/m" in w and "(-2.9 %)" in w for w in warnings), warnings
+
+
+def _drop_marker_size(folder: Path) -> None:
+    setup = folder / "setup.toml"
+    text, n = re.subn(r"size_m = [0-9.]+\n", "", setup.read_text())
+    assert n == 1
+    setup.write_text(text)
+
+
+def test_wrapped_unit_without_marker_size(wrapped_dir: Path, tmp_path: Path) -> None:
+    """Without setup.toml's markers.size_m the markers still name and locate every object:
+    their boxes are sized from the corners ArUco finds, as accurately as from the size."""
+    folder = tmp_path / "no-size"
+    shutil.copytree(wrapped_dir, folder)
+    _drop_marker_size(folder)
+    rec = Recording.read(folder)
+    assert rec.markers is not None and rec.markers.size_m is None
+    result = track(rec)
+    assert set(result.trajectories.objects) == {"sled", "pallet", "L1C1R1", "L1C2R1", "L2C1R1",
+                                                "L2C2R1"}
+    _check_accuracy(rec, result.trajectories)
+    assert result.warnings == []
+
+
+def test_scale_left_unchecked_is_said(recording_dir: Path, tmp_path: Path) -> None:
+    """With one sled marker declared there is no distance to check the scale by: a warning,
+    where the check used to be skipped silently."""
+    folder = tmp_path / "one"
+    shutil.copytree(recording_dir, folder)
+    setup = folder / "setup.toml"
+    blocks = setup.read_text().split("[[markers.placement]]")
+    setup.write_text("[[markers.placement]]".join(blocks[:2]))
+    warnings = track(Recording.read(folder)).warnings
+    assert warnings == ["only one sled marker (0) seen in frame 0: setup.toml's camera.px_per_m "
+                        "is not cross-checked"], warnings
 
 
 def _copy(rec: Recording, tmp_path: Path) -> Path:
@@ -114,6 +154,33 @@ def test_corrupt_video_is_an_input_error(two_layer: Recording, tmp_path: Path) -
     rec.video.write_bytes(b"not a video")
     with pytest.raises(InputError, match=rec.video.name):
         track(rec)
+
+
+def test_an_interrupted_run_leaves_no_debug_video(two_layer: Recording, tmp_path: Path) -> None:
+    def interrupt(frame: int, frames: int) -> None:
+        if frame == 5:
+            raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        track(two_layer, debug_video=tmp_path / "debug.mp4", progress=interrupt)
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_truncated_video_loses_its_cut_frame_not_its_accuracy(two_layer: Recording,
+                                                               tmp_path: Path) -> None:
+    """A file cut three quarters through: the frame it was cut inside decodes half grey and
+    was tracked 70 mm off; it is dropped, with a warning naming the frames kept."""
+    folder = _copy(two_layer, tmp_path)
+    video = folder / two_layer.video.name
+    data = video.read_bytes()
+    video.write_bytes(data[:len(data) * 3 // 4])
+    rec = Recording.read(folder)
+    result = track(rec)
+    _check_accuracy(rec, result.trajectories)
+    frames = len(result.trajectories.objects["sled"].t_s)
+    assert 0 < frames < len(Truth.read(folder).objects["sled"].t_s) - 1
+    cut = [w for w in result.warnings if w.startswith(video.name)]
+    assert len(cut) == 1 and "cut short" in cut[0] and f"frames 0-{frames - 1}" in cut[0], cut
 
 
 def test_unmatched_template_names_the_file(two_layer: Recording, tmp_path: Path) -> None:

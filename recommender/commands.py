@@ -1,0 +1,385 @@
+"""The bench's own commands: `simulate`, `recommend` and `train`.
+
+Each takes the parsed arguments, checks every input and output before any simulation, and maps
+the domain's errors (which name domain fields) onto the flags a user typed.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import time
+from dataclasses import asdict
+from pathlib import Path
+from typing import Any
+
+from tqdm import tqdm
+
+from recommender.html_report import (
+    check_report_folder,
+    recommend_page,
+    simulate_page,
+    write_report,
+)
+from recommender.search import Evaluation, Problem, SearchSettings, SearchState, Verification
+from recommender.text import program_text, verdict_table
+from wrapenv.bench import run_levels
+from wrapenv.calibrated import Calibration
+from wrapenv.config import InputError, check_output, printable, write_atomic
+from wrapenv.load import Layout, LoadUnit
+from wrapenv.material import MATERIALS
+from wrapenv.profile import MeasuredProfile, PulseProfile, eumos_levels
+from wrapenv.wrap import WrapFormat
+
+#: Robust passes tried, lightest first, until one passes the whole EUMOS sequence.
+VERIFY_CANDIDATES = 3
+#: More worker processes than this many per core only queue for the same cores.
+MAX_WORKERS_PER_CORE = 4
+#: Flags of the domain's fields, for messages that name what the user typed.
+FLAGS = {"target_g": "--target", "start_g": "--start", "level_g": "--level",
+         "material": "--material"}
+
+
+def as_flag(exc: InputError) -> InputError:
+    """A domain error about an argument, naming the flag instead of the field."""
+    return InputError("arguments", FLAGS.get(exc.field, exc.field), exc.message)
+
+
+def _target(target_g: float, flag: str = "--target") -> None:
+    """A target level the bench can produce, or a usage error naming the flag."""
+    try:
+        PulseProfile(target_g)
+    except InputError as exc:
+        raise InputError("arguments", flag, exc.message) from None
+
+
+def _material(key: str) -> None:
+    if key not in MATERIALS:
+        raise InputError("arguments", "--material",
+                         f"must be one of {', '.join(map(repr, MATERIALS))} (got {key!r})")
+
+
+def _warn(command: str, messages: tuple[str, ...]) -> None:
+    for message in messages:
+        sys.stderr.write(f"wrapbench {command}: warning: {message}\n")
+
+
+# --- simulate ----------------------------------------------------------------------------------
+
+
+def _levels(args: argparse.Namespace) -> list[Any]:
+    """The profiles asked for: a measured one, the given levels, or the EUMOS sequence."""
+    if args.profile and (args.level or args.eumos):
+        raise InputError("arguments", "--profile", "cannot be combined with --level or --eumos")
+    if args.level and args.eumos:
+        raise InputError("arguments", "--level", "cannot be combined with --eumos")
+    if args.profile:
+        return [MeasuredProfile.from_csv(args.profile)]
+    try:
+        if args.level:
+            return [PulseProfile(g) for g in args.level]  # every level checked before running
+        return [PulseProfile(g) for g in eumos_levels(args.target, args.start)]
+    except InputError as exc:
+        raise as_flag(exc) from None
+
+
+def run_simulate(args: argparse.Namespace) -> int:
+    load = LoadUnit.from_toml(args.load)
+    layout = load.layout(args.orientation)
+    wrap = WrapFormat.from_toml(args.wrap, layout.load_height_m) if args.wrap else None
+    laid = wrap
+    if args.calibration:
+        calibration = Calibration.from_json(args.calibration)
+        load = calibration.apply(load)
+        if wrap is not None:
+            wrap = wrap.scaled(calibration.stiffness_scale, calibration.tension_scale)
+    _hours(args.hours_since_wrapping)
+    if wrap is not None:
+        wrap = wrap.relaxed(args.hours_since_wrapping)
+    inputs = [p for p in (args.load, args.wrap, args.calibration, args.profile) if p]
+    check_output(args.json, "--json", inputs=inputs)
+    check_output(args.plot, "--plot", inputs=inputs)
+    if args.report is not None:
+        check_report_folder(args.report, inputs)
+    levels = _levels(args)
+    if laid is not None:
+        _warn("simulate", laid.warnings())
+    stop = not args.level and not args.profile
+    run = run_levels(load, levels, orientation=args.orientation, stop_at_failure=stop, wrap=wrap)
+    print(verdict_table(load, run, args.orientation))
+    if laid is not None:
+        print(program_text(laid, layout))
+    if args.json:
+        out = run.verdict.to_json()
+        if wrap is not None and laid is not None:
+            out.update(wrap_json(wrap, laid, layout))
+            out["hours_since_wrapping"] = args.hours_since_wrapping
+        write_atomic(args.json, (json.dumps(out, indent=2) + "\n").encode())
+    if args.plot:
+        from recommender.report import plot_displacements
+
+        plot_displacements(run, args.plot, title=load.name)
+    if args.report:
+        given = {"load unit": args.load, "wrap": args.wrap, "calibration": args.calibration,
+                 "sled profile": args.profile}
+        write_report(args.report, lambda stage: simulate_page(
+            stage, load, run, laid, wrap, args.orientation, args.hours_since_wrapping, given))
+    return 0 if run.verdict.passed else 1
+
+
+def wrap_json(simulated: WrapFormat, laid: WrapFormat, layout: Layout) -> dict[str, Any]:
+    """The JSON keys of a wrap: what was simulated (`format`: bands as simulated, the program
+    as entered), the web laid and the cycle time."""
+    cycle = laid.cycle_time_s
+    return {"format": {**simulated.to_json(), **({"program": laid.to_json()["program"]}
+                                                 if laid.program is not None else {})},
+            "material_used": asdict(laid.material_used_on(layout)),
+            "cycle_time_s": round(cycle, 3), "pallets_per_hour": round(3600 / cycle, 2)}
+
+
+# --- recommend ---------------------------------------------------------------------------------
+
+
+def _targets(args: argparse.Namespace) -> tuple[tuple[str, float], ...]:
+    """(orientation, target) pairs: --orientation both (default) searches both sides, each at
+    --target unless --target-long / --target-short says otherwise."""
+    sides = ("long", "short") if args.orientation == "both" else (args.orientation,)
+    given = {"long": args.target_long, "short": args.target_short}
+    for side, target in given.items():
+        if target is not None:
+            _target(target, f"--target-{side}")
+            if side not in sides:
+                raise InputError("arguments", f"--target-{side}",
+                                 f"needs --orientation {side} or both")
+    _target(args.target)
+    return tuple((side, given[side] if given[side] is not None else args.target)
+                 for side in sides)
+
+
+def _settings(args: argparse.Namespace) -> SearchSettings:
+    for flag, value, low in (("--samples", args.samples, 1), ("--budget", args.budget, 2),
+                             ("--workers", args.workers, 1)):
+        if value < low:
+            raise InputError("arguments", flag, f"must be >= {low} (got {value})")
+    most = MAX_WORKERS_PER_CORE * (os.cpu_count() or 1) if args.backend == "process" else 4096
+    if args.workers > most:
+        raise InputError("arguments", "--workers", f"must be <= {most} on the {args.backend} "
+                         f"backend (got {args.workers}): a simulation keeps a core busy")
+    if not (0 <= args.margin < 1):
+        raise InputError("arguments", "--margin", f"must be in [0, 1) (got {args.margin})")
+    if not args.max_cycle_s > 0:
+        raise InputError("arguments", "--max-cycle-s", f"must be > 0 (got {args.max_cycle_s})")
+    if not args.cycle_weight >= 0:
+        raise InputError("arguments", "--cycle-weight",
+                         f"must be >= 0 (got {args.cycle_weight})")
+    _hours(args.hours_since_wrapping)
+    _material(args.material)
+    return SearchSettings(targets=_targets(args), material=args.material, samples=args.samples,
+                          margin_goal=args.margin, max_candidates=args.budget, seed=args.seed,
+                          workers=args.workers, popsize=min(8, args.budget),
+                          backend=args.backend, ray_address=args.ray_address,
+                          max_cycle_s=args.max_cycle_s, cycle_weight=args.cycle_weight,
+                          hours_since_wrapping=args.hours_since_wrapping)
+
+
+def _hours(hours: float) -> None:
+    if not hours >= 0:
+        raise InputError("arguments", "--hours-since-wrapping", f"must be >= 0 (got {hours})")
+
+
+def _checkpoint(args: argparse.Namespace) -> Path | None:
+    """Where the search keeps its state: --checkpoint, else beside the --json output, else
+    nowhere (an unasked file in the working folder is litter)."""
+    if args.checkpoint is not None:
+        return Path(args.checkpoint)
+    if args.json is not None:
+        return args.json.with_name(args.json.stem + ".checkpoint.json")
+    if args.resume:
+        raise InputError("arguments", "--resume", "needs --checkpoint (or --json, beside which "
+                                                  "the checkpoint is kept)")
+    return None
+
+
+def _check_outputs(args: argparse.Namespace) -> Path | None:
+    inputs = [p for p in (args.load, args.calibration, args.policy) if p]
+    check_output(args.json, "--json", inputs=inputs)
+    check_output(args.wrap_out, "--wrap-out", inputs=inputs)
+    checkpoint = _checkpoint(args)
+    check_output(checkpoint, "--checkpoint", inputs=inputs)
+    if args.report is not None:
+        check_report_folder(args.report, inputs)
+    if args.resume and (checkpoint is None or not checkpoint.exists()):
+        raise InputError(str(checkpoint), "--resume", "no checkpoint to resume from")
+    return checkpoint
+
+
+def run_recommend(args: argparse.Namespace) -> int:
+    from recommender.search import RobustSearch
+
+    load = LoadUnit.from_toml(args.load)
+    calibration = Calibration.from_json(args.calibration) if args.calibration else None
+    settings = _settings(args)
+    checkpoint = _check_outputs(args)
+    problem = Problem.build(load, settings, calibration)
+    samples = max(8, args.samples)
+    if args.method == "ppo":
+        t0 = time.perf_counter()
+        best, check = _propose_with_policy(args, problem, samples)
+        _print_recommendation(problem, best, check)
+        print(f"policy proposal verified in {time.perf_counter() - t0:.0f} s")
+        _write_outputs(args, problem, best, check, 1)
+        if args.report:
+            _write_report(args, problem, check, best, None)
+        return 0 if check.passed else 1
+    search = RobustSearch(problem, checkpoint)
+    state = search.resume() if args.resume else search.start()
+    t0 = time.perf_counter()
+    try:
+        state = _run_search(search, state, settings)
+    except KeyboardInterrupt as exc:
+        if checkpoint is not None and checkpoint.exists():
+            exc.add_note(f"interrupted, nothing written; the search so far is kept in "
+                         f"{checkpoint} (--resume continues it)")
+        raise
+    chosen = _verified(problem, state, samples, args.workers)
+    if checkpoint is not None:
+        checkpoint.unlink(missing_ok=True)
+    if chosen is None:
+        print(f"no program passed the EUMOS sequence ({_targets_text(settings)}) after "
+              f"{len(state.history)} candidates x {args.samples} samples")
+        return 1
+    best, check = chosen
+    _print_recommendation(problem, best, check)
+    simulations = sum(len(e.passed) for e in state.history) * len(settings.targets)
+    print(f"searched {len(state.history)} candidates ({simulations} simulations) in "
+          f"{time.perf_counter() - t0:.0f} s ({args.workers} workers, {args.backend})")
+    _write_outputs(args, problem, best, check, simulations, candidates=len(state.history))
+    if args.report:
+        _write_report(args, problem, check, best, state)
+    return 0
+
+
+def _targets_text(settings: SearchSettings) -> str:
+    return ", ".join(f"{side} side {g:.2f} g" for side, g in settings.targets)
+
+
+def _run_search(search: Any, state: SearchState, settings: SearchSettings) -> SearchState:
+    with tqdm(total=settings.max_candidates, desc="candidates", unit="program",
+              file=sys.stderr, disable=None) as bar:
+        bar.update(len(state.history))
+
+        def progress(done: int, total: int, st: SearchState) -> None:
+            bar.update(done - bar.n)
+            best = st.best(settings.margin_goal)
+            if best is not None:
+                bar.set_postfix(best_kg=f"{best.mass_kg:.3f}", margin=f"{best.margin:.2f}")
+
+        return search.run(state, progress)
+
+
+def _verified(problem: Problem, state: SearchState, samples: int,
+              workers: int) -> tuple[Evaluation, Verification] | None:
+    """The lightest robust pass that also passes the whole EUMOS sequence in every orientation
+    (the search tried the target levels only)."""
+    from recommender.search import verify
+
+    for candidate in state.ranked(problem.settings.margin_goal)[:VERIFY_CANDIDATES]:
+        check = verify(problem, candidate.wrap, samples, workers=workers)
+        if check.passed:
+            return candidate, check
+    return None
+
+
+def _propose_with_policy(args: argparse.Namespace, problem: Problem,
+                         samples: int) -> tuple[Evaluation, Verification]:
+    """A trained policy's program for this unit, answered at once, then verified."""
+    from recommender.policy import propose
+    from recommender.search import verify
+
+    if args.policy is None or not args.policy.is_file():
+        where = "arguments" if args.policy is None else str(args.policy)
+        raise InputError(where, "--policy", "a policy.zip from `wrapbench train` is needed "
+                                            "with --method ppo")
+    calibration = Calibration.from_json(args.calibration) if args.calibration else None
+    wrap = propose(args.policy, LoadUnit.from_toml(args.load), args.material,
+                   problem.settings.target_g, calibration)
+    check = verify(problem, wrap, samples, workers=args.workers)
+    mass = wrap.material_used_on(problem.layout).mass_kg
+    margin = min(run.verdict.margin for run in check.runs.values())
+    best = Evaluation((), wrap, mass, wrap.cycle_time_s, (margin,), (check.passed,), 0.0)
+    return best, check
+
+
+def _print_recommendation(problem: Problem, best: Evaluation, check: Verification) -> None:
+    s, p = problem.settings, check.probability
+    low, high = p.interval
+    print(f"recommended wrapping program for {printable(problem.load.name)}: passes "
+          f"{_targets_text(s)}, "
+          f"{s.hours_since_wrapping:g} h after wrapping, in {p.passed} of {p.samples} samples "
+          f"of what the bench does not know (pass probability {p.estimate:.0%}, 95 % interval "
+          f"{low:.0%}-{high:.0%}; search margin {best.margin:.2f})")
+    print(program_text(best.wrap, problem.layout))
+    for orientation, run in check.runs.items():
+        print(f"-- {orientation} side along the motion --")
+        print(verdict_table(problem.load, run, orientation))
+    if check.worst is not None:
+        w = check.worst
+        print(f"worst sample: {w.orientation} side, margin {w.margin:.2f}, elastic "
+              f"{1000 * (w.level['elastic_max_m'] or 0):.1f} mm, permanent "
+              f"{1000 * (w.level['permanent_max_m'] or 0):.1f} mm")
+
+
+def _write_outputs(args: argparse.Namespace, problem: Problem, best: Evaluation,
+                   check: Verification, evaluations: int, candidates: int | None = None) -> None:
+    if args.json:
+        weakest = check.runs[check.weakest]
+        out = {**wrap_json(problem.simulated(best.wrap), best.wrap, problem.layout),
+               "program": best.wrap.to_json().get("program"),
+               "verdict": {**weakest.verdict.to_json(), "orientation": check.weakest},
+               "orientations": {o: run.verdict.to_json() for o, run in check.runs.items()},
+               "targets": {o: g for o, g in problem.settings.targets},
+               "hours_since_wrapping": problem.settings.hours_since_wrapping,
+               "robust_pass_rate": check.probability.estimate,
+               "pass_probability": check.probability.to_json(),
+               "worst_sample": asdict(check.worst) if check.worst is not None else None,
+               "robust_samples": check.probability.samples, "search_margin": best.margin,
+               "evaluations": evaluations, "candidates": candidates,
+               "method": args.method, "target_g": problem.settings.target_g}
+        write_atomic(args.json, (json.dumps(out, indent=2) + "\n").encode())
+    if args.wrap_out:
+        write_atomic(args.wrap_out, best.wrap.to_toml().encode())
+
+
+def _write_report(args: argparse.Namespace, problem: Problem, check: Verification,
+                  best: Evaluation, state: SearchState | None) -> None:
+    """report.html and its files (state None: a policy's proposal, no search)."""
+    given = {"load unit": args.load, "calibration": args.calibration, "policy": args.policy}
+    write_report(args.report, lambda stage: recommend_page(stage, problem, check, best, state,
+                                                           given))
+
+
+# --- train -------------------------------------------------------------------------------------
+
+
+def run_train(args: argparse.Namespace) -> int:
+    from recommender.policy import TrainSettings, train
+
+    for flag, value in (("--timesteps", args.timesteps), ("--envs", args.envs)):
+        if value < 1:
+            raise InputError("arguments", flag, f"must be >= 1 (got {value})")
+    _material(args.material)
+    _target(args.target)
+    if args.out.exists() and not args.out.is_dir():
+        raise InputError(str(args.out), "--out", "exists and is not a folder")
+    try:
+        args.out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise InputError(str(args.out), "--out", f"cannot be created ({exc.strerror})") from None
+    check_output(args.out / "policy.zip", "--out")
+    settings = TrainSettings(timesteps=args.timesteps, n_envs=args.envs, material=args.material,
+                             target_g=args.target, seed=args.seed)
+    path = train(settings, args.out)
+    print(f"policy written to {path} (log: {args.out / 'log.csv'})")
+    return 0

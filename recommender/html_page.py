@@ -1,0 +1,316 @@
+"""The one-page report's content and its HTML (recommender/html_report.py makes and writes it).
+
+The page is built from the run's own objects (load unit, wrap as entered, bench runs), and every
+string is escaped and bounded: a load name can hold anything. Figures are inlined as data: URIs;
+the test video sits beside the page (a data: URI would make the page megabytes), WebM first for
+browsers and MP4 for players, its still inlined for print. The style (recommender/data/
+report.css) lays the page on A4 for print without cutting tables or figures.
+"""
+
+from __future__ import annotations
+
+import base64
+import html
+from collections.abc import Iterable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from recommender.search import Trial
+from recommender.text import step_cells
+from recommender.uncertainty import PassProbability
+from wrapenv.bench import BenchRun
+from wrapenv.config import printable
+from wrapenv.eumos import (
+    ELASTIC_LIMIT_FRACTION,
+    LOW_ZONE_HEIGHT_M,
+    LOW_ZONE_LIMIT_M,
+    PERMANENT_LIMIT_FRACTION,
+    LevelVerdict,
+)
+from wrapenv.load import PAIRS, Layout, LoadUnit
+from wrapenv.wrap import WrapFormat, program_to_dict
+
+#: The page's style, inlined into it (screen, and A4 print without cut tables or figures).
+CSS = Path(__file__).resolve().parent / "data" / "report.css"
+#: The video files beside the page, the one browsers play first.
+VIDEO_FILES = ("test.webm", "test.mp4")
+
+
+@dataclass(frozen=True)
+class Figure:
+    title: str
+    png: bytes | None  # None: not available
+    caption: str       # what it shows, or why it is not available
+
+
+@dataclass(frozen=True)
+class OrientationRun:
+    """One orientation's bench run: the EUMOS levels run on the unit laid out as `layout`."""
+
+    orientation: str | None  # "long" | "short" | None (as the load file lays it out)
+    layout: Layout
+    run: BenchRun
+    target_g: float | None = None
+
+
+@dataclass(frozen=True)
+class Robustness:
+    """What `recommend` adds: how sure the recommendation is over what the bench does not know."""
+
+    probability: PassProbability
+    worst: Trial | None
+    search_margin: float
+    margin_goal: float
+    candidates: int | None  # None: a policy's proposal, no search
+
+
+@dataclass(frozen=True)
+class Page:
+    heading: str
+    load: LoadUnit
+    tested: tuple[OrientationRun, ...]
+    wrap: WrapFormat | None  # as the operator enters it (None: unwrapped)
+    hours_since_wrapping: float
+    inputs: tuple[tuple[str, str], ...]  # (what, file name)
+    figures: tuple[Figure, ...]
+    video_still: bytes | None  # None: no video
+    robustness: Robustness | None = None
+
+
+def _t(text: object, limit: int = 300) -> str:
+    """A user's (or any) string as HTML text: printable, bounded, escaped."""
+    return html.escape(printable(str(text), limit))
+
+
+def _png(data: bytes) -> str:
+    return "data:image/png;base64," + base64.b64encode(data).decode("ascii")
+
+
+def _mm(x: float | None) -> str:
+    return "n/a" if x is None else f"{1000 * x:.1f} mm"
+
+
+def _rows(cells: Iterable[Iterable[str]], tag: str = "td") -> str:
+    """Table rows of cells that are already HTML."""
+    return "".join("<tr>" + "".join(f"<{tag}>{c}</{tag}>" for c in row) + "</tr>\n"
+                   for row in cells)
+
+
+def _table(head: Iterable[str], body: Iterable[Iterable[str]], cls: str) -> str:
+    return (f'<table class="{cls}"><thead>{_rows([head], "th")}</thead>'
+            f"<tbody>{_rows(body)}</tbody></table>\n")
+
+
+def _facts(rows: Iterable[tuple[str, str]]) -> str:
+    """A two-column table: what, then its value (both already HTML)."""
+    body = "".join(f'<tr><th scope="row">{k}</th><td>{v}</td></tr>\n' for k, v in rows)
+    return f'<table class="facts"><tbody>{body}</tbody></table>\n'
+
+
+def _side(t: OrientationRun) -> str:
+    along = t.layout.pallet_size_m[0]
+    if t.orientation is None:
+        return f"pallet length ({along:.3f} m) along the motion, as the load file lays it out"
+    return f"{t.orientation} side ({along:.3f} m) along the motion"
+
+
+def _load_section(load: LoadUnit, layout: Layout) -> str:
+    p, b, s = load.pallet, load.bundle, load.stack
+    per_layer = sum(1 for x in layout.bundles if x.layer == 1)
+    facts = [
+        ("Pallet", f"{p.length_m:.3f} × {p.width_m:.3f} × {p.height_m:.3f} m, {p.mass_kg:.1f} kg"),
+        ("Bundle", f"{b.length_m:.3f} × {b.width_m:.3f} × {b.height_m:.3f} m, {b.mass_kg:.2f} kg"),
+        ("Stack", f"{s.layers} layer{'s' * (s.layers != 1)}, {_t(s.pattern)}, {per_layer} "
+                  f"bundles on the first, {len(layout.bundles)} in all"),
+        ("Load height, gross mass", f"{load.load_height_m:.3f} m, {load.mass_kg:.0f} kg"),
+        ("Pallet stopper on the sled", "yes" if load.pallet_stopper else "no"),
+    ]
+    friction = [(name.replace("_", "–"), f"{load.friction.pair(name).static:.3f}",
+                 f"{load.friction.pair(name).kinetic:.3f}") for name in PAIRS]
+    return ("<section><h2>Load unit</h2>" + _facts(facts)
+            + _table(["Friction pair", "static", "kinetic"], friction, "num") + "</section>\n")
+
+
+def _program_rows(wrap: WrapFormat) -> list[tuple[str, str]]:
+    """The program's settings as the WRAP.toml holds them, or the bands of a band form."""
+    if wrap.program is None:
+        return [(f"band {i}", f"{band.from_m:.3f}–{band.to_m:.3f} m, {band.layers:g} layers at "
+                              f"{band.tension_n:.0f} N") for i, band in enumerate(wrap.bands, 1)]
+    rows = []
+    for key, value in program_to_dict(wrap.program).items():
+        if key == "reinforcement":
+            value = "; ".join(f"{r['wraps']} wraps at {r['from_m']:.3f} m, {r['tension_n']:.0f} N"
+                              for r in value)
+        rows.append((_t(key), _t(value)))
+    return rows
+
+
+def _wrap_section(wrap: WrapFormat | None, layout: Layout, hours: float) -> str:
+    if wrap is None:
+        return "<section><h2>Wrap</h2><p>None: the unit was tested unwrapped.</p></section>\n"
+    used, m, cycle = wrap.material_used_on(layout), wrap.machine, wrap.cycle_time_s
+    what = "The program as the operator enters it" if wrap.program is not None else "The bands"
+    facts = [("Material", f"{_t(wrap.material.name)} ({_t(wrap.material_key)}), web "
+                          f"{wrap.web_width_m:.2f} m"),
+             ("Machine", f"{wrap.rpm:g} rpm, carriage up to {m.carriage_speed_mps:.2f} m/s, "
+                         f"{m.handling_s:.0f} s to change pallets"),
+             ("Web laid", f"{used.area_m2:.2f} m² ({used.mass_kg:.3f} kg), "
+                          f"{used.web_length_m:.1f} m laid, {used.roll_length_m:.1f} m from the "
+                          f"roll, {used.revolutions:.1f} revolutions"),
+             ("Cycle time", f"{cycle:.0f} s per pallet, {3600 / cycle:.0f} pallets/h"),
+             ("Tested", f"{hours:g} h after wrapping" + (
+                 " (the tension relaxed by the material's law)" if hours > 0 else ""))]
+    steps = [(str(i), *map(_t, step_cells(p, wrap, layout.load_height_m)))
+             for i, p in enumerate(wrap.passes, 1)]
+    return ("<section><h2>Wrap</h2>" + _facts(facts) + f"<h3>{what}</h3>"
+            + _facts(_program_rows(wrap)) + "<h3>What the machine does, step by step</h3>"
+            + _table(["Step", "Zone", "Wraps", "Overlap", "Carriage (web's lower edge)",
+                      "Tension N"], steps, "num") + "</section>\n")
+
+
+#: EUMOS 40509's criteria in the order the table shows them: (key, column).
+CRITERIA = (("elastic_10pct", "Elastic max"), ("permanent_5pct", "Permanent max"),
+            ("low20_4cm", "Lowest 20 cm, permanent"), ("no_damage", "Damage"))
+
+
+def _limits(height_m: float) -> dict[str, str]:
+    return {"elastic_10pct": f"≤ {1000 * ELASTIC_LIMIT_FRACTION * height_m:.1f} mm "
+                             f"({100 * ELASTIC_LIMIT_FRACTION:.0f} % of height)",
+            "permanent_5pct": f"≤ {1000 * PERMANENT_LIMIT_FRACTION * height_m:.1f} mm "
+                              f"({100 * PERMANENT_LIMIT_FRACTION:.0f} % of height)",
+            "low20_4cm": f"< {1000 * LOW_ZONE_LIMIT_M:.0f} mm (bundles below "
+                         f"{100 * LOW_ZONE_HEIGHT_M:.0f} cm)",
+            "no_damage": "none"}
+
+
+def _figure_of(level: LevelVerdict, key: str) -> str:
+    if key == "elastic_10pct":
+        return f"{_mm(level.elastic_max_m)} ({level.elastic_max_pct or 0:.1f} %)"
+    if key == "permanent_5pct":
+        return f"{_mm(level.permanent_max_m)} ({level.permanent_max_pct or 0:.1f} %)"
+    if key == "low20_4cm":
+        return _mm(level.permanent_low20_m)
+    return _t(", ".join(level.damage) or "none")
+
+
+def _level_row(level: LevelVerdict) -> list[str]:
+    cells = [f"{level.level_g:.2f} g"]
+    for key, _ in CRITERIA:
+        ok = level.criteria.get(key, False) and level.valid
+        cells.append(f'{_figure_of(level, key)} <span class="{"ok" if ok else "bad"}">'
+                     f'{"pass" if ok else "fail"}</span>')
+    cells.append(_mm(level.pallet_slip_m))
+    w = level.wrap
+    cells.append("—" if w is None else (
+        f"{100 * w.peak_utilisation:.0f} % of strength"
+        + (f", torn at {', '.join(f'{z:.2f}' for z in w.torn_at_m)} m" if w.torn else "")))
+    result = "PASS" if level.passed else ("INVALID" if not level.valid else "FAIL")
+    reason = f" ({_t(level.invalid_reason)})" if level.invalid_reason else ""
+    cells.append(f'<b class="{"ok" if level.passed else "bad"}">{result}</b>{reason}')
+    return cells
+
+
+def _highest(t: OrientationRun) -> str:
+    best = t.run.verdict.highest_passed_g
+    return "none" if best is None else f"{best:.2f} g"
+
+
+def _levels_section(t: OrientationRun) -> str:
+    v = t.run.verdict
+    limits = _limits(v.load_height_m)
+    head = (["Level"] + [f"{name}<br><small>limit {limits[key]}</small>" for key, name in CRITERIA]
+            + ["Pallet slip", "Wrap (peak force)", "Result"])
+    target = f", target {t.target_g:.2f} g" if t.target_g is not None else ""
+    summary = (f"highest level passed: {_highest(t)}{target}"
+               + ("" if v.valid else "; the simulation became unphysical (INVALID rows never "
+                                     "pass)"))
+    return (f'<section class="levels"><h3>{_t(_side(t))}</h3>'
+            + _table(head, [_level_row(level) for level in v.levels], "levels")
+            + f"<p>{summary}</p></section>\n")
+
+
+def _verdict(page: Page) -> str:
+    passed = all(t.run.verdict.passed for t in page.tested)
+    valid = all(t.run.verdict.valid for t in page.tested)
+    word = "PASS" if passed else ("INVALID" if not valid else "FAIL")
+    sides = "; ".join(f"{_t(_side(t))}: highest level passed {_highest(t)}"
+                      for t in page.tested)
+    return f'<p class="verdict {"ok" if passed else "bad"}"><b>{word}</b> — {sides}</p>\n'
+
+
+def _robust_section(r: Robustness) -> str:
+    p = r.probability
+    low, high = p.interval
+    facts = [("Pass probability", f"{100 * p.estimate:.0f} % ({p.passed} of {p.samples} "
+                                  f"samples; 95 % interval {100 * low:.0f} %–{100 * high:.0f} %, "
+                                  "Wilson)"),
+             ("Search", "a trained policy's proposal, verified in simulation"
+              if r.candidates is None else
+              f"{r.candidates} candidate programs; margin of the worst sample "
+              f"{r.search_margin:.2f} (goal {r.margin_goal:.2f})")]
+    if r.worst is not None:
+        w, level = r.worst, r.worst.level
+        facts.append(("Worst sample", f"{_t(w.orientation)} side, margin {w.margin:.2f}, "
+                      f"elastic {_mm(level.get('elastic_max_m'))}, permanent "
+                      f"{_mm(level.get('permanent_max_m'))}, "
+                      f"{'passed' if w.passed else 'failed'}"))
+        facts.append(("Its draw", _t(_draw_text(w.sample), 1000)))
+    return ('<section><h2>How sure: samples of what the bench does not know</h2>'
+            + _facts(facts) + "</section>\n")
+
+
+def _draw_text(sample: dict[str, Any]) -> str:
+    """A sample's draw (`Sample.to_json`) in one line."""
+    pairs = [f"{k} {v['static']:.3f}/{v['kinetic']:.3f}" for k, v in sample["friction"].items()]
+    scales = [f"{k.removesuffix('_scale')} × {v:.3f}" for k, v in sample.items()
+              if k.endswith("_scale") and isinstance(v, float)]
+    return "friction (static/kinetic) " + ", ".join(pairs) + "; " + ", ".join(scales)
+
+
+def _figures_section(figures: tuple[Figure, ...]) -> str:
+    out = []
+    for f in figures:
+        if f.png is None:
+            out.append(f'<figure class="missing"><p><b>{_t(f.title)}</b>: not available — '
+                       f"{_t(f.caption)}</p></figure>")
+        else:
+            out.append(f'<figure><img src="{_png(f.png)}" alt="{_t(f.title)}">'
+                       f"<figcaption><b>{_t(f.title)}</b>: {_t(f.caption)}</figcaption></figure>")
+    return "<section><h2>Figures</h2>" + "\n".join(out) + "</section>\n"
+
+
+def _video_section(still: bytes | None) -> str:
+    if still is None:
+        return ""
+    sources = "".join(f'<source src="{name}" type="video/{name.rsplit(".", 1)[1]}">'
+                      for name in VIDEO_FILES)
+    links = ", ".join(f'<a href="{name}">{name}</a>' for name in VIDEO_FILES)
+    return (f'<section class="video"><h2>Test video</h2><figure><video controls '
+            f'preload="metadata" poster="{_png(still)}">{sources}</video>'
+            f'<img class="still" src="{_png(still)}" alt="the test at its largest displacement">'
+            f"<figcaption>The highest level run, from the side camera (20 fps); the still shows "
+            f"the moment of largest displacement. Files beside this page: {links}."
+            f"</figcaption></figure></section>\n")
+
+
+def render(page: Page) -> str:
+    """The page as HTML text."""
+    inputs = "".join(f"<li>{_t(what)}: <code>{_t(name)}</code></li>" for what, name in page.inputs)
+    tested = "".join(_levels_section(t) for t in page.tested)
+    robust = _robust_section(page.robustness) if page.robustness is not None else ""
+    return f"""<!DOCTYPE html>
+<html lang="en"><head><meta charset="utf-8">
+<meta name="viewport" content="width=device-width, initial-scale=1">
+<title>{_t(page.heading)}: {_t(page.load.name, 120)}</title>
+<style>{CSS.read_text()}</style></head>
+<body><header><h1>{_t(page.heading)}</h1>
+<p class="name">{_t(page.load.name)}</p>
+<p class="note">EUMOS 40509 test on wrapbench's virtual ESTL acceleration bench: a simulation,
+not a physical test. Inputs:</p><ul>{inputs}</ul></header>
+{_verdict(page)}{robust}{_load_section(page.load, page.tested[0].layout)}
+{_wrap_section(page.wrap, page.tested[0].layout, page.hours_since_wrapping)}
+<section><h2>EUMOS 40509 levels</h2>{tested}</section>
+{_figures_section(page.figures)}{_video_section(page.video_still)}
+</body></html>
+"""

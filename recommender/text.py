@@ -1,0 +1,106 @@
+"""What `wrapbench` prints: the level table of a verdict and the wrapping program as an
+operator enters it, with the web it lays and the time it takes."""
+
+from __future__ import annotations
+
+from wrapenv.bench import BenchRun
+from wrapenv.config import printable
+from wrapenv.eumos import LevelVerdict
+from wrapenv.load import Layout, LoadUnit
+from wrapenv.program import Pass, Program
+from wrapenv.wrap import WrapFormat
+
+
+def _mm(x: float | None) -> str:
+    return "   n/a" if x is None else f"{x * 1000:6.1f}"
+
+
+def _row(v: LevelVerdict) -> str:
+    result = "PASS" if v.passed else ("INVALID" if not v.valid else "FAIL")
+    failed = [k for k, ok in v.criteria.items() if not ok]
+    note = v.invalid_reason or (", ".join(failed) if failed else "")
+    damage = f"; {len(v.damage)} damaged: {', '.join(v.damage[:4])}" if v.damage else ""
+    if len(v.damage) > 4:
+        damage += ", ..."
+    return (f"{v.level_g:5.2f} g  {result:7s} {_mm(v.elastic_max_m)} mm "
+            f"({v.elastic_max_pct or 0:5.1f} %)"
+            f"  {_mm(v.permanent_max_m)} mm ({v.permanent_max_pct or 0:5.1f} %)"
+            f"  {_mm(v.permanent_low20_m)} mm  {_mm(v.pallet_slip_m)} mm  {note}{damage}")
+
+
+def verdict_table(load: LoadUnit, run: BenchRun, orientation: str | None) -> str:
+    """The unit, the EUMOS limits, one row per level run, the highest level passed."""
+    layout = load.layout(orientation)  # type: ignore[arg-type]
+    v = run.verdict
+    lines = [
+        f"{printable(load.name)}: {len(layout.bundles)} bundles, {load.stack.layers} layers "
+        f"({load.stack.pattern}), load height {v.load_height_m:.3f} m, {load.mass_kg:.0f} kg",
+        f"EUMOS 40509 limits: elastic <= {100 * v.load_height_m:.1f} mm, permanent <= "
+        f"{50 * v.load_height_m:.1f} mm, lowest 20 cm < 40 mm, no damage",
+        "level    result    elastic max            permanent max       low 20 cm  pallet slip",
+    ]
+    lines += [_row(level) for level in v.levels]
+    torn = [f"{level.level_g:.2f} g" for level in v.levels if level.wrap and level.wrap.torn]
+    if torn:
+        lines.append(f"wrap torn at: {', '.join(torn)}")
+    best = v.highest_passed_g
+    lines.append(f"highest level passed: {'none' if best is None else f'{best:.2f} g'}"
+                 + ("" if v.valid else "  (simulation became unphysical: see INVALID rows)"))
+    return "\n".join(lines)
+
+
+def _carriage(p: Pass, wrap: WrapFormat, load_height_m: float) -> str:
+    if p.travel_m > 0:
+        return f"{p.start_m:.3f} -> {p.end_m:.3f} m"
+    text = f"{p.start_m:.3f} m"
+    if p.rope_m is not None:
+        return text + " (roped)"
+    above = p.start_m + wrap.web_width_m - load_height_m
+    return text + (f" (web {above:.2f} m above the load)" if above > 1e-9 else "")
+
+
+def step_cells(p: Pass, wrap: WrapFormat, load_height_m: float) -> tuple[str, ...]:
+    """One step of a program as an operator reads it (printed and in the HTML report): zone,
+    wraps, overlap, carriage (the web's lower edge), tension in N."""
+    turns = f"{p.turns:g}" if p.travel_m == 0 else f"{p.turns:.2f}"
+    overlap = f"{100 * (1 - p.rise_m / wrap.web_width_m):.0f} %" if p.travel_m > 0 else "-"
+    return p.zone, turns, overlap, _carriage(p, wrap, load_height_m), f"{p.tension_n:.1f}"
+
+
+def _step(i: int, p: Pass, wrap: WrapFormat, load_height_m: float) -> str:
+    zone, turns, overlap, carriage, tension = step_cells(p, wrap, load_height_m)
+    return f"{i:4d}  {zone:<14}{turns:>6}  {overlap:>7}  {carriage:<34}{tension:>9}"
+
+
+def program_text(wrap: WrapFormat, layout: Layout) -> str:
+    """The program step by step (what the carriage does, in order), then the web it lays and
+    the cycle time. A band form is listed as the full-width revolutions a machine needs."""
+    what = "wrapping program" if wrap.program is not None else "bands, laid as"
+    lines = [f"{what}: {printable(wrap.material.name)}, web {wrap.web_width_m:.2f} m, "
+             f"{wrap.rpm:g} rpm",
+             "step  zone           wraps  overlap  carriage (web's lower edge)        tension N"]
+    lines += [_step(i, p, wrap, layout.load_height_m) for i, p in enumerate(wrap.passes, 1)]
+    used = wrap.material_used_on(layout)
+    roll = (f", {used.roll_length_m:.1f} m from the roll"
+            if abs(used.roll_length_m - used.web_length_m) > 1e-9 else "")
+    lines.append(f"material used: {used.area_m2:.2f} m² of web ({used.mass_kg:.3f} kg), "
+                 f"{used.web_length_m:.1f} m laid{roll}, {used.revolutions:.1f} revolutions")
+    m = wrap.machine
+    cycle = wrap.cycle_time_s
+    lines.append(f"cycle time: {cycle:.0f} s, {3600 / cycle:.0f} pallets/h ({wrap.rpm:g} rpm, "
+                 f"carriage up to {m.carriage_speed_mps:.2f} m/s, {m.handling_s:.0f} s to change "
+                 "pallets)")
+    return "\n".join(lines)
+
+
+def program_summary(program: Program) -> str:
+    """One line: what an operator sets, zone by zone."""
+    parts = [f"{program.bottom_wraps} bottom wraps at {program.bottom_tension_n:.0f} N"
+             + (" (roped)" if program.roping else ""),
+             f"spiral up {100 * program.up_overlap:.0f} % at {program.middle_tension_n:.0f} N"]
+    parts += [f"{r.wraps} at {r.from_m:.2f} m at {r.tension_n:.0f} N"
+              for r in program.reinforcements]
+    parts.append(f"{program.top_wraps} top wraps at {program.top_tension_n:.0f} N")
+    if program.down_overlap is not None:
+        parts.append(f"spiral down {100 * program.down_overlap:.0f} %")
+    return ", ".join(parts)

@@ -1,0 +1,199 @@
+"""The one-page report's HTML (recommender/html_page.py), without a browser: every user string
+escaped and bounded, each EUMOS criterion's figure against its limit, the load and the program as
+entered, figures inlined as data: URIs, the video beside the page, and what recommend adds."""
+
+from __future__ import annotations
+
+import base64
+import re
+from html.parser import HTMLParser
+from typing import Any
+
+import cv2
+import numpy as np
+
+from recommender.html_page import Figure, OrientationRun, Page, Robustness, render
+from recommender.search import Trial
+from recommender.uncertainty import PassProbability
+from wrapenv.bench import BenchRun
+from wrapenv.eumos import LevelVerdict, Verdict
+from wrapenv.load import LoadUnit
+from wrapenv.wrap import WrapFormat
+
+#: A name that would break the page, its title or a plot if it were written raw.
+HOSTILE = '<script>alert("x")</script><img src=x onerror=alert(1)> & $\\frac{$ \x1b[31m'
+#: Two layers of PET bundles on a EUR pallet: load height 0.144 + 2 x 0.33 = 0.804 m, so the
+#: EUMOS limits are 10 % = 80.4 mm elastic and 5 % = 40.2 mm permanent.
+LOAD = {"name": HOSTILE, "pallet": {"preset": "EUR"}, "bundle": {"preset": "PET6x1.5L"},
+        "stack": {"layers": 2, "pattern": "columnar"}}
+CRITERIA_OK = {"permanent_5pct": True, "low20_4cm": True, "elastic_10pct": True,
+               "no_damage": True}
+
+
+def png(value: int) -> bytes:
+    return cv2.imencode(".png", np.full((20, 30, 3), value, np.uint8))[1].tobytes()
+
+
+def level(level_g: float, elastic_m: float, permanent_m: float, low20_m: float,
+          criteria: dict[str, bool] = CRITERIA_OK, damage: tuple[str, ...] = ()) -> LevelVerdict:
+    h = 0.804
+    passed = all(criteria.values())
+    return LevelVerdict(level_g, passed, True, elastic_m, 100 * elastic_m / h, permanent_m,
+                        100 * permanent_m / h, low20_m, 0.001, damage, criteria, ())
+
+
+def page(robustness: Robustness | None = None, **changes: Any) -> Page:
+    """A page of two levels, 0.3 g passing and 0.4 g failing the elastic criterion."""
+    load = LoadUnit.from_dict(LOAD)
+    failing = {**CRITERIA_OK, "elastic_10pct": False, "no_damage": False}
+    run = BenchRun(Verdict(0.804, (level(0.3, 0.0118, 0.0089, 0.0088),
+                                   level(0.4, 0.1234, 0.0350, 0.0390, failing,
+                                         ("L2C1R1 toppled",)))), ())
+    wrap = WrapFormat.from_dict(
+        {"material": {"name": "<b>paper</b>", "grammage_kg_m2": 0.09,
+                      "stiffness_n_per_m": 40000.0, "yield_strain": 0.02, "break_strain": 0.06},
+         "web_width_m": 0.5,
+         "program": {"bottom_wraps": 3, "bottom_tension_n": 400.0, "up_overlap": 0.5,
+                     "middle_tension_n": 250.0, "top_wraps": 2, "top_tension_n": 300.0}},
+        "wrap.toml", 0.804)
+    fields: dict[str, Any] = {
+        "heading": "Bench test report", "load": load,
+        "tested": (OrientationRun(None, load.layout(), run),), "wrap": wrap,
+        "hours_since_wrapping": 16.0,
+        "inputs": (("load unit", "dir/<load>.toml"),),
+        "figures": (Figure("Displacement against time", png(10), "every bundle"),
+                    Figure("Tension map", None, "this version draws none")),
+        "video_still": png(200), "robustness": robustness}
+    return Page(**{**fields, **changes})
+
+
+class Parsed(HTMLParser):
+    """The page's tags with their attributes, and the text of every table cell by table."""
+
+    def __init__(self, text: str) -> None:
+        super().__init__()
+        self.tags: list[tuple[str, dict[str, str | None]]] = []
+        self.tables: list[dict[str, Any]] = []
+        self._cell: list[str] | None = None
+        self.text: list[str] = []
+        self.feed(text)
+
+    def handle_starttag(self, tag: str, attrs: list[tuple[str, str | None]]) -> None:
+        self.tags.append((tag, dict(attrs)))
+        if tag == "br" and self._cell is not None:
+            self._cell.append(" ")
+        elif tag == "table":
+            self.tables.append({"class": dict(attrs).get("class"), "rows": []})
+        elif tag == "tr":
+            self.tables[-1]["rows"].append([])
+        elif tag in ("td", "th"):
+            self._cell = []
+
+    def handle_endtag(self, tag: str) -> None:
+        if tag in ("td", "th") and self._cell is not None:
+            self.tables[-1]["rows"][-1].append(" ".join("".join(self._cell).split()))
+            self._cell = None
+
+    def handle_data(self, data: str) -> None:
+        self.text.append(data)
+        if self._cell is not None:
+            self._cell.append(data)
+
+    def table(self, cls: str) -> list[list[str]]:
+        return next(t["rows"] for t in self.tables if t["class"] == cls)
+
+    def facts(self) -> dict[str, str]:
+        return {row[0]: row[1] for t in self.tables if t["class"] == "facts" for row in t["rows"]}
+
+
+def test_every_user_string_is_escaped_and_bounded():
+    long_name = "A" * 100_000
+    text = render(page())
+    parsed = Parsed(text)
+    assert [tag for tag, _ in parsed.tags if tag in ("script", "link", "iframe")] == []
+    assert not any("onerror" in attrs for _, attrs in parsed.tags)
+    assert "\x1b" not in text and "<b>paper</b>" not in text
+    shown = "".join(parsed.text)
+    assert '<script>alert("x")</script>' in shown  # the name is shown as text, as entered
+    assert "<b>paper</b>" in shown and "dir/<load>.toml" in shown
+    assert len(render(page(load=LoadUnit.from_dict({**LOAD, "name": long_name})))) < len(
+        text) + 2000, "a 100 kB name does not bury the page"
+
+
+def test_the_level_table_gives_each_eumos_criterion_its_figure_limit_and_verdict():
+    parsed = Parsed(render(page()))
+    head, *rows = parsed.table("levels")
+    # limits of a 0.804 m load: 10 % = 80.4 mm, 5 % = 40.2 mm; 40 mm in the lowest 20 cm
+    assert head[:5] == ["Level", "Elastic max limit ≤ 80.4 mm (10 % of height)",
+                        "Permanent max limit ≤ 40.2 mm (5 % of height)",
+                        "Lowest 20 cm, permanent limit < 40 mm (bundles below 20 cm)",
+                        "Damage limit none"]
+    assert head[-1] == "Result"
+    assert rows[0][:5] == ["0.30 g", "11.8 mm (1.5 %) pass", "8.9 mm (1.1 %) pass",
+                           "8.8 mm pass", "none pass"]
+    assert rows[0][-1] == "PASS"
+    # 123.4 mm is 15.3 % of 804 mm: over the elastic limit; the damage is named
+    assert rows[1][:5] == ["0.40 g", "123.4 mm (15.3 %) fail", "35.0 mm (4.4 %) pass",
+                           "39.0 mm pass", "L2C1R1 toppled fail"]
+    assert rows[1][-1] == "FAIL"
+
+
+def test_sections_name_the_load_the_program_as_entered_the_web_and_the_cycle():
+    parsed = Parsed(render(page()))
+    facts = parsed.facts()
+    assert facts["Pallet"] == "1.200 × 0.800 × 0.144 m, 25.0 kg"
+    assert facts["Stack"] == "2 layers, columnar, 16 bundles on the first, 32 in all"
+    assert facts["bottom_wraps"] == "3" and facts["up_overlap"] == "0.5"
+    assert facts["Machine"].startswith("12 rpm, carriage up to 0.10 m/s")
+    assert re.fullmatch(r"[\d.]+ m² \([\d.]+ kg\), [\d.]+ m laid, .* revolutions",
+                        facts["Web laid"])
+    assert re.fullmatch(r"\d+ s per pallet, \d+ pallets/h", facts["Cycle time"])
+    assert facts["Tested"].startswith("16 h after wrapping")
+    bands = WrapFormat.from_dict({"material": "lldpe", "web_width_m": 0.5, "band": [
+        {"from_m": 0.0, "to_m": 0.45, "layers": 3, "tension_n": 250.0}]}, "wrap.toml", 0.804)
+    assert Parsed(render(page(wrap=bands))).facts()["band 1"] == "0.000–0.450 m, 3 layers at 250 N"
+    assert "None: the unit was tested unwrapped." in render(page(wrap=None))
+    friction = parsed.table("num")  # the first: friction pairs, then the program's steps
+    assert friction[0] == ["Friction pair", "static", "kinetic"]
+    assert ["sled–pallet", "0.450", "0.340"] in friction
+
+
+def test_figures_are_inlined_and_a_missing_one_says_not_available():
+    text = render(page())
+    parsed = Parsed(text)
+    sources = [attrs["src"] for tag, attrs in parsed.tags if tag == "img"]
+    assert len(sources) == 2  # the displacement plot and the video's still
+    prefix = "data:image/png;base64,"
+    assert all(s is not None and s.startswith(prefix) for s in sources)
+    assert base64.b64decode(str(sources[0])[len(prefix):]) == png(10)
+    assert "Tension map: not available — this version draws none" in " ".join(
+        "".join(parsed.text).split())
+
+
+def test_the_video_is_beside_the_page_browsers_first_with_its_still_for_print():
+    parsed = Parsed(render(page()))
+    sources = [(a["src"], a["type"]) for tag, a in parsed.tags if tag == "source"]
+    assert sources == [("test.webm", "video/webm"), ("test.mp4", "video/mp4")]
+    links = [a["href"] for tag, a in parsed.tags if tag == "a"]
+    assert links == ["test.webm", "test.mp4"]
+    assert not any(tag == "video" for tag, _ in Parsed(render(page(video_still=None))).tags)
+
+
+def test_recommend_shows_the_pass_probability_with_its_interval_and_the_worst_sample():
+    worst = Trial(True, 0.41, "short", {"elastic_max_m": 0.0213, "permanent_max_m": 0.0102},
+                  {"friction": {"sled_pallet": {"static": 0.45, "kinetic": 0.4}},
+                   "mass_scale": 1.02, "hours_since_wrapping": 16.0})
+    robust = Robustness(PassProbability(7, 8), worst, 0.45, 0.2, 40)
+    facts = Parsed(render(page(robust))).facts()
+    # Wilson 95 % for 7 of 8: centre (0.875 + 1.96²/16) / (1 + 1.96²/8) = 0.753, half width
+    # 1.96 / 1.480 * sqrt(0.875 * 0.125 / 8 + 1.96² / 256) = 0.224: 53 % to 98 %
+    assert facts["Pass probability"] == "88 % (7 of 8 samples; 95 % interval 53 %–98 %, Wilson)"
+    assert facts["Search"] == ("40 candidate programs; margin of the worst sample 0.45 "
+                               "(goal 0.20)")
+    assert facts["Worst sample"] == ("short side, margin 0.41, elastic 21.3 mm, permanent "
+                                     "10.2 mm, passed")
+    assert "sled_pallet 0.450/0.400" in facts["Its draw"]
+    assert "mass × 1.020" in facts["Its draw"]
+    policy = Robustness(PassProbability(8, 8), worst, 0.45, 0.2, None)
+    assert Parsed(render(page(policy))).facts()["Search"] == ("a trained policy's proposal, "
+                                                              "verified in simulation")

@@ -1,0 +1,96 @@
+"""Interrupting a running `wrapbench recommend`: Ctrl-C or SIGTERM ends it at once with one line,
+its worker processes gone, nothing written but the checkpoint it can resume from; a second
+Ctrl-C prints no traceback. Run as a user runs it: a process, signalled from outside."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+#: Four bundles on two layers: a search step is a few seconds, long enough to be interrupted.
+SMALL = """name = "interrupt me"
+[pallet]
+preset = "EUR"
+[bundle]
+preset = "PET6x1.5L"
+[stack]
+layers = 2
+pattern = "explicit"
+positions = [[-0.15, -0.1], [0.15, -0.1], [-0.15, 0.1], [0.15, 0.1]]
+[fixture]
+pallet_stopper = true
+"""
+#: Seconds a killed search may take to wind down before the test calls it a hang.
+HANG_S = 60
+
+
+def _processes_naming(marker: str) -> list[int]:
+    """Live processes whose command line names `marker` (the search and its workers)."""
+    found = []
+    for entry in Path("/proc").iterdir():
+        if not entry.name.isdigit():
+            continue
+        try:
+            cmdline = (entry / "cmdline").read_bytes().replace(b"\0", b" ").decode()
+            state = (entry / "stat").read_text().split()[2]
+        except OSError:
+            continue
+        if marker in cmdline and state != "Z":
+            found.append(int(entry.name))
+    return found
+
+
+def _start(tmp_path: Path) -> tuple[subprocess.Popen, Path, Path]:
+    load = tmp_path / "load.toml"
+    load.write_text(SMALL)
+    out = tmp_path / "rec.json"
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "recommender.cli", "recommend", str(load), "--budget", "48",
+         "--samples", "2", "--workers", "2", "--orientation", "long", "--json", str(out)],
+        stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
+        cwd=Path(__file__).resolve().parents[2])
+    checkpoint = tmp_path / "rec.checkpoint.json"
+    deadline = time.monotonic() + 600
+    while not checkpoint.exists():  # one generation done: the workers are busy with the next
+        assert proc.poll() is None, proc.stderr.read() if proc.stderr else ""
+        assert time.monotonic() < deadline, "no generation finished"
+        time.sleep(0.5)
+    return proc, out, checkpoint
+
+
+@pytest.mark.parametrize("signum, code", [(signal.SIGINT, 130), (signal.SIGTERM, 143)])
+def test_an_interrupted_search_stops_its_workers_and_keeps_its_checkpoint(tmp_path, signum,
+                                                                           code):
+    proc, out, checkpoint = _start(tmp_path)
+    proc.send_signal(signum)
+    try:
+        proc.wait(timeout=HANG_S)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        pytest.fail("the interrupted search hung")
+    err = proc.stderr.read() if proc.stderr else ""
+    assert proc.returncode == code
+    assert "Traceback" not in err and len(err.strip().splitlines()) == 1, err
+    assert "--resume" in err and str(checkpoint) in err
+    assert not out.exists()
+    assert json.loads(checkpoint.read_text())["generations"]
+    time.sleep(1)
+    assert _processes_naming(str(tmp_path)) == [], "worker processes outlived the search"
+
+
+def test_a_second_ctrl_c_prints_no_traceback(tmp_path):
+    proc, _, _ = _start(tmp_path)
+    proc.send_signal(signal.SIGINT)
+    time.sleep(0.2)
+    if proc.poll() is None:
+        os.kill(proc.pid, signal.SIGINT)
+    proc.wait(timeout=HANG_S)
+    err = proc.stderr.read() if proc.stderr else ""
+    assert "Traceback" not in err and proc.returncode == 130, err

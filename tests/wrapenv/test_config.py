@@ -1,0 +1,96 @@
+"""Outputs checked before any work (`check_output`, `check_output_folder`): a run must not end
+in a failed write, a traceback, or a destroyed input."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import pytest
+
+from wrapenv.config import InputError, check_output, check_output_folder, printable, read_json
+
+ROOT = os.geteuid() == 0
+
+
+def _refused(path: Path | str, *needles: str, **kwargs) -> str:
+    with pytest.raises(InputError) as info:
+        check_output(Path(path), "--out", **kwargs)
+    message = str(info.value)
+    assert "\n" not in message and "--out" in message
+    for needle in needles:
+        assert needle in message, message
+    return message
+
+
+def test_a_file_in_an_existing_folder_is_accepted(tmp_path: Path) -> None:
+    check_output(tmp_path / "new.csv", "--out")
+    (tmp_path / "old.csv").write_text("replaced at the end")
+    check_output(tmp_path / "old.csv", "--out")
+    check_output(None, "--out")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["old.csv"]  # the probe cleaned up
+
+
+def test_a_missing_folder_is_refused(tmp_path: Path) -> None:
+    _refused(tmp_path / "no" / "t.csv", "does not exist")
+
+
+def test_a_folder_is_refused(tmp_path: Path) -> None:
+    _refused(tmp_path, "is a folder")
+
+
+def test_a_device_is_refused() -> None:
+    """`os.replace` would put a regular file where /dev/null was."""
+    _refused("/dev/null", "not a regular file")
+
+
+def test_a_file_system_that_takes_no_files_is_refused() -> None:
+    _refused("/proc/trajectories.csv", "cannot write into /proc")
+
+
+@pytest.mark.skipif(ROOT, reason="root writes into read-only folders")
+def test_a_read_only_folder_is_refused(tmp_path: Path) -> None:
+    folder = tmp_path / "ro"
+    folder.mkdir(mode=0o555)
+    _refused(folder / "t.csv", "cannot write into")
+
+
+def test_an_input_is_refused_by_any_name(tmp_path: Path) -> None:
+    source = tmp_path / "video.avi"
+    source.write_bytes(b"precious")
+    (tmp_path / "link.avi").symlink_to(source)
+    for name in ("video.avi", "link.avi", "./video.avi"):
+        _refused(tmp_path / name, "is an input", inputs=[source])
+    check_output(tmp_path / "other.avi", "--out", inputs=[source, tmp_path / "absent.csv"])
+    assert source.read_bytes() == b"precious"
+
+
+def test_an_output_folder_must_be_new_or_empty_and_creatable(tmp_path: Path) -> None:
+    check_output_folder(tmp_path / "a" / "b" / "rec", "--out")
+    (tmp_path / "empty").mkdir()
+    check_output_folder(tmp_path / "empty", "--out")
+    assert not (tmp_path / "a").exists()  # checked, not created
+    (tmp_path / "full").mkdir()
+    (tmp_path / "full" / "keep.txt").write_text("mine")
+    (tmp_path / "file").write_text("")
+    for path, needle in ((tmp_path / "full", "not an empty folder"),
+                         (tmp_path / "file", "not an empty folder"),
+                         (tmp_path / "file" / "rec", "not a folder"),
+                         (Path("/proc/rec"), "cannot write into /proc")):
+        with pytest.raises(InputError, match=needle):
+            check_output_folder(path, "--out")
+
+
+def test_printable_escapes_control_characters_and_truncates() -> None:
+    assert printable("L\x1b[31mred\x07 é 中") == "L\\x1b[31mred\\x07 é 中"
+    assert printable("a\nb\tc\u200bd") == "a\\nb\\tc\\u200bd"
+    long = printable("x" * 100_000, limit=80)
+    assert len(long) <= 80 and long.startswith("x" * 20) and "99920 more characters" in long
+
+
+def test_a_json_key_given_twice_is_an_error_naming_it(tmp_path, assert_input_error):
+    path = tmp_path / "CAL.json"
+    path.write_text('{"wrap": {"stiffness_scale": 1.0, "stiffness_scale": 2.0}}')
+    with pytest.raises(InputError) as info:
+        read_json(path)
+    assert_input_error(info.value, str(path), "stiffness_scale")
