@@ -176,8 +176,8 @@ class _Run:
             if depth > PENETRATION_LIMIT_M:
                 self.invalid = f"bodies interpenetrate by {depth * 1000:.0f} mm"
 
-    def _apply_wrap(self, pos, rot, vel, omega) -> None:
-        force, torque = self.wrap.forces(pos, rot, vel, omega)  # type: ignore[union-attr]
+    def _apply_wrap(self, pos, rot, vel, omega, t_s: float | None = None) -> None:
+        force, torque = self.wrap.forces(pos, rot, vel, omega, t_s)  # type: ignore[union-attr]
         bodies = np.flatnonzero(np.any(force != 0, axis=1) | np.any(torque != 0, axis=1))
         # state index j is world index j + 1 (the sled is 0)
         self.world.apply_wrenches(bodies + 1, pos[bodies], force[bodies], torque[bodies])
@@ -210,7 +210,7 @@ class _Run:
                 pos, quat, vel, omega = self._state()
                 rot = _rotations(quat)
             if self.wrap is not None:
-                self._apply_wrap(pos, rot, vel, omega)
+                self._apply_wrap(pos, rot, vel, omega, t)
             if self.push is not None and t < self.profile.duration_s:
                 world.push(self.push[0], self.push[1])
             if sample:

@@ -16,7 +16,8 @@ from wrapenv.eumos import WRAP_TORN, evaluate
 from wrapenv.load import FrictionPair, LoadUnit
 from wrapenv.profile import PulseProfile
 from wrapenv.wrap import WrapFormat
-from wrapenv.wrap_physics import WrapNet, _element_set
+from wrapenv.wrap_elements import element_set
+from wrapenv.wrap_physics import WrapNet
 
 EXAMPLE_3 = "examples/pet_3layer_columnar.toml"
 EXAMPLE_2 = "examples/pet_2layer_columnar.toml"
@@ -60,9 +61,9 @@ def rest_state(layout):
 
 def element(k=1000.0, yield_n=10.0, break_n=50.0, hardening=0.1):
     """One element whose web has stiffness k and yield/break forces for one metre of web."""
-    return _element_set(k_web=np.array([k]), material_strength=(yield_n, break_n, hardening),
-                        web_metres=np.array([1.0]), pretension=np.zeros(1), mass=np.ones(1),
-                        height=np.zeros(1), length=np.ones(1), contact_k=1e12)
+    return element_set(k_web=np.array([k]), material_strength=(yield_n, break_n, hardening),
+                       web_metres=np.array([1.0]), pretension=np.zeros(1), mass=np.ones(1),
+                       height=np.zeros(1), length=np.ones(1), give=1e12)
 
 
 def test_element_is_elastic_below_yield_and_never_pushes():
