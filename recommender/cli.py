@@ -58,6 +58,9 @@ def build_parser() -> argparse.ArgumentParser:
                      help="pallet side along the motion (default: as the load file lays it out)")
     sim.add_argument("--json", type=Path, metavar="OUT", help="write the verdict as JSON")
     sim.add_argument("--plot", type=Path, metavar="OUT.png", help="plot displacement vs time")
+    sim.add_argument("--tension-map", type=Path, metavar="OUT.png",
+                     help="with --wrap: the envelope unrolled, coloured by each place's peak "
+                          "utilisation, torn and opened places marked")
 
     rec = sub.add_parser("recommend", help="search the wrapping program with the least web that "
                                            "passes EUMOS 40509 up to the target")
@@ -99,8 +102,8 @@ def build_parser() -> argparse.ArgumentParser:
     rec.add_argument("--wrap-out", type=Path, metavar="WRAP.toml",
                      help="write the recommended program as a WRAP.toml")
     rec.add_argument("--report", type=Path, metavar="DIR",
-                     help="write displacement.png, search.png and test.mp4 (the recommended "
-                          "program's test at the target level) into DIR")
+                     help="write displacement.png, search.png, tension_map.png and test.mp4 (the "
+                          "recommended program's test at the target level) into DIR")
 
     tr = sub.add_parser("train", help="train a PPO policy on random load units "
                                       "(wrapenv/WrapBenchRandom-v1)")

@@ -88,6 +88,10 @@ def run_simulate(args: argparse.Namespace) -> int:
             wrap = wrap.scaled(calibration.stiffness_scale, calibration.tension_scale)
     check_output(args.json, "--json")
     check_output(args.plot, "--plot")
+    check_output(args.tension_map, "--tension-map")
+    if args.tension_map and wrap is None:
+        raise InputError("arguments", "--tension-map", "needs --wrap (an unwrapped unit has "
+                                                       "no envelope to map)")
     levels = _levels(args)
     if laid is not None:
         _warn("simulate", laid.warnings())
@@ -105,6 +109,10 @@ def run_simulate(args: argparse.Namespace) -> int:
         from recommender.report import plot_displacements
 
         plot_displacements(run, args.plot, title=load.name)
+    if args.tension_map:
+        from recommender.report import plot_tension_map
+
+        plot_tension_map(run, layout, args.tension_map, title=load.name)
     return 0 if run.verdict.passed else 1
 
 
@@ -280,10 +288,11 @@ def _write_outputs(args: argparse.Namespace, problem: Problem, best: Evaluation,
 
 def _write_report(folder: Path, problem: Problem, run: BenchRun, best: Evaluation,
                   state: SearchState, margin_goal: float) -> None:
-    from recommender.report import plot_displacements, plot_search, write_video
+    from recommender.report import plot_displacements, plot_search, plot_tension_map, write_video
 
     folder.mkdir(parents=True, exist_ok=True)
     plot_displacements(run, folder / "displacement.png", title=problem.load.name)
+    plot_tension_map(run, problem.layout, folder / "tension_map.png", title=problem.load.name)
     plot_search(state.history, best, folder / "search.png", margin_goal)
     write_video(run.traces[-1], problem.layout, problem.simulated(best.wrap),
                 folder / "test.mp4")

@@ -98,7 +98,7 @@ class WrapNet:
         self.rings = self._ring_elements(mass)
         self.outline_s = corner_positions_m(layout)
         self.panel_spec = panel_specs(wrap, rings, corners, self.node_body, self.outline_s)
-        self.panels, self.outer = self._panel_elements(mass)
+        self.panels = self._panel_elements(mass)
         self._incidences()
         self._seam_setup()
         self.frozen = False
@@ -130,9 +130,10 @@ class WrapNet:
             give=np.array([_ring_give(r, self.corner_stiffness) for r in rings]),
         )
 
-    def _panel_elements(self, mass: np.ndarray) -> tuple[Elements, Elements]:
-        """The panels as the layer against the load (all layers when they cling), and for
-        paper the layers outside it, held only by friction (`_outer_yield`)."""
+    def _panel_elements(self, mass: np.ndarray) -> Elements:
+        """The panels, all layers of a panel in one element behind the give of its two ends.
+        For paper, `_paper_law` then limits what the layers outside the one touching the load
+        take (stored here: the law of all layers stuck, and the tangent once they slip)."""
         spec, m = self.panel_spec, self.wrap.material
         a, b = spec.nodes.T
         share = np.array([r.height_m for r in self.ring_specs])
@@ -140,23 +141,22 @@ class WrapNet:
                  for j, n in enumerate((a, b))]
         give = series(*k_end) if len(a) else np.zeros(0)
         ma, mb = mass[self.node_body[a]], mass[self.node_body[b]]
-        reduced = ma * mb / (ma + mb)
-        inner = (np.ones_like(spec.layers) if m.clings
-                 else np.minimum(spec.layers, 1.0) / np.maximum(spec.layers, 1e-9))
-        #: Panels whose outer layers slide (paper with more than one layer), into `outer`.
-        self.outer_index = np.flatnonzero(inner < 1.0 - 1e-9)
-        sets = []
-        for frac, hardening, index in ((inner, m.hardening_ratio, slice(None)),
-                                       (1.0 - inner, 0.0, self.outer_index)):
-            sets.append(element_set(
-                k_web=(spec.k_web * frac)[index],
-                material_strength=(m.yield_force_n_per_m, m.break_force_n_per_m, hardening),
-                web_metres=(spec.web_metres * frac)[index],
-                pretension=np.zeros_like(spec.k_web[index]), mass=reduced[index],
-                height=spec.height_m[index], length=np.ones_like(spec.k_web[index]),
-                give=(give * frac)[index]))
-        self._outer_web_yield = sets[1].yield_force.copy()
-        return sets[0], sets[1]
+        panels = element_set(
+            k_web=spec.k_web,
+            material_strength=(m.yield_force_n_per_m, m.break_force_n_per_m, m.hardening_ratio),
+            web_metres=spec.web_metres, pretension=np.zeros_like(spec.k_web),
+            mass=ma * mb / (ma + mb), height=spec.height_m, length=np.ones_like(spec.k_web),
+            give=give)
+        n = spec.layers
+        #: Panels whose outer layers slide on the one beneath (paper, more than one layer).
+        self.sliding = np.flatnonzero((n > 1.0 + 1e-9) & (not m.clings))
+        k = self.sliding
+        slipped = series(spec.k_web[k] / n[k], give[k])   # only the layer against the load
+        self._stuck = (panels.yield_force[k].copy(), panels.break_force[k].copy(),
+                       panels.plastic_modulus[k].copy(),
+                       panels.k_elastic[k] * slipped / np.maximum(panels.k_elastic[k] - slipped,
+                                                                  1e-9))
+        return panels
 
     def _incidences(self) -> None:
         """Incidence matrices: sums over slots, elements and nodes become one product each."""
@@ -176,7 +176,7 @@ class WrapNet:
         layers = np.array([r.layers for r in self.ring_specs])
         node_ring = np.zeros(n_nodes, int)
         node_ring[flat[flat >= 0]] = np.flatnonzero(flat >= 0) // max(self._slots.shape[1], 1)
-        ends = nodes[self.outer_index].ravel()
+        ends = nodes[self.sliding].ravel()
         sharing = np.maximum(np.bincount(ends, minlength=n_nodes), 1)
         self._outer_press = np.clip(1.0 - 1.0 / np.maximum(layers, 1.0), 0, 1)[node_ring] / sharing
         self._push = np.zeros(n_nodes)
@@ -212,9 +212,8 @@ class WrapNet:
         r.rest = perimeter - r.pretension / r.k_elastic
         r.length_m = perimeter.copy()
         length = self._panel_lengths(p)
-        for elements, index in ((self.panels, slice(None)), (self.outer, self.outer_index)):
-            elements.rest = length[index].copy()
-            elements.length_m = length[index].copy()
+        self.panels.rest = length.copy()
+        self.panels.length_m = length.copy()
         self.frozen = True
 
     def _panel_lengths(self, p: np.ndarray) -> np.ndarray:
@@ -329,22 +328,31 @@ class WrapNet:
         length = np.linalg.norm(d, axis=1)
         unit = d / np.maximum(length, 1e-12)[:, None]
         rate = np.einsum("ek,ek->e", v[b] - v[a], unit)
+        if len(self.sliding):
+            self._paper_law()
         tension = self.panels.force(length, rate, t_s=t_s)
-        if len(self.outer_index):
-            k = self.outer_index
-            self.outer.yield_force = np.minimum(self._outer_web_yield, self._outer_grip())
-            tension[k] += self.outer.force(length[k], rate[k], t_s=t_s)
         f += self._panel_to_node @ (unit * tension[:, None])
 
-    def _outer_grip(self) -> np.ndarray:
-        """Most force the sliding outer layers of each panel take before they slip: friction
-        on the layer beneath at the weaker of its two ends carries the panel's vertical part
-        (its horizontal part the corner's edge pushes through every layer)."""
+    def _paper_law(self) -> None:
+        """Paper's layers do not cling: a panel's layers outside the one touching the load take
+        their share only through friction on the layer beneath, where the rings press them on
+        the corners; the panel's vertical part needs that friction (the corners' edges push its
+        horizontal part through every layer). Up to that grip C the layers act together; past
+        it they slip (permanently, as plastic stretch) and the inner layer takes the rest, so
+        the panel bears one layer's breaking force plus C (all layers' at most)."""
+        k, n = self.sliding, self.panel_spec.layers[self.sliding]
+        stuck_yield, stuck_break, stuck_h, slip_h = self._stuck
         press = self._push * self._outer_press
-        ends = self.panel_spec.nodes[self.outer_index]
+        ends = self.panel_spec.nodes[k]
         normal = np.minimum(press[ends[:, 0]], press[ends[:, 1]])
-        rise = np.maximum(self.panel_spec.rise[self.outer_index], 1e-6)
-        return self.wrap.material.interlayer_mu * normal / rise
+        rise = np.maximum(self.panel_spec.rise[k], 1e-6)
+        outer = (n - 1.0) / n
+        grip = np.minimum(self.wrap.material.interlayer_mu * normal / rise, stuck_yield * outer)
+        slips = grip / outer < stuck_yield
+        p = self.panels
+        p.yield_force[k] = np.minimum(stuck_yield, grip / outer)
+        p.break_force[k] = np.minimum(stuck_break / n + grip, stuck_break)
+        p.plastic_modulus[k] = np.where(slips, slip_h, stuck_h)
 
     def report(self) -> WrapReport:
         r, inner = self.rings, self.panels

@@ -129,14 +129,10 @@ def _ring_places(net: WrapNet) -> list[Place]:
 
 
 def _panel_places(net: WrapNet) -> list[Place]:
-    """Per pair of rings: a vertical at each corner, the two diagonals of each face (with
-    paper, its sliding outer layers too) as one place, the most loaded element speaking."""
-    spec, inner, outer = net.panel_spec, net.panels, net.outer
-    use = inner.peak.copy()
-    force, when = inner.peak_force.copy(), inner.peak_t.copy()
-    for j, e in enumerate(net.outer_index.tolist()):  # the outer layers, if more loaded
-        if outer.peak[j] > use[e]:
-            use[e], force[e], when[e] = outer.peak[j], outer.peak_force[j], outer.peak_t[j]
+    """Per pair of rings: a vertical at each corner and the two diagonals of each face as
+    one place, the more loaded diagonal speaking."""
+    spec, inner = net.panel_spec, net.panels
+    use, force, when = inner.peak, inner.peak_force, inner.peak_t
     groups: dict[tuple[int, int, str], list[int]] = {}
     for e, where in enumerate(spec.where):
         lo, hi = (int(k) for k in spec.rings[e])
