@@ -20,14 +20,33 @@ BEND_STRAIN_CAP = 0.5
 
 
 def edge_factor(material: Material, edge_radius_m: float) -> float:
-    """How much a web's bearable tension falls where it bends round an edge of this radius:
-    its break force over the force at which membrane strain plus the outer fibre's bending
-    strain t / (2r + t) reach the break strain (capped at `BEND_STRAIN_CAP`)."""
-    bend = material.thickness / (2 * edge_radius_m + material.thickness)
-    left = material.break_strain - min(bend, BEND_STRAIN_CAP * material.break_strain)
-    k, ey = material.stiffness_n_per_m, material.yield_strain
-    bearable = k * left if left <= ey else k * ey + material.hardening_ratio * k * (left - ey)
-    return material.break_force_n_per_m / bearable
+    """How much a web's bearable tension falls where it wraps fully round an edge of this
+    radius (a load's corner): `bend_factor` of the outer fibre's strain t / (2r + t)."""
+    t = material.thickness
+    return float(bend_factor(material, np.array(t / (2 * edge_radius_m + t))))
+
+
+def bend_factor(material: Material, bend_strain: np.ndarray) -> np.ndarray:
+    """The web's break force over the force at which its membrane strain plus `bend_strain`
+    (the outer fibre's, from bending round an edge) reach the break strain; the bending is
+    capped at `BEND_STRAIN_CAP` of the break strain."""
+    m = material
+    left = m.break_strain - np.minimum(bend_strain, BEND_STRAIN_CAP * m.break_strain)
+    k, ey = m.stiffness_n_per_m, m.yield_strain
+    bearable = np.where(left <= ey, k * left, k * ey + m.hardening_ratio * k * (left - ey))
+    return m.break_force_n_per_m / bearable
+
+
+def bend_curvature(material: Material, edge_radius_m: np.ndarray, turn_rad: np.ndarray,
+                   tension_n_per_m: np.ndarray) -> np.ndarray:
+    """Curvature (1/m) of a web turned by `turn_rad` over an edge of this radius under this
+    tension per metre of one layer's width. A tensioned web does not follow a kink sharply:
+    its bending stiffness D = K t² / 12 spreads the turn over l = sqrt(D / T), so its sharpest
+    bend is turn / (2 l) (a tensioned beam over a point), and no sharper than the edge."""
+    t = material.thickness
+    stiffness = material.stiffness_n_per_m * t * t / 12.0
+    length = np.sqrt(stiffness / np.maximum(tension_n_per_m, 1e-9))
+    return np.minimum(1.0 / edge_radius_m, turn_rad / (2.0 * length))
 
 
 @dataclass
@@ -70,7 +89,9 @@ class Elements:
         self.rising = utilisation > self.peak
         if self.rising.any():
             self.peak = np.where(self.rising, np.minimum(utilisation, 1.0), self.peak)
-            self.peak_force = np.where(self.rising, elastic, self.peak_force)
+            # a place that tore bore what it could: the force that reached its limit
+            bore = np.minimum(elastic, self.break_force / edge)
+            self.peak_force = np.where(self.rising, bore, self.peak_force)
             self.peak_t = np.where(self.rising, np.nan if t_s is None else t_s, self.peak_t)
         self.torn |= utilisation >= 1.0
         self.last = np.where(self.torn, 0.0, elastic)

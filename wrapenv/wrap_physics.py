@@ -45,7 +45,7 @@ import numpy as np
 
 from wrapenv.load import Layout
 from wrapenv.wrap import WrapFormat
-from wrapenv.wrap_elements import Elements, edge_factor, element_set, series
+from wrapenv.wrap_elements import Elements, bend_curvature, bend_factor, element_set, series
 from wrapenv.wrap_geometry import corner_positions_m, panel_specs, ring_specs, seam_rings
 from wrapenv.wrap_report import WrapReport, places_of
 
@@ -53,8 +53,6 @@ from wrapenv.wrap_report import WrapReport, places_of
 PALLET_CORNER_STIFFNESS_N_PER_M2 = 1.0e7
 #: Radius of the pallet's vertical edges: a sawn block, lightly rounded [A] (B3).
 PALLET_EDGE_RADIUS_M = 0.005
-#: A ring's web that turns by less than this at a slot only passes that edge (radians).
-TURN_ANGLE_RAD = math.radians(1.0)
 
 
 class WrapNet:
@@ -87,14 +85,12 @@ class WrapNet:
         self._slot_valid = self._slots >= 0
         self._active = self._slot_valid.copy()
         self._slot_index = np.where(self._slot_valid, self._slots, 0)
-        m = wrap.material
         bodies = self.node_body[self._slot_index] if len(self.node_body) else self._slot_index
-        factors = {r: edge_factor(m, r) for r in set(radius.tolist())}
-        #: Per ring slot: how much less tension the web bears where it turns round that edge.
-        self.slot_edge = np.where(self._slot_valid,
-                                  np.vectorize(factors.__getitem__)(radius[bodies]), 1.0)
-        #: Per ring slot: whether the web turned round it when the ring's tension peaked.
-        self.ring_touch = np.zeros(self._slots.shape, bool)
+        #: Per ring slot: the radius of the edge there.
+        self.slot_radius = radius[bodies]
+        #: Per ring slot: how much less tension the web bore there (bending round the edge)
+        #: when the ring's tension peaked.
+        self.ring_edge = np.ones(self._slots.shape)
         self.rings = self._ring_elements(mass)
         self.outline_s = corner_positions_m(layout)
         self.panel_spec = panel_specs(wrap, rings, corners, self.node_body, self.outline_s)
@@ -285,13 +281,11 @@ class WrapNet:
         rows = np.arange(len(unit))[:, None]
         turn = unit - unit[rows, prev]                  # 2 sin(angle / 2) towards the inside
         if self.frozen:
-            touch = active & (np.linalg.norm(turn[..., :2], axis=-1)
-                              > 2 * math.sin(TURN_ANGLE_RAD / 2))
+            edge = self._edge_factors(turn, active)
             vs = v[self._slot_index]
             rate = np.where(active, np.einsum("rmk,rmk->rm", vs[rows, nxt] - vs, unit), 0).sum(1)
-            edge_k = np.max(np.where(touch, self.slot_edge, 1.0), axis=1, initial=1.0)
-            tension = r.force(perimeter, rate, edge_k, t_s)
-            self.ring_touch[r.rising] = touch[r.rising]
+            tension = r.force(perimeter, rate, edge.max(axis=1, initial=1.0), t_s)
+            self.ring_edge[r.rising] = edge[r.rising]
             tension = self._seam_step(tension, t_s)
         else:
             tension = np.where(r.torn | r.opened, 0.0, r.pretension * self.laid)
@@ -300,6 +294,17 @@ class WrapNet:
                                      ).reshape(-1, 3)
         self._push = np.linalg.norm(pull, axis=1)
         f += pull
+
+    def _edge_factors(self, turn: np.ndarray, active: np.ndarray) -> np.ndarray:
+        """Per ring slot, how much less tension the web bears where it turns round that edge
+        (1 where it does not touch): the bending of its outer fibre, sharper the more it turns
+        and the tighter it is pulled (`bend_curvature`), at the last step's tension."""
+        m, r = self.wrap.material, self.rings
+        angle = 2 * np.arcsin(np.clip(np.linalg.norm(turn[..., :2], axis=-1) / 2, 0, 1))
+        per_layer = r.last / np.maximum(np.array([s.web_metres for s in self.ring_specs]), 1e-9)
+        kappa = bend_curvature(m, self.slot_radius, angle, per_layer[:, None])
+        t = m.thickness
+        return np.where(active, bend_factor(m, t * kappa / (2 + t * kappa)), 1.0)
 
     def _seam_step(self, tension: np.ndarray, t_s: float | None) -> np.ndarray:
         """The tail's load this step; if it reaches the seam's strength, the rings it closes

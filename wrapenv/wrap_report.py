@@ -107,23 +107,22 @@ def places_of(net: WrapNet) -> tuple[Place, ...]:
 
 def _ring_places(net: WrapNet) -> list[Place]:
     """A ring carries one tension; where its web turned round an edge at its peak, that place
-    bears less (the edge factor), so a ring's corners are usually its most loaded places."""
+    bore less (the bending there), so a ring's corners are usually its most loaded places."""
     r, s = net.rings, net.outline_s
     out = []
     for i, spec in enumerate(net.ring_specs):
         force, bears = float(r.peak_force[i]), float(r.break_force[i])
-        touched = net.ring_touch[i]
         for f in range(4):
             corner = spec.corner_slots[f]
             face = [j for j, where in enumerate(spec.places) if where == FACE_NAMES[f]]
             spots = (([corner], CORNER_NAMES[f], (s[f], s[f])),
                      (face, FACE_NAMES[f], (s[f], s[f + 1])))
             for slots, where, span in spots:
-                edge = max((float(net.slot_edge[i, j]) for j in slots if touched[j]),
-                           default=1.0)
+                edge = max((float(net.ring_edge[i, j]) for j in slots), default=1.0)
                 use = min(force * edge / bears, 1.0)
                 out.append(Place("ring", where, spec.z, use, force, _timed(r.peak_t[i]),
-                                 *span, spec.z, spec.z, torn=bool(r.torn[i]) and use >= 1.0,
+                                 *span, spec.z, spec.z,
+                                 torn=bool(r.torn[i]) and use >= 1.0 - 1e-9,
                                  opened=bool(r.opened[i])))
     return out
 
