@@ -12,13 +12,10 @@ from recommender.cli import main
 
 EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
-#: Two PET bundles side by side on one layer: a load that simulates in a fraction of a second.
-TINY_LOAD = {
-    "name": "tiny",
-    "pallet": {"preset": "EUR"},
-    "bundle": {"preset": "PET6x1.5L"},
-    "stack": {"layers": 1, "pattern": "explicit", "positions": [[-0.2, 0.0], [0.2, 0.0]]},
-}
+#: Two PET bundles side by side on one layer (conftest's base load changed): a load that
+#: simulates in a fraction of a second.
+TINY = {"stack.layers": 1, "stack.pattern": "explicit",
+        "stack.positions": [[-0.2, 0.0], [0.2, 0.0]]}
 
 
 def run(argv: list[str]) -> int:
@@ -38,7 +35,7 @@ def test_the_default_kraft_program_maps_the_tiny_unit_and_does_not_tear_it(load_
                                                                            capsys):
     """800 N of Kraft squeezes the two bundles together (they start 12 cm apart): that once
     tore the top ring through a hull that crossed itself; it must not."""
-    load = load_file(base=TINY_LOAD)
+    load = load_file(TINY)
     out_json, out_png = tmp_path / "verdict.json", tmp_path / "map.png"
     code = run(["simulate", str(load), "--wrap", str(EXAMPLES / "program_kraft_default.toml"),
                 "--level", "0.3", "--json", str(out_json), "--tension-map", str(out_png)])
@@ -56,7 +53,7 @@ def test_the_default_kraft_program_maps_the_tiny_unit_and_does_not_tear_it(load_
 ])
 def test_a_map_that_cannot_be_made_exits_2_before_any_work(argv, field, load_file, tmp_path,
                                                            capsys):
-    load = load_file(base=TINY_LOAD)
+    load = load_file(TINY)
     wrap = EXAMPLES / "program_kraft_default.toml"
     args = [a.format(tmp=tmp_path, wrap=wrap) for a in argv]
     code = run(["simulate", str(load), "--level", "0.3", "--json", str(tmp_path / "v.json"),
