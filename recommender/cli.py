@@ -71,6 +71,9 @@ def build_parser() -> argparse.ArgumentParser:
     sim.add_argument("--report", type=Path, metavar="DIR",
                      help="write report.html (the one-page test report), its figures and "
                           "test.mp4/test.webm (the highest level run) into DIR")
+    sim.add_argument("--tension-map", type=Path, metavar="OUT.png",
+                     help="with --wrap: the envelope unrolled, coloured by each place's peak "
+                          "utilisation, torn and opened places marked")
 
     rec = sub.add_parser("recommend", help="search the wrapping program with the least web that "
                                            "passes EUMOS 40509 up to the target")
@@ -123,7 +126,7 @@ def build_parser() -> argparse.ArgumentParser:
                      help="write the recommended program as a WRAP.toml")
     rec.add_argument("--report", type=Path, metavar="DIR",
                      help="write report.html (the one-page report), displacement.png, "
-                          "search.png and test.mp4/test.webm (the recommended program's test "
+                          "tension_map.png, search.png and test.mp4/test.webm (the recommended program's test "
                           "at the target level) into DIR")
 
     tr = sub.add_parser("train", help="train a PPO policy on random load units "

@@ -103,6 +103,10 @@ def run_simulate(args: argparse.Namespace) -> int:
     check_output(args.plot, "--plot", inputs=inputs)
     if args.report is not None:
         check_report_folder(args.report, inputs)
+    check_output(args.tension_map, "--tension-map", inputs=inputs)
+    if args.tension_map and wrap is None:
+        raise InputError("arguments", "--tension-map", "needs --wrap (an unwrapped unit has "
+                                                       "no envelope to map)")
     levels = _levels(args)
     if laid is not None:
         _warn("simulate", laid.warnings())
@@ -126,6 +130,10 @@ def run_simulate(args: argparse.Namespace) -> int:
                  "sled profile": args.profile}
         write_report(args.report, lambda stage: simulate_page(
             stage, load, run, laid, wrap, args.orientation, args.hours_since_wrapping, given))
+    if args.tension_map:
+        from recommender.report import plot_tension_map
+
+        plot_tension_map(run, layout, args.tension_map, title=load.name)
     return 0 if run.verdict.passed else 1
 
 

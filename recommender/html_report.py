@@ -38,18 +38,14 @@ def _displacement(run: BenchRun, stage: Path, title: str, which: str) -> Figure:
 
 
 def _tension_map(run: BenchRun, layout: Layout, stage: Path, title: str) -> Figure:
-    """The wrap's tension map when this version draws one (`report.plot_tension_map`)."""
-    from recommender import report
+    """The wrap's tension map (`report.plot_tension_map`), or why there is none."""
+    from recommender.report import plot_tension_map
 
-    plot = getattr(report, "plot_tension_map", None)
     if not any(trace.wrap is not None for trace in run.traces):
         return Figure("Tension map", None, "the unit was tested unwrapped")
-    if plot is None:
-        return Figure("Tension map", None, "this version of wrapbench draws no tension map")
-    plot(run, layout, stage / "tension_map.png", title=title)
-    return Figure("Tension map", (stage / "tension_map.png").read_bytes(),
-                  "the envelope unrolled, each place coloured by its peak force over what it "
-                  "bears")
+    png = plot_tension_map(run, layout, stage / "tension_map.png", title=title)
+    return Figure("Tension map", png, "the envelope unrolled, each place coloured by its peak "
+                                      "force over what it bears, torn and opened places marked")
 
 
 def _video(run: BenchRun, layout: Layout, wrap: WrapFormat | None, stage: Path) -> bytes:

@@ -1,5 +1,5 @@
 """Reports for people: displacement against time with the EUMOS limits drawn, the search's
-material against margin, and a video of a simulated test. Each writes its file and returns what
+material against margin, the wrap's tension map, and a video of a simulated test. Each writes its file and returns what
 the one-page report (recommender/html_report.py) inlines: the PNG, or the video's still."""
 
 from __future__ import annotations
@@ -13,6 +13,8 @@ matplotlib.use("Agg")
 import cv2  # noqa: E402
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
+from matplotlib.axes import Axes  # noqa: E402
+from matplotlib.colors import Normalize  # noqa: E402
 
 from wrapenv.bench import BenchRun  # noqa: E402
 from wrapenv.config import printable, write_atomic  # noqa: E402
@@ -21,6 +23,8 @@ from wrapenv.load import Layout  # noqa: E402
 from wrapenv.render import Renderer, fitting_camera, torn_net  # noqa: E402
 from wrapenv.trace import Trace  # noqa: E402
 from wrapenv.wrap import WrapFormat  # noqa: E402
+from wrapenv.wrap_geometry import CORNER_NAMES, corner_positions_m  # noqa: E402
+from wrapenv.wrap_report import Place, WrapReport  # noqa: E402
 
 
 def plot_displacements(run: BenchRun, path: str | Path, title: str = "") -> bytes:
@@ -87,6 +91,87 @@ def _save(fig: plt.Figure, path: str | Path) -> bytes:
 #: Matroska muxer (WebM is a subset of Matroska): its WebM muxer takes the same stream but
 #: prints a warning about the codec tag on stderr.
 CODECS = {".mp4": ("mp4v", ".mp4"), ".webm": ("VP80", ".mkv")}
+
+
+def plot_tension_map(run: BenchRun, layout: Layout, path: str | Path, title: str = "") -> bytes:
+    """The envelope unrolled, one panel per wrapped level: position round the load (from its
+    -x-y corner, counter-clockwise seen from above) against height, every place coloured by its
+    peak utilisation (face diagonals as patches, corner verticals as bars, rings as lines with
+    their corners as squares), the load's corners and layer joints drawn, torn places crossed,
+    an opened seam's rings dashed."""
+    levels = [(v, t.wrap) for v, t in zip(run.verdict.levels, run.traces, strict=True)
+              if t.wrap is not None]
+    if not levels:
+        raise ValueError("no wrapped level to map")
+    fig, axes = plt.subplots(len(levels), 1, figsize=(10, 3.8 * len(levels) + 0.8),
+                             squeeze=False, layout="constrained")
+    norm = Normalize(0.0, 1.0)
+    cmap = plt.get_cmap("turbo")
+    for ax, (verdict, report) in zip(axes[:, 0], levels, strict=True):
+        _map_places(ax, report, cmap, norm)
+        _map_frame(ax, layout)
+        top = report.critical[0] if report.critical else None
+        worst = (f"; most loaded: {top.where} at {top.height_m:.3f} m, {top.utilisation:.0%}"
+                 if top is not None else "")
+        ax.set_title(f"{verdict.level_g:.2f} g{worst}", fontsize=10)
+    fig.colorbar(plt.cm.ScalarMappable(norm=norm, cmap=cmap), ax=axes[:, 0].tolist(),
+                 label="peak force / what the place bears", fraction=0.04)
+    if title:
+        fig.suptitle(title, fontsize=11)
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=110)
+    plt.close(fig)
+    write_atomic(path, buf.getvalue())
+    return buf.getvalue()
+
+
+def _map_places(ax: Axes, report: WrapReport, cmap, norm: Normalize) -> None:
+    """Diagonals first (patches), then verticals, rings and their corners on top."""
+    order = {"diagonals": 0, "vertical": 1, "ring": 2, "seam": 3}
+    for p in sorted(report.places, key=lambda p: order[p.element]):
+        colour = cmap(norm(p.utilisation))
+        if p.element == "diagonals":
+            ax.fill_between([p.s0_m, p.s1_m], p.z0_m, p.z1_m, color=colour, alpha=0.85, lw=0)
+        elif p.element == "vertical":
+            ax.plot([p.s0_m] * 2, [p.z0_m, p.z1_m], color=colour, lw=5, solid_capstyle="butt")
+        elif p.element == "ring" and p.s0_m == p.s1_m:
+            ax.scatter([p.s0_m], [p.z0_m], s=36, marker="s", color=colour, edgecolors="k",
+                       linewidths=0.4, zorder=4)
+        elif p.element == "ring":
+            ax.plot([p.s0_m, p.s1_m], [p.z0_m] * 2, color=colour, lw=3,
+                    ls="--" if p.opened else "-", zorder=3)
+        else:
+            ax.plot([p.s0_m, p.s1_m], [p.height_m] * 2, color=colour, lw=1.5, ls=":",
+                    zorder=3)
+            ax.annotate(f"seam {p.utilisation:.0%}" + (" (opened)" if p.opened else ""),
+                        (p.s1_m, p.height_m), fontsize=7, ha="right", va="bottom")
+        if p.torn or (p.opened and p.element == "seam"):
+            _mark_failure(ax, p)
+
+
+def _mark_failure(ax: Axes, p: Place) -> None:
+    s, z = (p.s0_m + p.s1_m) / 2, (p.z0_m + p.z1_m) / 2
+    ax.scatter([s], [z], marker="x", s=90, color="red", linewidths=2.2, zorder=6)
+    ax.annotate("opened" if p.opened and not p.torn else "torn", (s, z), color="red",
+                fontsize=8, xytext=(4, 4), textcoords="offset points", zorder=6)
+
+
+def _map_frame(ax: Axes, layout: Layout) -> None:
+    """The load's corners (vertical lines) and the pallet's top and layer joints (horizontal)."""
+    corners = corner_positions_m(layout)
+    for s in corners:
+        ax.axvline(s, color="grey", ls="--", lw=0.7, zorder=5)
+    names = ax.secondary_xaxis("top")
+    names.set_xticks(corners, [n.replace("corner ", "") for n in (*CORNER_NAMES,
+                                                                   CORNER_NAMES[0])],
+                     fontsize=7)
+    joints = sorted({round(b.centre_m[2] - b.size_m[2] / 2, 6) for b in layout.bundles})
+    for z in joints:   # the pallet's top and every joint between layers
+        ax.axhline(z, color="white", lw=1.0, ls="-.", zorder=5)
+    ax.set_xlim(corners[0], corners[-1])
+    ax.set_ylim(0.0, layout.load_height_m)
+    ax.set_xlabel("position round the load from its -x-y corner, counter-clockwise [m]")
+    ax.set_ylabel("height [m]")
 
 
 def write_video(trace: Trace, layout: Layout, wrap: WrapFormat | None, path: str | Path,

@@ -245,8 +245,8 @@ class _Run:
             return f"elastic displacement {elastic * 1000:.0f} mm past {limit * 1000:.0f} mm"
         return ""
 
-    def _apply_wrap(self, pos, rot, vel, omega) -> None:
-        force, torque = self.wrap.forces(pos, rot, vel, omega)  # type: ignore[union-attr]
+    def _apply_wrap(self, pos, rot, vel, omega, t_s: float | None = None) -> None:
+        force, torque = self.wrap.forces(pos, rot, vel, omega, t_s)  # type: ignore[union-attr]
         bodies = np.flatnonzero(np.any(force != 0, axis=1) | np.any(torque != 0, axis=1))
         # state index j is world index j + 1 (the sled is 0)
         self.world.apply_wrenches(bodies + 1, pos[bodies], force[bodies], torque[bodies])
@@ -286,7 +286,7 @@ class _Run:
             return step
         pos, rot, vel, omega = self._state()
         if self.wrap is not None:
-            self._apply_wrap(pos, rot, vel, omega)
+            self._apply_wrap(pos, rot, vel, omega, step * self.s.timestep_s)
         if self.push is not None and step < self.stop_step:
             self.world.push(self.push[0], self.push[1])
         if not sample:

@@ -26,11 +26,16 @@ class Calibration:
     tension_scale: float = 1.0
     stiffness_scale_std: float = 0.0
     tension_scale_std: float = 0.0
+    #: The load's give (its bundles' corner stiffness) relative to the load file's, and how
+    #: uncertain it is: a wrap-stage parameter like the web's stiffness.
+    give_scale: float = 1.0
+    give_scale_std: float = 0.0
 
     def apply(self, load: LoadUnit) -> LoadUnit:
-        """The load with its friction replaced by the calibrated pairs."""
+        """The load with its friction replaced by the calibrated pairs and its give scaled."""
         pairs = {k: FrictionPair(p.static, p.kinetic) for k, p in self.friction.items()}
-        return load.with_friction(replace(load.friction, **pairs))
+        load = load.with_friction(replace(load.friction, **pairs))
+        return load.with_give(self.give_scale) if self.give_scale != 1.0 else load
 
     def to_dict(self) -> dict:
         """CAL.json's `friction` and `wrap` tables (what `from_dict` reads back)."""
@@ -38,7 +43,9 @@ class Calibration:
                 "wrap": {"stiffness_scale": self.stiffness_scale,
                          "tension_scale": self.tension_scale,
                          "stiffness_scale_std": self.stiffness_scale_std,
-                         "tension_scale_std": self.tension_scale_std}}
+                         "tension_scale_std": self.tension_scale_std,
+                         "give_scale": self.give_scale,
+                         "give_scale_std": self.give_scale_std}}
 
     @classmethod
     def from_json(cls, path: str | Path) -> Calibration:
@@ -71,7 +78,20 @@ class Calibration:
         tension = wrap.number("tension_scale", 1.0, positive=True)
         stds = (wrap.number("stiffness_scale_std", 0.0, minimum=0.0),
                 wrap.number("tension_scale_std", 0.0, minimum=0.0))
+        give = _give(wrap)
         wrap.done()
         top.ignore("residual_rms_m", "simulations", "method")  # fit diagnostics, informative
         top.done()
-        return cls(pairs, stiffness, tension, *stds)
+        return cls(pairs, stiffness, tension, *stds, *give)
+
+
+#: The give may be fitted anywhere within these factors of the load file's (the bundle's
+#: accepted corner stiffness spans about 500 x; a factor beyond this is a fit gone astray).
+GIVE_SCALE_RANGE = (0.05, 20.0)
+
+
+def _give(wrap: Table) -> tuple[float, float]:
+    """CAL.json's optional `wrap.give_scale` and `wrap.give_scale_std` (defaults 1 and 0)."""
+    low, high = GIVE_SCALE_RANGE
+    return (wrap.number("give_scale", 1.0, minimum=low, maximum=high),
+            wrap.number("give_scale_std", 0.0, minimum=0.0))

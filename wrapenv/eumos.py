@@ -3,7 +3,7 @@
 Per test level (paper, section 2): (i) permanent displacement of every part <= 5 % of the load
 height; (ii) permanent displacement in the lowest 20 cm < 4 cm relative to the pallet;
 (iii) elastic displacement during the test <= 10 % of the load height; (iv) no structural damage:
-here no bundle fallen or toppled (and, with a wrap, no torn wrap).
+here no bundle fallen or toppled (and, with a wrap, no torn wrap and no seam that let go).
 """
 
 from __future__ import annotations
@@ -14,7 +14,7 @@ from dataclasses import asdict, dataclass, field
 import numpy as np
 
 from wrapenv.trace import Trace
-from wrapenv.wrap_physics import WrapReport
+from wrapenv.wrap_report import WrapReport
 
 PERMANENT_LIMIT_FRACTION = 0.05
 ELASTIC_LIMIT_FRACTION = 0.10
@@ -24,6 +24,8 @@ LOW_ZONE_LIMIT_M = 0.04
 TOPPLE_ANGLE_RAD = math.radians(10.0)
 #: The damage entry of a wrap element that reached its breaking force.
 WRAP_TORN = "wrap_torn"
+#: The damage entry of a wrap whose tail seam let go: the rings it closed went slack.
+WRAP_OPENED = "wrap_opened"
 
 
 @dataclass(frozen=True)
@@ -123,6 +125,8 @@ def evaluate(trace: Trace, extra_damage: tuple[str, ...] = ()) -> LevelVerdict:
     damage = _damage(trace) + tuple(extra_damage)
     if trace.wrap is not None and trace.wrap.torn:
         damage += (WRAP_TORN,)
+    if trace.wrap is not None and trace.wrap.opened:
+        damage += (WRAP_OPENED,)
     criteria = {
         "permanent_5pct": bool(permanent.max() <= PERMANENT_LIMIT_FRACTION * h),
         "low20_4cm": low20 < LOW_ZONE_LIMIT_M,

@@ -10,7 +10,7 @@ from __future__ import annotations
 import math
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
-from typing import Literal
+from typing import Any, Literal, cast
 
 import tomli_w
 
@@ -34,19 +34,38 @@ class Pallet:
     mass_kg: float
 
 
+#: The give of a shrink-wrapped PET bundle's vertical edge under the wrap [A]: 1.7 mm of dent
+#: under 100 N spread over 0.1 m of edge (docs/materials.md, section 5, B1).
+PET_CORNER_STIFFNESS_N_PER_M2 = 6.0e5
+#: Its edge is the corner bottle's side: half of a 1.5 L bottle's ~90 mm diameter [D] (B2).
+PET_EDGE_RADIUS_M = 0.045
+#: Give accepted, N/m per m of edge: softer is a pillow, stiffer a steel post, and beyond it
+#: the wrap's explicit coupling to the bench would not be stable at 240 Hz.
+CORNER_STIFFNESS_RANGE_N_PER_M2 = (1.0e4, 5.0e6)
+
+
 @dataclass(frozen=True)
 class Bundle:
+    """One bundle: its box, and how its vertical edges take the wrap (the load's give)."""
+
     length_m: float
     width_m: float
     height_m: float
     mass_kg: float
+    #: Force per metre of dent per metre of edge height where the wrap presses on a vertical
+    #: edge: the load-side compliance in series with the web.
+    corner_stiffness_n_per_m2: float = PET_CORNER_STIFFNESS_N_PER_M2
+    #: Radius of the vertical edges the web turns round: a bottle's side is round, a carton's
+    #: folded edge sharp (a few mm); the web bends round it, which concentrates its strain.
+    edge_radius_m: float = PET_EDGE_RADIUS_M
 
 
 #: EUR pallet (EN 13698-1): 1200 x 800 x 144 mm, about 25 kg.
 PALLET_PRESETS = {"EUR": Pallet(1.200, 0.800, 0.144, 25.0)}
 #: Six 1.5 L PET bottles in shrink film, 3 x 2 bottles of ~90 mm diameter and ~330 mm height:
-#: 6 x (1.5 kg water + ~50 g PET and cap).
-BUNDLE_PRESETS = {"PET6x1.5L": Bundle(0.28, 0.19, 0.33, 9.3)}
+#: 6 x (1.5 kg water + ~50 g PET and cap); give as above.
+BUNDLE_PRESETS = {"PET6x1.5L": Bundle(0.28, 0.19, 0.33, 9.3, PET_CORNER_STIFFNESS_N_PER_M2,
+                                      PET_EDGE_RADIUS_M)}
 
 
 @dataclass(frozen=True)
@@ -89,6 +108,8 @@ class BundlePlacement:
     centre_m: tuple[float, float, float]
     size_m: tuple[float, float, float]
     mass_kg: float
+    corner_stiffness_n_per_m2: float = PET_CORNER_STIFFNESS_N_PER_M2  # see `Bundle`
+    edge_radius_m: float = PET_EDGE_RADIUS_M
 
 
 @dataclass(frozen=True)
@@ -146,6 +167,12 @@ class LoadUnit:
     def with_friction(self, friction: Friction) -> LoadUnit:
         return replace(self, friction=friction)
 
+    def with_give(self, scale: float) -> LoadUnit:
+        """The unit with its bundles' edges `scale` times as stiff under the wrap: how a
+        calibration or a robust search varies the load's give."""
+        stiffness = self.bundle.corner_stiffness_n_per_m2 * scale
+        return replace(self, bundle=replace(self.bundle, corner_stiffness_n_per_m2=stiffness))
+
     def layout(self, orientation: Literal["long", "short"] | None = None) -> Layout:
         """Place the bundles. ``orientation`` puts the pallet's long or short side along the
         motion (x); None keeps the file's layout (pallet length along x)."""
@@ -162,7 +189,9 @@ class LoadUnit:
             if turn:
                 xy_list = [(-y, x) for x, y in xy_list]
             for name, (x, y) in _names(layer, xy_list):
-                bundles.append(BundlePlacement(name, layer, (x, y, z), size, self.bundle.mass_kg))
+                bundles.append(BundlePlacement(name, layer, (x, y, z), size, self.bundle.mass_kg,
+                                               self.bundle.corner_stiffness_n_per_m2,
+                                               self.bundle.edge_radius_m))
         pallet_size = (p.width_m, p.length_m, p.height_m) if turn else (
             p.length_m, p.width_m, p.height_m)
         bundles.sort(key=lambda b: (b.layer, b.centre_m[0], b.centre_m[1]))
@@ -196,7 +225,7 @@ class LoadUnit:
         top = Table(data, source)
         name = top.string("name", "load unit")
         pallet = _sized(top.table("pallet", required=True), Pallet, PALLET_PRESETS)
-        bundle = _sized(top.table("bundle", required=True), Bundle, BUNDLE_PRESETS)
+        bundle = _bundle(top.table("bundle", required=True))
         stack = _stack(top.table("stack", required=True))
         friction = _friction(top.table("friction"))
         fixture = top.table("fixture")
@@ -208,7 +237,9 @@ class LoadUnit:
         return unit
 
 
-def _sized(t: Table, kind: type, presets: dict) -> Pallet | Bundle:
+def _sized(t: Table, kind: type, presets: dict, done: bool = True) -> Any:
+    """A pallet or bundle box: a preset's values, or those given, keys overriding the preset.
+    `done` False leaves the table open for further keys (the bundle's give)."""
     base = None
     if t.has("preset"):
         key = t.choice("preset", presets)
@@ -217,8 +248,25 @@ def _sized(t: Table, kind: type, presets: dict) -> Pallet | Bundle:
     for key in ("length_m", "width_m", "height_m", "mass_kg"):
         default = getattr(base, key) if base is not None else None
         values[key] = t.number(key, default, positive=True)
+    if done:
+        t.done()
+    return kind(**values) if base is None else replace(base, **values)
+
+
+def _bundle(t: Table) -> Bundle:
+    """The bundle's box, then its give: optional keys, a preset's values or the documented
+    defaults (a shrink-wrapped PET bundle's), and an edge no rounder than the bundle allows."""
+    box: Bundle = _sized(t, Bundle, BUNDLE_PRESETS, done=False)
+    low, high = CORNER_STIFFNESS_RANGE_N_PER_M2
+    stiffness = t.number("corner_stiffness_n_per_m2", box.corner_stiffness_n_per_m2,
+                         minimum=low, maximum=high)
+    roundest = min(box.length_m, box.width_m) / 2
+    radius = t.number("edge_radius_m", min(box.edge_radius_m, roundest), positive=True)
+    if radius > roundest:
+        raise t.error("edge_radius_m", f"must be <= half the bundle's smaller side "
+                      f"({roundest} m) (got {radius})")
     t.done()
-    return kind(**values)
+    return replace(box, corner_stiffness_n_per_m2=stiffness, edge_radius_m=radius)
 
 
 def _stack(t: Table) -> Stack:
@@ -240,7 +288,7 @@ def _stack(t: Table) -> Stack:
             parsed.append((float(item[0]), float(item[1])))
         positions = tuple(parsed)
     t.done()
-    return Stack(layers, pattern, positions)
+    return Stack(layers, cast(Pattern, pattern), positions)
 
 
 def _friction(t: Table) -> Friction:

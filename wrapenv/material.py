@@ -15,6 +15,15 @@ MAX_STRAIN = 10.0
 MATERIAL_KINDS = ("film", "paper")
 #: Highest film pre-stretch accepted: 400 %, the top of what powered pre-stretch reaches [S].
 MAX_PRESTRETCH = 4.0
+#: Density of the web as applied, for a thickness the card does not give: paper 700 kg/m³
+#: [A] (480-860 [S], docs/materials.md section 1), LLDPE 920 kg/m³ [S].
+DENSITY_KG_M3 = {"paper": 700.0, "film": 920.0}
+#: Paper on paper, static (docs/materials.md, P6) [A].
+PAPER_INTERLAYER_FRICTION = 0.4
+#: A glued paper tail holds this fraction of the paper's breaking force (P5) [A].
+GLUED_SEAM_FRACTION = 0.5
+#: Highest friction coefficient accepted (a typo beyond it, not a surface).
+MAX_FRICTION = 2.0
 
 
 @dataclass(frozen=True)
@@ -34,7 +43,7 @@ class Relaxation:
 #: the Prony fit to those endpoints is docs/materials.md L5 [A].
 FILM_RELAXATION = Relaxation(0.74, ((0.18, 0.5), (0.08, 72.0)))
 #: Kraft paper: no published relaxation of wrapped paper was found; paper relaxes by a fifth to
-#: a quarter at constant strain (docs/materials.md, P5) [A].
+#: a quarter at constant strain (docs/materials.md, P8) [A].
 PAPER_RELAXATION = Relaxation(0.80, ((0.10, 1.0), (0.10, 100.0)))
 NO_RELAXATION = Relaxation()
 
@@ -57,6 +66,15 @@ class Material:
     prestretch: float | None = None
     #: How its wrapping tension relaxes while the wrapped load stands.
     relaxation: Relaxation = NO_RELAXATION
+    #: One layer's thickness as applied (bending strain round a load's edge); None: grammage
+    #: over the kind's density (`thickness`).
+    thickness_m: float | None = None
+    #: Static friction of one layer on the next; None: the layers cling (film) or, for paper,
+    #: `PAPER_INTERLAYER_FRICTION` (`interlayer_mu`).
+    interlayer_friction: float | None = None
+    #: Force per metre of height the wrap's tail joint (glue, clamp, cling) holds before it
+    #: lets go; None: `seam_strength` (a fraction of the web's own breaking force).
+    seam_strength_n_per_m: float | None = None
 
     @property
     def yield_force_n_per_m(self) -> float:
@@ -66,6 +84,35 @@ class Material:
     def break_force_n_per_m(self) -> float:
         hardening = self.hardening_ratio * self.stiffness_n_per_m
         return self.yield_force_n_per_m + hardening * (self.break_strain - self.yield_strain)
+
+    @property
+    def thickness(self) -> float:
+        """Metres; from the grammage and the kind's density when the card gives none [D]."""
+        if self.thickness_m is not None:
+            return self.thickness_m
+        return self.grammage_kg_m2 / DENSITY_KG_M3[self.kind]
+
+    @property
+    def clings(self) -> bool:
+        """Whether stacked layers stick together: film without a friction figure."""
+        return self.kind == "film" and self.interlayer_friction is None
+
+    @property
+    def interlayer_mu(self) -> float:
+        """Friction of a layer on the next (only meaningful when the layers do not cling)."""
+        if self.interlayer_friction is not None:
+            return self.interlayer_friction
+        return PAPER_INTERLAYER_FRICTION
+
+    @property
+    def seam_strength(self) -> float:
+        """N/m of height the tail joint holds: the card's, else film's cling lap holds as
+        much as the film (it does not slip before the film tears) and a glued paper tail
+        `GLUED_SEAM_FRACTION` of the paper's breaking force [A] (docs/materials.md, P5)."""
+        if self.seam_strength_n_per_m is not None:
+            return self.seam_strength_n_per_m
+        fraction = 1.0 if self.kind == "film" else GLUED_SEAM_FRACTION
+        return fraction * self.break_force_n_per_m
 
     def grammage_at(self, prestretch: float | None) -> float:
         """Mass per m² of film laid at another pre-stretch: thickness falls as (1 + p)^-0.5
@@ -86,7 +133,10 @@ MATERIALS: dict[str, Material] = {
         hardening_ratio=0.1125,  # [D] P2: tangent 45 kN/m / 4e5 -> breaks at ≈ 6.0 kN/m (P3)
         cd_ratio=0.6,  # [A] CD strength 4000 N/m / MD 6000 N/m, rounded down
         kind="paper",
-        relaxation=PAPER_RELAXATION,  # [A] P5
+        relaxation=PAPER_RELAXATION,  # [A] P8
+        thickness_m=1.3e-4,  # [A] 90 g/m² at ≈ 700 kg/m³
+        interlayer_friction=PAPER_INTERLAYER_FRICTION,  # [A] P6: paper slides on paper
+        seam_strength_n_per_m=3000.0,  # [A] P5: glued tail, half the web's strength
     ),
     "lldpe": Material(  # card 2b, cast film as applied after 250 % pre-stretch
         name="LLDPE cast stretch film (applied)",
@@ -99,6 +149,8 @@ MATERIALS: dict[str, Material] = {
         kind="film",
         prestretch=2.5,  # [S] powered pre-stretch of 200-300 % typical
         relaxation=FILM_RELAXATION,  # [S]/[A] L5
+        thickness_m=10.7e-6,  # [D] 20 µm / √3.5
+        # layers cling (interlayer_friction None) and the clung tail holds as the film (P5)
     ),
 }
 #: Web tension per layer for a 0.5 m web, newtons: [A] P4 (paper), [S] L4 (film).
@@ -125,9 +177,11 @@ def custom_material(t: Table) -> Material:
                   if t.has("prestretch") else None)
     if prestretch is not None and kind == "paper":
         raise t.error("prestretch", "paper is not pre-stretched")
+    material = Material(name, grammage, stiffness, strains["yield_strain"],
+                        strains["break_strain"], hardening, cd_ratio, kind, prestretch,
+                        relaxation, **_failure_fields(t))
     t.done()
-    return Material(name, grammage, stiffness, strains["yield_strain"], strains["break_strain"],
-                    hardening, cd_ratio, kind, prestretch, relaxation)
+    return material
 
 
 def _relaxation(t: Table) -> Relaxation:
@@ -145,6 +199,20 @@ def _relaxation(t: Table) -> Relaxation:
         raise t.error("terms", f"amplitudes must add up to 1 - plateau ({1 - plateau:g})")
     t.done()
     return Relaxation(plateau, tuple(terms))
+
+
+#: A web thicker than this is a board, not a wrap.
+MAX_THICKNESS_M = 0.005
+
+
+def _failure_fields(t: Table) -> dict[str, float]:
+    """The optional keys of how a web fails beyond its own law: thickness (bending round an
+    edge), layer-on-layer friction and the tail's strength; absent keys keep the documented
+    defaults (`Material.thickness`, `interlayer_mu`, `seam_strength`)."""
+    limits = {"thickness_m": MAX_THICKNESS_M, "interlayer_friction": MAX_FRICTION,
+              "seam_strength_n_per_m": None}
+    return {key: t.number(key, positive=True, maximum=top)
+            for key, top in limits.items() if t.has(key)}
 
 
 def tension_limit_n(material: Material, web_width_m: float) -> float:

@@ -1,145 +1,61 @@
 """The soft wrap: a tension-only, elastoplastic cable net on the load's outer faces.
 
 The envelope is coupled to the rigid bodies through forces at body-fixed points, summed per body
-(force and torque), so Bullet only ever sees external wrenches. Two kinds of element:
+(force and torque), so Bullet only ever sees external wrenches. Two kinds of element, laid out
+by wrapenv/wrap_geometry.py:
 
 * **Rings** (hoops, the web's machine direction): two per layer of bundles, a quarter and three
-  quarters up the layer, and one round on the pallet when a band reaches it. A ring is a taut,
-  frictionless cable around its layer: it lies on the convex hull of the outer bundles' vertical
-  edges at its height, carries one tension all round and pushes only inward, on the hull's
-  corners. That is how pretension squeezes a layer, and how a bundle that bulges out of a face
-  is held back, while a bundle that moves inward is simply left (the wrap never pulls).
+  quarters up the layer, and one round on the pallet when a band reaches it. A ring is a taut
+  cable around its layer: it lies on the convex hull of the outer bundles' vertical edges at its
+  height, carries one tension all round (the web slides round the edges) and pushes only inward,
+  on the hull's corners. That is how pretension squeezes a layer, and how a bundle that bulges
+  out of a face is held back, while a bundle that moves inward is simply left.
 * **Panels** (the web's cross direction and shear): between consecutive rings that sit on
-  different bodies (across each layer joint, and from the pallet round to the first layer),
-  verticals at the four corners and both diagonals of each face. They carry no pretension: a
-  spiral wrap is pulled along the hoop only. This is what resists layers sliding on each other,
-  and, through the pallet round, the load sliding on the pallet.
+  different bodies, verticals at the four corners and both diagonals of each face. They carry no
+  pretension: a spiral wrap is pulled along the hoop only. They resist layers sliding on each
+  other and, through the pallet round, the load sliding on the pallet.
 
-Every element is tension-only and elastoplastic with linear hardening; it tears (and is removed
-for the rest of the run) when its force reaches the web's breaking force. Stiffness, strength
-and pretension of an element are the material card's per-metre figures times the web layers
-over the element's share of height, so layers add up where bands overlap.
+Every element is tension-only and elastoplastic with linear hardening; stiffness, strength and
+pretension are the material card's per-metre figures times the web layers over the element's
+share of height. What limits a wrap, beyond that law (docs/materials.md, section 5):
 
-The web does not act on a rigid body directly: it presses on shrink-wrapped bottles whose
-corners give, and it grips by friction. Each element therefore has the load-side compliance
-`CONTACT_STIFFNESS_N_PER_M` at both ends in series with the web. Besides being physical, this
-bounds every element's stiffness so the explicit coupling stays stable at the bench's 240 Hz
-(Kraft paper's own stiffness, ~10^6 N/m per panel, is not).
+* **The load's give.** The web presses on the products' vertical edges, which dent: each element
+  has the load-side compliance of the edges it bears on in series with the web (the bundle card's
+  corner stiffness times the edge height; the pallet's block is far stiffer). It is physical, and
+  it bounds every element's stiffness so the explicit coupling stays stable at 240 Hz.
+* **Edges.** Where a ring's web turns round an edge of radius r it also bends: its outer fibre
+  carries t / (2r + t) more strain, so that place tears at a lower tension (`edge_factor`).
+* **Layers that slide.** Paper does not cling: only the layer touching the load is gripped by it;
+  the layers outside it take a panel's load through friction on the layer beneath, pressed by
+  the rings' push on the corners, so their share is capped. Film layers cling and act as one.
+* **The seam.** The tail of the last revolution is glued or clamped; it holds the tension of the
+  outermost layer less what friction on the turn beneath takes off (capstan). If it lets go,
+  the rings it closes go slack (`opened`).
 
 While the unit settles the wrap is being applied: rings hold their wrapping tension whatever
 the bundles do, as a wrapping machine's web brake does. `freeze()` then fixes the rest lengths:
-from there on, the wrap is elastic, yields and tears.
+from there on, the wrap is elastic, yields, tears and may open.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 
 import numpy as np
 
 from wrapenv.load import Layout
 from wrapenv.wrap import WrapFormat
+from wrapenv.wrap_elements import Elements, bend_curvature, bend_factor, element_set, series
+from wrapenv.wrap_geometry import corner_positions_m, panel_specs, ring_specs, seam_rings
+from wrapenv.wrap_report import WrapReport, places_of
 
-#: Load-side compliance in series with the web at each end of an element (N/m): a shrink-wrapped
-#: PET bundle corner dents 1-2 mm under 100-200 N of wrap force [A]. Scaled by the calibrated
-#: stiffness scale together with the web.
-CONTACT_STIFFNESS_N_PER_M = 1.0e5
-#: Damping of each element as a fraction of critical (for its stiffness and the masses it joins).
-DAMPING_RATIO = 0.2
-#: Ring heights within a layer of bundles, as fractions of the layer height.
-RING_FRACTIONS = (0.25, 0.75)
-#: A bundle edge within this distance of its layer's outline is on the outside of the load.
-OUTLINE_TOLERANCE_M = 0.005
-#: Panel shear stiffness of a wrinkled membrane carried by 45-degree tension strips: K / 4.
-SHEAR_FRACTION = 0.25
-
-
-@dataclass(frozen=True)
-class WrapReport:
-    """What the wrap went through in one run."""
-
-    torn_at_m: tuple[float, ...]     # heights of the elements that tore (empty: intact)
-    peak_utilisation: float          # highest element force / its breaking force
-    plastic_strain_max: float        # largest permanent stretch left in an element
-    ring_tension_n: tuple[float, ...]  # tension of each ring at the end of the run
-
-    @property
-    def torn(self) -> bool:
-        return bool(self.torn_at_m)
-
-    def to_json(self) -> dict:
-        return {
-            "torn": self.torn,
-            "torn_at_m": [round(z, 4) for z in self.torn_at_m],
-            "peak_utilisation": round(self.peak_utilisation, 4),
-            "plastic_strain_max": round(self.plastic_strain_max, 6),
-        }
-
-
-@dataclass
-class _Elements:
-    """Elastoplastic, tension-only elements with linear hardening; arrays over elements."""
-
-    k_elastic: np.ndarray    # N/m of elongation
-    plastic_modulus: np.ndarray  # hardening modulus H, so the post-yield tangent is k_h
-    yield_force: np.ndarray
-    break_force: np.ndarray
-    pretension: np.ndarray
-    damping: np.ndarray      # N s/m
-    height_m: np.ndarray     # where each element sits, for the report
-    length_m: np.ndarray     # material length at freeze, for plastic strain
-
-    def __post_init__(self) -> None:
-        n = len(self.k_elastic)
-        self.rest = np.zeros(n)
-        self.plastic = np.zeros(n)
-        self.torn = np.zeros(n, bool)
-        self.peak = np.zeros(n)
-        self.last = self.pretension.copy()
-
-    def force(self, length: np.ndarray, rate: np.ndarray) -> np.ndarray:
-        """Tension for the current lengths (return mapping of 1D plasticity), then tearing."""
-        trial = self.k_elastic * (length - self.rest - self.plastic)
-        hardening = self.plastic_modulus * self.plastic
-        over = trial - (self.yield_force + hardening)
-        if over.max(initial=0.0) > 0:  # some element yields (most steps none does)
-            flow = np.maximum(over, 0.0) / (self.k_elastic + self.plastic_modulus)
-            self.plastic += flow
-            trial = trial - self.k_elastic * flow
-        elastic = np.maximum(trial, 0.0)
-        self.peak = np.maximum(self.peak, np.minimum(elastic / self.break_force, 1.0))
-        self.torn |= elastic >= self.break_force
-        self.last = np.where(self.torn, 0.0, elastic)
-        taut = self.last > 0
-        return np.where(taut, np.maximum(self.last + self.damping * rate, 0.0), 0.0)
-
-
-def _series(*k: np.ndarray | float) -> np.ndarray:
-    return np.asarray(1.0 / sum(1.0 / np.asarray(x, float) for x in k))
-
-
-def _element_set(k_web: np.ndarray, material_strength: tuple[float, float, float],
-                 web_metres: np.ndarray, pretension: np.ndarray, mass: np.ndarray,
-                 height: np.ndarray, length: np.ndarray, contact_k: float) -> _Elements:
-    """Elements from the web's stiffness (k_web, N/m) and the metres of web they stand for.
-
-    `material_strength` is (yield force per metre, break force per metre, hardening ratio).
-    """
-    yield_per_m, break_per_m, hardening = material_strength
-    k_e = _series(k_web, contact_k / 2)
-    k_h = _series(np.maximum(k_web * hardening, 1e-9), contact_k / 2)
-    plastic_modulus = k_e * k_h / np.maximum(k_e - k_h, 1e-9)
-    return _Elements(
-        k_elastic=k_e,
-        plastic_modulus=plastic_modulus,
-        yield_force=yield_per_m * web_metres,
-        break_force=break_per_m * web_metres,
-        pretension=pretension,
-        damping=2 * DAMPING_RATIO * np.sqrt(k_e * mass),
-        height_m=height,
-        length_m=length,
-    )
+#: The pallet's corners under the wrap, N/m per m of edge [A] (docs/materials.md section 5,
+#: B3): a wooden block, stiffer than a PET bundle's edge; 1e7 made the heaviest program of the
+#: search space blow up on a two-bundle unit at 0.3 g (bodies overlapping 41 mm), 1e6 is
+#: stable on it from 0.3 to 1.0 g.
+PALLET_CORNER_STIFFNESS_N_PER_M2 = 1.0e6
+#: Radius of the pallet's vertical edges: a sawn block, lightly rounded [A] (B3).
+PALLET_EDGE_RADIUS_M = 0.005
 
 
 class WrapNet:
@@ -148,14 +64,17 @@ class WrapNet:
     Bodies are numbered as the bench's state arrays: 0 the pallet, 1 + k bundle k of the layout.
     """
 
-    def __init__(self, wrap: WrapFormat, layout: Layout,
-                 contact_stiffness_n_per_m: float = CONTACT_STIFFNESS_N_PER_M) -> None:
+    def __init__(self, wrap: WrapFormat, layout: Layout) -> None:
         self.wrap, self.layout = wrap, layout
         self.n_bodies = 1 + len(layout.bundles)
         mass = np.array([layout.pallet_mass_kg] + [b.mass_kg for b in layout.bundles])
+        #: Per body: how stiff its vertical edges are under the wrap, and how round.
+        self.corner_stiffness = np.array([PALLET_CORNER_STIFFNESS_N_PER_M2]
+                                         + [b.corner_stiffness_n_per_m2 for b in layout.bundles])
+        radius = np.array([PALLET_EDGE_RADIUS_M] + [b.edge_radius_m for b in layout.bundles])
         self._node_body: list[int] = []
         self._node_local: list[tuple[float, float, float]] = []
-        rings = _ring_specs(wrap, layout)
+        self.ring_specs = rings = ring_specs(wrap, layout)
         self.ring_heights = np.array([r.z for r in rings])
         width = max(len(r.slots) for r in rings) if rings else 0
         self._slots = np.full((len(rings), width), -1)
@@ -168,30 +87,78 @@ class WrapNet:
         self.node_local = np.array(self._node_local, float).reshape(-1, 3)
         self._slot_valid = self._slots >= 0
         self._active = self._slot_valid.copy()
-        self._hull_links = _neighbours(self._active)
         self._slot_index = np.where(self._slot_valid, self._slots, 0)
-        m = wrap.material
+        bodies = self.node_body[self._slot_index] if len(self.node_body) else self._slot_index
+        #: Per ring slot: the radius of the edge there.
+        self.slot_radius = radius[bodies]
+        #: Per ring slot: how much less tension the web bore there (bending round the edge)
+        #: when the ring's tension peaked.
+        self.ring_edge = np.ones(self._slots.shape)
+        self.rings = self._ring_elements(mass)
+        self.outline_s = corner_positions_m(layout)
+        self.panel_spec = panel_specs(wrap, rings, corners, self.node_body, self.outline_s)
+        self.panels = self._panel_elements(mass)
+        self._incidences()
+        self._seam_setup()
+        self.frozen = False
+        #: While wrapping: the fraction of the wrapping tension laid so far (see `laying`).
+        self.laid = 1.0
+
+    @property
+    def panel_nodes(self) -> np.ndarray:
+        """(E, 2) node pairs of the panels, lower ring's node first."""
+        return self.panel_spec.nodes
+
+    def _node(self, body: int, local: tuple[float, float, float]) -> int:
+        self._node_body.append(body)
+        self._node_local.append(local)
+        return len(self._node_body) - 1
+
+    # -- building ------------------------------------------------------------------------
+    def _ring_elements(self, mass: np.ndarray) -> Elements:
+        rings, m = self.ring_specs, self.wrap.material
         strength = (m.yield_force_n_per_m, m.break_force_n_per_m, m.hardening_ratio)
-        k_c = contact_stiffness_n_per_m
-        ring_mass = np.array([mass[[b for b, _ in r.slots]].mean() for r in rings])
         perimeter = np.array([r.perimeter_m for r in rings])
-        self.rings = _element_set(
+        return element_set(
             k_web=np.array([m.stiffness_n_per_m * r.web_metres for r in rings]) / perimeter,
             material_strength=strength,
             web_metres=np.array([r.web_metres for r in rings]),
             pretension=np.array([r.tension_n for r in rings]),
-            mass=ring_mass, height=self.ring_heights, length=perimeter, contact_k=k_c,
+            mass=np.array([mass[[b for b, _ in r.slots]].mean() for r in rings]),
+            height=self.ring_heights, length=perimeter,
+            give=np.array([_ring_give(r, self.corner_stiffness) for r in rings]),
         )
-        self.panel_nodes, panel_k, panel_web, panel_h = _panels(wrap, rings, corners,
-                                                                self.node_body)
-        a, b = (self.panel_nodes.T if len(self.panel_nodes) else (np.zeros(0, int),) * 2)
+
+    def _panel_elements(self, mass: np.ndarray) -> Elements:
+        """The panels, all layers of a panel in one element behind the give of its two ends.
+        For paper, `_paper_law` then limits what the layers outside the one touching the load
+        take (stored here: the law of all layers stuck, and the tangent once they slip)."""
+        spec, m = self.panel_spec, self.wrap.material
+        a, b = spec.nodes.T
+        share = np.array([r.height_m for r in self.ring_specs])
+        k_end = [self.corner_stiffness[self.node_body[n]] * share[spec.rings[:, j]]
+                 for j, n in enumerate((a, b))]
+        give = series(*k_end) if len(a) else np.zeros(0)
         ma, mb = mass[self.node_body[a]], mass[self.node_body[b]]
-        self.panels = _element_set(
-            k_web=panel_k, material_strength=strength, web_metres=panel_web,
-            pretension=np.zeros(len(panel_k)), mass=ma * mb / (ma + mb), height=panel_h,
-            length=np.ones(len(panel_k)), contact_k=k_c,
-        )
-        # incidence matrices: sums over elements and nodes become one product each
+        panels = element_set(
+            k_web=spec.k_web,
+            material_strength=(m.yield_force_n_per_m, m.break_force_n_per_m, m.hardening_ratio),
+            web_metres=spec.web_metres, pretension=np.zeros_like(spec.k_web),
+            mass=ma * mb / (ma + mb), height=spec.height_m, length=np.ones_like(spec.k_web),
+            give=give)
+        n = spec.layers
+        #: Panels whose outer layers slide on the one beneath (paper, more than one layer).
+        self.sliding = np.flatnonzero((n > 1.0 + 1e-9) & (not m.clings))
+        k = self.sliding
+        slipped = series(spec.k_web[k] / n[k], give[k])   # only the layer against the load
+        self._stuck = (panels.yield_force[k].copy(), panels.break_force[k].copy(),
+                       panels.plastic_modulus[k].copy(),
+                       panels.k_elastic[k] * slipped / np.maximum(panels.k_elastic[k] - slipped,
+                                                                  1e-9))
+        return panels
+
+    def _incidences(self) -> None:
+        """Incidence matrices: sums over slots, elements and nodes become one product each."""
         n_nodes = len(self.node_body)
         self._incidence = np.zeros((self.n_bodies, n_nodes))
         self._incidence[self.node_body, np.arange(n_nodes)] = 1.0
@@ -199,18 +166,31 @@ class WrapNet:
         flat = self._slots.ravel()
         self._node_slot = np.zeros(n_nodes, int)
         self._node_slot[flat[flat >= 0]] = np.flatnonzero(flat >= 0)
-        self._panel_to_node = np.zeros((n_nodes, len(self.panel_nodes)))
-        for e, (a, b) in enumerate(self.panel_nodes):
+        nodes = self.panel_spec.nodes
+        self._panel_to_node = np.zeros((n_nodes, len(nodes)))
+        for e, (a, b) in enumerate(nodes):
             self._panel_to_node[a, e] += 1.0
             self._panel_to_node[b, e] -= 1.0
-        self.frozen = False
-        #: While wrapping: the fraction of the wrapping tension laid so far (see `laying`).
-        self.laid = 1.0
+        # what presses a node's outer layers onto the layer beneath: its ring's push on that
+        # corner, the outer layers' share of it, split among the sliding panels ending there
+        layers = np.array([r.layers for r in self.ring_specs])
+        node_ring = np.zeros(n_nodes, int)
+        node_ring[flat[flat >= 0]] = np.flatnonzero(flat >= 0) // max(self._slots.shape[1], 1)
+        ends = nodes[self.sliding].ravel()
+        sharing = np.maximum(np.bincount(ends, minlength=n_nodes), 1)
+        self._outer_press = np.clip(1.0 - 1.0 / np.maximum(layers, 1.0), 0, 1)[node_ring] / sharing
+        self._push = np.zeros(n_nodes)
 
-    def _node(self, body: int, local: tuple[float, float, float]) -> int:
-        self._node_body.append(body)
-        self._node_local.append(local)
-        return len(self._node_body) - 1
+    def _seam_setup(self) -> None:
+        """The rings the tail closes, the share of their tension it holds (one layer's, less
+        what friction on a full turn beneath takes off: capstan e^(-2 pi mu)) and its strength."""
+        m, rings = self.wrap.material, self.ring_specs
+        self.seam = np.array(seam_rings(self.wrap, rings), int)
+        layers = np.array([rings[i].layers for i in self.seam])
+        lap = np.clip(layers - 1.0, 0.0, 1.0)
+        self._seam_share = np.exp(-2 * math.pi * m.interlayer_mu * lap) / np.maximum(layers, 1)
+        self._seam_bears = m.seam_strength * np.array([rings[i].height_m for i in self.seam])
+        self.seam_peak, self.seam_peak_force, self.seam_peak_t = 0.0, 0.0, math.nan
 
     # -- state ----------------------------------------------------------------------------
     def nodes(self, pos: np.ndarray, rot: np.ndarray) -> np.ndarray:
@@ -237,98 +217,182 @@ class WrapNet:
         self.frozen = True
 
     def _panel_lengths(self, p: np.ndarray) -> np.ndarray:
-        if not len(self.panel_nodes):
+        nodes = self.panel_spec.nodes
+        if not len(nodes):
             return np.zeros(0)
-        d = p[self.panel_nodes[:, 1]] - p[self.panel_nodes[:, 0]]
-        return np.linalg.norm(d, axis=1)
+        return np.linalg.norm(p[nodes[:, 1]] - p[nodes[:, 0]], axis=1)
 
     def _ring_geometry(self, p: np.ndarray) -> tuple[np.ndarray, ...]:
         """Per ring: perimeter of the hull, and per slot its hull neighbours and activity.
 
-        The hull of the last step is the first guess: corners that turned reflex leave it, and
-        slots that came out past its edge join it, until nothing changes (usually at once).
+        Slots are taken in the order of their angle round the ring's centre (bundles pressed
+        together can swap the order they had at rest, which would cross the hull). The hull
+        of the last step is the first guess: corners that turned reflex leave it, and slots
+        that came out past its edge join it, until nothing changes (usually at once).
         """
-        xyz = p[self._slot_index]                       # (R, M, 3)
+        xyz = p[self._slot_index]                       # (R, M, 3), rest order
         rows = np.arange(len(xyz))[:, None]
-        active = self._active
-        prev, nxt = self._hull_links
+        valid = self._slot_valid
+        centre = (xyz * valid[..., None]).sum(1) / np.maximum(valid.sum(1), 1)[:, None]
+        angle = np.where(valid, np.arctan2(xyz[..., 1] - centre[:, None, 1],
+                                           xyz[..., 0] - centre[:, None, 0]), np.inf)
+        order = np.argsort(angle, axis=1, kind="stable")
+        s_xyz, s_valid, active = xyz[rows, order], valid[rows, order], self._active[rows, order]
         for _ in range(2 * xyz.shape[1]):
-            a, c = xyz[rows, prev], xyz[rows, nxt]
+            prev, nxt = _neighbours(active)
+            a, c = s_xyz[rows, prev], s_xyz[rows, nxt]
             # < 0: the slot is right of its hull edge (a -> c), i.e. outside the hull
-            side = ((c[..., 0] - a[..., 0]) * (xyz[..., 1] - a[..., 1])
-                    - (c[..., 1] - a[..., 1]) * (xyz[..., 0] - a[..., 0]))
-            changed = (active & (side >= 0)) | (~active & self._slot_valid & (side < 0))
-            changed &= self._slot_valid
+            side = ((c[..., 0] - a[..., 0]) * (s_xyz[..., 1] - a[..., 1])
+                    - (c[..., 1] - a[..., 1]) * (s_xyz[..., 0] - a[..., 0]))
+            changed = ((active & (side >= 0)) | (~active & s_valid & (side < 0))) & s_valid
             if not changed.any():
                 break
             # drop reflex corners first; add outside slots only when no corner is reflex
             drop = active & changed
             active = active & ~drop if drop.any() else active | changed
-            prev, nxt = _neighbours(active)
-        self._active, self._hull_links = active, (prev, nxt)
+        prev, nxt = _neighbours(active)
+        back = np.argsort(order, axis=1)                # sorted position of each rest slot
+        active = active[rows, back]
+        prev, nxt = order[rows, prev][rows, back], order[rows, nxt][rows, back]
+        self._active = active
         edge = xyz[rows, nxt] - xyz                     # to the next hull corner
         length = np.where(active, np.linalg.norm(edge, axis=-1), 0.0)
         return length.sum(axis=1), active, prev, nxt, edge, length
 
     def forces(self, pos: np.ndarray, rot: np.ndarray, vel: np.ndarray,
-               omega: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+               omega: np.ndarray, t_s: float | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Force and torque (about each body's centre) the wrap applies, (n_bodies, 3) each.
 
-        `pos`, `rot`, `vel`, `omega`: state of every body (pallet first), in the sled frame.
+        `pos`, `rot`, `vel`, `omega`: state of every body (pallet first), in the sled frame;
+        `t_s`: time from the pulse's start, for when each place peaks (None: not timed).
         """
         nb = self.node_body
         arm = np.einsum("nij,nj->ni", rot[nb], self.node_local)
         p = pos[nb] + arm
         v = vel[nb] + _cross(omega[nb], arm)
-        f = self._ring_forces(p, v)
-        self._panel_forces(p, v, f)
+        f = np.zeros_like(p)
+        self._ring_forces(p, v, f, t_s)
+        self._panel_forces(p, v, f, t_s)
         wrench = self._incidence @ np.hstack([f, _cross(arm, f)])
         return wrench[:, :3], wrench[:, 3:]
 
-    def _ring_forces(self, p: np.ndarray, v: np.ndarray) -> np.ndarray:
-        """Forces of the rings on every node (n_nodes, 3)."""
+    def _ring_forces(self, p: np.ndarray, v: np.ndarray, f: np.ndarray,
+                     t_s: float | None) -> None:
         if not len(self._slots):
-            return np.zeros_like(p)
+            return
         perimeter, active, prev, nxt, edge, length = self._ring_geometry(p)
         r = self.rings
         unit = edge / np.maximum(length, 1e-12)[..., None]
         rows = np.arange(len(unit))[:, None]
+        turn = unit - unit[rows, prev]                  # 2 sin(angle / 2) towards the inside
         if self.frozen:
+            edge = self._edge_factors(turn, active)
             vs = v[self._slot_index]
             rate = np.where(active, np.einsum("rmk,rmk->rm", vs[rows, nxt] - vs, unit), 0).sum(1)
-            tension = r.force(perimeter, rate)
+            tension = r.force(perimeter, rate, edge.max(axis=1, initial=1.0), t_s)
+            self.ring_edge[r.rising] = edge[r.rising]
+            tension = self._seam_step(tension, t_s)
         else:
-            tension = np.where(r.torn, 0.0, r.pretension * self.laid)
+            tension = np.where(r.torn | r.opened, 0.0, r.pretension * self.laid)
         # each hull corner is pulled towards both its neighbours
-        pull = (unit - unit[rows, prev]) * (tension[:, None, None] * active[..., None])
-        return pull.reshape(-1, 3)[self._node_slot]
+        pull = (turn * (tension[:, None, None] * active[..., None])).reshape(-1, 3)[
+            self._node_slot]
+        self._push = np.linalg.norm(pull, axis=1)
+        f += pull
 
-    def _panel_forces(self, p: np.ndarray, v: np.ndarray, f: np.ndarray) -> None:
-        if not self.frozen or not len(self.panel_nodes):
+    def _edge_factors(self, turn: np.ndarray, active: np.ndarray) -> np.ndarray:
+        """Per ring slot, how much less tension the web bears where it turns round that edge
+        (1 where it does not touch): the bending of its outer fibre, sharper the more it turns
+        and the tighter it is pulled (`bend_curvature`), at the last step's tension."""
+        m, r = self.wrap.material, self.rings
+        angle = 2 * np.arcsin(np.clip(np.linalg.norm(turn[..., :2], axis=-1) / 2, 0, 1))
+        per_layer = r.last / np.maximum(np.array([s.web_metres for s in self.ring_specs]), 1e-9)
+        kappa = bend_curvature(m, self.slot_radius, angle, per_layer[:, None])
+        t = m.thickness
+        return np.where(active, bend_factor(m, t * kappa / (2 + t * kappa)), 1.0)
+
+    def _seam_step(self, tension: np.ndarray, t_s: float | None) -> np.ndarray:
+        """The tail's load this step; if it reaches the seam's strength, the rings it closes
+        let go for the rest of the run."""
+        if not len(self.seam) or self.rings.opened.any():
+            return tension
+        held = tension[self.seam] * self._seam_share
+        utilisation = held / self._seam_bears
+        k = int(np.argmax(utilisation))
+        if utilisation[k] > self.seam_peak:
+            self.seam_peak, self.seam_peak_force = min(float(utilisation[k]), 1.0), float(held[k])
+            self.seam_peak_t = math.nan if t_s is None else t_s
+        if utilisation[k] >= 1.0:
+            self.rings.opened[self.seam] = True
+            self.rings.last[self.seam] = 0.0
+            tension = np.where(self.rings.opened, 0.0, tension)
+        return tension
+
+    def _panel_forces(self, p: np.ndarray, v: np.ndarray, f: np.ndarray,
+                      t_s: float | None) -> None:
+        nodes = self.panel_spec.nodes
+        if not self.frozen or not len(nodes):
             return
-        a, b = self.panel_nodes[:, 0], self.panel_nodes[:, 1]
+        a, b = nodes[:, 0], nodes[:, 1]
         d = p[b] - p[a]
         length = np.linalg.norm(d, axis=1)
         unit = d / np.maximum(length, 1e-12)[:, None]
         rate = np.einsum("ek,ek->e", v[b] - v[a], unit)
-        tension = self.panels.force(length, rate)
+        if len(self.sliding):
+            self._paper_law()
+        tension = self.panels.force(length, rate, t_s=t_s)
         f += self._panel_to_node @ (unit * tension[:, None])
 
+    def _paper_law(self) -> None:
+        """Paper's layers do not cling: a panel's layers outside the one touching the load take
+        their share only through friction on the layer beneath, where the rings press them on
+        the corners; the panel's vertical part needs that friction (the corners' edges push its
+        horizontal part through every layer). Up to that grip C the layers act together; past
+        it they slip (permanently, as plastic stretch) and the inner layer takes the rest, so
+        the panel bears one layer's breaking force plus C (all layers' at most)."""
+        k, n = self.sliding, self.panel_spec.layers[self.sliding]
+        stuck_yield, stuck_break, stuck_h, slip_h = self._stuck
+        press = self._push * self._outer_press
+        ends = self.panel_spec.nodes[k]
+        normal = np.minimum(press[ends[:, 0]], press[ends[:, 1]])
+        rise = np.maximum(self.panel_spec.rise[k], 1e-6)
+        outer = (n - 1.0) / n
+        grip = np.minimum(self.wrap.material.interlayer_mu * normal / rise, stuck_yield * outer)
+        slips = grip / outer < stuck_yield
+        p = self.panels
+        p.yield_force[k] = np.minimum(stuck_yield, grip / outer)
+        p.break_force[k] = np.minimum(stuck_break / n + grip, stuck_break)
+        p.plastic_modulus[k] = np.where(slips, slip_h, stuck_h)
+
     def report(self) -> WrapReport:
-        torn = np.concatenate([self.rings.height_m[self.rings.torn],
-                               self.panels.height_m[self.panels.torn]])
-        plastic = np.concatenate([_strain(self.rings), _strain(self.panels)])
-        peak = np.concatenate([self.rings.peak, self.panels.peak])
-        tension = self.rings.last
+        r, inner = self.rings, self.panels
+        torn = np.concatenate([r.height_m[r.torn], inner.height_m[inner.torn]])
+        plastic = np.concatenate([_strain(r), _strain(inner)])
+        places = places_of(self)
         return WrapReport(
             torn_at_m=tuple(sorted({round(float(z), 4) for z in torn})),
-            peak_utilisation=float(peak.max()) if len(peak) else 0.0,
+            peak_utilisation=max((p.utilisation for p in places), default=0.0),
             plastic_strain_max=float(plastic.max()) if len(plastic) else 0.0,
-            ring_tension_n=tuple(float(t) for t in tension),
+            ring_tension_n=tuple(float(t) for t in r.last),
+            opened_at_m=tuple(round(float(z), 4) for z in r.height_m[r.opened]),
+            places=places,
         )
 
 
-def _strain(e: _Elements) -> np.ndarray:
+def _ring_give(ring, corner_stiffness: np.ndarray) -> float:
+    """A ring's load-side stiffness (tension per metre of perimeter): each edge it turns round
+    by an angle a dents under 2 T sin(a/2), which shortens the perimeter by 2 sin(a/2) times
+    the dent, so the edges add 4 sin²(a/2) / k_edge of compliance each."""
+    xy = np.array(ring.rest_xy)
+    into, out = xy - np.roll(xy, 1, axis=0), np.roll(xy, -1, axis=0) - xy
+    turn = np.arctan2(into[:, 0] * out[:, 1] - into[:, 1] * out[:, 0],
+                      np.einsum("ij,ij->i", into, out))
+    k_edge = corner_stiffness[[body for body, _ in ring.slots]] * ring.height_m
+    compliance = float(np.sum(4 * np.sin(turn / 2) ** 2 / k_edge))
+    return 1.0 / compliance if compliance > 0 else math.inf
+
+
+def _strain(e: Elements) -> np.ndarray:
     """Permanent stretch of each element over its length (0 for a degenerate element)."""
     return np.divide(e.plastic, e.length_m, out=np.zeros_like(e.plastic), where=e.length_m > 0)
 
@@ -350,127 +414,3 @@ def _neighbours(active: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     prev = before[:, m - 1:2 * m - 1] % m
     nxt = np.concatenate([after[:, 1:], np.full((len(active), 1), 2 * m)], axis=1)[:, :m] % m
     return prev, nxt
-
-
-@dataclass(frozen=True)
-class _Ring:
-    z: float
-    slots: list[tuple[int, tuple[float, float, float]]]  # (body, local point), counter-clockwise
-    corner_slots: list[int]   # slots at the outline's corners: -x-y, +x-y, +x+y, -x+y
-    rest_xy: list[tuple[float, float]]  # slot positions at rest, sled frame
-    perimeter_m: float
-    web_metres: float         # layers x height share: metres of web the ring stands for
-    tension_n: float          # wrapping tension of those layers
-
-
-def _ring_specs(wrap: WrapFormat, layout: Layout) -> list[_Ring]:
-    """Rings from the bottom up: the pallet round (if a band reaches the pallet), then two per
-    layer. A ring exists where some band covers its share of height."""
-    px, py, pz = layout.pallet_size_m
-    out = []
-    if wrap.covers(0.0, pz):
-        half = (px / 2, py / 2)
-        pts = [(0, (sx * half[0], sy * half[1], 0.0), (sx * half[0], sy * half[1]))
-               for sx, sy in _CORNER_SIGNS]
-        out.append(_make_ring(wrap, pz / 2, (0.0, pz), pts, list(range(4))))
-    for layer in sorted({b.layer for b in layout.bundles}):
-        members = [(k, b) for k, b in enumerate(layout.bundles) if b.layer == layer]
-        bottom = min(b.centre_m[2] - b.size_m[2] / 2 for _, b in members)
-        top = max(b.centre_m[2] + b.size_m[2] / 2 for _, b in members)
-        h = top - bottom
-        for i, frac in enumerate(RING_FRACTIONS):
-            share = (bottom + h * (RING_FRACTIONS[i - 1] + frac) / 2 if i else bottom,
-                     bottom + h * (frac + RING_FRACTIONS[i + 1]) / 2
-                     if i + 1 < len(RING_FRACTIONS) else top)
-            if not wrap.covers(*share):
-                continue
-            z = bottom + frac * h
-            pts, corners = _outline_points(members, z)
-            out.append(_make_ring(wrap, z, share, pts, corners))
-    return out
-
-
-_CORNER_SIGNS = ((-1, -1), (1, -1), (1, 1), (-1, 1))  # counter-clockwise seen from above
-
-
-def _outline_points(members, z: float) -> tuple[list, list[int]]:
-    """Vertical edges of the layer's bundles that lie on the layer's outline, at height z,
-    counter-clockwise from the -x-y corner, and which of them are the outline's corners."""
-    edges = []
-    for k, b in members:
-        for sx, sy in _CORNER_SIGNS:
-            local = (sx * b.size_m[0] / 2, sy * b.size_m[1] / 2, z - b.centre_m[2])
-            world = (b.centre_m[0] + local[0], b.centre_m[1] + local[1])
-            edges.append((1 + k, local, world))
-    xs = [w[0] for _, _, w in edges]
-    ys = [w[1] for _, _, w in edges]
-    lo, hi = (min(xs), min(ys)), (max(xs), max(ys))
-    tol = OUTLINE_TOLERANCE_M
-    outer = [e for e in edges if min(abs(e[2][0] - lo[0]), abs(e[2][0] - hi[0]),
-                                     abs(e[2][1] - lo[1]), abs(e[2][1] - hi[1])) <= tol]
-    cx, cy = (lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2
-    start = math.atan2(lo[1] - cy, lo[0] - cx) - 1e-9
-    outer.sort(key=lambda e: (math.atan2(e[2][1] - cy, e[2][0] - cx) - start) % (2 * math.pi))
-    corners = []
-    for sx, sy in _CORNER_SIGNS:
-        target = (lo[0] if sx < 0 else hi[0], lo[1] if sy < 0 else hi[1])
-        corners.append(min(range(len(outer)), key=lambda i: math.dist(outer[i][2], target)))
-    return outer, corners
-
-
-def _make_ring(wrap: WrapFormat, z: float, share: tuple[float, float], pts: list,
-               corners: list[int]) -> _Ring:
-    """A ring through `pts` = (body, local point, world xy at rest), over the height `share`."""
-    h = share[1] - share[0]
-    xy = np.array([w for _, _, w in pts])
-    perimeter = float(np.linalg.norm(np.roll(xy, -1, axis=0) - xy, axis=1).sum())
-    return _Ring(
-        z=z, slots=[(body, local) for body, local, _ in pts], corner_slots=corners,
-        rest_xy=[tuple(w) for w in xy], perimeter_m=perimeter,
-        web_metres=wrap.layers_over(*share) * h,
-        tension_n=wrap.line_tension_n_per_m(*share) * h,
-    )
-
-
-def _panels(wrap: WrapFormat, rings: list[_Ring], corners: list[list[int]],
-            node_body: np.ndarray) -> tuple[np.ndarray, ...]:
-    """Corner verticals and face diagonals between consecutive rings on different bodies.
-
-    Returns node pairs (E, 2), web stiffness k_web (N/m), strength width (m of web) and height.
-    """
-    m = wrap.material
-    pairs, k_web, width, height = [], [], [], []
-    for i in range(len(rings) - 1):
-        lo, hi = rings[i], rings[i + 1]
-        if not wrap.covers(lo.z, hi.z):
-            continue
-        n = wrap.layers_over(lo.z, hi.z)
-        h = hi.z - lo.z
-        c_lo = [np.array(lo.rest_xy[j]) for j in lo.corner_slots]
-        c_hi = [np.array(hi.rest_xy[j]) for j in hi.corner_slots]
-        faces = [(np.linalg.norm(c_lo[(c + 1) % 4] - c_lo[c])
-                  + np.linalg.norm(c_hi[(c + 1) % 4] - c_hi[c])) / 2 for c in range(4)]
-        z = (lo.z + hi.z) / 2
-        for c in range(4):
-            a, b = corners[i][c], corners[i + 1][c]
-            if node_body[a] != node_body[b]:
-                trib = (faces[c - 1] + faces[c]) / 2
-                length = math.hypot(float(np.linalg.norm(c_hi[c] - c_lo[c])), h)
-                pairs.append((a, b))
-                k_web.append(m.stiffness_n_per_m * m.cd_ratio * n * trib / length)
-                width.append(m.cd_ratio * n * trib)
-                height.append(z)
-        for c in range(4):
-            d = (c + 1) % 4
-            for a_c, b_c in ((c, d), (d, c)):
-                a, b = corners[i][a_c], corners[i + 1][b_c]
-                if node_body[a] == node_body[b]:
-                    continue
-                run = float(np.linalg.norm(c_hi[b_c] - c_lo[a_c]))
-                cos = run / math.hypot(run, h)
-                pairs.append((a, b))
-                k_web.append(SHEAR_FRACTION * m.stiffness_n_per_m * n * faces[c] / (h * cos**2))
-                width.append(n * faces[c] / (2 * cos))
-                height.append(z)
-    return (np.array(pairs, int).reshape(-1, 2), np.array(k_web), np.array(width),
-            np.array(height))

@@ -142,6 +142,9 @@ BAD_CALS = {
     "pair not an object": (edited(friction__sled_pallet=0.4), "friction.sled_pallet"),
     "zero stiffness scale": (edited(wrap__stiffness_scale=0.0), "wrap.stiffness_scale"),
     "typo in wrap": (edited(wrap__stiffnes_scale=1.0), "wrap.stiffnes_scale"),
+    "give scaled to nothing": (edited(wrap__give_scale=0.0), "wrap.give_scale"),
+    "give scaled past any fit": (edited(wrap__give_scale=50.0), "wrap.give_scale"),
+    "negative give std": (edited(wrap__give_scale_std=-0.1), "wrap.give_scale_std"),
     "unknown top-level key": (edited(frictions={}), "frictions"),
 }
 
@@ -198,5 +201,19 @@ def test_a_calibration_written_as_a_dict_reads_back_equal():
     cal = Calibration(
         {"pallet_bundle": CalibratedPair(0.37, 0.30, 0.01, 0.004),
          "sled_pallet": CalibratedPair(0.11, 0.10, identified=False)},
-        stiffness_scale=1.3, tension_scale=0.9, stiffness_scale_std=0.1, tension_scale_std=0.05)
+        stiffness_scale=1.3, tension_scale=0.9, stiffness_scale_std=0.1, tension_scale_std=0.05,
+        give_scale=0.7, give_scale_std=0.2)
     assert Calibration.from_dict(cal.to_dict()) == cal
+
+
+def test_the_load_s_give_is_optional_and_one_without_changes_nothing():
+    cal = Calibration.from_dict(CAL)
+    assert (cal.give_scale, cal.give_scale_std) == (1.0, 0.0)
+    assert cal.apply(load()).bundle == load().bundle
+
+
+def test_apply_scales_the_load_s_give_by_the_calibrated_factor():
+    cal = Calibration.from_dict(edited(wrap__give_scale=0.5, wrap__give_scale_std=0.1))
+    assert cal.give_scale_std == 0.1
+    assert cal.apply(load()).bundle.corner_stiffness_n_per_m2 == pytest.approx(
+        0.5 * load().bundle.corner_stiffness_n_per_m2)

@@ -73,6 +73,44 @@ def test_dimensions_without_a_preset_are_taken_as_given():
     assert unit.bundle == Bundle(0.3, 0.2, 0.25, 5.0)
 
 
+# --- the load's give: how the bundles' vertical edges take the wrap ------------------------
+
+
+def test_the_pet_preset_s_give_is_its_documented_corner_stiffness_and_bottle_radius():
+    bundle = LoadUnit.from_dict(minimal()).bundle
+    assert bundle.corner_stiffness_n_per_m2 == 6.0e5     # docs/materials.md, section 5, B1
+    assert bundle.edge_radius_m == 0.045                  # a 1.5 L bottle's ~90 mm diameter
+
+
+def test_a_bundle_without_give_keys_gets_the_documented_defaults():
+    unit = LoadUnit.from_dict(minimal(
+        bundle={"length_m": 0.4, "width_m": 0.3, "height_m": 0.3, "mass_kg": 8.0}))
+    assert unit.bundle.corner_stiffness_n_per_m2 == 6.0e5 and unit.bundle.edge_radius_m == 0.045
+    small = LoadUnit.from_dict(minimal(
+        bundle={"length_m": 0.06, "width_m": 0.05, "height_m": 0.2, "mass_kg": 0.5}))
+    assert small.bundle.edge_radius_m == 0.025   # no rounder than half its smaller side
+
+
+def test_a_carton_s_give_is_taken_as_given_and_reaches_every_placed_bundle():
+    unit = LoadUnit.from_dict(minimal(bundle={"preset": "PET6x1.5L", "edge_radius_m": 0.003,
+                                              "corner_stiffness_n_per_m2": 2.0e6}))
+    assert {(b.corner_stiffness_n_per_m2, b.edge_radius_m)
+            for b in unit.layout().bundles} == {(2.0e6, 0.003)}
+
+
+def test_with_give_scales_the_corner_stiffness_only():
+    unit = LoadUnit.from_dict(minimal())
+    soft = unit.with_give(0.5)
+    assert soft.bundle.corner_stiffness_n_per_m2 == 3.0e5
+    assert replace(soft.bundle, corner_stiffness_n_per_m2=6.0e5) == unit.bundle
+    assert unit.bundle.corner_stiffness_n_per_m2 == 6.0e5   # the original is untouched
+
+
+def test_a_load_with_its_give_reads_back_equal():
+    unit = LoadUnit.from_dict(minimal(bundle={"preset": "PET6x1.5L", "edge_radius_m": 0.003}))
+    assert LoadUnit.from_dict(tomllib.loads(unit.to_toml())) == unit
+
+
 # --- columnar pattern and names ------------------------------------------------------------
 
 
@@ -338,6 +376,17 @@ BAD_LOADS = {
         {"stack.pattern": "explicit", "stack.positions": [[0.2, 0.1], [0.2, 0.1]]},
         "stack.positions"),
     "bundle bigger than the pallet": ({"bundle.length_m": 1.5}, "bundle"),
+    "give softer than a pillow": ({"bundle.corner_stiffness_n_per_m2": 1e3},
+                                  "bundle.corner_stiffness_n_per_m2"),
+    "give stiffer than the bench can couple": ({"bundle.corner_stiffness_n_per_m2": 1e8},
+                                               "bundle.corner_stiffness_n_per_m2"),
+    "give not a number": ({"bundle.corner_stiffness_n_per_m2": "stiff"},
+                          "bundle.corner_stiffness_n_per_m2"),
+    "zero edge radius": ({"bundle.edge_radius_m": 0.0}, "bundle.edge_radius_m"),
+    "edge rounder than the bundle": ({"bundle.edge_radius_m": 0.1}, "bundle.edge_radius_m"),
+    "nan edge radius": ({"bundle.edge_radius_m": float("nan")}, "bundle.edge_radius_m"),
+    "typo in the give": ({"bundle.corner_stifness_n_per_m2": 6e5},
+                         "bundle.corner_stifness_n_per_m2"),
     # An interlocked stack whose turned layer has its outer bundles' centres beyond the
     # outermost columns below: pallet 1.2 m, straight columns of 0.5 m reach x = 0.501 m,
     # turned bundles 0.1 m wide are centred up to x = 0.51 m.

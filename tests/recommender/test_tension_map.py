@@ -1,0 +1,81 @@
+"""`simulate --tension-map OUT.png` and `wrap.critical` in its JSON (issue 12): the map is
+checked before any work and drawn after; bad input exits 2 with one line, nothing written."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+from recommender.cli import main
+
+EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
+PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
+#: Two PET bundles side by side on one layer (conftest's base load changed): a load that
+#: simulates in a fraction of a second.
+TINY = {"stack.layers": 1, "stack.pattern": "explicit",
+        "stack.positions": [[-0.2, 0.0], [0.2, 0.0]]}
+
+
+def run(argv: list[str]) -> int:
+    try:
+        return main(argv)
+    except SystemExit as exc:
+        return int(exc.code or 0)
+
+
+def one_line(err: str) -> str:
+    lines = err.strip("\n").splitlines()
+    assert len(lines) == 1 and "Traceback" not in err, err
+    return lines[0]
+
+
+def test_the_default_kraft_program_maps_the_tiny_unit_and_does_not_tear_it(load_file, tmp_path,
+                                                                           capsys):
+    """800 N of Kraft squeezes the two bundles together (they start 12 cm apart): that once
+    tore the top ring through a hull that crossed itself; it must not."""
+    load = load_file(TINY)
+    out_json, out_png = tmp_path / "verdict.json", tmp_path / "map.png"
+    code = run(["simulate", str(load), "--wrap", str(EXAMPLES / "program_kraft_default.toml"),
+                "--level", "0.3", "--json", str(out_json), "--tension-map", str(out_png)])
+    assert code == 0, capsys.readouterr()
+    assert out_png.read_bytes().startswith(PNG_MAGIC)
+    wrap = json.loads(out_json.read_text())["levels"][0]["wrap"]
+    assert wrap["torn"] is False and wrap["opened"] is False
+    assert wrap["critical"][0]["utilisation"] == wrap["peak_utilisation"] < 0.5
+    assert all({"height_m", "where", "utilisation", "t_s"} <= set(c) for c in wrap["critical"])
+
+
+@pytest.mark.parametrize("argv, field", [
+    (["--tension-map", "{tmp}/map.png"], "--tension-map"),                  # no --wrap
+    (["--wrap", "{wrap}", "--tension-map", "{tmp}/no/map.png"], "--tension-map"),  # no folder
+])
+def test_a_map_that_cannot_be_made_exits_2_before_any_work(argv, field, load_file, tmp_path,
+                                                           capsys):
+    load = load_file(TINY)
+    wrap = EXAMPLES / "program_kraft_default.toml"
+    args = [a.format(tmp=tmp_path, wrap=wrap) for a in argv]
+    code = run(["simulate", str(load), "--level", "0.3", "--json", str(tmp_path / "v.json"),
+                *args])
+    out, err = capsys.readouterr()
+    assert code == 2 and f": {field}: " in one_line(err)
+    assert out == "" and not (tmp_path / "v.json").exists() and not (tmp_path / "map.png").exists()
+
+
+def test_a_give_out_of_range_exits_2_naming_the_field(load_file, tmp_path, capsys):
+    load = load_file({"bundle.corner_stiffness_n_per_m2": 5e9})
+    code = run(["simulate", str(load), "--level", "0.2", "--json", str(tmp_path / "v.json")])
+    line = one_line(capsys.readouterr().err)
+    assert code == 2 and str(load) in line and ": bundle.corner_stiffness_n_per_m2: " in line
+    assert not (tmp_path / "v.json").exists()
+
+
+def test_a_wrap_card_field_out_of_range_exits_2_naming_the_field(load_file, wrap_file,
+                                                                 tmp_path, capsys):
+    card = {"grammage_kg_m2": 0.09, "stiffness_n_per_m": 4e5, "yield_strain": 0.008,
+            "break_strain": 0.07, "kind": "paper", "interlayer_friction": 3.0}
+    wrap = wrap_file({"material": card})
+    code = run(["simulate", str(load_file()), "--wrap", str(wrap), "--level", "0.2"])
+    line = one_line(capsys.readouterr().err)
+    assert code == 2 and ": material.interlayer_friction: " in line

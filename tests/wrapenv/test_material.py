@@ -1,0 +1,85 @@
+"""Material cards' failure fields (docs/materials.md, sections 1, 2 and 5): web thickness, how
+stacked layers hold each other, the tail seam's strength; documented defaults for a custom
+card that does not give them, one-line errors for values out of range."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import pytest
+
+from wrapenv.config import InputError
+from wrapenv.material import (
+    DENSITY_KG_M3,
+    GLUED_SEAM_FRACTION,
+    MATERIALS,
+    PAPER_INTERLAYER_FRICTION,
+)
+from wrapenv.wrap import WrapFormat
+
+#: The required values of a custom [material] table (a light film), tensions that it bears.
+CUSTOM: dict[str, Any] = {"grammage_kg_m2": 0.012, "stiffness_n_per_m": 3000.0,
+                          "yield_strain": 0.1, "break_strain": 0.5}
+LOW_TENSION = {"band.0.tension_n": 100.0, "band.1.tension_n": 100.0}
+
+
+def test_kraft_is_paper_130_um_thick_sliding_at_0_4_with_a_glued_tail():
+    kraft = MATERIALS["kraft"]
+    assert kraft.thickness == 1.3e-4 and not kraft.clings
+    assert kraft.interlayer_mu == 0.4
+    assert kraft.seam_strength == 3000.0        # about half the web's 5990 N/m
+
+
+def test_lldpe_clings_and_its_clung_tail_holds_as_the_film_does():
+    film = MATERIALS["lldpe"]
+    assert film.thickness == 10.7e-6 and film.clings
+    assert film.seam_strength == pytest.approx(film.break_force_n_per_m)
+
+
+def test_a_custom_card_without_the_fields_gets_the_documented_defaults(wrap_data):
+    film = WrapFormat.from_dict(wrap_data({"material": dict(CUSTOM), **LOW_TENSION})).material
+    assert film.thickness == pytest.approx(0.012 / DENSITY_KG_M3["film"])
+    assert film.clings
+    assert film.seam_strength == pytest.approx(film.break_force_n_per_m)
+    paper = WrapFormat.from_dict(wrap_data({"material": {**CUSTOM, "kind": "paper"},
+                                            **LOW_TENSION})).material
+    assert paper.thickness == pytest.approx(0.012 / DENSITY_KG_M3["paper"])
+    assert not paper.clings and paper.interlayer_mu == PAPER_INTERLAYER_FRICTION
+    assert paper.seam_strength == pytest.approx(GLUED_SEAM_FRACTION
+                                                * paper.break_force_n_per_m)
+
+
+def test_a_custom_card_takes_the_fields_given_and_writes_them_back(wrap_data):
+    table = {**CUSTOM, "kind": "paper", "thickness_m": 2e-4, "interlayer_friction": 0.6,
+             "seam_strength_n_per_m": 150.0}
+    wrap = WrapFormat.from_dict(wrap_data({"material": table, **LOW_TENSION}))
+    card = wrap.material
+    assert (card.thickness, card.interlayer_mu, card.seam_strength) == (2e-4, 0.6, 150.0)
+    assert WrapFormat.from_dict(wrap.to_dict()).material == card
+
+
+def test_a_film_given_a_friction_slides_like_paper(wrap_data):
+    table = {**CUSTOM, "interlayer_friction": 0.2}
+    card = WrapFormat.from_dict(wrap_data({"material": table, **LOW_TENSION})).material
+    assert not card.clings and card.interlayer_mu == 0.2
+
+
+BAD_CARDS = {
+    "zero thickness": ({"thickness_m": 0.0}, "material.thickness_m"),
+    "a board, not a web": ({"thickness_m": 0.01}, "material.thickness_m"),
+    "negative friction": ({"interlayer_friction": -0.1}, "material.interlayer_friction"),
+    "friction of a typo": ({"interlayer_friction": 5.0}, "material.interlayer_friction"),
+    "friction as text": ({"interlayer_friction": "high"}, "material.interlayer_friction"),
+    "zero seam": ({"seam_strength_n_per_m": 0.0}, "material.seam_strength_n_per_m"),
+    "nan seam": ({"seam_strength_n_per_m": float("nan")}, "material.seam_strength_n_per_m"),
+    "typo in seam": ({"seam_strenght_n_per_m": 100.0}, "material.seam_strenght_n_per_m"),
+}
+
+
+@pytest.mark.parametrize("fields, field", BAD_CARDS.values(), ids=BAD_CARDS.keys())
+def test_a_failure_field_out_of_range_is_one_line_naming_file_and_field(
+        fields, field, wrap_file, assert_input_error):
+    path = wrap_file({"material": {**CUSTOM, **fields}, **LOW_TENSION})
+    with pytest.raises(InputError) as info:
+        WrapFormat.from_toml(path)
+    assert_input_error(info.value, str(path), field)

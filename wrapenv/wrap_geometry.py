@@ -1,0 +1,231 @@
+"""Where the soft wrap's elements lie: rings and panels on a laid-out unit, at rest.
+
+Plain geometry and bookkeeping, no forces (those are wrapenv/wrap_physics.py): which bundle
+edges a ring goes round, which corners a panel joins, how many web layers and how much web
+each element stands for, which place of the envelope it is ("corner -x-y", "face +x") and where
+that place lies on the envelope unrolled (position round the perimeter, height).
+
+The perimeter position `s` runs round the load's outline seen from above, counter-clockwise
+from the -x-y corner: face -y, corner +x-y, face +x, corner +x+y, face +y, corner -x+y, face -x.
+Every ring is mapped onto that one outline (face by face), so the pallet round and the layers
+line up in a tension map although their perimeters differ.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from wrapenv.load import Layout
+from wrapenv.wrap import WrapFormat
+
+#: Ring heights within a layer of bundles, as fractions of the layer height.
+RING_FRACTIONS = (0.25, 0.75)
+#: A bundle edge within this distance of its layer's outline is on the outside of the load.
+OUTLINE_TOLERANCE_M = 0.005
+#: Panel shear stiffness of a wrinkled membrane carried by 45-degree tension strips: K / 4.
+SHEAR_FRACTION = 0.25
+
+_CORNER_SIGNS = ((-1, -1), (1, -1), (1, 1), (-1, 1))  # counter-clockwise seen from above
+#: Names of the outline's corners and of the face that follows each, counter-clockwise.
+CORNER_NAMES = ("corner -x-y", "corner +x-y", "corner +x+y", "corner -x+y")
+FACE_NAMES = ("face -y", "face +x", "face +y", "face -x")
+
+
+@dataclass(frozen=True)
+class Ring:
+    """One hoop of web at height `z`, standing for the web over the heights `share`."""
+
+    z: float
+    share: tuple[float, float]
+    slots: list[tuple[int, tuple[float, float, float]]]  # (body, local point), counter-clockwise
+    corner_slots: list[int]   # slots at the outline's corners: -x-y, +x-y, +x+y, -x+y
+    rest_xy: list[tuple[float, float]]  # slot positions at rest, sled frame
+    perimeter_m: float
+    layers: float             # web layers over the share (averaged round the load)
+    web_metres: float         # layers x height share: metres of web the ring stands for
+    tension_n: float          # wrapping tension of those layers
+    #: Per slot: the place it is (a corner or the face it lies on) and its position round the
+    #: outline, `s`.
+    places: list[str]
+    s_m: list[float]
+
+    @property
+    def height_m(self) -> float:
+        return self.share[1] - self.share[0]
+
+
+@dataclass(frozen=True)
+class Panels:
+    """Corner verticals and face diagonals between consecutive rings, as arrays over panels."""
+
+    nodes: np.ndarray        # (E, 2) node pairs (lower ring's node first)
+    k_web: np.ndarray        # web stiffness of all the layers, N/m
+    web_metres: np.ndarray   # metres of web, for strength: layers x width the panel stands for
+    layers: np.ndarray       # web layers between the two rings
+    rings: np.ndarray        # (E, 2) indices of the lower and upper ring
+    rise: np.ndarray         # vertical part of the panel's direction at rest (1: vertical)
+    height_m: np.ndarray     # mid height, for the report
+    where: list[str]         # "corner -x-y" for a vertical, "face +x" for a diagonal
+    s_m: np.ndarray          # (E, 2) span round the outline (a vertical: one point)
+
+
+def ring_specs(wrap: WrapFormat, layout: Layout) -> list[Ring]:
+    """Rings from the bottom up: the pallet round (if a band reaches the pallet), then two per
+    layer. A ring exists where some band covers its share of height."""
+    px, py, pz = layout.pallet_size_m
+    outline = layout.outline_m
+    out = []
+    if wrap.covers(0.0, pz):
+        half = (px / 2, py / 2)
+        pts = [(0, (sx * half[0], sy * half[1], 0.0), (sx * half[0], sy * half[1]))
+               for sx, sy in _CORNER_SIGNS]
+        out.append(_make_ring(wrap, pz / 2, (0.0, pz), pts, list(range(4)), outline))
+    for layer in sorted({b.layer for b in layout.bundles}):
+        members = [(k, b) for k, b in enumerate(layout.bundles) if b.layer == layer]
+        bottom = min(b.centre_m[2] - b.size_m[2] / 2 for _, b in members)
+        top = max(b.centre_m[2] + b.size_m[2] / 2 for _, b in members)
+        h = top - bottom
+        for i, frac in enumerate(RING_FRACTIONS):
+            share = (bottom + h * (RING_FRACTIONS[i - 1] + frac) / 2 if i else bottom,
+                     bottom + h * (frac + RING_FRACTIONS[i + 1]) / 2
+                     if i + 1 < len(RING_FRACTIONS) else top)
+            if not wrap.covers(*share):
+                continue
+            z = bottom + frac * h
+            pts, corners = _outline_points(members, z)
+            out.append(_make_ring(wrap, z, share, pts, corners, outline))
+    return out
+
+
+def corner_positions_m(layout: Layout) -> tuple[float, ...]:
+    """Where the outline's four corners lie round the perimeter, and the perimeter itself."""
+    lx, ly = layout.outline_m
+    return (0.0, lx, lx + ly, 2 * lx + ly, 2 * (lx + ly))
+
+
+def _outline_points(members, z: float) -> tuple[list, list[int]]:
+    """Vertical edges of the layer's bundles that lie on the layer's outline, at height z,
+    counter-clockwise from the -x-y corner, and which of them are the outline's corners."""
+    edges = []
+    for k, b in members:
+        for sx, sy in _CORNER_SIGNS:
+            local = (sx * b.size_m[0] / 2, sy * b.size_m[1] / 2, z - b.centre_m[2])
+            world = (b.centre_m[0] + local[0], b.centre_m[1] + local[1])
+            edges.append((1 + k, local, world))
+    xs = [w[0] for _, _, w in edges]
+    ys = [w[1] for _, _, w in edges]
+    lo, hi = (min(xs), min(ys)), (max(xs), max(ys))
+    tol = OUTLINE_TOLERANCE_M
+    outer = [e for e in edges if min(abs(e[2][0] - lo[0]), abs(e[2][0] - hi[0]),
+                                     abs(e[2][1] - lo[1]), abs(e[2][1] - hi[1])) <= tol]
+    cx, cy = (lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2
+    start = math.atan2(lo[1] - cy, lo[0] - cx) - 1e-9
+    outer.sort(key=lambda e: (math.atan2(e[2][1] - cy, e[2][0] - cx) - start) % (2 * math.pi))
+    corners = []
+    for sx, sy in _CORNER_SIGNS:
+        target = (lo[0] if sx < 0 else hi[0], lo[1] if sy < 0 else hi[1])
+        corners.append(min(range(len(outer)), key=lambda i: math.dist(outer[i][2], target)))
+    return outer, corners
+
+
+def _make_ring(wrap: WrapFormat, z: float, share: tuple[float, float], pts: list,
+               corners: list[int], outline: tuple[float, float]) -> Ring:
+    """A ring through `pts` = (body, local point, world xy at rest), over the height `share`."""
+    h = share[1] - share[0]
+    xy = np.array([w for _, _, w in pts])
+    perimeter = float(np.linalg.norm(np.roll(xy, -1, axis=0) - xy, axis=1).sum())
+    places, s = _slot_places(xy, corners, outline)
+    layers = wrap.layers_over(*share)
+    return Ring(
+        z=z, share=share, slots=[(body, local) for body, local, _ in pts],
+        corner_slots=corners, rest_xy=[tuple(w) for w in xy], perimeter_m=perimeter,
+        layers=layers, web_metres=layers * h,
+        tension_n=wrap.line_tension_n_per_m(*share) * h, places=places, s_m=s,
+    )
+
+
+def _slot_places(xy: np.ndarray, corners: list[int], outline: tuple[float, float]
+                 ) -> tuple[list[str], list[float]]:
+    """Each slot's place (one of the four corners, else the face it lies on) and its position
+    round the load's outline (the ring's own face, scaled onto the outline's face)."""
+    lengths = (outline[0], outline[1], outline[0], outline[1])
+    starts = np.concatenate([[0.0], np.cumsum(lengths)])
+    places, s = [""] * len(xy), [0.0] * len(xy)
+    for f in range(4):
+        a, b = corners[f], corners[(f + 1) % 4]
+        places[a], s[a] = CORNER_NAMES[f], float(starts[f])
+        run = [(a + j) % len(xy) for j in range(1, (b - a) % len(xy))]
+        span = float(np.linalg.norm(xy[b] - xy[a])) or 1.0
+        for j in run:
+            along = float(np.dot(xy[j] - xy[a], xy[b] - xy[a])) / span
+            places[j] = FACE_NAMES[f]
+            s[j] = float(starts[f] + lengths[f] * min(max(along / span, 0.0), 1.0))
+    return places, s
+
+
+def panel_specs(wrap: WrapFormat, rings: list[Ring], corners: list[list[int]],
+                node_body: np.ndarray, outline: tuple[float, ...]) -> Panels:
+    """Corner verticals and face diagonals between consecutive rings on different bodies.
+
+    `corners[i]` are ring i's node ids at the outline's corners; `outline` the corner
+    positions round the perimeter (`corner_positions_m`).
+    """
+    m = wrap.material
+    rows: list[tuple] = []
+    for i in range(len(rings) - 1):
+        lo, hi = rings[i], rings[i + 1]
+        if not wrap.covers(lo.z, hi.z):
+            continue
+        n = wrap.layers_over(lo.z, hi.z)
+        h = hi.z - lo.z
+        c_lo = [np.array(lo.rest_xy[j]) for j in lo.corner_slots]
+        c_hi = [np.array(hi.rest_xy[j]) for j in hi.corner_slots]
+        faces = [(np.linalg.norm(c_lo[(c + 1) % 4] - c_lo[c])
+                  + np.linalg.norm(c_hi[(c + 1) % 4] - c_hi[c])) / 2 for c in range(4)]
+        z = (lo.z + hi.z) / 2
+        for c in range(4):
+            a, b = corners[i][c], corners[i + 1][c]
+            if node_body[a] != node_body[b]:
+                trib = (faces[c - 1] + faces[c]) / 2
+                length = math.hypot(float(np.linalg.norm(c_hi[c] - c_lo[c])), h)
+                rows.append(((a, b), m.stiffness_n_per_m * m.cd_ratio * n * trib / length,
+                             m.cd_ratio * n * trib, n, (i, i + 1), h / length, z,
+                             CORNER_NAMES[c], (outline[c], outline[c])))
+        for c in range(4):
+            d = (c + 1) % 4
+            for a_c, b_c in ((c, d), (d, c)):
+                a, b = corners[i][a_c], corners[i + 1][b_c]
+                if node_body[a] == node_body[b]:
+                    continue
+                run = float(np.linalg.norm(c_hi[b_c] - c_lo[a_c]))
+                cos = run / math.hypot(run, h)
+                rows.append(((a, b), SHEAR_FRACTION * m.stiffness_n_per_m * n * faces[c]
+                             / (h * cos**2), n * faces[c] / (2 * cos), n, (i, i + 1),
+                             h / math.hypot(run, h), z, FACE_NAMES[c],
+                             (outline[c], outline[c + 1])))
+    cols = list(zip(*rows, strict=True)) if rows else [()] * 9
+    return Panels(
+        nodes=np.array(cols[0], int).reshape(-1, 2), k_web=np.array(cols[1], float),
+        web_metres=np.array(cols[2], float), layers=np.array(cols[3], float),
+        rings=np.array(cols[4], int).reshape(-1, 2), rise=np.array(cols[5], float),
+        height_m=np.array(cols[6], float), where=list(cols[7]),
+        s_m=np.array(cols[8], float).reshape(-1, 2),
+    )
+
+
+def seam_rings(wrap: WrapFormat, rings: list[Ring]) -> list[int]:
+    """The rings the wrap's tail closes: those under the web of the machine's last revolution
+    (the tail is glued or clamped there; elsewhere the web runs on). Nearest ring if none."""
+    if not rings or not wrap.passes:
+        return []
+    last = wrap.passes[-1]
+    height = last.rope_m if last.rope_m is not None else wrap.web_width_m
+    lo = last.end_m
+    inside = [i for i, r in enumerate(rings) if lo <= r.z < lo + height]
+    if inside:
+        return inside
+    middle = lo + height / 2
+    return [min(range(len(rings)), key=lambda i: abs(rings[i].z - middle))]
