@@ -8,6 +8,12 @@ from pathlib import Path
 from wrapenv.config import InputError, Table, read_json
 from wrapenv.load import PAIRS, FrictionPair, LoadUnit
 
+#: CAL.json's keys beside `friction` and `wrap`: the fit's diagnostics (residual, the replays'
+#: own scatter, one replay's residual, simulations, method), advice on further tests, and the
+#: prediction errors on recordings that were not fitted (`calibrate --validate`).
+DIAGNOSTICS = ("residual_rms_m", "spread_rms_m", "replay_rms_m", "simulations", "method",
+               "advice", "validation")
+
 
 @dataclass(frozen=True)
 class CalibratedPair:
@@ -72,6 +78,7 @@ class Calibration:
         stds = (wrap.number("stiffness_scale_std", 0.0, minimum=0.0),
                 wrap.number("tension_scale_std", 0.0, minimum=0.0))
         wrap.done()
-        top.ignore("residual_rms_m", "simulations", "method")  # fit diagnostics, informative
+        # how the fit went and how it was checked: for people, the bench does not need them
+        top.ignore(*DIAGNOSTICS)
         top.done()
         return cls(pairs, stiffness, tension, *stds)

@@ -69,7 +69,8 @@ def test_staged_fit_of_a_chaotic_saturating_response():
     errors, z = [], []
     for trial in range(20):
         target = response(true) + rng.normal(0, TRACK_NOISE_M, m)
-        fit = surrogate(lambda us: [response(u) - target for u in us], 2, 100, seed=trial)
+        fit = surrogate(lambda us, target=target: [response(u) - target for u in us], 2, 100,
+                        seed=trial)
         errors.append(fit.u - true)
         z.append((fit.u - true) / np.sqrt(np.diag(fit.cov)))
         assert fit.invalid == 0 and len(fit.stages) == 4
