@@ -276,7 +276,8 @@ def _validation_summary(check) -> str:
     lines = [f"validation {check.source} ({check.replays} replays): slide on its support at "
              "the end of the predictable frames, mm",
              "  object      recorded  predicted ± spread   error"]
-    for name, c in [*check.objects.items(), ("largest", check.largest)]:
+    rows = [*check.objects.items(), *((f"layer {k}", c) for k, c in check.layers.items())]
+    for name, c in rows:
         pct = f" ({c.error_pct:+.0f} %)" if c.error_pct is not None else ""
         lines.append(f"  {name:10s}  {1e3 * c.recorded_m:8.1f}  {1e3 * c.predicted_m:8.1f} ± "
                      f"{1e3 * c.spread_m:5.1f}  {1e3 * c.error_m:+7.1f}{pct}")

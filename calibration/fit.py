@@ -45,8 +45,10 @@ RATIO_RANGE = (0.5, 1.0)          # kinetic / static
 KINETIC_HEADROOM_G = 0.1
 #: The wrap stage's parameters: base-2 logarithm ranges of scales in `replay.WRAP_SCALES`.
 WRAP_PARAMS = {"stiffness": (-2.0, 2.0), "tension": (-2.0, 2.0)}
-#: A static coefficient with a larger standard deviation than this is reported as unresolved.
-RESOLVED_STATIC_STD = 0.05
+#: A static coefficient with a larger standard deviation than this is reported as unresolved,
+#: and so is a wrap scale whose base-2 logarithm's is larger than this (1 sigma = +-20 %).
+RESOLVED_STATIC_STD = 0.025
+RESOLVED_LOG2_SCALE_STD = math.log2(1.2)
 #: The surrogate's fitted values are replayed this many times per recording (each settling a
 #: little longer, `replay.resettled`): their mean is the prediction, their scatter the part of
 #: the residual no calibration can remove. The descents, fitted to single replays, get one.
@@ -118,16 +120,18 @@ def _friction_params(observations: Sequence[Observation], slipped: frozenset[str
 
 def fit(observations: Sequence[Observation], settings: FitSettings,
         listener: Callable[[int], None] | None = None) -> FitResult:
-    """Fit the asked parameters to the observations (see the module docstring)."""
-    slipped = frozenset().union(*(o.slipped for o in observations))
-    nominal = observations[0].load.friction
-    base = identify.held_stuck(nominal, identify.pair_bounds(observations, nominal, frozenset()),
-                               slipped)
+    """Fit the asked parameters to the observations (see the module docstring). What slipped,
+    and the bounds of what did not, are read off the recordings friction is fitted to: a wrap
+    holds pairs that friction alone would not."""
     wrapped = [i for i, o in enumerate(observations) if o.wrap is not None]
     plain = ([i for i, o in enumerate(observations) if o.wrap is None]
              or list(range(len(observations))))
-    friction_params = _friction_params([observations[i] for i in plain], slipped,
-                                       settings.method)
+    bare = [observations[i] for i in plain]
+    slipped = frozenset().union(*(o.slipped for o in bare))
+    nominal = observations[0].load.friction
+    base = identify.held_stuck(nominal, identify.pair_bounds(bare, nominal, frozenset()),
+                               slipped)
+    friction_params = _friction_params(bare, slipped, settings.method)
     wrap_params = tuple(Param(name, "", *r) for name, r in WRAP_PARAMS.items())
     stages = []
     if settings.params != "wrap" and friction_params:
@@ -140,7 +144,9 @@ def fit(observations: Sequence[Observation], settings: FitSettings,
     budget = settings.budget - repeats * len(observations)
     with ProcessPoolExecutor(max_workers=settings.workers) as pool:
         for k, (params, indices) in enumerate(stages):
-            limit = progress.simulations + (budget - progress.simulations) // (len(stages) - k)
+            # the remaining budget shared in proportion to the stages' parameters
+            left = sum(len(q) for q, _ in stages[k:])
+            limit = progress.simulations + (budget - progress.simulations) * len(params) // left
             model = Model(params, found.friction, dict(found.scales))
             objective = Objective([observations[i] for i in indices], model, pool, settings.sim)
             _run_stage(objective, settings, limit, progress, found)
@@ -149,7 +155,7 @@ def fit(observations: Sequence[Observation], settings: FitSettings,
                 for o in observations]
         replays = [[f.result() for f in fs] for fs in runs]
     progress.spend(repeats * len(observations))
-    return _result(observations, settings, slipped, found, replays, progress)
+    return _result(observations, bare, settings, slipped, found, replays, progress)
 
 
 def _run_stage(objective: Objective, settings: FitSettings, limit: int, progress: Progress,
@@ -237,19 +243,23 @@ def _prediction(observations: Sequence[Observation],
     return rms[0], rms[1], rms[2]
 
 
-def _result(observations: Sequence[Observation], settings: FitSettings,
-            slipped: frozenset[str], found: _Fitted,
+def _result(observations: Sequence[Observation], bare: Sequence[Observation],
+            settings: FitSettings, slipped: frozenset[str], found: _Fitted,
             replays: list[list[dict[str, np.ndarray] | None]], progress: Progress) -> FitResult:
     rms, spread_rms, replay_rms = _prediction(observations, replays)
     # friction not asked for is not reported: the bench keeps the load file's values
     present = identify.pairs_present(observations) if settings.params != "wrap" else ()
-    bounds = identify.pair_bounds(observations, found.friction, slipped)
+    bounds = identify.pair_bounds(bare, found.friction, slipped)
     calibration = _calibration(found, slipped, bounds, present)
     advice = {name: identify.advice_unslipped(name, bounds[name])
               for name in present if name not in slipped}
-    advice |= {name: identify.advice_static(name, observations, p.static_std)
+    advice |= {name: identify.advice_static(name, bare, p.static_std)
                for name, p in calibration.friction.items()
                if p.identified and p.static_std > RESOLVED_STATIC_STD}
+    advice |= {name: identify.advice_scale(name, found.scales[name], found.stds[name, ""])
+               for name in found.scales if (name, "") in found.stds
+               and found.stds[name, ""] / (found.scales[name] * math.log(2))
+               > RESOLVED_LOG2_SCALE_STD}
     repeats = len(replays[0])
     reason = _failure(rms, spread_rms * math.sqrt(1 + 1 / repeats) if repeats > 1 else 0.0,
                       progress.simulations, found.invalid, settings)

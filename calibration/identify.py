@@ -103,3 +103,12 @@ def advice_static(name: str, observations: Sequence[Observation], std: float) ->
     where = f"between {low:.2f} and {first:.2f} g" if low is not None else f"below {first:.2f} g"
     return (f"static coefficient not resolved (± {std:.3f}): a level {where}, where it "
             "starts to slip, would bracket it")
+
+
+def advice_scale(name: str, scale: float, std: float) -> str:
+    """For a wrap scale the recordings do not resolve."""
+    why = ("the recorded motion hardly depends on it: where the web is much stiffer than the "
+           "load-side compliance in series with it (paper on shrink-wrapped bundles), that "
+           "compliance decides how far the load moves" if name == "stiffness" else
+           "the recorded motion hardly depends on it")
+    return f"{name} scale not resolved ({scale:.2f} ± {std:.2f}): {why}"

@@ -179,8 +179,10 @@ def test_calibrate_validates_on_a_recording_it_was_not_fitted_to(slide_dir, slid
     slide = check["objects"]["L1C1R1"]
     assert slide["recorded_m"] < -0.05                    # the bundle slid backwards
     assert abs(slide["error_pct"]) < 30
-    assert check["largest_slide"]["recorded_m"] == pytest.approx(abs(slide["recorded_m"]),
-                                                                 rel=0.2)
+    layer = check["largest_layer_slide"]
+    assert layer["layer"] == 1 and layer == check["layers"]["1"] | {"layer": 1}
+    assert layer["recorded_m"] == pytest.approx(
+        (slide["recorded_m"] + check["objects"]["L1C2R1"]["recorded_m"]) / 2)
     assert Calibration.from_json(cal).friction["pallet_bundle"].identified
 
 
