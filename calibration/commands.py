@@ -137,8 +137,8 @@ def add_calibrate(sub: argparse._SubParsersAction) -> None:
                         "replays")
     p.add_argument("--params", choices=PARAMS, default="all",
                    help="friction, wrap (stiffness and tension scales) or all (default)")
-    p.add_argument("--budget", type=int, default=240, metavar="N",
-                   help="most simulations of the fit (default 240)")
+    p.add_argument("--budget", type=int, default=300, metavar="N",
+                   help="most simulations of the fit (default 300)")
     p.add_argument("--workers", type=int, default=os.cpu_count() or 1,
                    help="parallel simulations (default: all cores)")
     p.add_argument("--seed", type=int, default=0)

@@ -59,7 +59,7 @@ FINAL_REPLAYS = 3
 class FitSettings:
     method: str = "surrogate"
     params: str = "friction"
-    budget: int = 240               # most simulations, final replay included
+    budget: int = 300               # most simulations, final replays included
     workers: int = max(1, os.cpu_count() or 1)
     seed: int = 0
     #: The fit fails (no output) when the residual its replays' own scatter does not explain

@@ -2,22 +2,23 @@
 
 A whole unit near its slip threshold does not repeat itself: whether the third bundle of a row
 slides 70 mm or 2 mm, or the pallet-bundle pair lets go at all, turns on differences far below
-anything a calibration could resolve (replays with the true friction and 0.1 s more settling
+anything a calibration could resolve (replays with the true friction and 0.05 s more settling
 disagree by tens of millimetres). Minimising the loss of single replays then fits that chaos:
 some wrong point reproduces the recording by luck. Instead this module estimates what every
 feature does *on average* as a function of the parameters, and how much it scatters from run to
 run, and fits the recording to the average, weighting each feature by its scatter:
 
-1. A space-filling design (Latin hypercube) of points in a box of the unit parameter box, each
-   replayed once per recording.
-2. A quadratic emulator per feature, fitted by least squares to the replays in the box; its
-   residuals give each feature's run-to-run scatter s_f (at least the tracker's noise).
+1. Global stage: a space-filling design (Latin hypercube) over the whole unit box, each point
+   replayed once per recording; the `ACCEPT` share of points whose features lie nearest the
+   recording's (rejection sampling) gives the next box: their mean and spread.
+2. Local stages: a design in the box, an emulator per feature fitted by least squares to the
+   replays in the box (`Emulator`); its residuals give each feature's run-to-run scatter s_f
+   (at least the tracker's noise).
 3. The estimate minimises sum_f (emulated residual_f / s_f)^2 over the box (Gauss-Newton with
    Levenberg damping, several starts): features a bundle's chaos scrambles count little, the
    ones the parameters decide count a lot.
-4. The next box is centred on the estimate and shrunk to a few standard deviations; the replays
-   inside it are reused. The first box is the whole prior range (global stage), the last ones
-   local refinements.
+4. The next box is centred on the estimate, `BOX_SIGMAS` standard deviations wide (within
+   `SHRINK` of the previous box); the replays inside it are reused.
 
 The covariance is the sandwich A^-1 (J^T W S W J) A^-1 with A = J^T W J, J the emulator's
 Jacobian and S the scatter of the replays about the emulator (so correlated features, such as
@@ -41,10 +42,11 @@ Evaluate = Callable[[Sequence[np.ndarray]], list[np.ndarray | None]]
 GLOBAL_SHARE = 0.4
 #: Most stages (one global, the rest local).
 MAX_STAGES = 4
-#: A local box's half-width: this many standard deviations of the estimate, within these
-#: fractions of the previous half-width and never below `MIN_HALF_WIDTH` (unit box).
+#: A local box's half-width: this many standard deviations of the estimate, but at least a
+#: quarter of the previous half-width and at most all of it (a value the data hardly resolve
+#: keeps a wide box: a narrow one would only hold noise), never below `MIN_HALF_WIDTH`.
 BOX_SIGMAS = 5.0
-SHRINK = (0.25, 0.6)
+SHRINK = (0.25, 1.0)
 MIN_HALF_WIDTH = 0.03
 #: Share of the global design's points accepted as near the recording.
 ACCEPT = 0.25

@@ -96,9 +96,7 @@ def validate(observations: Sequence[Observation], calibration: Calibration, pool
     """Replay every observation `repeats` times with the calibrated bench (module docstring)."""
     sim = sim or SimSettings()
     runs = [[pool.submit(replay, obs, calibration.apply(obs.load).friction,
-                         {"stiffness": calibration.stiffness_scale,
-                          "tension": calibration.tension_scale},
-                         resettled(sim, k))
+                         calibration.wrap_scales(), resettled(sim, k))
              for k in range(repeats)] for obs in observations]
     out = []
     for obs, futures in zip(observations, runs, strict=True):

@@ -33,6 +33,10 @@ class Calibration:
     stiffness_scale_std: float = 0.0
     tension_scale_std: float = 0.0
 
+    def wrap_scales(self) -> dict[str, float]:
+        """The wrap's scales by the names `calibration.replay.WRAP_SCALES` applies them by."""
+        return {"stiffness": self.stiffness_scale, "tension": self.tension_scale}
+
     def apply(self, load: LoadUnit) -> LoadUnit:
         """The load with its friction replaced by the calibrated pairs."""
         pairs = {k: FrictionPair(p.static, p.kinetic) for k, p in self.friction.items()}
