@@ -177,17 +177,23 @@ def add_calibrate(sub: argparse._SubParsersAction) -> None:
                    help="recording folders of one load unit (several levels are fitted jointly)")
     p.add_argument("--out", type=Path, required=True, metavar="CAL.json",
                    help="fitted values; CAL-loss.png and CAL-overlay.png are written beside it")
-    p.add_argument("--method", choices=METHODS, default="cmaes",
-                   help="cmaes (default) or momentum (the source paper's gradient descent)")
+    p.add_argument("--method", choices=METHODS, default="surrogate",
+                   help="surrogate (default: the bench's mean response, for whole units), "
+                        "cmaes or momentum (the source paper's gradient descent) on single "
+                        "replays")
     p.add_argument("--params", choices=PARAMS, default="all",
                    help="friction, wrap (stiffness and tension scales) or all (default)")
-    p.add_argument("--budget", type=int, default=240, metavar="N",
-                   help="most simulations (default 240)")
+    p.add_argument("--budget", type=int, default=300, metavar="N",
+                   help="most simulations of the fit (default 300)")
     p.add_argument("--workers", type=int, default=os.cpu_count() or 1,
                    help="parallel simulations (default: all cores)")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--max-residual-mm", type=float, default=10.0, metavar="MM",
-                   help="fail (nothing written) when the fit's residual RMS is larger")
+                   help="fail (nothing written) when more residual RMS than this is left "
+                        "beyond the bench's own run-to-run scatter")
+    p.add_argument("--validate", type=Path, nargs="+", default=[], metavar="DIR",
+                   help="recordings not fitted: replay them with the calibrated bench and "
+                        "report the prediction error per object (in CAL.json too)")
     p.add_argument("--mixed-loads", action="store_true",
                    help="accept recordings of different load units (their pairs fitted jointly)")
     p.add_argument("--retrack", action="store_true",
@@ -199,23 +205,30 @@ def _same_unit(load: LoadUnit) -> LoadUnit:
     return load.with_friction(Friction())
 
 
-def _observations(args: argparse.Namespace) -> list:
+def _recordings(args: argparse.Namespace) -> tuple[list, list]:
+    """The recordings to fit and to validate on, all of one load unit unless --mixed-loads."""
     from calibration.recording import Recording
-    from calibration.replay import observe
-    from calibration.track import track
-    from calibration.trajectories import Trajectories
 
-    recordings = [Recording.read(d) for d in args.recordings]
-    first = recordings[0]
-    for rec in recordings[1:]:
+    fitted = [Recording.read(d) for d in args.recordings]
+    held_out = [Recording.read(d) for d in args.validate]
+    first = fitted[0]
+    for rec in fitted[1:] + held_out:
         if not args.mixed_loads and _same_unit(rec.load) != _same_unit(first.load):
             raise InputError(str(rec.folder / "load.toml"), "",
                              f"a different load unit from {first.folder / 'load.toml'} "
                              "(pass --mixed-loads to fit them jointly)")
+    return fitted, held_out
+
+
+def _observations(recordings: list, retrack: bool) -> list:
+    from calibration.replay import observe
+    from calibration.track import track
+    from calibration.trajectories import Trajectories
+
     observations = []
     for rec in recordings:
         csv = rec.folder / "trajectories.csv"
-        if csv.exists() and not args.retrack:
+        if csv.exists() and not retrack:
             tracked = Trajectories.from_csv(csv)
             print(f"{rec.folder}: trajectories from {csv.name}")
         else:
@@ -228,10 +241,7 @@ def _observations(args: argparse.Namespace) -> list:
     return observations
 
 
-def run_calibrate(args: argparse.Namespace) -> int:
-    from calibration.fit import FitSettings, fit
-    from calibration.report import plot_loss, plot_overlay
-
+def _check_calibrate_args(args: argparse.Namespace) -> None:
     if args.budget < 10:
         raise InputError("arguments", "--budget", f"must be >= 10 (got {args.budget})")
     if args.workers < 1:
@@ -239,8 +249,25 @@ def run_calibrate(args: argparse.Namespace) -> int:
     if not (math.isfinite(args.max_residual_mm) and args.max_residual_mm > 0):
         raise InputError("arguments", "--max-residual-mm",
                          f"must be > 0 (got {args.max_residual_mm})")
+    fitted = {d.resolve() for d in args.recordings}
+    for d in args.validate:
+        if d.resolve() in fitted:
+            raise InputError("arguments", "--validate",
+                             f"{d} is also fitted; validate on recordings the fit did not see")
     check_output(args.out, "--out")
-    observations = _observations(args)
+
+
+def run_calibrate(args: argparse.Namespace) -> int:
+    from concurrent.futures import ProcessPoolExecutor
+
+    from calibration.fit import FitSettings, fit
+    from calibration.report import plot_loss, plot_overlay
+    from calibration.validate import validate
+
+    _check_calibrate_args(args)
+    fitted, held = _recordings(args)
+    observations = _observations(fitted, args.retrack)
+    held_out = _observations(held, args.retrack)
     settings = FitSettings(args.method, args.params, args.budget, args.workers, args.seed,
                            args.max_residual_mm / 1000)
     t0 = time.perf_counter()
@@ -248,28 +275,32 @@ def run_calibrate(args: argparse.Namespace) -> int:
               disable=None) as bar:
         result = fit(observations, settings, lambda n: bar.update(n - bar.n))
     wall = time.perf_counter() - t0
-    rms_mm = 1e3 * result.residual_rms_m
     if not result.converged:
-        sys.stderr.write(f"wrapbench calibrate: the fit did not converge: residual RMS "
-                         f"{rms_mm:.1f} mm > --max-residual-mm {args.max_residual_mm:g} after "
-                         f"{result.simulations} simulations; nothing written\n")
+        sys.stderr.write(f"wrapbench calibrate: the fit did not converge: {result.reason}; "
+                         "nothing written\n")
         return 1
-    out = result.calibration.to_dict() | {"residual_rms_m": result.residual_rms_m,
-                                          "simulations": result.simulations,
-                                          "method": result.method}
+    with ProcessPoolExecutor(max_workers=args.workers) as pool:
+        checks = validate(held_out, result.calibration, pool)
+    out = result.calibration.to_dict() | {
+        "residual_rms_m": result.residual_rms_m, "spread_rms_m": result.spread_rms_m,
+        "replay_rms_m": result.replay_rms_m, "simulations": result.simulations,
+        "method": result.method, "advice": result.advice,
+        "validation": [c.to_dict() for c in checks]}
     stem = args.out.with_suffix("")
     plot_loss(result.curve, f"{stem}-loss.png",
-              f"{result.method}: residual RMS {rms_mm:.2f} mm after {result.simulations} "
-              "simulations")
+              f"{result.method}: {result.simulations} simulations")
     plot_overlay(observations, result.fitted, f"{stem}-overlay.png")
     write_atomic(args.out, (json.dumps(out, indent=2) + "\n").encode())
-    print(_summary(result.calibration))
-    print(f"residual RMS {rms_mm:.2f} mm; {result.simulations} simulations in {wall:.0f} s "
-          f"({result.method}); wrote {args.out}, {stem}-loss.png, {stem}-overlay.png")
+    print(_summary(result))
+    for check in checks:
+        print(_validation_summary(check))
+    print(f"{result.simulations} simulations in {wall:.0f} s ({result.method}); wrote "
+          f"{args.out}, {stem}-loss.png, {stem}-overlay.png")
     return 0
 
 
-def _summary(cal) -> str:
+def _summary(result) -> str:
+    cal = result.calibration
     lines = ["pair            static         kinetic        identified"]
     for name, p in cal.friction.items():
         if p.identified:
@@ -279,4 +310,21 @@ def _summary(cal) -> str:
             lines.append(f"{name:14s}  >= {p.static:.3f}      (never slipped)  no")
     lines.append(f"wrap: stiffness scale {cal.stiffness_scale:.2f} ± {cal.stiffness_scale_std:.2f}"
                  f", tension scale {cal.tension_scale:.2f} ± {cal.tension_scale_std:.2f}")
+    lines += [f"advice: {name}: {text}" for name, text in result.advice.items()]
+    spread = (f" (replays scatter {1e3 * result.spread_rms_m:.2f} mm about their mean)"
+              if result.spread_rms_m else "")
+    lines.append(f"residual RMS {1e3 * result.residual_rms_m:.2f} mm{spread}; one replay of "
+                 f"the fitted values {1e3 * result.replay_rms_m:.2f} mm")
+    return "\n".join(lines)
+
+
+def _validation_summary(check) -> str:
+    lines = [f"validation {check.source} ({check.replays} replays): slide on its support at "
+             "the end of the predictable frames, mm",
+             "  object      recorded  predicted ± spread   error"]
+    rows = [*check.objects.items(), *((f"layer {k}", c) for k, c in check.layers.items())]
+    for name, c in rows:
+        pct = f" ({c.error_pct:+.0f} %)" if c.error_pct is not None else ""
+        lines.append(f"  {name:10s}  {1e3 * c.recorded_m:8.1f}  {1e3 * c.predicted_m:8.1f} ± "
+                     f"{1e3 * c.spread_m:5.1f}  {1e3 * c.error_m:+7.1f}{pct}")
     return "\n".join(lines)

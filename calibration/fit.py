@@ -1,22 +1,18 @@
-"""The source paper's inverse problems: friction per contact pair, then the wrap's stiffness and
-tension, fitted so that the bench replaying each recording reproduces its tracked paths.
+"""The source paper's inverse problems: friction per contact pair, then the wrap's scales, fitted
+so that the bench replaying each recording reproduces what of it the bench can predict.
 
-Loss: the mean squared difference between simulated and tracked displacements (relative to the
-sled, `calibration.replay`) over every object, frame and recording; its square root is the
-residual RMS reported. Parameters live in a unit box: per slipping pair its static coefficient
-and the ratio kinetic / static (so kinetic <= static by construction), per wrap the base-2
-logarithms of the stiffness and tension scales. Two optimisers:
-- CMA-ES (pycma, the default): robust to the loss's small jumps (a contact that sticks one
-  step earlier), parallel over a generation;
-- gradient descent with momentum as in the paper: forward finite-difference gradients,
-  smoothed by an exponential moving average (the paper's EMA, since the loss is noisy),
-  normalised steps of decaying length.
-Uncertainty comes from the loss's curvature at the optimum (Gauss-Newton: s^2 (J^T J)^-1 from
-central differences), widened by the residuals' autocorrelation (neighbouring frames are not
-independent), and capped at a uniform spread over the parameter's range when the data say
-nothing (e.g. a static coefficient the slip's start does not resolve). Pairs that never slipped
-are held stuck and reported as not identified (`identified: false`) with the lower bound of
-their static coefficient the recordings support.
+What is compared (`calibration.features`): per observed body its slip across the contact it
+rests on and its rotation, over the frames before it lost its support or tipped over, clipped
+at those limits. Stages: friction on the unwrapped recordings (all of them when every one is
+wrapped), then the wrap's scales (`WRAP_PARAMS`) on the wrapped ones with that friction. Pairs
+that never slipped are held stuck and reported as not identified, with the lower bound of their
+static coefficient the recordings support and the test that would identify them
+(`calibration.identify`).
+
+Methods: "surrogate" (the default, `calibration.surrogate`) fits the bench's mean response and
+weighs each feature by how much replays scatter, which a whole unit near its slip threshold
+needs; "cmaes" and "momentum" (`calibration.descent`) minimise the loss of single replays,
+which suits bodies that slide on their own.
 """
 
 from __future__ import annotations
@@ -24,386 +20,286 @@ from __future__ import annotations
 import math
 import os
 from collections.abc import Callable, Sequence
-from concurrent.futures import Executor, ProcessPoolExecutor
-from dataclasses import dataclass, field, replace
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass, field
 
-import cma
 import numpy as np
 
-from calibration.replay import Observation, replay, residuals
+from calibration import identify
+from calibration.descent import UNIFORM_STD, descend
+from calibration.objective import Model, Objective, Param, Progress
+from calibration.replay import Observation, replay, resettled, residuals
+from calibration.surrogate import Stage, surrogate
 from wrapenv.bench import SimSettings
 from wrapenv.calibrated import CalibratedPair, Calibration
-from wrapenv.load import PAIRS, Friction, FrictionPair
+from wrapenv.load import PAIRS, Friction
 
-METHODS = ("cmaes", "momentum")
+METHODS = ("surrogate", "cmaes", "momentum")
 PARAMS = ("friction", "wrap", "all")
 STATIC_RANGE = (0.05, 1.2)
 RATIO_RANGE = (0.5, 1.0)          # kinetic / static
-LOG2_SCALE_RANGE = (-2.0, 2.0)    # wrap stiffness and tension: 1/4 to 4 times the card
-#: A pair held stuck is set this far above the largest acceleration it had to transmit.
-STUCK_MARGIN = 0.15
-#: Loss given to a candidate whose simulation became unphysical (m^2: a 1 m residual).
-INVALID_LOSS = 1.0
-#: Finite-difference step in the unit box.
-STEP = 0.02
-#: Standard deviation of a value the data say nothing about: uniform over its whole range.
-UNIFORM_STD = 1 / math.sqrt(12)
-#: The momentum descent's uncertainty: the spread of its last iterates.
-SPREAD_ITERATES = 8
+#: The surrogate's prior on a slipped pair's kinetic coefficient ends this far above the
+#: highest level it slipped at: once a contact slides, its kinetic coefficient decides how far
+#: (the level minus it, times the time), while its static one, up to ~25 % above the level,
+#: only changes when it starts; a box mostly of units that never slip would be wasted.
+KINETIC_HEADROOM_G = 0.1
+#: The wrap stage's parameters: base-2 logarithm ranges of scales in `replay.WRAP_SCALES`.
+WRAP_PARAMS = {"stiffness": (-2.0, 2.0), "tension": (-2.0, 2.0)}
+#: A static coefficient with a larger standard deviation than this is reported as unresolved,
+#: and so is a wrap scale whose base-2 logarithm's is larger than this (1 sigma = +-20 %).
+RESOLVED_STATIC_STD = 0.025
+RESOLVED_LOG2_SCALE_STD = math.log2(1.2)
+#: The surrogate's fitted values are replayed this many times per recording (each settling a
+#: little longer, `replay.resettled`): their mean is the prediction, their scatter the part of
+#: the residual no calibration can remove. The descents, fitted to single replays, get one.
+FINAL_REPLAYS = 3
 
 
 @dataclass(frozen=True)
 class FitSettings:
-    method: str = "cmaes"
+    method: str = "surrogate"
     params: str = "friction"
-    budget: int = 240               # most simulations, gradient and uncertainty included
+    budget: int = 300               # most simulations, final replays included
     workers: int = max(1, os.cpu_count() or 1)
     seed: int = 0
-    #: The fit fails (no output) when the best residual RMS is above this.
+    #: The fit fails (no output) when the residual its replays' own scatter does not explain
+    #: is above this (RMS, metres).
     max_residual_m: float = 0.01
     sim: SimSettings = SimSettings()
 
 
 @dataclass(frozen=True)
-class Param:
-    kind: str            # "static", "ratio", "stiffness", "tension"
-    pair: str = ""
-    low: float = 0.0
-    high: float = 1.0
-
-    def value(self, u: float) -> float:
-        v = self.low + (self.high - self.low) * float(np.clip(u, 0.0, 1.0))
-        return 2.0**v if self.kind in ("stiffness", "tension") else v
-
-    def unit(self, value: float) -> float:
-        v = math.log2(value) if self.kind in ("stiffness", "tension") else value
-        return float(np.clip((v - self.low) / (self.high - self.low), 0.0, 1.0))
-
-
-@dataclass(frozen=True)
-class Model:
-    """How a point of the unit box becomes the bench's friction and wrap scales."""
-
-    params: tuple[Param, ...]
-    base: Friction                  # values of the pairs not fitted
-    scales: tuple[float, float] = (1.0, 1.0)
-
-    def decode(self, u: np.ndarray) -> tuple[Friction, float, float]:
-        values = {(p.kind, p.pair): p.value(x) for p, x in zip(self.params, u, strict=True)}
-        pairs = {}
-        for name in PAIRS:
-            if ("static", name) in values:
-                static = values["static", name]
-                pairs[name] = FrictionPair(static, static * values["ratio", name])
-        friction = replace(self.base, **pairs)
-        stiffness = values.get(("stiffness", ""), self.scales[0])
-        tension = values.get(("tension", ""), self.scales[1])
-        return friction, stiffness, tension
-
-    def encode(self, friction: Friction, scales: tuple[float, float]) -> np.ndarray:
-        out = []
-        for p in self.params:
-            if p.kind == "static":
-                out.append(p.unit(friction.pair(p.pair).static))
-            elif p.kind == "ratio":
-                pair = friction.pair(p.pair)
-                out.append(p.unit(pair.kinetic / pair.static))
-            else:
-                out.append(p.unit(scales[0] if p.kind == "stiffness" else scales[1]))
-        return np.array(out)
-
-
-@dataclass
-class Progress:
-    """Loss history of a fit: (simulations so far, loss of the best point so far)."""
-
-    simulations: int = 0
-    curve: list[tuple[int, float]] = field(default_factory=list)
-    #: told the simulations spent after every batch (a progress bar)
-    listener: Callable[[int], None] | None = None
-    best_u: np.ndarray | None = None
-    best_loss: float = math.inf
-
-    def record(self, us: Sequence[np.ndarray], losses: Sequence[float], sims: int) -> None:
-        self.spend(sims)
-        for u, loss in zip(us, losses, strict=True):
-            if loss < self.best_loss:
-                self.best_u, self.best_loss = np.array(u), loss
-        self.curve.append((self.simulations, self.best_loss))
-
-    def spend(self, sims: int) -> None:
-        self.simulations += sims
-        if self.listener is not None:
-            self.listener(self.simulations)
-
-
-def _replay_task(obs: Observation, friction: Friction, stiffness: float,
-                 tension: float, sim: SimSettings) -> np.ndarray | None:
-    simulated = replay(obs, friction, stiffness, tension, sim)
-    return None if simulated is None else residuals(obs, simulated)
-
-
-class Objective:
-    """Residual vectors and losses of points of the unit box, simulated in parallel."""
-
-    def __init__(self, observations: Sequence[Observation], model: Model, pool: Executor,
-                 sim: SimSettings) -> None:
-        self.observations, self.model, self.pool, self.sim = observations, model, pool, sim
-
-    def residuals(self, us: Sequence[np.ndarray]) -> list[np.ndarray | None]:
-        futures = [[self.pool.submit(_replay_task, obs, *self.model.decode(u), self.sim)
-                    for obs in self.observations] for u in us]
-        out: list[np.ndarray | None] = []
-        for fs in futures:
-            parts = [f.result() for f in fs]
-            out.append(None if any(p is None for p in parts) else np.concatenate(parts))
-        return out
-
-    def losses(self, us: Sequence[np.ndarray]) -> list[float]:
-        return [INVALID_LOSS if r is None else float(np.mean(r**2)) for r in self.residuals(us)]
-
-    @property
-    def sims_per_point(self) -> int:
-        return len(self.observations)
-
-
-def cmaes(objective: Objective, u0: np.ndarray, budget: int, seed: int,
-          progress: Progress) -> np.ndarray:
-    """pycma ask/tell until the budget (in simulations) or pycma's own stop; returns the final
-    search distribution's standard deviations (what the search has not yet narrowed down)."""
-    n = len(u0)
-    popsize = 4 + int(3 * math.log(n))
-    es = cma.CMAEvolutionStrategy(u0, 0.15, {"bounds": [0.0, 1.0], "popsize": popsize,
-                                             "seed": seed + 1, "verbose": -9, "tolx": 2e-3})
-    progress.record([u0], objective.losses([u0]), objective.sims_per_point)
-    while not es.stop():
-        if progress.simulations + popsize * objective.sims_per_point > budget:
-            break
-        us = es.ask()
-        losses = objective.losses(us)
-        es.tell(us, losses)
-        progress.record(us, losses, len(us) * objective.sims_per_point)
-    return np.asarray(es.result.stds, float)
-
-
-def momentum(objective: Objective, u0: np.ndarray, budget: int, progress: Progress,
-             beta: float = 0.5, step0: float = 0.05) -> np.ndarray:
-    """The paper's gradient descent with momentum (EMA of forward-difference gradients);
-    returns the spread (standard deviation) of the last `SPREAD_ITERATES` iterates per
-    coordinate: where the descent still wanders, the loss does not tell the value apart.
-    beta and step0 were chosen on the sliding-bundles recording of the tests: 0.8 / 0.08 took
-    25 iterations to leave the start, 0.5 / 0.05 reached 0.4 mm residual in 48 simulations."""
-    n = len(u0)
-    u, velocity = np.array(u0, float), np.zeros(n)
-    iterates = [u]
-    k = 0
-    while progress.simulations + (n + 1) * objective.sims_per_point <= budget:
-        # step inwards at the upper bound so every probe stays in the box
-        steps = np.where(u + STEP <= 1.0, STEP, -STEP)
-        probes = [u] + [u + steps[i] * np.eye(n)[i] for i in range(n)]
-        losses = objective.losses(probes)
-        progress.record(probes, losses, len(probes) * objective.sims_per_point)
-        grad = (np.array(losses[1:]) - losses[0]) / steps
-        velocity = beta * velocity + (1 - beta) * grad
-        norm = float(np.linalg.norm(velocity))
-        if norm == 0.0:
-            break
-        u = np.clip(u - step0 / (1 + k / 8) * velocity / norm, 0.0, 1.0)
-        iterates.append(u)
-        k += 1
-    return np.std(iterates[-SPREAD_ITERATES:], axis=0)
-
-
-def _autocorrelation_time(r: np.ndarray) -> float:
-    """Integrated autocorrelation time of a residual series (1 for white noise)."""
-    r = r - r.mean()
-    var = float(np.dot(r, r))
-    if var == 0.0:
-        return 1.0
-    tau = 1.0
-    for lag in range(1, len(r) // 4):
-        rho = float(np.dot(r[:-lag], r[lag:])) / var
-        if rho < 0.05:
-            break
-        tau += 2 * rho
-    return tau
-
-
-def _unit_std(objective: Objective, u: np.ndarray, r0: np.ndarray,
-              progress: Progress) -> np.ndarray:
-    """Standard deviations in the unit box from the Gauss-Newton curvature at u."""
-    n = len(u)
-    lo, hi = np.clip(u - STEP, 0, 1), np.clip(u + STEP, 0, 1)
-    probes = [np.where(np.arange(n) == i, hi[i], u) for i in range(n)]
-    probes += [np.where(np.arange(n) == i, lo[i], u) for i in range(n)]
-    rs = objective.residuals(probes)
-    progress.spend(len(probes) * objective.sims_per_point)
-    if any(r is None for r in rs):
-        return np.full(n, UNIFORM_STD)
-    jac = np.stack([(rs[i] - rs[n + i]) / (hi[i] - lo[i]) for i in range(n)], axis=1)
-    dof = max(1, len(r0) - n)
-    s2 = float(np.dot(r0, r0)) / dof * _autocorrelation_time(r0)
-    cov = s2 * np.linalg.pinv(jac.T @ jac)
-    std = np.sqrt(np.clip(np.diag(cov), 0.0, None))
-    flat = np.linalg.norm(jac, axis=0) < 1e-9
-    return np.where(flat, UNIFORM_STD, np.minimum(std, UNIFORM_STD))
-
-
-@dataclass(frozen=True)
 class FitResult:
     calibration: Calibration
+    #: RMS of recorded minus predicted features, the prediction being the mean of the fitted
+    #: values' final replays (`FINAL_REPLAYS`)
     residual_rms_m: float
     simulations: int
     method: str
     curve: list[tuple[int, float]]
-    #: per observation: the simulated displacements of the fitted model (None: unphysical)
+    #: per observation: one replay of the fitted model (None: unphysical)
     fitted: list[dict[str, np.ndarray] | None]
     converged: bool
+    #: RMS scatter of the final replays about their mean (0 with one replay)
+    spread_rms_m: float = 0.0
+    #: RMS residual of the single replay in `fitted`
+    replay_rms_m: float = math.inf
+    reason: str = ""
+    advice: dict[str, str] = field(default_factory=dict)
+    stages: tuple[Stage, ...] = ()
 
 
-@dataclass(frozen=True)
-class _Stage:
-    """One inverse problem: some parameters, fitted on some of the recordings."""
+@dataclass
+class _Fitted:
+    """What the stages have found so far."""
 
-    model: Model
-    observations: tuple[Observation, ...]
+    friction: Friction
+    scales: dict[str, float] = field(default_factory=dict)
+    stds: dict[tuple[str, str], float] = field(default_factory=dict)
+    stages: list[Stage] = field(default_factory=list)
+    invalid: int = 0
 
 
-def pairs_present(observations: Sequence[Observation]) -> tuple[str, ...]:
-    """The contact pairs the recorded loads have (bundle on bundle needs two layers)."""
-    layered = any(o.load.stack.layers > 1 for o in observations)
-    return tuple(p for p in PAIRS if p != "bundle_bundle" or layered)
+def _friction_params(observations: Sequence[Observation], slipped: frozenset[str],
+                     method: str) -> tuple[Param, ...]:
+    """Per slipped pair its static (descents) or kinetic (surrogate, see `KINETIC_HEADROOM_G`)
+    coefficient, and the ratio kinetic / static."""
+    out = []
+    for name in PAIRS:
+        if name not in slipped:
+            continue
+        if method == "surrogate":
+            level = max(o.peak_accel_g[0] for o in observations if name in o.slipped)
+            first = Param("kinetic", name, STATIC_RANGE[0],
+                          min(STATIC_RANGE[1], level + KINETIC_HEADROOM_G))
+        else:
+            first = Param("static", name, *STATIC_RANGE)
+        out += [first, Param("ratio", name, *RATIO_RANGE)]
+    return tuple(out)
 
 
 def fit(observations: Sequence[Observation], settings: FitSettings,
         listener: Callable[[int], None] | None = None) -> FitResult:
-    """Fit the asked parameters to the observations (see the module docstring): friction on
-    the unwrapped recordings (all of them when every one is wrapped), then the wrap's scales on
-    the wrapped ones with that friction."""
-    slipped = frozenset().union(*(o.slipped for o in observations))
+    """Fit the asked parameters to the observations (see the module docstring). What slipped,
+    and the bounds of what did not, are read off the recordings friction is fitted to: a wrap
+    holds pairs that friction alone would not."""
+    wrapped = [i for i, o in enumerate(observations) if o.wrap is not None]
+    plain = ([i for i, o in enumerate(observations) if o.wrap is None]
+             or list(range(len(observations))))
+    bare = [observations[i] for i in plain]
+    slipped = frozenset().union(*(o.slipped for o in bare))
     nominal = observations[0].load.friction
-    base = _held_stuck(nominal, _pair_bounds(observations, nominal, frozenset()), slipped)
-    wrapped = tuple(o for o in observations if o.wrap is not None)
-    plain = tuple(o for o in observations if o.wrap is None) or tuple(observations)
-    friction_params = tuple(q for name in PAIRS if name in slipped
-                            for q in (Param("static", name, *STATIC_RANGE),
-                                      Param("ratio", name, *RATIO_RANGE)))
-    wrap_params = (Param("stiffness", "", *LOG2_SCALE_RANGE),
-                   Param("tension", "", *LOG2_SCALE_RANGE))
-    fit_friction = settings.params != "wrap" and bool(friction_params)
-    fit_wrap = settings.params in ("wrap", "all") and bool(wrapped)
+    base = identify.held_stuck(nominal, identify.pair_bounds(bare, nominal, frozenset()),
+                               slipped)
+    friction_params = _friction_params(bare, slipped, settings.method)
+    wrap_params = tuple(Param(name, "", *r) for name, r in WRAP_PARAMS.items())
+    stages = []
+    if settings.params != "wrap" and friction_params:
+        stages.append((friction_params, plain))
+    if settings.params in ("wrap", "all") and wrapped:
+        stages.append((wrap_params, wrapped))
     progress = Progress(listener=listener)
-    friction, scales = base, (1.0, 1.0)
-    stds: dict[tuple[str, str], float] = {}
-    stages = int(fit_friction) + int(fit_wrap)
-    budget = settings.budget - len(observations)  # the fitted model's final replay
+    found = _Fitted(base)
+    repeats = FINAL_REPLAYS if settings.method == "surrogate" else 1
+    budget = settings.budget - repeats * len(observations)
     with ProcessPoolExecutor(max_workers=settings.workers) as pool:
-        if fit_friction:
-            stage = _Stage(Model(friction_params, base), plain)
-            u, std = _solve(stage, settings, budget // stages, pool, progress)
-            friction, _, _ = stage.model.decode(u)
-            stds |= _unit_stds(stage.model, std)
-        if fit_wrap:
-            stage = _Stage(Model(wrap_params, friction), wrapped)
-            u, std = _solve(stage, settings, budget - progress.simulations, pool, progress)
-            _, *scale_values = stage.model.decode(u)
-            scales = (scale_values[0], scale_values[1])
-            stds |= _unit_stds(stage.model, std)
-        runs = [pool.submit(replay, o, friction, *scales, settings.sim) for o in observations]
-        fitted = [f.result() for f in runs]
-    progress.spend(len(observations))
-    parts = [None if sim is None else residuals(o, sim)
-             for o, sim in zip(observations, fitted, strict=True)]
-    rms = (math.inf if any(r is None for r in parts)
-           else float(np.sqrt(np.mean(np.concatenate(parts) ** 2))))
-    # friction not asked for is not reported: the bench keeps the load file's values
-    present = pairs_present(observations) if settings.params != "wrap" else ()
-    bounds = _pair_bounds(observations, friction, slipped)
-    calibration = _calibration(friction, scales, stds, slipped, bounds, present)
-    return FitResult(calibration, rms, progress.simulations, settings.method, progress.curve,
-                     fitted, rms <= settings.max_residual_m)
+        for k, (params, indices) in enumerate(stages):
+            # the remaining budget shared in proportion to the stages' parameters
+            left = sum(len(q) for q, _ in stages[k:])
+            limit = progress.simulations + (budget - progress.simulations) * len(params) // left
+            model = Model(params, found.friction, dict(found.scales))
+            objective = Objective([observations[i] for i in indices], model, pool, settings.sim)
+            _run_stage(objective, settings, limit, progress, found)
+        runs = [[pool.submit(replay, o, found.friction, found.scales,
+                             resettled(settings.sim, k)) for k in range(repeats)]
+                for o in observations]
+        replays = [[f.result() for f in fs] for fs in runs]
+    progress.spend(repeats * len(observations))
+    return _result(observations, bare, settings, slipped, found, replays, progress)
 
 
-def _solve(stage: _Stage, settings: FitSettings, budget: int, pool: Executor,
-           progress: Progress) -> tuple[np.ndarray, np.ndarray]:
-    """The best point of one stage and its standard deviations (unit box)."""
-    objective = Objective(stage.observations, stage.model, pool, settings.sim)
-    n = len(stage.model.params)
-    u0 = stage.model.encode(stage.model.base, stage.model.scales)
-    # keep the best point's residuals and the curvature's probes within the budget
-    search = budget - (2 * n + 1) * objective.sims_per_point
-    stage_progress = Progress(progress.simulations, progress.curve, progress.listener)
-    if settings.method == "cmaes":
-        spread = cmaes(objective, u0, search, settings.seed, stage_progress)
+def _run_stage(objective: Objective, settings: FitSettings, limit: int, progress: Progress,
+               found: _Fitted) -> None:
+    """One stage's parameters by the asked method; updates `found`."""
+    model = objective.model
+    u0 = model.encode(model.base, model.scales)
+    if settings.method == "surrogate":
+        spp = objective.sims_per_point
+
+        def evaluate(us: Sequence[np.ndarray]) -> list[np.ndarray | None]:
+            rs = objective.residuals(us)
+            progress.record(us, [1.0 if r is None else float(np.mean(r**2)) for r in rs],
+                            len(us) * spp)
+            return rs
+
+        result = surrogate(evaluate, len(u0), (limit - progress.simulations) // spp,
+                           settings.seed)
+        u, cov = result.u, result.cov
+        found.stages.extend(result.stages)
+        found.invalid += result.invalid
     else:
-        spread = momentum(objective, u0, search, stage_progress)
-    progress.simulations = stage_progress.simulations
-    u = stage_progress.best_u if stage_progress.best_u is not None else u0
-    r = objective.residuals([u])[0]
-    progress.spend(objective.sims_per_point)
-    if r is None:
-        return u, np.full(n, UNIFORM_STD)
-    curvature = _unit_std(objective, u, r, progress)
-    return u, np.minimum(np.hypot(curvature, spread), UNIFORM_STD)
+        stage_progress = Progress(progress.simulations, progress.curve, progress.listener)
+        u, cov = descend(objective, u0, settings.method, limit, settings.seed, stage_progress)
+        progress.simulations = stage_progress.simulations
+    found.friction, found.scales = model.decode(u)
+    found.stds |= _value_stds(model, u, cov)
 
 
-def _unit_stds(model: Model, std: np.ndarray) -> dict[tuple[str, str], float]:
-    """Standard deviations of the parameters' values (unit box std times the range; the
-    scales' in their own units, from their base-2 logarithms)."""
+def _value_stds(model: Model, u: np.ndarray, cov: np.ndarray) -> dict[tuple[str, str], float]:
+    """Standard deviations of the fitted values from the unit box's covariance: static and
+    kinetic (the one not in the box through the ratio, correlation included) and each scale
+    (s = 2^v); the box's variances are capped at a uniform spread over the range (what a
+    parameter the data say nothing about has)."""
+    n = len(u)
+    std = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+    corr = np.array(cov, float) / np.maximum(np.outer(std, std), 1e-300)
+    capped = np.minimum(std, UNIFORM_STD)
+    cov = corr * np.outer(capped, capped)
+    friction, scales = model.decode(u)
+    index = {(p.kind, p.pair): i for i, p in enumerate(model.params)}
     out = {}
-    for p, s in zip(model.params, std, strict=True):
-        width = p.high - p.low
-        out[p.kind, p.pair] = float(s * width)
+    for i, p in enumerate(model.params):
+        grads: dict[str, np.ndarray] = {}
+        if p.kind in ("static", "kinetic"):
+            grads = _pair_gradients(model, index, i, friction)
+        elif p.is_scale:
+            grads = {p.kind: np.eye(n)[i] * scales[p.kind] * math.log(2) * (p.high - p.low)}
+        for kind, g in grads.items():
+            out[kind, p.pair] = float(np.sqrt(max(0.0, g @ cov @ g)))
     return out
 
 
-def _pair_bounds(observations: Sequence[Observation], fitted: Friction,
-                 slipped: frozenset[str]) -> dict[str, float]:
-    """Lower bound of the static coefficient of each pair that never slipped: the largest
-    acceleration (in g) it had to transmit, backwards under the pulse and forwards when the
-    sled brakes; a stopped pallet is held backwards by the stopper, and a pair above a slipping
-    one was only asked as much as the slipping pair's kinetic friction passes up."""
-    bounds = {}
-    for k, name in enumerate(PAIRS):
-        demand = 0.0
-        for obs in observations:
-            back, forward = obs.peak_accel_g
-            if name == "sled_pallet" and obs.load.pallet_stopper:
-                back = 0.0
-            cap = min((fitted.pair(below).kinetic for below in PAIRS[:k] if below in slipped),
-                      default=math.inf)
-            demand = max(demand, min(max(back, forward), cap))
-        bounds[name] = demand
-    return bounds
+def _pair_gradients(model: Model, index: dict[tuple[str, str], int], i: int,
+                    friction: Friction) -> dict[str, np.ndarray]:
+    """Gradients of a pair's static and kinetic coefficients in the unit box, the box holding
+    one of them (parameter i) and the ratio: kinetic = ratio x static."""
+    p = model.params[i]
+    j = index["ratio", p.pair]
+    pair = friction.pair(p.pair)
+    ratio = pair.kinetic / pair.static
+    width, ratio_width = p.high - p.low, model.params[j].high - model.params[j].low
+    own, other = np.zeros(len(model.params)), np.zeros(len(model.params))
+    own[i] = width
+    if p.kind == "static":
+        other[i], other[j] = width * ratio, pair.static * ratio_width
+        return {"static": own, "kinetic": other}
+    other[i], other[j] = width / ratio, -pair.kinetic / ratio**2 * ratio_width
+    return {"kinetic": own, "static": other}
 
 
-def _held_stuck(nominal: Friction, bounds: dict[str, float], slipped: frozenset[str]) -> Friction:
-    """Pairs that never slipped, set where they stick in the replay too."""
-    pairs = {}
-    for name in PAIRS:
-        if name in slipped:
-            continue
-        pair = nominal.pair(name)
-        static = max(pair.static, bounds[name] + STUCK_MARGIN)
-        pairs[name] = FrictionPair(static, static * pair.kinetic / pair.static)
-    return replace(nominal, **pairs)
+def _prediction(observations: Sequence[Observation],
+                replays: list[list[dict[str, np.ndarray] | None]]) -> tuple[float, float, float]:
+    """RMS residual of the replays' mean, RMS scatter of the replays about it (standard
+    deviation per feature) and RMS residual of the first replay; inf when one was unphysical."""
+    means, spreads, firsts = [], [], []
+    for obs, runs in zip(observations, replays, strict=True):
+        if any(run is None for run in runs):
+            return math.inf, math.inf, math.inf
+        r = np.array([residuals(obs, run) for run in runs if run is not None])
+        means.append(r.mean(axis=0))
+        spreads.append(r.std(axis=0, ddof=1) if len(r) > 1 else np.zeros(r.shape[1]))
+        firsts.append(r[0])
+    rms = [float(np.sqrt(np.mean(np.concatenate(x) ** 2))) for x in (means, spreads, firsts)]
+    return rms[0], rms[1], rms[2]
 
 
-def _calibration(friction: Friction, scales: tuple[float, float],
-                 stds: dict[tuple[str, str], float], slipped: frozenset[str],
-                 bounds: dict[str, float], present: tuple[str, ...]) -> Calibration:
+def _result(observations: Sequence[Observation], bare: Sequence[Observation],
+            settings: FitSettings, slipped: frozenset[str], found: _Fitted,
+            replays: list[list[dict[str, np.ndarray] | None]], progress: Progress) -> FitResult:
+    rms, spread_rms, replay_rms = _prediction(observations, replays)
+    # friction not asked for is not reported: the bench keeps the load file's values
+    present = identify.pairs_present(observations) if settings.params != "wrap" else ()
+    bounds = identify.pair_bounds(bare, found.friction, slipped)
+    calibration = _calibration(found, slipped, bounds, present)
+    advice = {name: identify.advice_unslipped(name, bounds[name])
+              for name in present if name not in slipped}
+    advice |= {name: identify.advice_static(name, bare, p.static_std)
+               for name, p in calibration.friction.items()
+               if p.identified and p.static_std > RESOLVED_STATIC_STD}
+    advice |= {name: identify.advice_scale(name, found.scales[name], found.stds[name, ""])
+               for name in found.scales if (name, "") in found.stds
+               and found.stds[name, ""] / (found.scales[name] * math.log(2))
+               > RESOLVED_LOG2_SCALE_STD}
+    repeats = len(replays[0])
+    reason = _failure(rms, spread_rms * math.sqrt(1 + 1 / repeats) if repeats > 1 else 0.0,
+                      progress.simulations, found.invalid, settings)
+    return FitResult(calibration, rms, progress.simulations, settings.method, progress.curve,
+                     [runs[0] for runs in replays], not reason, spread_rms, replay_rms, reason,
+                     advice, tuple(found.stages))
+
+
+def _failure(rms: float, spread_rms: float, simulations: int, invalid: int,
+             settings: FitSettings) -> str:
+    """Why the fit is not to be trusted ("" when it is). `spread_rms` is what the residual of
+    the replays' mean would be if the model were right: the recording's own scatter and that
+    left in the mean of the replays."""
+    if not math.isfinite(rms):
+        return "the fitted values' replay became unphysical"
+    unexplained = math.sqrt(max(0.0, rms**2 - spread_rms**2))
+    if unexplained > settings.max_residual_m:
+        scatter = (f" ({1e3 * spread_rms:.1f} mm of it the bench's own run-to-run scatter)"
+                   if spread_rms else "")
+        return (f"residual RMS {1e3 * rms:.1f} mm{scatter}: {1e3 * unexplained:.1f} mm "
+                f"unexplained > {1e3 * settings.max_residual_m:g} mm after {simulations} "
+                "simulations")
+    if invalid > simulations // 2:
+        return f"{invalid} of {simulations} replays became unphysical"
+    return ""
+
+
+def _calibration(found: _Fitted, slipped: frozenset[str], bounds: dict[str, identify.Bound],
+                 present: tuple[str, ...]) -> Calibration:
     pairs = {}
     for name in present:
-        pair = friction.pair(name)
-        ratio = pair.kinetic / pair.static
+        pair = found.friction.pair(name)
         if name not in slipped:
-            pairs[name] = CalibratedPair(bounds[name], bounds[name] * ratio, identified=False)
+            bound = bounds[name].demand_g
+            pairs[name] = CalibratedPair(bound, bound * pair.kinetic / pair.static,
+                                         identified=False)
             continue
-        static_std, ratio_std = stds["static", name], stds["ratio", name]
-        # kinetic = ratio x static (delta method, the two taken as independent)
-        kinetic_std = math.hypot(pair.static * ratio_std, ratio * static_std)
-        pairs[name] = CalibratedPair(pair.static, pair.kinetic, static_std, kinetic_std)
-    # a scale s = 2^v: std(s) = s ln 2 std(v)
-    scale_std = tuple(s * math.log(2) * stds.get((kind, ""), 0.0)
-                      for s, kind in zip(scales, ("stiffness", "tension"), strict=True))
-    return Calibration(pairs, scales[0], scales[1], *scale_std)
+        pairs[name] = CalibratedPair(pair.static, pair.kinetic, found.stds["static", name],
+                                     found.stds["kinetic", name])
+    scales = {name: found.scales.get(name, 1.0) for name in WRAP_PARAMS}
+    stds = {name: found.stds.get((name, ""), 0.0) for name in WRAP_PARAMS}
+    return Calibration(pairs, scales["stiffness"], scales["tension"], stds["stiffness"],
+                       stds["tension"])

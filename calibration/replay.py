@@ -3,7 +3,8 @@
 The camera sees world x; the bench simulates in the sled's frame. Both sides are therefore
 compared as displacements relative to the sled, measured from each object's first tracked frame:
 the sled's own motion, and any constant offset of a tracked centre, drop out. The bench is driven
-by the recording's own profile.csv and sampled at the video's frame times.
+by the recording's own profile.csv, sampled at the video's frame times, and stopped where the
+last predictable window ends (`calibration.features`): what follows is not compared.
 
 From the tracked paths alone we also learn which contact pairs slipped: a contact point (the
 bottom centre of the upper body against the top centre of the lower one, rotations included, so
@@ -13,15 +14,17 @@ slipped cannot be fitted; the most it tells is a lower bound of its static frict
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, replace
 
 import numpy as np
 
+from calibration import features
 from calibration.recording import Recording
 from calibration.trajectories import ObjectPath, Trajectories
 from wrapenv.bench import SimSettings, run_level
 from wrapenv.config import InputError
-from wrapenv.load import Friction, Layout, LoadUnit
+from wrapenv.load import Friction, LoadUnit
 from wrapenv.profile import G, MeasuredProfile
 from wrapenv.wrap import WrapFormat
 
@@ -29,6 +32,15 @@ from wrapenv.wrap import WrapFormat
 SLIP_M = 0.005
 #: Fewer tracked frames than this cannot constrain a fit.
 MIN_FRAMES = 10
+#: Replays meant to show the bench's run-to-run scatter let the unit settle this much longer
+#: each (repeated bench tests never start from quite the same state).
+SETTLE_STEP_S = 0.05
+#: The wrap's scalar parameters a calibration can fit: name -> the wrap replayed with a value.
+#: One more entry (and its range in `calibration.fit.WRAP_PARAMS`) adds a parameter.
+WRAP_SCALES: dict[str, Callable[[WrapFormat, float], WrapFormat]] = {
+    "stiffness": lambda wrap, s: wrap.scaled(stiffness_scale=s),
+    "tension": lambda wrap, s: wrap.scaled(tension_scale=s),
+}
 
 
 @dataclass(frozen=True)
@@ -39,33 +51,43 @@ class Observation:
     load: LoadUnit
     wrap: WrapFormat | None
     profile: MeasuredProfile
-    #: object -> (frame times on the profile's time base (n,), displacement x, z (n, 2))
-    paths: dict[str, tuple[np.ndarray, np.ndarray]]
+    #: object -> (frame times on the profile's time base (n,), x and z displacement relative to
+    #: the sled and rotation, from the first frame (n, 3))
+    states: dict[str, tuple[np.ndarray, np.ndarray]]
+    bodies: dict[str, features.Body]
+    #: per compared body, the leading frames the bench can predict
+    frames: dict[str, int]
+    #: the recording's features (`features.vector`)
+    target: np.ndarray
     slipped: frozenset[str]
     #: peak horizontal acceleration of the sled in g, backwards and forwards
     peak_accel_g: tuple[float, float]
 
     @property
-    def samples(self) -> int:
-        return sum(len(t) for t, _ in self.paths.values())
+    def end_s(self) -> float:
+        """The last frame time any window reaches: the replay runs until then."""
+        return max(float(self.states[n][0][k - 1]) for n, k in self.frames.items())
 
 
 def observe(recording: Recording, tracked: Trajectories) -> Observation:
     """The displacements and slips the recording shows (`InputError` if it shows too little)."""
     src = str(recording.folder)
     layout = recording.load.layout()
-    heights = {"pallet": layout.pallet_size_m[2]} | {b.name: b.size_m[2] for b in layout.bundles}
+    known = {"pallet"} | {b.name for b in layout.bundles}
     objects = {name: p for name, p in tracked.objects.items()
-               if name in heights and len(p.t_s) >= MIN_FRAMES}
-    if "pallet" not in objects and not any(n in heights for n in objects):
+               if name in known and len(p.t_s) >= MIN_FRAMES}
+    body_map = features.bodies(layout, set(objects))
+    if not body_map:
         raise InputError(src, "trajectories", f"no object of the load tracked in "
                          f"{MIN_FRAMES} frames or more")
     sled = tracked.objects.get("sled")
-    paths = {name: (p.t_s, _relative(p, sled, recording)) for name, p in objects.items()}
-    profile = MeasuredProfile(recording.profile.t_s, recording.profile.accel_mps2, src)
+    states = {name: (p.t_s, _relative(p, sled, recording)) for name, p in objects.items()}
     a = recording.profile.accel_mps2
-    return Observation(src, recording.load, recording.wrap, profile, paths,
-                       _slipped(layout, objects, sled, recording, heights),
+    stop_s = float(recording.profile.t_s[np.flatnonzero(a)[-1]]) if np.any(a) else 0.0
+    frames = features.windows(states, body_map, stop_s)
+    profile = MeasuredProfile(recording.profile.t_s, a, src)
+    return Observation(src, recording.load, recording.wrap, profile, states, body_map, frames,
+                       features.vector(states, body_map, frames), _slipped(states, body_map),
                        (float(max(a.max(), 0.0)) / G, float(max(-a.min(), 0.0)) / G))
 
 
@@ -78,70 +100,57 @@ def _sled_x(t: np.ndarray, sled: ObjectPath | None, recording: Recording) -> np.
 
 def _relative(path: ObjectPath, sled: ObjectPath | None, recording: Recording) -> np.ndarray:
     x = path.x_m - _sled_x(path.t_s, sled, recording)
-    xz = np.stack([x, path.z_m], axis=1)
-    return xz - xz[0]
+    xza = np.stack([x, path.z_m, path.angle_rad], axis=1)
+    return xza - xza[0]
 
 
-def _contact_x(path: ObjectPath, half_height: float, side: int, t: np.ndarray) -> np.ndarray:
-    """World x of the bottom (side -1) or top (+1) centre of a body at times t."""
-    x = np.interp(t, path.t_s, path.x_m)
-    angle = np.interp(t, path.t_s, path.angle_rad)
-    return x - side * half_height * np.sin(angle)
-
-
-def _moved(upper: np.ndarray, lower: np.ndarray) -> bool:
-    rel = upper - lower
-    return bool(np.max(np.abs(rel - rel[0])) > SLIP_M)
-
-
-def _slipped(layout: Layout, objects: dict[str, ObjectPath], sled: ObjectPath | None,
-             recording: Recording, heights: dict[str, float]) -> frozenset[str]:
+def _slipped(states: features.States, body_map: Mapping[str, features.Body]
+             ) -> frozenset[str]:
+    """The pairs across which a contact point moved more than `SLIP_M` (whole paths)."""
     pairs = set()
-    pallet = objects.get("pallet")
-    if pallet is not None:
-        t = pallet.t_s
-        if _moved(_contact_x(pallet, heights["pallet"] / 2, -1, t), _sled_x(t, sled, recording)):
-            pairs.add("sled_pallet")
-    supports = layout.supports()
-    for b, below in zip(layout.bundles, supports, strict=True):
-        upper = objects.get(b.name)
-        if upper is None:
-            continue
-        lowers = ([("pallet", "pallet_bundle")] if b.layer == 1 else
-                  [(layout.bundles[j].name, "bundle_bundle") for j in below])
-        for name, pair in lowers:
-            lower = objects.get(name)
-            if lower is None:
-                continue
-            t = upper.t_s
-            if _moved(_contact_x(upper, heights[b.name] / 2, -1, t),
-                      _contact_x(lower, heights[name] / 2, +1, t)):
-                pairs.add(pair)
+    for name, slip in features.slips(states, body_map).items():
+        if np.max(np.abs(slip)) > SLIP_M:
+            pairs.add("sled_pallet" if name == "pallet" else
+                      "pallet_bundle" if name.startswith("L1") else "bundle_bundle")
     return frozenset(pairs)
 
 
-def replay(obs: Observation, friction: Friction, stiffness_scale: float = 1.0,
-           tension_scale: float = 1.0, settings: SimSettings | None = None
-           ) -> dict[str, np.ndarray] | None:
-    """Simulated displacements of the observed objects at their frame times, or None when the
-    simulation became unphysical."""
+def replay(obs: Observation, friction: Friction, scales: Mapping[str, float] | None = None,
+           settings: SimSettings | None = None) -> dict[str, np.ndarray] | None:
+    """Simulated displacements and rotations (n, 3) of the observed objects at their frame
+    times, from the first one (as `Observation.states`), until the last window's end; None when
+    the simulation became unphysical. `scales` maps `WRAP_SCALES` names to values."""
     layout = obs.load.with_friction(friction).layout()
-    wrap = obs.wrap.scaled(stiffness_scale, tension_scale) if obs.wrap is not None else None
-    trace = run_level(layout, obs.profile, settings or SimSettings(), wrap)
+    wrap = obs.wrap
+    for name, value in (scales or {}).items():
+        wrap = WRAP_SCALES[name](wrap, value) if wrap is not None else None
+    t, a = obs.profile.t_s, obs.profile.accel_mps2
+    keep = t <= obs.end_s + (t[1] - t[0])
+    profile = replace(obs.profile, t_s=t[keep], accel_mps2=a[keep])
+    trace = run_level(layout, profile, replace(settings or SimSettings(), max_rest_wait_s=0.0),
+                      wrap)
     if not trace.valid:
         return None
     index = {name: i for i, name in enumerate(trace.names)}
     out = {}
-    for name, (t, _) in obs.paths.items():
-        xyz = trace.pallet_pos if name == "pallet" else trace.bundle_pos[:, index[name]]
+    for name, (t, _) in obs.states.items():
+        j = index.get(name)
+        pos = trace.pallet_pos if j is None else trace.bundle_pos[:, j]
+        rot = trace.pallet_rot if j is None else trace.bundle_rot[:, j]
+        angle = np.unwrap(np.arctan2(rot[:, 2, 0], rot[:, 0, 0]))
         tau = np.clip(t - obs.profile.t_s[0], 0.0, trace.t_s[-1])
-        xz = np.stack([np.interp(tau, trace.t_s, xyz[:, 0]),
-                       np.interp(tau, trace.t_s, xyz[:, 2])], axis=1)
-        out[name] = xz - xz[0]
+        xza = np.stack([np.interp(tau, trace.t_s, v) for v in (pos[:, 0], pos[:, 2], angle)],
+                       axis=1)
+        out[name] = xza - xza[0]
     return out
 
 
-def residuals(obs: Observation, simulated: dict[str, np.ndarray]) -> np.ndarray:
-    """Simulated minus observed displacement, every object, frame and axis, in one vector."""
-    return np.concatenate([(simulated[name] - disp).ravel()
-                           for name, (_, disp) in obs.paths.items()])
+def resettled(settings: SimSettings, k: int) -> SimSettings:
+    """The settings of the k-th of several replays that are to differ as repeated tests do."""
+    return replace(settings, settle_s=settings.settle_s + k * SETTLE_STEP_S)
+
+
+def residuals(obs: Observation, simulated: Mapping[str, np.ndarray]) -> np.ndarray:
+    """Simulated minus recorded features (`calibration.features`), in one vector."""
+    states = {name: (t, simulated[name]) for name, (t, _) in obs.states.items()}
+    return features.vector(states, obs.bodies, obs.frames) - obs.target

@@ -1,5 +1,5 @@
 """Pictures of a fit for people: the loss against simulations spent, and the fitted against the
-tracked displacements of every object (relative to the sled)."""
+tracked slips of every compared body (`calibration.features`)."""
 
 from __future__ import annotations
 
@@ -14,6 +14,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
+from calibration import features  # noqa: E402
 from calibration.replay import Observation  # noqa: E402
 from wrapenv.config import write_atomic  # noqa: E402
 
@@ -42,18 +43,23 @@ def plot_loss(curve: Sequence[tuple[int, float]], path: str | Path, title: str =
 
 def plot_overlay(observations: Sequence[Observation],
                  fitted: Sequence[dict[str, np.ndarray] | None], path: str | Path) -> None:
-    """One panel per recording: tracked (dots) and fitted (lines) x displacement relative to
-    the sled of every object."""
+    """One panel per recording: the tracked (dots) and one fitted replay's (lines) slip of every
+    compared body across its contact, over the frames the bench can predict."""
     n = len(observations)
     fig, axes = plt.subplots(n, 1, figsize=(9, 3.0 * n + 0.4), squeeze=False)
     for ax, obs, sim in zip(axes[:, 0], observations, fitted, strict=True):
-        for k, (name, (t, disp)) in enumerate(obs.paths.items()):
+        tracked = features.slips(obs.states, obs.bodies)
+        replayed = (features.slips({k: (t, sim[k]) for k, (t, _) in obs.states.items()},
+                                   obs.bodies) if sim is not None else {})
+        for k, (name, frames) in enumerate(sorted(obs.frames.items())):
             colour = f"C{k % 10}"
-            ax.plot(t, 1e3 * disp[:, 0], ".", ms=3, color=colour, label=name)
-            if sim is not None:
-                ax.plot(t, 1e3 * sim[name][:, 0], "-", lw=1, color=colour)
-        ax.set_title(f"{Path(obs.source).name}: tracked (dots), fitted (lines)", fontsize=9)
-        ax.set_ylabel("x relative to sled [mm]")
+            t = obs.states[name][0][:frames]
+            ax.plot(t, 1e3 * tracked[name][:frames], ".", ms=3, color=colour, label=name)
+            if name in replayed:
+                ax.plot(t, 1e3 * replayed[name][:frames], "-", lw=1, color=colour)
+        ax.set_title(f"{Path(obs.source).name}: tracked (dots), one fitted replay (lines)",
+                     fontsize=9)
+        ax.set_ylabel("slip on its support [mm]")
         ax.legend(fontsize=6, ncol=6)
     axes[-1, 0].set_xlabel("time [s]")
     _save(fig, path)

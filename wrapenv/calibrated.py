@@ -8,6 +8,12 @@ from pathlib import Path
 from wrapenv.config import InputError, Table, read_json
 from wrapenv.load import PAIRS, FrictionPair, LoadUnit
 
+#: CAL.json's keys beside `friction` and `wrap`: the fit's diagnostics (residual, the replays'
+#: own scatter, one replay's residual, simulations, method), advice on further tests, and the
+#: prediction errors on recordings that were not fitted (`calibrate --validate`).
+DIAGNOSTICS = ("residual_rms_m", "spread_rms_m", "replay_rms_m", "simulations", "method",
+               "advice", "validation")
+
 
 @dataclass(frozen=True)
 class CalibratedPair:
@@ -30,6 +36,10 @@ class Calibration:
     #: uncertain it is: a wrap-stage parameter like the web's stiffness.
     give_scale: float = 1.0
     give_scale_std: float = 0.0
+
+    def wrap_scales(self) -> dict[str, float]:
+        """The wrap's scales by the names `calibration.replay.WRAP_SCALES` applies them by."""
+        return {"stiffness": self.stiffness_scale, "tension": self.tension_scale}
 
     def apply(self, load: LoadUnit) -> LoadUnit:
         """The load with its friction replaced by the calibrated pairs and its give scaled."""
@@ -80,7 +90,8 @@ class Calibration:
                 wrap.number("tension_scale_std", 0.0, minimum=0.0))
         give = _give(wrap)
         wrap.done()
-        top.ignore("residual_rms_m", "simulations", "method")  # fit diagnostics, informative
+        # how the fit went and how it was checked: for people, the bench does not need them
+        top.ignore(*DIAGNOSTICS)
         top.done()
         return cls(pairs, stiffness, tension, *stds, *give)
 

@@ -111,7 +111,7 @@ def test_calibrate_writes_cal_json_that_simulate_accepts(slide_dir, tmp_path, ca
     assert "pallet_bundle" in capsys.readouterr().out
     data = json.loads(cal.read_text())
     assert set(data) >= {"friction", "wrap", "residual_rms_m", "simulations", "method"}
-    assert data["simulations"] <= 30 and data["method"] == "cmaes"
+    assert data["simulations"] <= 30 and data["method"] == "surrogate"
     assert data["friction"]["pallet_bundle"]["identified"] is True
     assert data["friction"]["sled_pallet"]["identified"] is False
     assert (tmp_path / "cal-loss.png").read_bytes()[:4] == b"\x89PNG"
@@ -229,3 +229,50 @@ def test_printed_paths_cannot_drive_the_terminal(recording_dir, tmp_path, capsys
     assert main(["track", str(rec)]) == 0
     out = capsys.readouterr().out
     assert "\x1b" not in out and "rec\\x1b[2J" in out
+@pytest.fixture(scope="module")
+def slide_at_05(slide_dir, tmp_path_factory) -> Path:
+    """The sliding unit at 0.5 g with the same hidden friction (same seed and jitter)."""
+    from calibration.synth import synthesize
+
+    out = tmp_path_factory.mktemp("synth") / "slide05"
+    synthesize(LoadUnit.from_toml(slide_dir / "load.toml"), out, level_g=0.5, seed=7,
+               size=(480, 300), friction_jitter=0.1)
+    return out
+
+
+def test_calibrate_validates_on_a_recording_it_was_not_fitted_to(slide_dir, slide_at_05,
+                                                                 tmp_path, capsys):
+    cal = tmp_path / "cal.json"
+    assert main(["calibrate", str(slide_dir), "--out", str(cal), "--budget", "40",
+                 "--validate", str(slide_at_05)]) == 0
+    out = capsys.readouterr().out
+    assert f"validation {slide_at_05}" in out
+    data = json.loads(cal.read_text())
+    (check,) = data["validation"]
+    assert check["recording"] == str(slide_at_05) and check["replays"] == 4
+    assert set(check["objects"]) == {"pallet", "L1C1R1", "L1C2R1"}
+    slide = check["objects"]["L1C1R1"]
+    assert slide["recorded_m"] < -0.05                    # the bundle slid backwards
+    assert abs(slide["error_pct"]) < 30
+    layer = check["largest_layer_slide"]
+    assert layer["layer"] == 1 and layer == check["layers"]["1"] | {"layer": 1}
+    assert layer["recorded_m"] == pytest.approx(
+        (slide["recorded_m"] + check["objects"]["L1C2R1"]["recorded_m"]) / 2)
+    assert Calibration.from_json(cal).friction["pallet_bundle"].identified
+
+
+def test_calibrate_refuses_to_validate_on_a_fitted_recording(slide_dir, tmp_path, capsys):
+    cal = tmp_path / "cal.json"
+    assert main(["calibrate", str(slide_dir), "--out", str(cal),
+                 "--validate", str(slide_dir)]) == 2
+    _one_line_error(capsys, "--validate", "also fitted")
+    assert not cal.exists()
+
+
+def test_calibrate_refuses_to_validate_on_another_load(slide_dir, recording_dir, tmp_path,
+                                                       capsys):
+    cal = tmp_path / "cal.json"
+    assert main(["calibrate", str(slide_dir), "--out", str(cal),
+                 "--validate", str(recording_dir)]) == 2
+    _one_line_error(capsys, "load.toml", "different load unit")
+    assert not cal.exists()

@@ -1,0 +1,130 @@
+"""What of a tracked test the bench can predict, as one vector a fit compares.
+
+Per observed body two paths, both in metres and relative to the first frame:
+- its slip: the bottom centre of the body against the top centre of what it rests on (the
+  pallet against the sled, a first-layer bundle against the pallet, a bundle against the
+  bundles below it that are seen), rotations included, so a column that tips does not slip;
+- its turn: how far its rotation moves that contact point, (h / 2) x angle.
+Slips isolate one contact pair each (the source paper compares the load with the sled, the
+first layer with the pallet, the second with the first), so an error in one pair does not
+leak into the paths of every body above it.
+
+A body's path is predictable only while the body stands on what it stood on: each body's
+window ends at the first frame where its centre has slid past the edge of its support, it has
+turned past the angle at which it tips over (atan(length / height)), it has dropped by more than
+`FALL_M`, or its support's window has ended; and every window ends `AFTER_STOP_S` after the
+sled stopped (what follows is the unit at rest, or a fallen body rolling). Windows are read off
+the recording and applied to the replay alike. Within them, slips and turns are clipped at those
+same limits: a replay in which a body falls off counts as "past the edge", not as metres of
+error, so one body that falls in one run and not in another cannot dominate a loss.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+import numpy as np
+
+from wrapenv.load import Layout
+
+#: A body whose centre dropped more than this has lost its support (fallen, or falling).
+FALL_M = 0.02
+#: Windows end this long after the sled stopped.
+AFTER_STOP_S = 0.25
+#: Standard deviation of a tracked position (the tracker's accuracy on the issue's recordings).
+TRACK_NOISE_M = 0.002
+
+#: object -> (frame times (n,), x and z displacement relative to the sled and angle (n, 3))
+States = Mapping[str, tuple[np.ndarray, np.ndarray]]
+
+
+@dataclass(frozen=True)
+class Body:
+    """What the features need to know of one observed body."""
+
+    length_m: float     # along x
+    height_m: float
+    #: the observed bodies it rests on, with their heights; () for the pallet (on the sled)
+    supports: tuple[tuple[str, float], ...]
+
+    @property
+    def tip_rad(self) -> float:
+        """The angle at which its centre passes over its bottom edge."""
+        return math.atan2(self.length_m, self.height_m)
+
+
+def bodies(layout: Layout, observed: set[str]) -> dict[str, Body]:
+    """The observed bodies of a layout that can be compared: the pallet, and bundles whose
+    support is observed (a bundle of an upper layer whose supports are all hidden is not)."""
+    out = {}
+    if "pallet" in observed:
+        px, _, pz = layout.pallet_size_m
+        out["pallet"] = Body(px, pz, ())
+    for b, below in zip(layout.bundles, layout.supports(), strict=True):
+        if b.name not in observed:
+            continue
+        under = ((("pallet", layout.pallet_size_m[2]),) if b.layer == 1 else
+                 tuple((layout.bundles[j].name, layout.bundles[j].size_m[2]) for j in below))
+        seen = tuple((n, h) for n, h in under if n in observed)
+        if seen:
+            out[b.name] = Body(b.size_m[0], b.size_m[2], seen)
+    return out
+
+
+def _edge_x(t: np.ndarray, path: tuple[np.ndarray, np.ndarray], height_m: float,
+            side: int) -> np.ndarray:
+    """x of a body's bottom (side -1) or top (+1) centre at times t."""
+    ts, xza = path
+    x = xza[:, 0] - side * height_m / 2 * np.sin(xza[:, 2])
+    return np.interp(t, ts, x)
+
+
+def slips(states: States, body_map: Mapping[str, Body]) -> dict[str, np.ndarray]:
+    """Each body's slip across its contact (metres, zero at its first frame)."""
+    out = {}
+    for name, body in body_map.items():
+        t = states[name][0]
+        bottom = _edge_x(t, states[name], body.height_m, -1)
+        if body.supports:
+            tops = [_edge_x(t, states[s], h, +1) for s, h in body.supports]
+            slip = bottom - np.mean(tops, axis=0)
+        else:
+            slip = bottom          # the pallet: its states are relative to the sled already
+        out[name] = slip - slip[0]
+    return out
+
+
+def windows(states: States, body_map: Mapping[str, Body], sled_stop_s: float
+            ) -> dict[str, int]:
+    """How many leading frames of each body's path the bench can predict (see the module
+    docstring); read off the recording."""
+    slip = slips(states, body_map)
+    end_s: dict[str, float] = {}
+    # supports first: the pallet, then layer by layer
+    for name in sorted(body_map, key=lambda n: (n != "pallet", n)):
+        body = body_map[name]
+        t, xza = states[name]
+        lost = ((np.abs(slip[name]) > body.length_m / 2)
+                | (np.abs(xza[:, 2] - xza[0, 2]) > body.tip_rad)
+                | (xza[:, 1] - xza[0, 1] < -FALL_M)
+                | (t > sled_stop_s + AFTER_STOP_S))
+        end = float(t[np.argmax(lost)]) if lost.any() else math.inf
+        end_s[name] = min([end] + [end_s.get(s, math.inf) for s, _ in body.supports])
+    return {name: int(np.sum(states[name][0] < end_s[name])) for name in body_map}
+
+
+def vector(states: States, body_map: Mapping[str, Body], frames: Mapping[str, int]
+           ) -> np.ndarray:
+    """The features of one run: per body (sorted by name) its clipped slip, then its clipped
+    turn, over its window."""
+    slip = slips(states, body_map)
+    parts = []
+    for name in sorted(frames):
+        body, k = body_map[name], frames[name]
+        angle = states[name][1][:k, 2] - states[name][1][0, 2]
+        parts.append(np.clip(slip[name][:k], -body.length_m / 2, body.length_m / 2))
+        parts.append(body.height_m / 2 * np.clip(angle, -body.tip_rad, body.tip_rad))
+    return np.concatenate(parts) if parts else np.zeros(0)
+

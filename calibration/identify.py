@@ -1,0 +1,114 @@
+"""What recordings can and cannot tell about each contact pair, and which test would tell more.
+
+A pair that never slipped cannot be fitted: the most the recordings say is a lower bound of its
+static coefficient, the largest acceleration (in g) it had to transmit. In a stack that bound
+is capped: a pair above one that slipped was only asked as much as the slipping pair's kinetic
+friction passes up, so raising the level does not load it further. The advice names the test
+that would: a higher level where the level is the limit; where a slipping pair shields it, a
+unit without that pair (one layer for pallet-bundle under slipping bundles, a stopped pallet
+for a pallet that slid) or, for the sled-pallet pair of a stopped pallet (only ever loaded by
+the braking), a test without the stopper.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, replace
+
+from calibration.replay import Observation
+from wrapenv.load import PAIRS, Friction, FrictionPair
+
+#: A pair held stuck is set this far above the largest acceleration it had to transmit.
+STUCK_MARGIN = 0.15
+#: Advised levels are rounded up to this step (g) and lie this far above the bound.
+LEVEL_STEP_G, LEVEL_MARGIN_G = 0.05, 0.05
+
+
+@dataclass(frozen=True)
+class Bound:
+    """The largest demand (g) a pair transmitted, and what limited it."""
+
+    demand_g: float
+    #: "level" (the test's acceleration), "braking" (a stopped pallet's sled contact), or the
+    #: slipping pair below whose kinetic friction capped it
+    limited_by: str
+
+
+def pairs_present(observations: Sequence[Observation]) -> tuple[str, ...]:
+    """The contact pairs the recorded loads have (bundle on bundle needs two layers)."""
+    layered = any(o.load.stack.layers > 1 for o in observations)
+    return tuple(p for p in PAIRS if p != "bundle_bundle" or layered)
+
+
+def pair_bounds(observations: Sequence[Observation], fitted: Friction,
+                slipped: frozenset[str]) -> dict[str, Bound]:
+    """Per pair the largest acceleration it had to transmit, backwards under the pulse and
+    forwards when the sled brakes; a stopped pallet is held backwards by the stopper, and a
+    pair above a slipping one was only asked as much as that pair's kinetic friction passes."""
+    bounds = {}
+    for k, name in enumerate(PAIRS):
+        best = Bound(0.0, "level")
+        for obs in observations:
+            back, forward = obs.peak_accel_g
+            stopped = name == "sled_pallet" and obs.load.pallet_stopper
+            demand, why = (forward, "braking") if stopped else (max(back, forward), "level")
+            for below in PAIRS[:k]:
+                if below in slipped and fitted.pair(below).kinetic < demand:
+                    demand, why = fitted.pair(below).kinetic, below
+            if demand > best.demand_g:
+                best = Bound(demand, why)
+        bounds[name] = best
+    return bounds
+
+
+def held_stuck(nominal: Friction, bounds: dict[str, Bound], slipped: frozenset[str]
+               ) -> Friction:
+    """Pairs that never slipped, set where they stick in the replay too."""
+    pairs = {}
+    for name in PAIRS:
+        if name in slipped:
+            continue
+        pair = nominal.pair(name)
+        static = max(pair.static, bounds[name].demand_g + STUCK_MARGIN)
+        pairs[name] = FrictionPair(static, static * pair.kinetic / pair.static)
+    return replace(nominal, **pairs)
+
+
+def _level_above(g: float) -> float:
+    return math.ceil((g + LEVEL_MARGIN_G) / LEVEL_STEP_G - 1e-9) * LEVEL_STEP_G
+
+
+def advice_unslipped(name: str, bound: Bound) -> str:
+    """The test that would make a pair that never slipped slip."""
+    if bound.limited_by == "braking":
+        return (f"never slipped: the stopper held the pallet, only the braking loaded it "
+                f"({bound.demand_g:.2f} g); test without the pallet stopper at "
+                f"{_level_above(bound.demand_g):.2f} g or more")
+    if bound.limited_by != "level":
+        unit = ("a one-layer unit (bundles on the pallet only)" if name == "pallet_bundle"
+                else "the unit with the pallet stopper")
+        return (f"never slipped: {bound.limited_by} slipped first and passed up at most "
+                f"{bound.demand_g:.2f} g; a higher level does not load it more; test "
+                f"{unit} at {_level_above(bound.demand_g):.2f} g or more")
+    return (f"never slipped up to {bound.demand_g:.2f} g; test at "
+            f"{_level_above(bound.demand_g):.2f} g or more")
+
+
+def advice_static(name: str, observations: Sequence[Observation], std: float) -> str:
+    """For a pair that slipped whose static coefficient the recordings do not resolve."""
+    first = min(o.peak_accel_g[0] for o in observations if name in o.slipped)
+    low = max((o.peak_accel_g[0] for o in observations
+               if name not in o.slipped and o.peak_accel_g[0] < first), default=None)
+    where = f"between {low:.2f} and {first:.2f} g" if low is not None else f"below {first:.2f} g"
+    return (f"static coefficient not resolved (± {std:.3f}): a level {where}, where it "
+            "starts to slip, would bracket it")
+
+
+def advice_scale(name: str, scale: float, std: float) -> str:
+    """For a wrap scale the recordings do not resolve."""
+    why = ("the recorded motion hardly depends on it: where the web is much stiffer than the "
+           "load-side compliance in series with it (paper on shrink-wrapped bundles), that "
+           "compliance decides how far the load moves" if name == "stiffness" else
+           "the recorded motion hardly depends on it")
+    return f"{name} scale not resolved ({scale:.2f} ± {std:.2f}): {why}"

@@ -1,0 +1,134 @@
+"""The fit's parameter space and its objective: points of a unit box become friction pairs and
+wrap scales, and replays of every recording (in parallel) become residual vectors.
+
+Per slipping pair the box holds its static or its kinetic coefficient, and the ratio kinetic /
+static (so kinetic <= static by construction); per wrap scale (`calibration.replay.WRAP_SCALES`)
+the base-2 logarithm of the scale.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Mapping, Sequence
+from concurrent.futures import Executor
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from calibration.replay import Observation, replay, residuals
+from wrapenv.bench import SimSettings
+from wrapenv.load import PAIRS, Friction, FrictionPair
+
+#: Loss given to a candidate whose simulation became unphysical (m^2: a 1 m residual).
+INVALID_LOSS = 1.0
+
+
+@dataclass(frozen=True)
+class Param:
+    kind: str            # "static", "kinetic", "ratio", or a wrap scale ("stiffness", ...)
+    pair: str = ""
+    low: float = 0.0
+    high: float = 1.0
+
+    @property
+    def is_scale(self) -> bool:
+        return self.kind not in ("static", "kinetic", "ratio")
+
+    def value(self, u: float) -> float:
+        v = self.low + (self.high - self.low) * float(np.clip(u, 0.0, 1.0))
+        return 2.0**v if self.is_scale else v
+
+    def unit(self, value: float) -> float:
+        v = math.log2(value) if self.is_scale else value
+        return float(np.clip((v - self.low) / (self.high - self.low), 0.0, 1.0))
+
+
+@dataclass(frozen=True)
+class Model:
+    """How a point of the unit box becomes the bench's friction and wrap scales."""
+
+    params: tuple[Param, ...]
+    base: Friction                  # values of the pairs not fitted
+    scales: Mapping[str, float] = field(default_factory=dict)   # scales not fitted
+
+    def decode(self, u: np.ndarray) -> tuple[Friction, dict[str, float]]:
+        values = {(p.kind, p.pair): p.value(x) for p, x in zip(self.params, u, strict=True)}
+        pairs = {}
+        for name in PAIRS:
+            if ("static", name) in values:
+                static = values["static", name]
+                pairs[name] = FrictionPair(static, static * values["ratio", name])
+            elif ("kinetic", name) in values:
+                kinetic = values["kinetic", name]
+                pairs[name] = FrictionPair(kinetic / values["ratio", name], kinetic)
+        scales = dict(self.scales) | {p.kind: values[p.kind, ""] for p in self.params
+                                      if p.is_scale}
+        return replace(self.base, **pairs), scales
+
+    def encode(self, friction: Friction, scales: Mapping[str, float]) -> np.ndarray:
+        out = []
+        for p in self.params:
+            pair = friction.pair(p.pair) if p.pair else None
+            if p.kind == "static" and pair is not None:
+                out.append(p.unit(pair.static))
+            elif p.kind == "kinetic" and pair is not None:
+                out.append(p.unit(pair.kinetic))
+            elif p.kind == "ratio" and pair is not None:
+                out.append(p.unit(pair.kinetic / pair.static))
+            else:
+                out.append(p.unit(scales.get(p.kind, 1.0)))
+        return np.array(out)
+
+
+@dataclass
+class Progress:
+    """Loss history of a fit: (simulations so far, loss of the best point so far)."""
+
+    simulations: int = 0
+    curve: list[tuple[int, float]] = field(default_factory=list)
+    #: told the simulations spent after every batch (a progress bar)
+    listener: Callable[[int], None] | None = None
+    best_u: np.ndarray | None = None
+    best_loss: float = math.inf
+
+    def record(self, us: Sequence[np.ndarray], losses: Sequence[float], sims: int) -> None:
+        self.spend(sims)
+        for u, loss in zip(us, losses, strict=True):
+            if loss < self.best_loss:
+                self.best_u, self.best_loss = np.array(u), loss
+        self.curve.append((self.simulations, self.best_loss))
+
+    def spend(self, sims: int) -> None:
+        self.simulations += sims
+        if self.listener is not None:
+            self.listener(self.simulations)
+
+
+def _replay_task(obs: Observation, friction: Friction, scales: dict[str, float],
+                 sim: SimSettings) -> np.ndarray | None:
+    simulated = replay(obs, friction, scales, sim)
+    return None if simulated is None else residuals(obs, simulated)
+
+
+class Objective:
+    """Residual vectors and losses of points of the unit box, simulated in parallel."""
+
+    def __init__(self, observations: Sequence[Observation], model: Model, pool: Executor,
+                 sim: SimSettings) -> None:
+        self.observations, self.model, self.pool, self.sim = observations, model, pool, sim
+
+    def residuals(self, us: Sequence[np.ndarray]) -> list[np.ndarray | None]:
+        futures = [[self.pool.submit(_replay_task, obs, *self.model.decode(u), self.sim)
+                    for obs in self.observations] for u in us]
+        out: list[np.ndarray | None] = []
+        for fs in futures:
+            parts = [r for r in (f.result() for f in fs) if r is not None]
+            out.append(np.concatenate(parts) if len(parts) == len(fs) else None)
+        return out
+
+    def losses(self, us: Sequence[np.ndarray]) -> list[float]:
+        return [INVALID_LOSS if r is None else float(np.mean(r**2)) for r in self.residuals(us)]
+
+    @property
+    def sims_per_point(self) -> int:
+        return len(self.observations)

@@ -1,0 +1,257 @@
+"""Fit parameters to a bench whose runs are chaotic, through a smooth model of its mean response.
+
+A whole unit near its slip threshold does not repeat itself: whether the third bundle of a row
+slides 70 mm or 2 mm, or the pallet-bundle pair lets go at all, turns on differences far below
+anything a calibration could resolve (replays with the true friction and 0.05 s more settling
+disagree by tens of millimetres). Minimising the loss of single replays then fits that chaos:
+some wrong point reproduces the recording by luck. Instead this module estimates what every
+feature does *on average* as a function of the parameters, and how much it scatters from run to
+run, and fits the recording to the average, weighting each feature by its scatter:
+
+1. Global stage: a space-filling design (Latin hypercube) over the whole unit box, each point
+   replayed once per recording; the `ACCEPT` share of points whose features lie nearest the
+   recording's (rejection sampling) gives the next box: their mean and spread.
+2. Local stages: a design in the box, an emulator per feature fitted by least squares to the
+   replays in the box (`Emulator`); its residuals give each feature's run-to-run scatter s_f
+   (at least the tracker's noise).
+3. The estimate minimises sum_f (emulated residual_f / s_f)^2 over the box (Gauss-Newton with
+   Levenberg damping, several starts): features a bundle's chaos scrambles count little, the
+   ones the parameters decide count a lot.
+4. The next box is centred on the estimate, `BOX_SIGMAS` standard deviations wide (within
+   `SHRINK` of the previous box); the replays inside it are reused.
+
+The covariance is the sandwich A^-1 (J^T W S W J) A^-1 with A = J^T W J, J the emulator's
+Jacobian and S the scatter of the replays about the emulator (so correlated features, such as
+the frames of one sliding bundle, are not counted as independent), inflated by the emulator's
+own uncertainty (its leverage at the estimate), plus the tracker's noise.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from calibration.features import TRACK_NOISE_M
+
+#: Residual function: points of the unit box -> residual vectors (None: unphysical replay).
+Evaluate = Callable[[Sequence[np.ndarray]], list[np.ndarray | None]]
+#: Share of the points spent on the first, global design.
+GLOBAL_SHARE = 0.4
+#: Most stages (one global, the rest local).
+MAX_STAGES = 4
+#: A local box's half-width: this many standard deviations of the estimate, but at least a
+#: quarter of the previous half-width and at most all of it (a value the data hardly resolve
+#: keeps a wide box: a narrow one would only hold noise), never below `MIN_HALF_WIDTH`.
+BOX_SIGMAS = 5.0
+SHRINK = (0.25, 1.0)
+MIN_HALF_WIDTH = 0.03
+#: Share of the global design's points accepted as near the recording.
+ACCEPT = 0.25
+#: Gauss-Newton iterations and starts of the estimate on the emulator.
+ITERATIONS = 30
+STARTS = 4
+
+
+@dataclass(frozen=True)
+class Stage:
+    """One design: its box (centre and half-widths, unit box), the points it added and used,
+    and the estimate with its standard deviations."""
+
+    centre: np.ndarray
+    half_width: np.ndarray
+    added: int
+    used: int
+    estimate: np.ndarray
+    std: np.ndarray
+
+
+@dataclass(frozen=True)
+class SurrogateFit:
+    u: np.ndarray               # the estimate (unit box)
+    cov: np.ndarray             # its covariance (unit box)
+    stages: tuple[Stage, ...]
+    invalid: int                # replays that became unphysical
+
+
+def _basis(z: np.ndarray, order: str) -> np.ndarray:
+    """Regressors of a linear, diagonal quadratic or full quadratic model at points z."""
+    z = np.atleast_2d(z)
+    p = z.shape[1]
+    cols = [np.ones(len(z))] + [z[:, i] for i in range(p)]
+    if order == "diagonal":
+        cols += [z[:, i] ** 2 for i in range(p)]
+    elif order == "full":
+        cols += [z[:, i] * z[:, j] for i in range(p) for j in range(i, p)]
+    return np.stack(cols, axis=1)
+
+
+class Emulator:
+    """Least-squares model of every feature over a box, in coordinates scaled to [-1, 1]:
+    linear, or quadratic without or with cross terms, whichever predicts left-out replays best
+    (leave-one-out residuals, summed over features in units of the linear fit's scatter). In a
+    small box, where chaos swamps the curvature, quadratic terms would only fit the noise (and
+    make the estimate overconfident); in a wide one they carry the response's bend."""
+
+    ORDERS = ("linear", "diagonal", "full")
+
+    def __init__(self, z: np.ndarray, r: np.ndarray) -> None:
+        best = math.inf
+        unit = None
+        for order in self.ORDERS:
+            phi = _basis(z, order)
+            if len(z) < phi.shape[1] + 2:
+                break
+            gram_inv = np.linalg.pinv(phi.T @ phi)
+            coef = gram_inv @ phi.T @ r
+            errors = r - phi @ coef
+            dof = len(z) - phi.shape[1]
+            if unit is None:
+                unit = np.maximum(np.sum(errors**2, axis=0) / dof, TRACK_NOISE_M**2)
+            hat = np.einsum("ij,jk,ik->i", phi, gram_inv, phi)
+            leave_one_out = errors / np.maximum(1.0 - hat, 1e-6)[:, None]
+            press = float(np.sum(leave_one_out**2 / unit))
+            if press < best or order == "linear":
+                best = press
+                self.order, self.gram_inv, self.coef, self.errors, self.dof = (
+                    order, gram_inv, coef, errors, max(1, dof))
+        self.sigma = np.sqrt(np.maximum(np.sum(self.errors**2, axis=0) / self.dof,
+                                        TRACK_NOISE_M**2))
+
+    def basis(self, z: np.ndarray) -> np.ndarray:
+        return _basis(z, self.order)
+
+    def predict(self, z: np.ndarray) -> np.ndarray:
+        return (self.basis(z) @ self.coef)[0]
+
+    def jacobian(self, z: np.ndarray, step: float = 1e-4) -> np.ndarray:
+        eye = np.eye(len(z))
+        return np.stack([(self.predict(z + step * e) - self.predict(z - step * e)) / (2 * step)
+                         for e in eye], axis=1)
+
+    def leverage(self, z: np.ndarray) -> float:
+        phi = self.basis(z)[0]
+        return float(phi @ self.gram_inv @ phi)
+
+
+def _solve(em: Emulator, lo: np.ndarray, hi: np.ndarray, starts: Sequence[np.ndarray]
+           ) -> np.ndarray:
+    """The point of [lo, hi] (scaled coordinates) minimising the weighted emulated residual."""
+    w = 1.0 / em.sigma
+    best, best_cost = starts[0], math.inf
+    for z in starts:
+        z, lam = np.clip(z, lo, hi), 1e-3
+        f = em.predict(z) * w
+        for _ in range(ITERATIONS):
+            j = em.jacobian(z) * w[:, None]
+            a, g = j.T @ j, j.T @ f
+            step = -np.linalg.solve(a + lam * np.diag(np.diag(a) + 1e-12), g)
+            trial = np.clip(z + step, lo, hi)
+            ft = em.predict(trial) * w
+            if ft @ ft < f @ f:
+                z, f, lam = trial, ft, lam / 3
+                if np.max(np.abs(step)) < 1e-6:
+                    break
+            else:
+                lam *= 10
+                if lam > 1e8:
+                    break
+        if f @ f < best_cost:
+            best, best_cost = z, float(f @ f)
+    return best
+
+
+def _covariance(em: Emulator, z: np.ndarray) -> np.ndarray:
+    """Sandwich covariance of the estimate in scaled coordinates (module docstring)."""
+    w = 1.0 / em.sigma**2
+    j = em.jacobian(z)
+    a_inv = np.linalg.pinv(j.T @ (w[:, None] * j))
+    m = j.T @ (w[:, None] * em.errors.T)                # (p, N)
+    scatter = m @ m.T / em.dof * (1.0 + em.leverage(z))
+    noise = TRACK_NOISE_M**2 * j.T @ ((w**2)[:, None] * j)
+    return a_inv @ (scatter + noise) @ a_inv
+
+
+def latin_hypercube(n: int, p: int, rng: np.random.Generator) -> np.ndarray:
+    """n points in [0, 1]^p, one in each of n slices of every coordinate."""
+    cells = np.stack([rng.permutation(n) for _ in range(p)], axis=1)
+    return (cells + rng.random((n, p))) / n
+
+
+def stage_sizes(points: int, p: int) -> list[int]:
+    """How many points each stage adds: `GLOBAL_SHARE` to the first, the rest split evenly
+    between as many local stages as keep each above a diagonal quadratic's coefficients."""
+    smallest = 2 * (1 + 2 * p)
+    first = max(smallest, round(GLOBAL_SHARE * points))
+    rest = points - first
+    local = max(0, min(MAX_STAGES - 1, rest // smallest))
+    if not local:
+        return [points]
+    return [first] + [rest // local + (k < rest % local) for k in range(local)]
+
+
+def surrogate(evaluate: Evaluate, p: int, points: int, seed: int,
+              centre: np.ndarray | None = None) -> SurrogateFit:
+    """Staged emulator fit over the unit box [0, 1]^p with at most `points` replays of every
+    recording (see the module docstring); `centre` is the first box's centre (default: the
+    box's), whose half-width is always the whole box's."""
+    rng = np.random.default_rng(seed)
+    centre = np.full(p, 0.5) if centre is None else np.asarray(centre, float)
+    half = np.full(p, 0.5)
+    us: list[np.ndarray] = []
+    rs: list[np.ndarray] = []
+    invalid = 0
+    stages: list[Stage] = []
+    sizes = stage_sizes(points, p)
+    for k, n in enumerate(sizes):
+        lo, hi = _box(centre, half)
+        design = [lo + (hi - lo) * x for x in latin_hypercube(n, p, rng)]
+        for u, r in zip(design, evaluate(design), strict=True):
+            if r is None:
+                invalid += 1
+            else:
+                us.append(u)
+                rs.append(r)
+        inside = [i for i, u in enumerate(us) if np.all((u >= lo - 1e-12) & (u <= hi + 1e-12))]
+        mid, scale = (lo + hi) / 2, np.maximum((hi - lo) / 2, 1e-9)
+        if k == 0 and len(sizes) > 1:
+            u_hat, std = _accepted(np.array(us), np.array(rs))
+        else:
+            z = (np.array([us[i] for i in inside]) - mid) / scale
+            em = Emulator(z, np.array([rs[i] for i in inside]))
+            starts = [np.zeros(p)] + [z[i] for i in _best(em, z, rs, inside, STARTS - 1)]
+            z_hat = _solve(em, -np.ones(p), np.ones(p), starts)
+            cov = _covariance(em, z_hat) * np.outer(scale, scale)
+            u_hat = mid + scale * z_hat
+            std = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+        stages.append(Stage(mid, scale, n, len(inside), u_hat, std))
+        centre = u_hat
+        half = np.clip(BOX_SIGMAS * std, SHRINK[0] * scale, SHRINK[1] * scale)
+        half = np.maximum(half, MIN_HALF_WIDTH)
+    return SurrogateFit(u_hat, cov, tuple(stages), invalid)
+
+
+def _accepted(us: np.ndarray, rs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The global stage's answer (rejection sampling): mean and standard deviation of the
+    `ACCEPT` share of points whose features lie nearest the recording's, each feature scaled
+    by its spread over the whole design (its median absolute deviation)."""
+    spread = np.maximum(np.median(np.abs(rs - np.median(rs, axis=0)), axis=0), TRACK_NOISE_M)
+    distance = np.sum((rs / spread) ** 2, axis=1)
+    best = us[np.argsort(distance)[:max(2, round(ACCEPT * len(us)))]]
+    return best.mean(axis=0), best.std(axis=0)
+
+
+def _box(centre: np.ndarray, half: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """[centre - half, centre + half], moved (not cut) to lie inside the unit box."""
+    half = np.minimum(half, 0.5)
+    c = np.clip(centre, half, 1.0 - half)
+    return c - half, c + half
+
+
+def _best(em: Emulator, z: np.ndarray, rs: Sequence[np.ndarray], inside: Sequence[int],
+          n: int) -> list[int]:
+    """Indices (into z) of the n replays with the smallest weighted residual."""
+    cost = [float(np.sum((rs[i] / em.sigma) ** 2)) for i in inside]
+    return [int(i) for i in np.argsort(cost)[:n]]

@@ -1,0 +1,113 @@
+"""Prove a calibration on recordings it was not fitted to: replay them with the calibrated
+bench and report, per body, how far the prediction is from what was recorded.
+
+A whole unit near its slip threshold does not repeat itself (`calibration.surrogate`), so one
+replay is one draw: each recording is replayed `REPEATS` times, the unit settling a little
+longer each time (`SETTLE_STEP_S`), as repeated bench tests never start from the same state.
+Per body the prediction is the replays' mean and their standard deviation its spread.
+Compared is each body's slip on its support at the end of the frames the bench can predict
+(`calibration.features`, clipped at the support's edge as the fit's features are), and per layer
+the mean of its bodies' (the pallet is layer 0): a layer's slide, which one bundle's chaos moves
+less than its own. The headline is the layer that slid most in the recording.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from concurrent.futures import Executor
+from dataclasses import asdict, dataclass
+
+import numpy as np
+
+from calibration import features
+from calibration.replay import Observation, replay, resettled
+from wrapenv.bench import SimSettings
+from wrapenv.calibrated import Calibration
+
+REPEATS = 4
+#: Relative errors of slides smaller than this are not reported (noise over noise).
+MIN_SLIDE_M = 0.01
+
+
+@dataclass(frozen=True)
+class Check:
+    """A recorded slide against its prediction (metres)."""
+
+    recorded_m: float
+    predicted_m: float
+    spread_m: float
+
+    @property
+    def error_m(self) -> float:
+        return self.predicted_m - self.recorded_m
+
+    @property
+    def error_pct(self) -> float | None:
+        if abs(self.recorded_m) < MIN_SLIDE_M:
+            return None
+        return 100.0 * self.error_m / abs(self.recorded_m)
+
+    def to_dict(self) -> dict:
+        return asdict(self) | {"error_m": self.error_m, "error_pct": self.error_pct}
+
+
+@dataclass(frozen=True)
+class Validation:
+    source: str
+    replays: int               # replays that stayed physical
+    objects: dict[str, Check]
+    layers: dict[int, Check]
+
+    @property
+    def largest(self) -> tuple[int, Check]:
+        """The layer that slid most in the recording, and its check."""
+        layer = max(self.layers, key=lambda k: abs(self.layers[k].recorded_m))
+        return layer, self.layers[layer]
+
+    def to_dict(self) -> dict:
+        layer, check = self.largest
+        return {"recording": self.source, "replays": self.replays,
+                "largest_layer_slide": {"layer": layer} | check.to_dict(),
+                "layers": {str(k): c.to_dict() for k, c in self.layers.items()},
+                "objects": {name: c.to_dict() for name, c in self.objects.items()}}
+
+
+def _layer(name: str) -> int:
+    return 0 if name == "pallet" else int(name[1:name.index("C")])
+
+
+def _check(recorded: float, predicted: Sequence[float]) -> Check:
+    values = np.array(predicted) if len(predicted) else np.array([np.nan])
+    return Check(recorded, float(values.mean()), float(values.std()))
+
+
+def _final_slips(obs: Observation, states: Mapping[str, tuple[np.ndarray, np.ndarray]]
+                 ) -> dict[str, float]:
+    """Each compared body's slip at the last frame of its window, clipped at its support's
+    edge as the fit's features are."""
+    slips = features.slips(states, obs.bodies)
+    return {name: float(np.clip(slips[name][k - 1], -obs.bodies[name].length_m / 2,
+                                obs.bodies[name].length_m / 2))
+            for name, k in obs.frames.items()}
+
+
+def validate(observations: Sequence[Observation], calibration: Calibration, pool: Executor,
+             sim: SimSettings | None = None, repeats: int = REPEATS) -> list[Validation]:
+    """Replay every observation `repeats` times with the calibrated bench (module docstring)."""
+    sim = sim or SimSettings()
+    runs = [[pool.submit(replay, obs, calibration.apply(obs.load).friction,
+                         calibration.wrap_scales(), resettled(sim, k))
+             for k in range(repeats)] for obs in observations]
+    out = []
+    for obs, futures in zip(observations, runs, strict=True):
+        recorded = _final_slips(obs, obs.states)
+        predicted = [_final_slips(obs, {n: (t, s[n]) for n, (t, _) in obs.states.items()})
+                     for s in (f.result() for f in futures) if s is not None]
+        objects = {name: _check(v, [p[name] for p in predicted]) for name, v in recorded.items()}
+        layers = {}
+        for layer in sorted({_layer(n) for n in recorded}):
+            names = [n for n in recorded if _layer(n) == layer]
+            layers[layer] = _check(float(np.mean([recorded[n] for n in names])),
+                                   [float(np.mean([p[n] for n in names])) for p in predicted])
+        out.append(Validation(obs.source, len(predicted), objects, layers))
+    return out

@@ -1,0 +1,109 @@
+"""What of a tracked test the fit compares: slips across contacts, turns, and the frames the
+bench can predict (a body's path ends where it leaves its support, tips over or falls)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from calibration import features
+from wrapenv.load import LoadUnit
+
+#: 2 columnar layers of 2 x 2 bundles (0.28 x 0.19 x 0.33 m) on a 0.6 x 0.4 x 0.12 m pallet.
+LOAD = {
+    "name": "feature test unit",
+    "pallet": {"length_m": 0.6, "width_m": 0.4, "height_m": 0.12, "mass_kg": 10.0},
+    "bundle": {"length_m": 0.28, "width_m": 0.19, "height_m": 0.33, "mass_kg": 9.3},
+    "stack": {"layers": 2, "pattern": "columnar"},
+}
+SEEN = {"pallet", "L1C1R1", "L1C2R1", "L2C1R1", "L2C2R1"}
+T = np.arange(0.0, 3.0, 0.05)            # 20 fps, 3 s
+H, L = 0.33, 0.28
+
+
+@pytest.fixture(scope="module")
+def body_map():
+    return features.bodies(LoadUnit.from_dict(LOAD).layout(), SEEN)
+
+
+def _still() -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    return {name: (T, np.zeros((len(T), 3))) for name in SEEN}
+
+
+def test_bodies_rest_on_what_is_seen_below_them(body_map):
+    assert body_map["pallet"].supports == ()
+    assert body_map["L1C1R1"].supports == (("pallet", 0.12),)
+    assert body_map["L2C2R1"].supports == (("L1C2R1", H),)
+    assert body_map["L2C1R1"].tip_rad == pytest.approx(math.atan2(L, H))
+    # an upper bundle whose support is hidden (row 2 is not seen) is not compared
+    hidden = features.bodies(LoadUnit.from_dict(LOAD).layout(), SEEN | {"L2C1R2"})
+    assert "L2C1R2" not in hidden
+
+
+def test_a_slip_is_the_motion_across_the_contact_only(body_map):
+    """The lower layer slides 30 mm with the pallet still; the upper bundle rides along: the
+    lower bundle slips 30 mm on the pallet, the upper one not at all on it."""
+    states = _still()
+    ride = np.linspace(0.0, -0.03, len(T))
+    for name in ("L1C1R1", "L2C1R1"):
+        states[name][1][:, 0] = ride
+    slip = features.slips(states, body_map)
+    assert slip["L1C1R1"][-1] == pytest.approx(-0.03)
+    assert np.max(np.abs(slip["L2C1R1"])) < 1e-12
+    assert np.max(np.abs(slip["pallet"])) == 0.0
+
+
+def test_a_body_tipping_about_its_edge_does_not_slip_but_turns(body_map):
+    """A top bundle rotating by a about its rear bottom edge: its centre moves by
+    (L/2)(cos a - 1) - (H/2) sin a, its bottom centre by (L/2)(cos a - 1) only (second order),
+    and its turn feature is (H/2) a."""
+    states = _still()
+    a = np.linspace(0.0, 0.3, len(T))
+    xza = states["L2C1R1"][1]
+    xza[:, 0] = L / 2 * (np.cos(a) - 1) - H / 2 * np.sin(a)
+    xza[:, 2] = a
+    slip = features.slips(states, body_map)["L2C1R1"]
+    assert np.allclose(slip, L / 2 * (np.cos(a) - 1), atol=1e-12)
+    frames = features.windows(states, body_map, sled_stop_s=10.0)
+    vec = features.vector(states, body_map, frames)
+    # blocks in name order: L1C1R1, L1C2R1, L2C1R1 (slip, then turn), ...
+    k = frames["L2C1R1"]
+    start = 2 * (frames["L1C1R1"] + frames["L1C2R1"])
+    assert np.allclose(vec[start + k:start + 2 * k], H / 2 * a[:k])
+
+
+def test_windows_end_where_a_body_leaves_its_support_and_carry_up(body_map):
+    """L1C1R1 slides past half its length at frame 30: its window and that of the bundle on it
+    end there; the other column keeps every frame until 0.25 s after the sled stopped."""
+    states = _still()
+    slide = np.where(np.arange(len(T)) < 30, -0.004 * np.arange(len(T)), -0.2)
+    states["L1C1R1"][1][:, 0] = slide
+    frames = features.windows(states, body_map, sled_stop_s=2.0)
+    first_lost = int(np.argmax(np.abs(slide) > L / 2))
+    assert frames["L1C1R1"] == frames["L2C1R1"] == first_lost
+    assert frames["L1C2R1"] == frames["pallet"] == int(np.sum(T <= 2.0 + features.AFTER_STOP_S))
+
+
+@pytest.mark.parametrize("column, value, limit", [
+    (2, 0.8, "tip"),               # turned past atan(L / H) = 0.70 rad
+    (1, -0.03, "fall"),            # dropped more than FALL_M
+])
+def test_windows_end_where_a_body_tips_over_or_falls(body_map, column, value, limit):
+    states = _still()
+    path = np.where(T < 1.0, 0.0, value)
+    states["L2C2R1"][1][:, column] = path
+    frames = features.windows(states, body_map, sled_stop_s=5.0)
+    assert frames["L2C2R1"] == int(np.sum(T < 1.0))
+    assert frames["L1C2R1"] == len(T)
+
+
+def test_replayed_slips_past_the_edge_are_clipped(body_map):
+    """A replay in which a bundle slides 1 m counts as 'past the edge' (L / 2), not metres."""
+    states = _still()
+    states["L2C2R1"][1][:, 0] = np.linspace(0.0, -1.0, len(T))
+    frames = {name: len(T) for name in body_map}
+    vec = features.vector(states, body_map, frames)
+    assert vec.min() == pytest.approx(-L / 2)
+    assert len(vec) == 2 * len(T) * len(body_map)

@@ -1,0 +1,81 @@
+"""What recordings tell about pairs that never slipped, and which further test would tell more."""
+
+from __future__ import annotations
+
+from types import SimpleNamespace
+
+import pytest
+
+from calibration.identify import (
+    STUCK_MARGIN,
+    Bound,
+    advice_static,
+    advice_unslipped,
+    held_stuck,
+    pair_bounds,
+    pairs_present,
+)
+from wrapenv.load import Friction, FrictionPair
+
+
+def _obs(level_g: float, slipped: set[str], stopper: bool = True, layers: int = 2):
+    """What identify reads of an observation: the pulse's peaks (braking at 0.25 x the level,
+    as the bench's pulse), the pairs seen slipping, the load's stopper and layers."""
+    load = SimpleNamespace(pallet_stopper=stopper, stack=SimpleNamespace(layers=layers))
+    return SimpleNamespace(peak_accel_g=(level_g, 0.25 * level_g), slipped=frozenset(slipped),
+                           load=load)
+
+
+FRICTION = Friction(sled_pallet=FrictionPair(0.45, 0.40),
+                    pallet_bundle=FrictionPair(0.50, 0.42),
+                    bundle_bundle=FrictionPair(0.36, 0.30))
+
+
+def test_a_stopped_pallet_is_loaded_by_the_braking_only():
+    bounds = pair_bounds([_obs(0.35, {"bundle_bundle"}), _obs(0.45, {"bundle_bundle"})],
+                         FRICTION, frozenset({"bundle_bundle"}))
+    assert bounds["sled_pallet"] == Bound(pytest.approx(0.25 * 0.45), "braking")
+    assert bounds["pallet_bundle"] == Bound(0.45, "level")
+
+
+def test_a_pair_above_a_slipping_one_gets_only_its_kinetic_friction():
+    """A free pallet sliding on the sled (kinetic 0.40) passes at most 0.40 g up to the
+    bundles, however high the level."""
+    obs = [_obs(0.6, {"sled_pallet"}, stopper=False)]
+    bounds = pair_bounds(obs, FRICTION, frozenset({"sled_pallet"}))
+    assert bounds["pallet_bundle"] == Bound(0.40, "sled_pallet")
+    assert bounds["bundle_bundle"] == Bound(0.40, "sled_pallet")
+    assert "a higher level does not load it more" in advice_unslipped(
+        "pallet_bundle", bounds["pallet_bundle"])
+
+
+def test_pairs_held_stuck_in_the_replay_sit_above_their_demand():
+    bounds = {"sled_pallet": Bound(0.1, "braking"), "pallet_bundle": Bound(0.45, "level"),
+              "bundle_bundle": Bound(0.45, "level")}
+    held = held_stuck(FRICTION, bounds, frozenset({"bundle_bundle"}))
+    assert held.sled_pallet == FRICTION.sled_pallet          # already above 0.1 + margin
+    assert held.pallet_bundle.static == pytest.approx(0.45 + STUCK_MARGIN)
+    assert held.pallet_bundle.kinetic / held.pallet_bundle.static == pytest.approx(0.42 / 0.50)
+    assert held.bundle_bundle == FRICTION.bundle_bundle      # slipped: fitted, not held
+
+
+@pytest.mark.parametrize("bound, needles", [
+    (Bound(0.1125, "braking"), ["without the pallet stopper", "0.20 g"]),
+    (Bound(0.45, "level"), ["never slipped up to 0.45 g", "test at 0.50 g"]),
+    (Bound(0.30, "bundle_bundle"), ["bundle_bundle slipped first", "one-layer unit", "0.35 g"]),
+])
+def test_advice_names_the_test_that_would_make_a_pair_slip(bound, needles):
+    text = advice_unslipped("pallet_bundle", bound)
+    for needle in needles:
+        assert needle in text, text
+
+
+def test_advice_on_an_unresolved_static_coefficient_brackets_the_first_slip():
+    obs = [_obs(0.30, set()), _obs(0.40, {"bundle_bundle"}), _obs(0.50, {"bundle_bundle"})]
+    assert "between 0.30 and 0.40 g" in advice_static("bundle_bundle", obs, 0.08)
+    assert "below 0.40 g" in advice_static("bundle_bundle", obs[1:], 0.08)
+
+
+def test_a_single_layer_has_no_bundle_on_bundle_pair():
+    assert pairs_present([_obs(0.4, set(), layers=1)]) == ("sled_pallet", "pallet_bundle")
+    assert pairs_present([_obs(0.4, set())])[-1] == "bundle_bundle"
