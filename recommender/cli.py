@@ -126,8 +126,8 @@ def build_parser() -> argparse.ArgumentParser:
                      help="write the recommended program as a WRAP.toml")
     rec.add_argument("--report", type=Path, metavar="DIR",
                      help="write report.html (the one-page report), displacement.png, "
-                          "tension_map.png, search.png and test.mp4/test.webm (the recommended program's test "
-                          "at the target level) into DIR")
+                          "tension_map.png, search.png and test.mp4/test.webm (the "
+                          "recommended program's test at the target level) into DIR")
 
     tr = sub.add_parser("train", help="train a PPO policy on random load units "
                                       "(wrapenv/WrapBenchRandom-v1)")

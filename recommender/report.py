@@ -1,6 +1,7 @@
 """Reports for people: displacement against time with the EUMOS limits drawn, the search's
-material against margin, the wrap's tension map, and a video of a simulated test. Each writes its file and returns what
-the one-page report (recommender/html_report.py) inlines: the PNG, or the video's still."""
+material against margin, the wrap's tension map, and a video of a simulated test. Each writes
+its file and returns what the one-page report (recommender/html_report.py) inlines: the PNG, or
+the video's still."""
 
 from __future__ import annotations
 

@@ -260,7 +260,8 @@ class _Run:
             if self.wrap is not None:
                 x = min(1.0, step / (2 * n / 3))
                 self.wrap.laying(x * x * (3 - 2 * x))
-                self._apply_wrap(*self._state())
+                pos, rot, vel, omega = self._state()
+                self._apply_wrap(pos, rot, vel, omega)
             self.world.step()
         if self.wrap is not None:
             pos, rot, _, _ = self._state()
