@@ -309,7 +309,8 @@ def _summary(result) -> str:
         else:
             lines.append(f"{name:14s}  >= {p.static:.3f}      (never slipped)  no")
     lines.append(f"wrap: stiffness scale {cal.stiffness_scale:.2f} ± {cal.stiffness_scale_std:.2f}"
-                 f", tension scale {cal.tension_scale:.2f} ± {cal.tension_scale_std:.2f}")
+                 f", tension scale {cal.tension_scale:.2f} ± {cal.tension_scale_std:.2f}"
+                 f", load's give scale {cal.give_scale:.2f} ± {cal.give_scale_std:.2f}")
     lines += [f"advice: {name}: {text}" for name, text in result.advice.items()]
     spread = (f" (replays scatter {1e3 * result.spread_rms_m:.2f} mm about their mean)"
               if result.spread_rms_m else "")
