@@ -182,7 +182,8 @@ def add_calibrate(sub: argparse._SubParsersAction) -> None:
                         "cmaes or momentum (the source paper's gradient descent) on single "
                         "replays")
     p.add_argument("--params", choices=PARAMS, default="all",
-                   help="friction, wrap (stiffness and tension scales) or all (default)")
+                   help="friction, wrap (the web's stiffness and tension scales and the "
+                        "load's give) or all (default)")
     p.add_argument("--budget", type=int, default=300, metavar="N",
                    help="most simulations of the fit (default 300)")
     p.add_argument("--workers", type=int, default=os.cpu_count() or 1,
