@@ -10,17 +10,8 @@ from pathlib import Path
 import pytest
 
 from wrapenv.config import InputError
-from wrapenv.load import (
-    MAX_BUNDLES,
-    MAX_LOAD_HEIGHT_M,
-    MAX_PAYLOAD_KG,
-    MIN_BUNDLE_SIDE_M,
-    Bundle,
-    Friction,
-    FrictionPair,
-    LoadUnit,
-    Pallet,
-)
+from wrapenv.load import Bundle, Friction, FrictionPair, LoadUnit, Pallet
+from wrapenv.load_checks import MAX_BUNDLES, MAX_LOAD_HEIGHT_M, MAX_PAYLOAD_KG, MIN_BUNDLE_SIDE_M
 
 EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
 NAME = re.compile(r"^L(\d+)C(\d+)R(\d+)$")
