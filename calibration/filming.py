@@ -35,7 +35,8 @@ FOURCC, JPEG_QUALITY = "MJPG", 100
 
 @dataclass(frozen=True)
 class States:
-    """Poses at the video's frame times, in the sled frame, pallet first; and the sled's x."""
+    """Poses at the video's frame times, in the sled frame, as the state arrays
+    (`wrapenv.scene`: pallet, then bundles); and the sled's x."""
 
     t_s: np.ndarray        # (F,)
     pos: np.ndarray        # (F, moving bodies, 3): the state arrays (`wrapenv.scene`)

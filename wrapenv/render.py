@@ -314,7 +314,7 @@ class Renderer:
 
     def _place(self, pallet_pos: np.ndarray, pallet_rot: np.ndarray, bundle_pos: np.ndarray,
                bundle_rot: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Move the bodies to a state; returns positions (n, 3) and rotations, pallet first."""
+        """Move the bodies to a state; returns it as the state arrays (positions, rotations)."""
         if self.world._client is None:
             raise RuntimeError("the renderer is closed")
         moving = self.scene.moving

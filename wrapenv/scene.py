@@ -38,6 +38,11 @@ SLED, STOPPER, PALLET_NAME = "sled", "stopper", "pallet"
 PALLET = 0
 BUNDLES = slice(1, None)
 
+
+def bundle_row(k: int) -> int:
+    """Row of the layout's bundle k in the state arrays."""
+    return int(BUNDLES.start) + k
+
 SLED_RGBA = (0.35, 0.35, 0.4, 1.0)
 STOPPER_RGBA = (0.2, 0.2, 0.2, 1.0)
 PALLET_RGBA = (0.76, 0.6, 0.4, 1.0)
