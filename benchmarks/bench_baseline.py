@@ -1,7 +1,7 @@
 """The bench against plain PyBullet (issue 15), measured side by side in one run.
 
 Plain PyBullet: the same boxes as the bench (sled deck, stopper, pallet and the 48 bundles of
-examples/pet_3layer_columnar.toml, from `wrapenv.bench.bench_boxes`), each with Bullet's own
+examples/pet_3layer_columnar.toml, from `wrapenv.scene.BenchScene`), each with Bullet's own
 single friction coefficient, chosen once so that the products Bullet forms give each pair its
 static value, and every other dynamics setting PyBullet's default. The same sled pulse as an
 inertial field (0.3 s still, then the 0.5 g pulse), dt 1/240 s, 20 solver iterations, no
@@ -42,10 +42,11 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 import numpy as np  # noqa: E402
 import pybullet as pb  # noqa: E402
 
-from wrapenv.bench import SimSettings, bench_boxes, run_level  # noqa: E402
+from wrapenv.bench import SimSettings, run_level  # noqa: E402
 from wrapenv.bullet import G  # noqa: E402
 from wrapenv.load import Layout, LoadUnit  # noqa: E402
 from wrapenv.profile import PulseProfile  # noqa: E402
+from wrapenv.scene import PALLET_NAME, SLED, BenchScene  # noqa: E402
 from wrapenv.wrap import WrapFormat  # noqa: E402
 
 EXAMPLE = "examples/pet_3layer_columnar.toml"
@@ -55,14 +56,14 @@ ISSUE_SIM_S = 4.5
 SETTLE_S = SimSettings().settle_s
 
 
-def part_coefficients(layout: Layout) -> dict[int, float]:
-    """One coefficient per part (0 sled, 1 pallet, 2 + k bundle k) whose products are the static
-    pair values: bundle-bundle = b², pallet-bundle = p b, sled-pallet = s p."""
-    f = layout.friction
+def part_coefficients(scene: BenchScene) -> dict[int, float]:
+    """One coefficient per part (by world index, `BenchScene.parts`) whose products are the
+    static pair values: bundle-bundle = b², pallet-bundle = p b, sled-pallet = s p."""
+    f = scene.layout.friction
     bundle = f.bundle_bundle.static ** 0.5
     pallet = f.pallet_bundle.static / bundle
-    out = {0: f.sled_pallet.static / pallet, 1: pallet}
-    out.update({2 + k: bundle for k in range(len(layout.bundles))})
+    out = {scene.index(SLED): f.sled_pallet.static / pallet, scene.index(PALLET_NAME): pallet}
+    out.update({scene.index(b.name): bundle for b in scene.layout.bundles})
     return out
 
 
@@ -73,14 +74,15 @@ def plain_pybullet(layout: Layout, profile: PulseProfile, sim_s: float,
     try:
         pb.setTimeStep(timestep_s, physicsClientId=client)
         pb.setPhysicsEngineParameter(numSolverIterations=iterations, physicsClientId=client)
-        mu = part_coefficients(layout)
-        for box in bench_boxes(layout):
+        scene = BenchScene(layout)
+        mu = part_coefficients(scene)
+        for box, part in zip(scene.bodies, scene.parts.tolist(), strict=True):
             half = [s / 2 for s in box.size_m]
             shape = pb.createCollisionShape(pb.GEOM_BOX, halfExtents=half,
                                             physicsClientId=client)
-            body = pb.createMultiBody(box.mass_kg, shape, basePosition=list(box.centre_m),
+            body = pb.createMultiBody(box.mass_kg, shape, basePosition=list(box.start_centre_m),
                                       physicsClientId=client)
-            pb.changeDynamics(body, -1, lateralFriction=mu[box.part], physicsClientId=client)
+            pb.changeDynamics(body, -1, lateralFriction=mu[part], physicsClientId=client)
         steps = round(sim_s / timestep_s)
         settle = round(SETTLE_S / timestep_s)
         for accel in profile.accel((np.arange(steps) - settle) * timestep_s).tolist():

@@ -18,14 +18,12 @@ import numpy as np
 
 from calibration import textures
 from calibration.camera_setup import MarkerSpec
-from wrapenv.bench import SLED_DECK_M, SLED_MARGIN_M, STOPPER_SIZE_M
 from wrapenv.load import Layout
-from wrapenv.render import Renderer, SideCamera, is_paper
+from wrapenv.render import Renderer, SideCamera
+from wrapenv.scene import BUNDLES, PALLET, PALLET_NAME, SLED, STOPPER, BenchScene, Body
 from wrapenv.wrap import WrapFormat
 from wrapenv.wrap_physics import WrapNet
 
-#: Opacity of the web: paper hides the labels under it, film shows them.
-PAPER_ALPHA, FILM_ALPHA = 0.9, 0.3
 #: Textures are drawn at this many times the camera's scale, then filtered down by the warp.
 TEXTURE_OVERSAMPLING = 2.0
 BLUR_SIGMA_PX = 0.6
@@ -37,11 +35,12 @@ FOURCC, JPEG_QUALITY = "MJPG", 100
 
 @dataclass(frozen=True)
 class States:
-    """Poses at the video's frame times, in the sled frame, pallet first; and the sled's x."""
+    """Poses at the video's frame times, in the sled frame, as the state arrays
+    (`wrapenv.scene`: pallet, then bundles); and the sled's x."""
 
     t_s: np.ndarray        # (F,)
-    pos: np.ndarray        # (F, 1 + n, 3)
-    rot: np.ndarray        # (F, 1 + n, 3, 3)
+    pos: np.ndarray        # (F, moving bodies, 3): the state arrays (`wrapenv.scene`)
+    rot: np.ndarray        # (F, moving bodies, 3, 3)
     sled_x_m: np.ndarray   # (F,)
 
 
@@ -53,8 +52,9 @@ def drawn_size_m(markers: MarkerSpec) -> float:
 
 
 def web_alpha(wrap: WrapFormat) -> float:
-    """How opaque the web is drawn: paper hides the labels under it, film shows them."""
-    return PAPER_ALPHA if is_paper(wrap) else FILM_ALPHA
+    """How opaque the web is drawn: the material card's look (paper hides the labels under
+    it, film shows them)."""
+    return wrap.material.look.recorded_alpha
 
 
 def _face_affine(camera: SideCamera, centre: np.ndarray, rot: np.ndarray, sled_x_m: float,
@@ -104,39 +104,24 @@ class Scene:
                  wrap_net: WrapNet | None, wrap_alpha: float | None) -> None:
         self.layout, self.camera, self.seed, self.markers = layout, camera, seed, markers
         self.wrap_net, self.wrap_alpha = wrap_net, wrap_alpha
-        tpm = TEXTURE_OVERSAMPLING * camera.px_per_m
-        px, py, pz = layout.pallet_size_m
-        deck = (px + 2 * SLED_MARGIN_M, py + 2 * SLED_MARGIN_M, SLED_DECK_M)
-        self.sizes = [deck, layout.pallet_size_m] + [b.size_m for b in layout.bundles]
-        designs: dict[tuple[float, float], np.ndarray] = {}
-        bundle_textures = []
-        for k, b in enumerate(layout.bundles):
-            face = (b.size_m[0], b.size_m[2])
-            if face not in designs:
-                designs[face] = textures.label_design(face, tpm, seed)
-            bundle_textures.append(textures.bundle_texture(designs[face], seed, k))
-        self.textures = [textures.deck_texture((deck[0], deck[2]), tpm, seed),
-                         textures.pallet_texture((px, pz), tpm, seed)] + bundle_textures
-        self.fixed = {0: (np.array([0.0, 0.0, -SLED_DECK_M / 2]), np.eye(3))}
-        if layout.pallet_stopper:
-            t, h = STOPPER_SIZE_M
-            self.sizes.append((t, py, h))
-            self.textures.append(np.full((max(2, round(h * tpm)), max(2, round(t * tpm)), 3), 45,
-                                         np.uint8))
-            self.fixed[len(self.sizes) - 1] = (np.array([-px / 2 - t / 2 - 1e-3, 0, h / 2]),
-                                               np.eye(3))
+        self.scene = scene = BenchScene(layout)
+        self.sizes = [b.size_m for b in scene.bodies]
         # antialiasing: the warp samples at half the texture's resolution
         self.textures = [cv2.GaussianBlur(t, (0, 0), TEXTURE_OVERSAMPLING / 2.5).astype(np.float32)
-                         for t in self.textures]
+                         for t in _textures(scene.bodies, camera.px_per_m, seed)]
+        #: Static bodies (sled, stopper) stand where the scene puts them; the others move.
+        self.fixed = {w: (np.array(b.centre_m), np.eye(3))
+                      for w, b in enumerate(scene.bodies) if not b.moving}
+        #: The row of the state arrays of each moving body (by world index).
+        self.state_row = {int(w): s for s, w in enumerate(scene.moving)}
+        tpm = TEXTURE_OVERSAMPLING * camera.px_per_m
         aruco = markers.aruco()
         size_m = drawn_size_m(markers)
         side = max(aruco.markerSize + 2, round(size_m * tpm))  # its bits and border
         self.marker_images = {p.id: textures.marker_image(aruco, p.id, side).astype(np.float32)
                               for p in markers.placements}
         self.marker_face = size_m * (1 + 2 * round(side * textures.QUIET_ZONE) / side)
-        names = [b.name for b in layout.bundles]
-        self.marker_body = {p.id: 0 if p.object == "sled" else 1 if p.object == "pallet"
-                            else 2 + names.index(p.object) for p in markers.placements}
+        self.marker_body = {p.id: scene.index(p.object) for p in markers.placements}
         self.wall = textures.wall_texture(camera.width, camera.height, seed).astype(np.float32)
         rng = np.random.default_rng([seed, 7])
         self.drift = (rng.uniform(0.5, 1.0), rng.uniform(0, 2 * math.pi))
@@ -149,13 +134,16 @@ class Scene:
         self.renderer.close()
 
     def _pose(self, j: int, pos: np.ndarray, rot: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Centre and rotation (sled frame) of world body j; pos, rot hold pallet and bundles."""
-        return self.fixed[j] if j in self.fixed else (pos[j - 1], rot[j - 1])
+        """Centre and rotation (sled frame) of world body j; pos, rot are the state arrays."""
+        if j in self.fixed:
+            return self.fixed[j]
+        return pos[self.state_row[j]], rot[self.state_row[j]]
 
     def _bodies(self, pos: np.ndarray, rot: np.ndarray, sled_x: float
                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Textured bodies over the wall (float RGB), the shading and the body index mask."""
-        shade, mask = self.renderer.masked_frame(pos[0], rot[0], pos[1:], rot[1:], sled_x)
+        shade, mask = self.renderer.masked_frame(pos[PALLET], rot[PALLET], pos[BUNDLES],
+                                                  rot[BUNDLES], sled_x)
         out = self.wall.copy()
         seen = np.flatnonzero(np.bincount(mask.ravel() + 1)[1:])
         for j in seen:
@@ -233,15 +221,38 @@ class Scene:
         """The front of bundle L1C1R1 (or the first bundle) at rest as the camera sees it,
         unwrapped and without noise: what a template matcher looks for."""
         names = [b.name for b in self.layout.bundles]
-        k = names.index("L1C1R1") if "L1C1R1" in names else 0
+        b = self.layout.bundles[names.index("L1C1R1") if "L1C1R1" in names else 0]
         image, _, _ = self._bodies(s.pos[0], s.rot[0], float(s.sled_x_m[0]))
         image = cv2.GaussianBlur(image, (0, 0), BLUR_SIGMA_PX)
-        b = self.layout.bundles[k]
-        centre = s.pos[0, 1 + k]
+        centre = s.pos[0, self.scene.state_index(b.name)]
         half = np.array([[-1, 0, 1], [1, 0, -1]]) * np.array(b.size_m) / 2
         (ua, va), (ub, vb) = self.camera.project(centre + half, float(s.sled_x_m[0]))
         crop = image[math.ceil(va) + 1:math.floor(vb), math.ceil(ua) + 1:math.floor(ub)]
         return np.clip(np.rint(crop), 0, 255).astype(np.uint8)
+
+
+def _textures(bodies: tuple[Body, ...], px_per_m: float, seed: int) -> list[np.ndarray]:
+    """The print on each body's front face: the sled's deck, the pallet's blocks, a label
+    per bundle (one design per face size, varied per bundle), the stopper's dark steel."""
+    tpm = TEXTURE_OVERSAMPLING * px_per_m
+    designs: dict[tuple[float, float], np.ndarray] = {}
+    out = []
+    k = 0  # bundle number, varying its print
+    for b in bodies:
+        face = (b.size_m[0], b.size_m[2])
+        if b.name == SLED:
+            out.append(textures.deck_texture(face, tpm, seed))
+        elif b.name == PALLET_NAME:
+            out.append(textures.pallet_texture(face, tpm, seed))
+        elif b.name == STOPPER:
+            out.append(np.full((max(2, round(face[1] * tpm)), max(2, round(face[0] * tpm)), 3),
+                               45, np.uint8))
+        else:
+            if face not in designs:
+                designs[face] = textures.label_design(face, tpm, seed)
+            out.append(textures.bundle_texture(designs[face], seed, k))
+            k += 1
+    return out
 
 
 def write_video(path: Path, frames: Iterable[np.ndarray], fps: float, size: tuple[int, int]

@@ -36,11 +36,12 @@ from calibration.recording import (
     write_profile,
     write_truth,
 )
-from wrapenv.bench import SLED_DECK_M, STOPPER_SIZE_M, SimSettings, run_level
+from wrapenv.bench import SimSettings, run_level
 from wrapenv.config import InputError, check_output_folder, write_atomic
 from wrapenv.load import PAIRS, Friction, FrictionPair, Layout, LoadUnit
 from wrapenv.profile import PulseProfile
 from wrapenv.render import SideCamera, torn_net
+from wrapenv.scene import PALLET_NAME, SLED, SLED_DECK_M, STOPPER, BenchScene
 from wrapenv.trace import Trace
 from wrapenv.wrap import WrapFormat
 
@@ -235,13 +236,14 @@ def _angle(rot: np.ndarray) -> np.ndarray:
 def _tracks(layout: Layout, s: States) -> dict[str, ObjectTrack]:
     """sled, pallet and the bundles facing the camera (row 1), absolute world coordinates."""
     n = len(s.t_s)
-    tracks = {"sled": ObjectTrack(s.t_s, s.sled_x_m.copy(), np.full(n, -SLED_DECK_M / 2),
-                                  np.zeros(n))}
-    names = ["pallet"] + [b.name for b in layout.bundles]
-    for j, name in enumerate(names):
-        if j == 0 or name.endswith("R1"):
-            tracks[name] = ObjectTrack(s.t_s, s.sled_x_m + s.pos[:, j, 0], s.pos[:, j, 2].copy(),
-                                       _angle(s.rot[:, j]))
+    scene = BenchScene(layout)
+    sled = scene.body(SLED)
+    tracks = {SLED: ObjectTrack(s.t_s, s.sled_x_m.copy(), np.full(n, sled.centre_m[2]),
+                                np.zeros(n))}
+    for name in [PALLET_NAME] + [b.name for b in layout.bundles if b.name.endswith("R1")]:
+        j = scene.state_index(name)
+        tracks[name] = ObjectTrack(s.t_s, s.sled_x_m + s.pos[:, j, 0], s.pos[:, j, 2].copy(),
+                                   _angle(s.rot[:, j]))
     return tracks
 
 
@@ -250,12 +252,12 @@ def _markers(layout: Layout, wrapped: bool, size_m: float) -> MarkerSpec:
     at the front corners of every layer and of the pallet."""
     px = layout.pallet_size_m[0]
     reach = px / 2 + SLED_MARKER_REACH_M
-    placements = [MarkerPlacement(0, "sled", (-reach, 0.0)),
-                  MarkerPlacement(1, "sled", (reach, 0.0))]
+    placements = [MarkerPlacement(0, SLED, (-reach, 0.0)),
+                  MarkerPlacement(1, SLED, (reach, 0.0))]
     if wrapped:
         inset = size_m * (0.5 + textures.QUIET_ZONE) + 0.01
-        placements += [MarkerPlacement(2, "pallet", (-(px / 2 - inset), 0.0)),
-                       MarkerPlacement(3, "pallet", (px / 2 - inset, 0.0))]
+        placements += [MarkerPlacement(2, PALLET_NAME, (-(px / 2 - inset), 0.0)),
+                       MarkerPlacement(3, PALLET_NAME, (px / 2 - inset, 0.0))]
         for layer in sorted({b.layer for b in layout.bundles}):
             front = sorted((b for b in layout.bundles
                             if b.layer == layer and b.name.endswith("R1")),
@@ -274,18 +276,21 @@ def _fit_camera(layout: Layout, s: States, markers: MarkerSpec, size: tuple[int,
                 ) -> SideCamera:
     """The largest whole px_per_m at which the whole test fits the image with margins: every
     box at every frame, the stopper and the sled's markers; the origin centres it."""
-    half = np.array([layout.pallet_size_m] + [b.size_m for b in layout.bundles]) / 2
+    scene = BenchScene(layout)
+    half = np.array([scene.bodies[w].size_m for w in scene.moving.tolist()]) / 2
     signs = np.array([[i, j, k] for i in (-1, 1) for j in (-1, 1) for k in (-1, 1)], float)
     corners = np.einsum("fbij,bcj->fbci", s.rot, half[:, None] * signs[None]) + s.pos[:, :, None]
     xs = [(corners[..., 0] + s.sled_x_m[:, None, None]).ravel()]
-    zs = [corners[..., 2].ravel(), [-SLED_DECK_M]]
+    sled = scene.body(SLED)
+    zs = [corners[..., 2].ravel(), [sled.centre_m[2] - sled.size_m[2] / 2]]
     reach = drawn_size_m(markers) * (0.5 + textures.QUIET_ZONE)
     for p in markers.placements:
-        if p.object == "sled":
+        if p.object == SLED:
             xs.append(s.sled_x_m + p.offset_m[0] - reach)
             xs.append(s.sled_x_m + p.offset_m[0] + reach)
     if layout.pallet_stopper:
-        xs.append(s.sled_x_m - layout.pallet_size_m[0] / 2 - STOPPER_SIZE_M[0] - 1e-3)
+        stopper = scene.body(STOPPER)
+        xs.append(s.sled_x_m + stopper.centre_m[0] - stopper.size_m[0] / 2)
     x = np.concatenate([np.ravel(v) for v in xs])
     z = np.concatenate([np.ravel(v) for v in zs])
     width, height = size

@@ -53,8 +53,8 @@ from calibration.vision.tracking import (
     make_tracker,
 )
 from calibration.vision.video import VideoReader
-from wrapenv.bench import SLED_DECK_M
 from wrapenv.config import InputError
+from wrapenv.scene import SLED_DECK_M
 
 DEFAULT_TRACKER = "ncc+flow"
 

@@ -21,13 +21,11 @@ from wrapenv.friction import WRAPPED_SLIP_SPEED_MPS, WRAPPED_STICK_SPEED_MPS, St
 from wrapenv.load import Layout, LoadUnit
 from wrapenv.profile import Profile, PulseProfile
 from wrapenv.rest import Rest
+from wrapenv.scene import BUNDLES, PALLET, BenchScene
 from wrapenv.trace import Trace, in_pallet_frame
 from wrapenv.wrap import WrapFormat
 from wrapenv.wrap_physics import WrapNet
 
-SLED_MARGIN_M = 2.0          # sled deck beyond the pallet on every side
-SLED_DECK_M = 0.1            # thickness of the sled deck (its top is z = 0)
-STOPPER_SIZE_M = (0.05, 0.08)  # pallet stopper bar: thickness along x, height
 PENETRATION_LIMIT_M = 0.02   # deeper overlap than this means the solver lost the contact
 
 
@@ -93,9 +91,10 @@ def run_level(layout: Layout, profile: Profile, settings: SimSettings = SimSetti
               wrap: WrapFormat | None = None, push: Push | None = None) -> Trace:
     """Simulate one pulse on a freshly stacked (and wrapped) unit until everything rests."""
     with BulletWorld(settings.timestep_s, settings.solver_iterations) as world:
-        stick_slip = (StickSlip(layout) if wrap is None else
-                      StickSlip(layout, WRAPPED_SLIP_SPEED_MPS, WRAPPED_STICK_SPEED_MPS))
-        _build(world, layout, stick_slip.coefficients())
+        scene = BenchScene(layout)
+        stick_slip = (StickSlip(scene) if wrap is None else
+                      StickSlip(scene, WRAPPED_SLIP_SPEED_MPS, WRAPPED_STICK_SPEED_MPS))
+        _build(world, scene, stick_slip.coefficients())
         net = WrapNet(wrap, layout) if wrap is not None else None
         return _Run(world, layout, profile, settings, stick_slip, net, push).execute()
 
@@ -123,44 +122,10 @@ def run_levels(
     return BenchRun(Verdict(layout.load_height_m, tuple(verdicts)), tuple(traces))
 
 
-@dataclass(frozen=True)
-class Box:
-    """One box of the bench world. `part` numbers it as `StickSlip` does (0 sled, 1 pallet,
-    2 + k bundle k): the stopper bar is part of the sled and takes its friction."""
-
-    size_m: tuple[float, float, float]
-    centre_m: tuple[float, float, float]
-    mass_kg: float  # 0: static
-    part: int
-    rgba: tuple[float, float, float, float]
-
-
-def bench_boxes(layout: Layout) -> list[Box]:
-    """Sled deck, pallet, bundles and stopper, in the order the bench adds them."""
-    px, py, pz = layout.pallet_size_m
-    deck = (px + 2 * SLED_MARGIN_M, py + 2 * SLED_MARGIN_M, SLED_DECK_M)
-    out = [Box(deck, (0, 0, -SLED_DECK_M / 2), 0.0, 0, (0.35, 0.35, 0.4, 1)),
-           Box((px, py, pz), (0, 0, pz / 2), layout.pallet_mass_kg, 1, (0.76, 0.6, 0.4, 1))]
-    for k, b in enumerate(layout.bundles):
-        # a hair above the layer below, so nothing starts overlapping; settling closes it
-        z = b.centre_m[2] + 1e-4 * b.layer
-        out.append(Box(b.size_m, (b.centre_m[0], b.centre_m[1], z), b.mass_kg, 2 + k,
-                       (0.2, 0.45, 0.8, 1)))
-    if layout.pallet_stopper:
-        t, h = STOPPER_SIZE_M
-        out.append(Box((t, py, h), (-px / 2 - t / 2 - 1e-3, 0, h / 2), 0.0, 0,
-                       (0.2, 0.2, 0.2, 1)))
-    return out
-
-
-def _build(world: BulletWorld, layout: Layout, mu: np.ndarray) -> None:
-    """Add the bench's boxes with the body coefficients `mu` (indexed by `Box.part`)."""
-    for box in bench_boxes(layout):
-        world.add_box(box.size_m, box.centre_m, box.mass_kg, mu[box.part], rgba=box.rgba)
-
-
-#: The sled's row of the state arrays `StickSlip` takes: at the origin of its own frame, at rest.
-_SLED_STATE = (np.zeros((1, 3)), np.eye(3)[None])
+def _build(world: BulletWorld, scene: BenchScene, mu: np.ndarray) -> None:
+    """Add the scene's bodies with the body coefficients `mu` (indexed by `BenchScene.parts`)."""
+    for body, part in zip(scene.bodies, scene.parts.tolist(), strict=True):
+        world.add_box(body.size_m, body.start_centre_m, body.mass_kg, mu[part], rgba=body.rgba)
 
 
 class _Run:
@@ -171,14 +136,13 @@ class _Run:
                  push: Push | None) -> None:
         self.world, self.layout, self.profile, self.s = world, layout, profile, settings
         self.stick_slip, self.wrap = stick_slip, wrap
+        self.scene = stick_slip.scene
         self.push = None
         if push is not None:
-            names = [b.name for b in layout.bundles]
-            if push.bundle not in names:
+            if push.bundle not in {b.name for b in layout.bundles}:
                 raise ValueError(f"no bundle {push.bundle!r} to push")
-            self.push = (2 + names.index(push.bundle), (*push.force_n, 0.0))
-        self.n_bodies = stick_slip.n_bodies
-        self.dynamic = list(range(1, self.n_bodies))  # pallet and bundles
+            self.push = (self.scene.index(push.bundle), (*push.force_n, 0.0))
+        self.dynamic = self.scene.moving.tolist()  # world indices of the state rows
         dt = settings.timestep_s
         n_steps = int(np.ceil((profile.duration_s + settings.max_rest_wait_s) / dt)) + 2
         # The sled's acceleration at every step, evaluated once instead of inside the step loop.
@@ -202,18 +166,14 @@ class _Run:
         return pos, rotation_matrices(quat), vel, omega
 
     def _update_friction(self, pos, rot, vel, omega) -> None:
-        zero, eye = _SLED_STATE
-        changed = self.stick_slip.update(np.concatenate((zero, pos)), np.concatenate((eye, rot)),
-                                         np.concatenate((zero, vel)), np.concatenate((zero, omega)))
+        changed = self.stick_slip.update_moving(pos, rot, vel, omega)
         if not changed:
             return
         mu = self.stick_slip.coefficients()
-        for index, value in enumerate(mu):
-            self.world.set_friction(index, float(value))
-        if self.layout.pallet_stopper:
-            self.world.set_friction(self.n_bodies, float(mu[0]))  # the stopper is sled
+        for index, part in enumerate(self.scene.parts.tolist()):
+            self.world.set_friction(index, float(mu[part]))
         sliding = self.stick_slip.sliding_bodies()
-        for index in range(self.n_bodies):
+        for index in range(self.scene.n_parts):
             self.world.set_anchored(index, index not in sliding)
         self.world.refresh_contacts(changed)
 
@@ -233,10 +193,10 @@ class _Run:
         displacement past its limit (the elastic figure is the maximum over the run)."""
         if self.wrap is not None and (self.wrap.rings.torn.any() or self.wrap.panels.torn.any()):
             return WRAP_TORN
-        fell = np.flatnonzero(fallen(pos[1:, 2], self.bottom_z))
+        fell = np.flatnonzero(fallen(pos[BUNDLES, 2], self.bottom_z))
         if len(fell):
             return f"{self.layout.bundles[fell[0]].name} fallen"
-        rel = in_pallet_frame(pos[0], rot[0], pos[1:])
+        rel = in_pallet_frame(pos[PALLET], rot[PALLET], pos[BUNDLES])
         if self.reference is None:
             self.reference = rel
         elastic = np.linalg.norm((rel - self.reference)[:, :2], axis=1).max()
@@ -248,8 +208,8 @@ class _Run:
     def _apply_wrap(self, pos, rot, vel, omega, t_s: float | None = None) -> None:
         force, torque = self.wrap.forces(pos, rot, vel, omega, t_s)  # type: ignore[union-attr]
         bodies = np.flatnonzero(np.any(force != 0, axis=1) | np.any(torque != 0, axis=1))
-        # state index j is world index j + 1 (the sled is 0)
-        self.world.apply_wrenches(bodies + 1, pos[bodies], force[bodies], torque[bodies])
+        self.world.apply_wrenches(self.scene.moving[bodies], pos[bodies], force[bodies],
+                                  torque[bodies])
 
     def _settle(self) -> None:
         """Let the stack settle on the still sled; a wrap is laid at its wrapping tension,
@@ -331,10 +291,10 @@ class _Run:
             bottom_z_m=self.bottom_z,
             t_s=np.array(t),
             sled_accel_mps2=np.array(a),
-            pallet_pos=pos_arr[:, 0],
-            pallet_rot=rot_arr[:, 0],
-            bundle_pos=pos_arr[:, 1:],
-            bundle_rot=rot_arr[:, 1:],
+            pallet_pos=pos_arr[:, PALLET],
+            pallet_rot=rot_arr[:, PALLET],
+            bundle_pos=pos_arr[:, BUNDLES],
+            bundle_rot=rot_arr[:, BUNDLES],
             valid=not self.invalid,
             invalid_reason=self.invalid,
             stopped_early=self.stopped_early,

@@ -17,6 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from wrapenv.load import Friction, FrictionPair, Layout
+from wrapenv.scene import PALLET_NAME, SLED, BenchScene
 
 #: A sticking contact starts to slide above this relative speed, and a sliding one sticks again
 #: below `STICK_SPEED_MPS` (hysteresis keeps solver jitter from toggling the state).
@@ -43,15 +44,17 @@ class Contact:
 class StickSlip:
     """Contact states and the body coefficients that realise them.
 
-    Bodies are numbered as the bench adds them: 0 sled, 1 pallet, 2 + k bundle k of the layout.
+    Bodies are the scene's bodies with a coefficient of their own, by world index
+    (`BenchScene.parts`): the sled, the pallet and the bundles.
     """
 
-    def __init__(self, layout: Layout, slip_speed_mps: float = SLIP_SPEED_MPS,
+    def __init__(self, scene: BenchScene | Layout, slip_speed_mps: float = SLIP_SPEED_MPS,
                  stick_speed_mps: float = STICK_SPEED_MPS) -> None:
+        self.scene = scene if isinstance(scene, BenchScene) else BenchScene(scene)
         self.slip_speed_mps, self.stick_speed_mps = slip_speed_mps, stick_speed_mps
-        self.n_bodies = 2 + len(layout.bundles)
-        self.resting = _resting_contacts(layout)
-        side = _side_contacts(layout)
+        self.n_bodies = self.scene.n_parts
+        self.resting = _resting_contacts(self.scene)
+        side = _side_contacts(self.scene)
         a_rest = _incidence(self.resting, self.n_bodies)
         a_side = _incidence(side, self.n_bodies)
         # x = log m = P_rest @ b_rest + P_side @ b_side: meet resting contacts in least squares,
@@ -75,6 +78,10 @@ class StickSlip:
         self._i = np.array([c.body for c in self.resting])
         self._j = np.array([c.other for c in self.resting])
         self._offset = np.array([c.offset_m for c in self.resting])
+        # full state arrays for `update_moving`: the sled's row stays at rest at its origin
+        self._moving = self.scene.moving
+        self._full = (np.zeros((self.n_bodies, 3)), np.repeat(np.eye(3)[None], self.n_bodies, 0),
+                      np.zeros((self.n_bodies, 3)), np.zeros((self.n_bodies, 3)))
 
     def sliding_bodies(self) -> set[int]:
         """Bodies touching a contact that slides now."""
@@ -104,6 +111,15 @@ class StickSlip:
         return sorted(set(i[changed].tolist()) | set(j[changed].tolist()))
 
 
+    def update_moving(self, pos: np.ndarray, rot: np.ndarray, vel: np.ndarray,
+                      omega: np.ndarray) -> list[int]:
+        """`update` from the state arrays of the moving bodies (`BenchScene.moving`), the sled
+        at rest at the origin of its own frame."""
+        for full, moving in zip(self._full, (pos, rot, vel, omega), strict=True):
+            full[self._moving] = moving
+        return self.update(*self._full)
+
+
 def _horizontal_cross(w: np.ndarray, r: np.ndarray) -> np.ndarray:
     """x and y of the row-wise cross products w x r (n, 2): all a contact's sliding needs
     (np.cross is slow on small arrays)."""
@@ -119,19 +135,23 @@ def _incidence(contacts: list[Contact], n: int) -> np.ndarray:
     return a
 
 
-def _resting_contacts(layout: Layout) -> list[Contact]:
+def _resting_contacts(scene: BenchScene) -> list[Contact]:
+    layout = scene.layout
     f: Friction = layout.friction
     pallet_h = layout.pallet_size_m[2]
-    out = [Contact(1, 0, f.sled_pallet, (0.0, 0.0, -pallet_h / 2))]
+    pallet = scene.index(PALLET_NAME)
+    out = [Contact(pallet, scene.index(SLED), f.sled_pallet, (0.0, 0.0, -pallet_h / 2))]
+    bundles = [scene.index(b.name) for b in layout.bundles]
     for k, (b, below) in enumerate(zip(layout.bundles, layout.supports(), strict=True)):
         bottom = (0.0, 0.0, -b.size_m[2] / 2)
         if b.layer == 1:
-            out.append(Contact(2 + k, 1, f.pallet_bundle, bottom))
-        out.extend(Contact(2 + k, 2 + j, f.bundle_bundle, bottom) for j in below)
+            out.append(Contact(bundles[k], pallet, f.pallet_bundle, bottom))
+        out.extend(Contact(bundles[k], bundles[j], f.bundle_bundle, bottom) for j in below)
     return out
 
 
-def _side_contacts(layout: Layout) -> list[Contact]:
+def _side_contacts(scene: BenchScene) -> list[Contact]:
+    layout = scene.layout
     out = []
     bundles = layout.bundles
     for a in range(len(bundles)):
@@ -145,5 +165,6 @@ def _side_contacts(layout: Layout) -> list[Contact]:
             if (gaps[0] < SIDE_CONTACT_GAP_M and gaps[1] < 0) or (
                 gaps[1] < SIDE_CONTACT_GAP_M and gaps[0] < 0
             ):
-                out.append(Contact(2 + a, 2 + b, layout.friction.bundle_bundle, (0.0, 0.0, 0.0)))
+                out.append(Contact(scene.index(p.name), scene.index(q.name),
+                                   layout.friction.bundle_bundle, (0.0, 0.0, 0.0)))
     return out

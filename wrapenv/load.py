@@ -15,15 +15,11 @@ from typing import Any, Literal, cast
 import tomli_w
 
 from wrapenv.config import InputError, Table, read_toml
+from wrapenv.load_checks import BUNDLE_GAP_M, check_unit, fit, footprints_overlap
 
 Pattern = Literal["columnar", "interlocked", "explicit"]
 PATTERNS: tuple[str, ...] = ("columnar", "interlocked", "explicit")
 PAIRS: tuple[str, ...] = ("sled_pallet", "pallet_bundle", "bundle_bundle")
-#: Gap left between neighbouring bundles of a generated pattern, so no two boxes start in contact
-#: sideways (real bundles are stacked touching; 2 mm is below what the EUMOS criteria resolve).
-BUNDLE_GAP_M = 0.002
-#: Largest overhang tolerated when checking that bundles stay on the pallet (rounding of layouts).
-OVERHANG_TOLERANCE_M = 0.001
 
 
 @dataclass(frozen=True)
@@ -140,7 +136,7 @@ class Layout:
             below = [
                 j
                 for j, o in enumerate(self.bundles)
-                if o.layer == b.layer - 1 and _footprints_overlap(b, o)
+                if o.layer == b.layer - 1 and footprints_overlap(b, o)
             ]
             out.append(below)
         return out
@@ -233,7 +229,7 @@ class LoadUnit:
         fixture.done()
         top.done()
         unit = cls(name, pallet, bundle, stack, friction, stopper)
-        _check_geometry(unit, source)
+        check_unit(unit, source)
         return unit
 
 
@@ -310,7 +306,7 @@ def _friction(t: Table) -> Friction:
 
 def _grid(length: float, size: float) -> list[float]:
     """Centres of as many boxes of `size` as fit in `length`, centred, `BUNDLE_GAP_M` apart."""
-    n = int((length + BUNDLE_GAP_M) // (size + BUNDLE_GAP_M))
+    n = fit(length, size)
     pitch = size + BUNDLE_GAP_M
     return [(i - (n - 1) / 2) * pitch for i in range(n)]
 
@@ -336,49 +332,3 @@ def _names(layer: int, xy: list[tuple[float, float]]) -> list[tuple[str, tuple[f
         (f"L{layer}C{cols.index(round(x, 4)) + 1}R{rows.index(round(y, 4)) + 1}", (x, y))
         for x, y in xy
     ]
-
-
-def _footprints_overlap(a: BundlePlacement, b: BundlePlacement, tol: float = 1e-6) -> bool:
-    return all(
-        abs(a.centre_m[k] - b.centre_m[k]) < (a.size_m[k] + b.size_m[k]) / 2 - tol for k in (0, 1)
-    )
-
-
-def _check_geometry(unit: LoadUnit, source: str) -> None:
-    """Reject layouts that no bench could hold: no bundle fits, overhang, overlapping bundles."""
-    p = unit.pallet
-    layout = unit.layout()
-    for layer in range(1, unit.stack.layers + 1):
-        if not any(b.layer == layer for b in layout.bundles):
-            raise InputError(source, "bundle",
-                             f"no bundle fits on layer {layer} of the pallet with this pattern")
-    for b in layout.bundles:
-        over = max(
-            abs(b.centre_m[0]) + b.size_m[0] / 2 - p.length_m / 2,
-            abs(b.centre_m[1]) + b.size_m[1] / 2 - p.width_m / 2,
-        )
-        if over > OVERHANG_TOLERANCE_M:
-            field_name = "stack.positions" if unit.stack.pattern == "explicit" else "bundle"
-            raise InputError(source, field_name,
-                             f"bundle {b.name} overhangs the pallet by {over * 1000:.0f} mm")
-    first = [b for b in layout.bundles if b.layer == 1]
-    for i, a in enumerate(first):
-        for b in first[i + 1:]:
-            if _footprints_overlap(a, b):
-                raise InputError(source, "stack.positions",
-                                 f"bundles {a.name} and {b.name} overlap")
-    for b in layout.bundles:
-        if b.layer > 1 and not _supported(b, layout.bundles):
-            raise InputError(source, "stack.pattern",
-                             f"bundle {b.name} has its centre over no bundle of layer {b.layer - 1}"
-                             " and would fall")
-
-
-def _supported(b: BundlePlacement, bundles: tuple[BundlePlacement, ...]) -> bool:
-    """Whether the centre of `b` lies over a bundle of the layer below (joints count as support)."""
-    reach = BUNDLE_GAP_M + 1e-6
-    return any(
-        o.layer == b.layer - 1
-        and all(abs(b.centre_m[k] - o.centre_m[k]) <= o.size_m[k] / 2 + reach for k in (0, 1))
-        for o in bundles
-    )

@@ -49,6 +49,23 @@ NO_RELAXATION = Relaxation()
 
 
 @dataclass(frozen=True)
+class Look:
+    """How a web is drawn over the bench's frames (docs/materials.md, "The cards' look")."""
+
+    fill_rgb: tuple[int, int, int]
+    line_rgb: tuple[int, int, int]
+    #: Opacity a synthetic recording draws the web with: paper hides the labels under it,
+    #: film shows them (reports draw every web at `wrapenv.render.WRAP_ALPHA`).
+    recorded_alpha: float
+
+
+#: The look of each kind of web: kraft paper light brown and nearly opaque, film light
+#: blue-grey and see-through.
+LOOKS = {"paper": Look((205, 160, 105), (110, 75, 40), 0.9),
+         "film": Look((200, 214, 228), (85, 105, 130), 0.3)}
+
+
+@dataclass(frozen=True)
 class Material:
     """One layer of web as applied: bilinear (elastic, then linear hardening) in tension, MD."""
 
@@ -91,6 +108,11 @@ class Material:
         if self.thickness_m is not None:
             return self.thickness_m
         return self.grammage_kg_m2 / DENSITY_KG_M3[self.kind]
+
+    @property
+    def look(self) -> Look:
+        """How the web is drawn: its kind's look, so a custom card gets it from its `kind`."""
+        return LOOKS[self.kind]
 
     @property
     def clings(self) -> bool:

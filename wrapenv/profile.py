@@ -23,6 +23,9 @@ G = 9.81
 BENCH_MAX_ACCEL_MPS2 = 10.0
 LEVEL_STEP_G = 0.1
 MIN_DWELL_S = 0.3
+#: Longest measured profile accepted [A]: a sled run lasts seconds (a EUMOS pulse about 1 s);
+#: a longer file is most likely in milliseconds, and would be simulated for as many seconds.
+MAX_PROFILE_S = 30.0
 #: The highest level in g, rounded down so that the quoted bound is itself accepted.
 MAX_LEVEL_TEXT = f"{int(BENCH_MAX_ACCEL_MPS2 / G * 1000) / 1000:.3f}"
 
@@ -113,7 +116,7 @@ class MeasuredProfile:
         path = Path(path)
         src = str(path)
         try:
-            with path.open(newline="") as fh:
+            with path.open(newline="", encoding="utf-8-sig") as fh:  # Excel starts with a BOM
                 rows = list(csv.reader(fh))
         except (OSError, UnicodeDecodeError) as exc:
             raise InputError(src, "", f"cannot read file ({exc})") from None
@@ -141,6 +144,9 @@ class MeasuredProfile:
                 raise InputError(src, name, "contains NaN or infinite values")
         if np.any(np.diff(t_arr) <= 0):
             raise InputError(src, "t_s", "must increase strictly")
+        if t_arr[-1] - t_arr[0] > MAX_PROFILE_S:
+            raise InputError(src, "t_s", f"spans {t_arr[-1] - t_arr[0]:g} s, longer than the"
+                             f" {MAX_PROFILE_S:g} s a sled run lasts (times in milliseconds?)")
         if np.max(np.abs(a_arr)) > BENCH_MAX_ACCEL_MPS2 * 2:
             raise InputError(src, "accel_mps2",
                              f"peak {np.max(np.abs(a_arr)):.1f} m/s² is beyond any bench")

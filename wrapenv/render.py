@@ -18,23 +18,17 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from wrapenv.bench import SLED_DECK_M, SLED_MARGIN_M, STOPPER_SIZE_M
 from wrapenv.bullet import BulletWorld
 from wrapenv.load import Layout
+from wrapenv.scene import BUNDLES, PALLET, BenchScene
 from wrapenv.trace import Trace
 from wrapenv.wrap import WrapFormat
 from wrapenv.wrap_physics import WrapNet
 
-SLED_RGBA = (0.35, 0.35, 0.4, 1.0)
-STOPPER_RGBA = (0.2, 0.2, 0.2, 1.0)
-PALLET_RGBA = (0.76, 0.6, 0.4, 1.0)
-#: Two blues in a checkerboard (column + layer): side by side, one colour would merge the fronts
-#: of a row of bundles into one block.
-BUNDLE_RGBA = ((0.2, 0.45, 0.8, 1.0), (0.33, 0.6, 0.92, 1.0))
-#: Fill and line colours (RGB) of the web: kraft paper light brown, film light blue-grey.
-KRAFT_RGB = ((205, 160, 105), (110, 75, 40))
-FILM_RGB = ((200, 214, 228), (85, 105, 130))
+#: Opacity of the web in reports (its colours are the material card's look).
 WRAP_ALPHA = 0.35
+#: Every body's colour in a frame of shading alone (textures are multiplied in).
+WHITE_RGBA = (1.0, 1.0, 1.0, 1.0)
 #: Where neighbouring bands lost the web between them, each band's edge draws back this far, so
 #: the tear is a visible gap even while the bodies still touch.
 TEAR_GAP_M = 0.02
@@ -128,17 +122,11 @@ def quaternions(rot: np.ndarray) -> np.ndarray:
 
 
 def rest_state(layout: Layout) -> tuple[np.ndarray, np.ndarray]:
-    """Body positions (n, 3) and rotations (n, 3, 3), pallet first, of the unit as stacked:
-    the state arrays `WrapNet.nodes` takes, e.g. for a picture of the unit before a test."""
-    pos = np.array([(0.0, 0.0, layout.pallet_size_m[2] / 2)]
-                   + [b.centre_m for b in layout.bundles])
+    """Positions (n, 3) and rotations (n, 3, 3) of the moving bodies as stacked: the state
+    arrays `WrapNet.nodes` takes, e.g. for a picture of the unit before a test."""
+    scene = BenchScene(layout)
+    pos = np.array([scene.bodies[w].centre_m for w in scene.moving.tolist()])
     return pos, np.repeat(np.eye(3)[None], len(pos), axis=0)
-
-
-def is_paper(wrap: WrapFormat) -> bool:
-    """Whether the web is paper (opaque, brown) rather than film (see-through)."""
-    return wrap.material_key == "kraft" or any(
-        word in wrap.material.name.lower() for word in ("kraft", "paper"))
 
 
 def _coverage(net: WrapNet) -> list[tuple[float, float]]:
@@ -165,11 +153,11 @@ class WrapOverlay:
         self.alpha = alpha
         self.net = net
         layout = net.layout
-        pz = layout.pallet_size_m[2]
-        spans = np.array([(0.0, pz)] + [(b.centre_m[2] - b.size_m[2] / 2,
-                                         b.centre_m[2] + b.size_m[2] / 2)
-                                        for b in layout.bundles])
-        rest = net.nodes(*rest_state(layout))
+        rest_pos, rest_rot = rest_state(layout)
+        scene = BenchScene(layout)
+        half = np.array([scene.bodies[w].size_m[2] / 2 for w in scene.moving.tolist()])
+        spans = np.stack([rest_pos[:, 2] - half, rest_pos[:, 2] + half], axis=1)
+        rest = net.nodes(rest_pos, rest_rot)
         self.ring_nodes = [row[row >= 0] for row in net._slots]
         self.bands = self._bands(spans)
         # front corners (-x-y, +x-y) of every ring, for bridges along the face seen by the camera
@@ -188,7 +176,8 @@ class WrapOverlay:
             elements = np.array([e for e, (a, b) in enumerate(net.panel_nodes)
                                  if a in front and b in front], int)
             self.bridges.append((i, elements))
-        self.fill_rgb, self.line_rgb = KRAFT_RGB if is_paper(net.wrap) else FILM_RGB
+        look = net.wrap.material.look
+        self.fill_rgb, self.line_rgb = look.fill_rgb, look.line_rgb
 
     def _bands(self, spans: np.ndarray) -> list[tuple[float, float]]:
         """(bottom, top) of the web each ring stands for: the height of the bodies it runs
@@ -270,6 +259,7 @@ class Renderer:
     def __init__(self, layout: Layout, camera: SideCamera | None = None,
                  colours: bool = True) -> None:
         self.layout = layout
+        self.scene = BenchScene(layout)
         self.camera = camera if camera is not None else SideCamera()
         #: False: every body white, so a frame is the shading alone (textures are multiplied in)
         self.colours = colours
@@ -282,22 +272,10 @@ class Renderer:
             raise
 
     def _build(self) -> None:
-        """Sled deck (0), pallet (1), bundles (2 + k) as the bench lays them out, all static."""
-        layout, world = self.layout, self.world
-        px, py, pz = layout.pallet_size_m
-        deck = (px + 2 * SLED_MARGIN_M, py + 2 * SLED_MARGIN_M, SLED_DECK_M)
-        white = None if self.colours else (1.0, 1.0, 1.0, 1.0)
-        world.add_box(deck, (0, 0, -SLED_DECK_M / 2), 0.0, 0.5, rgba=white or SLED_RGBA)
-        world.add_box((px, py, pz), (0, 0, pz / 2), 0.0, 0.5, rgba=white or PALLET_RGBA)
-        for b in layout.bundles:
-            column = sorted({round(o.centre_m[0], 4) for o in layout.bundles
-                             if o.layer == b.layer}).index(round(b.centre_m[0], 4))
-            world.add_box(b.size_m, b.centre_m, 0.0, 0.5,
-                          rgba=white or BUNDLE_RGBA[(column + b.layer) % 2])
-        if layout.pallet_stopper:
-            t, h = STOPPER_SIZE_M
-            world.add_box((t, py, h), (-px / 2 - t / 2 - 1e-3, 0, h / 2), 0.0, 0.5,
-                          rgba=white or STOPPER_RGBA)
+        """The scene's bodies in world order, all static (frames only move them)."""
+        for body in self.scene.bodies:
+            self.world.add_box(body.size_m, body.centre_m, 0.0, 0.5,
+                               rgba=body.rgba if self.colours else WHITE_RGBA)
 
     def frame(self, pallet_pos: np.ndarray, pallet_rot: np.ndarray, bundle_pos: np.ndarray,
               bundle_rot: np.ndarray, wrap_net: WrapNet | None = None,
@@ -315,8 +293,8 @@ class Renderer:
     def masked_frame(self, pallet_pos: np.ndarray, pallet_rot: np.ndarray,
                      bundle_pos: np.ndarray, bundle_rot: np.ndarray,
                      sled_x_m: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
-        """The frame without the wrap, and per pixel the index of the body seen there (0 sled,
-        1 pallet, 2 + k bundle k, then the stopper; -1 background): where textures go."""
+        """The frame without the wrap, and per pixel the world index of the body seen there
+        (`BenchScene.index`; -1 background): where textures go."""
         self._place(pallet_pos, pallet_rot, bundle_pos, bundle_rot)
         cam = self.camera
         return self.world.camera_image_and_mask(cam.width, cam.height, cam.view_matrix(sled_x_m),
@@ -326,9 +304,9 @@ class Renderer:
                   sled_x_m: float = 0.0, alpha: float = WRAP_ALPHA) -> np.ndarray:
         """`image` with the wrap drawn over it; `pos`, `rot` are the bodies' states, pallet
         first (as `WrapNet.nodes` takes them)."""
-        n = len(self.layout.bundles)
-        if wrap_net.n_bodies != 1 + n:
-            raise ValueError(f"the wrap net has {wrap_net.n_bodies} bodies, the layout {1 + n}")
+        n = len(self.scene.moving)
+        if wrap_net.n_bodies != n:
+            raise ValueError(f"the wrap net has {wrap_net.n_bodies} bodies, the layout {n}")
         if self._overlay is None or self._overlay.net is not wrap_net:
             self._overlay = WrapOverlay(wrap_net)
         self._overlay.alpha = alpha
@@ -336,15 +314,17 @@ class Renderer:
 
     def _place(self, pallet_pos: np.ndarray, pallet_rot: np.ndarray, bundle_pos: np.ndarray,
                bundle_rot: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Move the bodies to a state; returns positions (n, 3) and rotations, pallet first."""
+        """Move the bodies to a state; returns it as the state arrays (positions, rotations)."""
         if self.world._client is None:
             raise RuntimeError("the renderer is closed")
-        n = len(self.layout.bundles)
-        pos = np.vstack([np.reshape(pallet_pos, (1, 3)), np.reshape(bundle_pos, (n, 3))])
-        rot = np.concatenate([np.reshape(pallet_rot, (1, 3, 3)),
-                              np.reshape(bundle_rot, (n, 3, 3))])
-        for j, q in enumerate(quaternions(rot)):
-            self.world.set_pose(1 + j, pos[j], q)
+        moving = self.scene.moving
+        pos, rot = np.empty((len(moving), 3)), np.empty((len(moving), 3, 3))
+        pos[PALLET], rot[PALLET] = np.reshape(pallet_pos, 3), np.reshape(pallet_rot, (3, 3))
+        pos[BUNDLES] = np.reshape(bundle_pos, (-1, 3))
+        rot[BUNDLES] = np.reshape(bundle_rot, (-1, 3, 3))
+        quat = quaternions(rot)
+        for row, w in enumerate(moving.tolist()):
+            self.world.set_pose(w, pos[row], quat[row])
         return pos, rot
 
     def trace_frame(self, trace: Trace, sample_index: int, wrap_net: WrapNet | None = None,

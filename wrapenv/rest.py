@@ -23,6 +23,7 @@ import numpy as np
 
 from wrapenv.bullet import G
 from wrapenv.load import Layout
+from wrapenv.scene import BUNDLES
 
 #: A bundle with none of its axes this close to vertical leans on something, where no tipping
 #: or friction level holds; a box lying flat on any face stands at least as firmly as upright.
@@ -76,10 +77,10 @@ class Rest:
         return self.since
 
     def unchanged_until(self, step: int, rot: np.ndarray, end: int) -> int:
-        """For a unit at rest at `step` (`rot`: rotations, pallet first), the last step up to
+        """For a unit at rest at `step` (`rot`: the state arrays' rotations), the last step up to
         which nothing can change, `end` at the latest: the step before the next change of
         load if this load is quiet and every bundle lies flat on a face, else `step` itself."""
-        flat = bool(np.all(np.abs(rot[1:, 2, :]).max(axis=1) > math.cos(FLAT_RAD)))
+        flat = bool(np.all(np.abs(rot[BUNDLES, 2, :]).max(axis=1) > math.cos(FLAT_RAD)))
         if not (abs(self.accel[step]) < self.quiet_mps2 and flat and step >= self.push_until):
             return step
         change = int(self.changes[np.searchsorted(self.changes, step, "right")])

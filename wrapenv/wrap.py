@@ -26,7 +26,6 @@ from wrapenv.load import Layout
 from wrapenv.material import (
     DEFAULT_TENSION_N,
     MATERIALS,
-    MAX_PRESTRETCH,
     NO_RELAXATION,
     Material,
     check_tension,
@@ -38,15 +37,20 @@ from wrapenv.program import (
     Outline,
     Pass,
     Program,
-    Reinforcement,
     band_passes,
     cycle_time_s,
     layer_map,
     pass_area_m2,
 )
+from wrapenv.program_table import (
+    check_program_fits,
+    machine_from_table,
+    program_from_table,
+    program_to_dict,
+)
 
 __all__ = ["DEFAULT_TENSION_N", "MATERIALS", "Band", "Material", "MaterialUsed", "Program",
-           "WrapFormat"]
+           "WrapFormat", "program_to_dict"]
 
 #: Largest web width accepted; machine webs are 0.5 m, wide paper rolls about 1 m.
 MAX_WEB_WIDTH_M = 2.0
@@ -106,7 +110,7 @@ class WrapFormat:
         top = Table(data, source)
         key, material = _material(top)
         web = top.number("web_width_m", positive=True, maximum=MAX_WEB_WIDTH_M)
-        machine = _machine(top.table("machine"))
+        machine = machine_from_table(top.table("machine"))
         if top.has("program"):
             if top.has("band"):
                 raise top.error("program", "a WRAP.toml holds either [program] or [[band]]s, "
@@ -115,7 +119,7 @@ class WrapFormat:
             top.done()
             if load_height_m is None:
                 raise ValueError("a wrapping program needs the load's height to be laid")
-            _check_program_fits(program, load_height_m, web, source)
+            check_program_fits(program, load_height_m, web, source)
             return cls.from_program(material, web, program, load_height_m, key, machine)
         raw = top.array("band")
         if not raw:
@@ -132,7 +136,7 @@ class WrapFormat:
     def check_fits(self, load_height_m: float, source: str) -> None:
         """Reject bands reaching above the load: there is nothing there to hold the web."""
         if self.program is not None:
-            _check_program_fits(self.program, load_height_m, self.web_width_m, source)
+            check_program_fits(self.program, load_height_m, self.web_width_m, source)
             return
         for i, band in enumerate(self.bands):
             if band.to_m > load_height_m + FIT_TOLERANCE_M:
@@ -299,22 +303,6 @@ def _material(top: Table) -> tuple[str, Material]:
     return key, MATERIALS[key]
 
 
-def _machine(t: Table) -> Machine:
-    default = Machine()
-    machine = Machine(
-        rpm=t.number("rpm", default.rpm, positive=True, maximum=MAX_RPM),
-        carriage_speed_mps=t.number("carriage_speed_mps", default.carriage_speed_mps,
-                                    positive=True, maximum=2.0),
-        handling_s=t.number("handling_s", default.handling_s, minimum=0.0, maximum=3600.0),
-    )
-    t.done()
-    return machine
-
-
-#: Fastest rotation accepted: rotary-arm and ring wrappers reach a few tens of rpm.
-MAX_RPM = 100.0
-
-
 def _band(t: Table, material: Material, web_width_m: float) -> Band:
     from_m = t.number("from_m", minimum=0.0)
     to_m = t.number("to_m")
@@ -324,86 +312,3 @@ def _band(t: Table, material: Material, web_width_m: float) -> Band:
     tension = check_tension(t, "tension_n", material, web_width_m)
     t.done()
     return Band(from_m, to_m, layers, tension)
-
-
-def _check_program_fits(program: Program, load_height_m: float, web_width_m: float,
-                        source: str) -> None:
-    """Heights a program names must lie on the load."""
-    h = load_height_m
-    if program.bottom_from_m >= h:
-        raise InputError(source, "program.bottom_from_m", f"{program.bottom_from_m} m is not "
-                         f"below the top of the load ({h:.3f} m)")
-    for i, r in enumerate(program.reinforcements):
-        if r.from_m >= h:
-            raise InputError(source, f"program.reinforcement[{i}].from_m",
-                             f"{r.from_m} m is outside the load (0 to {h:.3f} m)")
-
-
-#: Overlaps are fractions of the web; a spiral must rise (< 1), gaps up to a web wide (>= -1).
-MIN_OVERLAP = -1.0
-
-
-def program_from_table(t: Table, material: Material, web_width_m: float) -> Program:
-    """Validate WRAP.toml's [program] table (CONTRACTS.md): wraps, overlaps, tensions, heights
-    that can be checked without the load; `_check_program_fits` does the rest."""
-    film = material.kind == "film"
-    program = Program(
-        bottom_wraps=t.integer("bottom_wraps", minimum=0),
-        bottom_from_m=t.number("bottom_from_m", 0.0, minimum=0.0),
-        bottom_tension_n=check_tension(t, "bottom_tension_n", material, web_width_m),
-        up_overlap=_overlap(t, "up_overlap"),
-        middle_tension_n=check_tension(t, "middle_tension_n", material, web_width_m),
-        top_wraps=t.integer("top_wraps", minimum=0),
-        top_overhang_m=_overhang(t, web_width_m),
-        top_tension_n=check_tension(t, "top_tension_n", material, web_width_m),
-        down_overlap=_overlap(t, "down_overlap") if t.has("down_overlap") else None,
-        rpm=t.number("rpm", positive=True, maximum=MAX_RPM) if t.has("rpm") else None,
-        reinforcements=tuple(
-            _reinforcement(Table(item, t.source, f"{t.field('reinforcement')}[{i}]"), material,
-                           web_width_m)
-            for i, item in enumerate(t.array("reinforcement") if t.has("reinforcement") else [])),
-        roping=t.boolean("roping", False),
-        prestretch=(t.number("prestretch", minimum=0.0, maximum=MAX_PRESTRETCH)
-                    if t.has("prestretch") else None),
-    )
-    if program.roping and not film:
-        raise t.error("roping", f"{material.name} is not roped: only film gathers into a rope")
-    if program.prestretch is not None and material.prestretch is None:
-        raise t.error("prestretch", f"{material.name} is not pre-stretched")
-    t.done()
-    return program
-
-
-def _overlap(t: Table, key: str) -> float:
-    value = t.number(key, minimum=MIN_OVERLAP)
-    if value >= 1.0:
-        raise t.error(key, f"must be < 1: at an overlap of 1 the carriage never rises "
-                      f"(got {value})")
-    return value
-
-
-def _overhang(t: Table, web_width_m: float) -> float:
-    value = t.number("top_overhang_m", 0.05, minimum=0.0)
-    if value >= web_width_m:
-        raise t.error("top_overhang_m", f"must be below the web width ({web_width_m} m): the top "
-                      f"wraps would lay nothing on the load (got {value})")
-    return value
-
-
-def _reinforcement(t: Table, material: Material, web_width_m: float) -> Reinforcement:
-    r = Reinforcement(from_m=t.number("from_m", minimum=0.0),
-                      wraps=t.integer("wraps", minimum=1),
-                      tension_n=check_tension(t, "tension_n", material, web_width_m))
-    t.done()
-    return r
-
-
-def program_to_dict(program: Program) -> dict[str, Any]:
-    """WRAP.toml's [program] table, optional keys only when they are set."""
-    out = {k: v for k, v in asdict(program).items()
-           if k not in ("reinforcements", "roping") and v is not None}
-    if program.roping:
-        out["roping"] = True
-    if program.reinforcements:
-        out["reinforcement"] = [asdict(r) for r in program.reinforcements]
-    return out

@@ -19,6 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from wrapenv.load import Layout
+from wrapenv.scene import bundle_row
 from wrapenv.wrap import WrapFormat
 
 #: Ring heights within a layer of bundles, as fractions of the layer height.
@@ -114,7 +115,7 @@ def _outline_points(members, z: float) -> tuple[list, list[int]]:
         for sx, sy in _CORNER_SIGNS:
             local = (sx * b.size_m[0] / 2, sy * b.size_m[1] / 2, z - b.centre_m[2])
             world = (b.centre_m[0] + local[0], b.centre_m[1] + local[1])
-            edges.append((1 + k, local, world))
+            edges.append((bundle_row(k), local, world))
     xs = [w[0] for _, _, w in edges]
     ys = [w[1] for _, _, w in edges]
     lo, hi = (min(xs), min(ys)), (max(xs), max(ys))

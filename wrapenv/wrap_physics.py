@@ -61,7 +61,7 @@ PALLET_EDGE_RADIUS_M = 0.005
 class WrapNet:
     """The wrap of one load unit, as forces on its bodies.
 
-    Bodies are numbered as the bench's state arrays: 0 the pallet, 1 + k bundle k of the layout.
+    Bodies are numbered as the bench's state arrays (wrapenv.scene: the pallet, then the bundles).
     """
 
     def __init__(self, wrap: WrapFormat, layout: Layout) -> None:

@@ -19,9 +19,9 @@ from calibration.vision.detection import Detection, find_template
 from calibration.vision.markers import baseline_scale, object_pose, scale_warning
 from calibration.vision.roi import ROI_MARGIN_M, PixelMap, predict_roi, unit_extent_m
 from calibration.vision.tracking import Frame
-from wrapenv.bench import SLED_DECK_M
 from wrapenv.config import InputError
 from wrapenv.load import Layout
+from wrapenv.scene import SLED_DECK_M
 
 #: A template match must score this much (TM_CCOEFF_NORMED) to count as a bundle.
 MATCH_THRESHOLD = 0.6

@@ -11,8 +11,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from wrapenv.bench import SLED_DECK_M
 from wrapenv.load import Layout
+from wrapenv.scene import SLED_DECK_M
 
 #: Margin of the region of interest around the unit: bundles slide and tip within it.
 ROI_MARGIN_M = 0.25

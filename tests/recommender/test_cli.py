@@ -76,6 +76,10 @@ BAD_LOADS = {
     "overlapping bundles": (
         {"stack.pattern": "explicit", "stack.positions": [[0.0, 0.0], [0.0, 0.1]]},
         "stack.positions"),
+    # impossible units (issue 17): taller or heavier than a pallet carries, a speck of a bundle
+    "200 layers, 66 m tall": ({"stack.layers": 200}, "stack.layers"),
+    "heavier than a pallet carries": ({"bundle.mass_kg": 50.0}, "bundle.mass_kg"),
+    "a 1e-9 m bundle": ({"bundle.height_m": 1e-9}, "bundle.height_m"),
 }
 
 

@@ -11,6 +11,7 @@ import pytest
 
 from wrapenv.config import InputError
 from wrapenv.load import Bundle, Friction, FrictionPair, LoadUnit, Pallet
+from wrapenv.load_checks import MAX_BUNDLES, MAX_LOAD_HEIGHT_M, MAX_PAYLOAD_KG, MIN_BUNDLE_SIDE_M
 
 EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
 NAME = re.compile(r"^L(\d+)C(\d+)R(\d+)$")
@@ -387,6 +388,16 @@ BAD_LOADS = {
     "nan edge radius": ({"bundle.edge_radius_m": float("nan")}, "bundle.edge_radius_m"),
     "typo in the give": ({"bundle.corner_stifness_n_per_m2": 6e5},
                          "bundle.corner_stifness_n_per_m2"),
+    # impossible units (issue 17): no pallet carries them, or no bench could simulate them
+    "a 1e-9 m bundle": ({"bundle.height_m": 1e-9}, "bundle.height_m"),
+    "1 mm bundles": ({"bundle.length_m": 0.001, "bundle.width_m": 0.001}, "bundle.length_m"),
+    "2 cm bundles": ({"bundle.width_m": 0.02}, "bundle.width_m"),
+    "a million layers": ({"stack.layers": 1_000_000}, "stack.layers"),
+    "200 layers, 66 m": ({"stack.layers": 200}, "stack.layers"),
+    "more bundles than the bench simulates": (
+        {"bundle.length_m": 0.05, "bundle.width_m": 0.05, "bundle.height_m": 0.05,
+         "bundle.mass_kg": 0.1}, "stack.layers"),
+    "heavier than a pallet carries": ({"bundle.mass_kg": 50.0}, "bundle.mass_kg"),
     # An interlocked stack whose turned layer has its outer bundles' centres beyond the
     # outermost columns below: pallet 1.2 m, straight columns of 0.5 m reach x = 0.501 m,
     # turned bundles 0.1 m wide are centred up to x = 0.51 m.
@@ -475,3 +486,44 @@ def test_from_dict_names_its_source_in_errors(assert_input_error):
 def test_to_toml_reads_back_equal_whatever_the_name(name):
     unit = replace(LoadUnit.from_toml(EXAMPLES / "pet_3layer_interlocked.toml"), name=name)
     assert LoadUnit.from_dict(tomllib.loads(unit.to_toml())) == unit
+
+
+# --- impossible units: the limits of docs/materials.md, section 6 -----------------------------
+
+def test_a_unit_too_tall_for_a_trailer_names_the_limit_and_its_source(load_file):
+    # 0.144 m pallet + 9 x 0.33 m = 3.114 m
+    with pytest.raises(InputError, match=r"9 layers make the unit 3\.11 m tall, above the 3\.0 m"
+                                         r" a road trailer takes inside \(European trailers"):
+        LoadUnit.from_toml(load_file({"stack.layers": 9}))
+
+
+def test_a_unit_heavier_than_a_pallet_carries_names_the_limit_and_its_source(load_file):
+    # 2 layers of 16 bundles: 32 x 47 kg = 1504 kg
+    with pytest.raises(InputError, match=r"32 bundles of 47\.0 kg weigh 1504 kg, above the 1500 kg"
+                                         r" a pallet carries \(EPAL Euro pallet"):
+        LoadUnit.from_toml(load_file({"bundle.mass_kg": 47.0}))
+
+
+def test_the_limits_themselves_are_allowed(load_file):
+    """<= each limit passes: exactly 1500 kg of bundles, exactly 3.0 m tall, 5 cm bundles."""
+    heaviest = LoadUnit.from_toml(load_file({"bundle.mass_kg": 1500 / 32}))
+    assert len(heaviest.layout().bundles) * heaviest.bundle.mass_kg == pytest.approx(MAX_PAYLOAD_KG)
+    tallest = LoadUnit.from_toml(load_file({
+        "pallet": {"length_m": 1.2, "width_m": 0.8, "height_m": 0.5, "mass_kg": 25.0},
+        "bundle.height_m": 0.25, "bundle.mass_kg": 1.0, "stack.layers": 10}))
+    assert tallest.load_height_m == MAX_LOAD_HEIGHT_M
+    smallest = LoadUnit.from_toml(load_file({
+        "bundle.length_m": MIN_BUNDLE_SIDE_M, "bundle.width_m": MIN_BUNDLE_SIDE_M,
+        "bundle.height_m": MIN_BUNDLE_SIDE_M, "bundle.mass_kg": 0.1, "stack.layers": 1}))
+    assert len(smallest.layout().bundles) == 23 * 15 <= MAX_BUNDLES
+
+
+def test_the_bundle_count_is_checked_before_any_bundle_is_placed(load_file, monkeypatch):
+    """A million layers are refused from arithmetic alone: no layout is built."""
+    def no_layout(*_args, **_kwargs):
+        raise AssertionError("laid out")
+    monkeypatch.setattr(LoadUnit, "layout", no_layout)
+    path = load_file({"bundle.length_m": 0.05, "bundle.width_m": 0.05, "bundle.height_m": 0.05,
+                      "bundle.mass_kg": 0.01, "stack.layers": 50})
+    with pytest.raises(InputError, match=r"holds 17250 bundles, more than the 500"):
+        LoadUnit.from_toml(path)

@@ -12,6 +12,8 @@ from wrapenv.config import InputError
 from wrapenv.material import (
     DENSITY_KG_M3,
     GLUED_SEAM_FRACTION,
+    LOOKS,
+    MATERIAL_KINDS,
     MATERIALS,
     PAPER_INTERLAYER_FRICTION,
 )
@@ -83,3 +85,17 @@ def test_a_failure_field_out_of_range_is_one_line_naming_file_and_field(
     with pytest.raises(InputError) as info:
         WrapFormat.from_toml(path)
     assert_input_error(info.value, str(path), field)
+
+
+def test_a_card_s_look_is_its_kind_s_so_a_custom_paper_is_drawn_as_paper(wrap_data):
+    """The look travels with the card: named cards by their kind, a custom card by the kind it
+    declares, whatever its name says ("film" named like paper is drawn as film)."""
+    assert set(LOOKS) == set(MATERIAL_KINDS)
+    assert MATERIALS["kraft"].look == LOOKS["paper"] and MATERIALS["lldpe"].look == LOOKS["film"]
+    paper = {"material": {**CUSTOM, "kind": "paper", "name": "brown wrap"}, **LOW_TENSION}
+    film = {"material": {**CUSTOM, "kind": "film", "name": "kraft-coloured paper film"},
+            **LOW_TENSION}
+    assert WrapFormat.from_dict(wrap_data(paper)).material.look == LOOKS["paper"]
+    assert WrapFormat.from_dict(wrap_data(film)).material.look == LOOKS["film"]
+    # paper hides the labels under it in a recording, film shows them
+    assert LOOKS["paper"].recorded_alpha > 0.5 > LOOKS["film"].recorded_alpha

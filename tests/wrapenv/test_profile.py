@@ -230,6 +230,12 @@ def test_profile_csv_time_may_start_later_than_zero(tmp_path):
     assert float(profile.accel(-0.1)) == 0.0
 
 
+def test_profile_csv_saved_by_excel_with_a_byte_order_mark_is_read(tmp_path):
+    path = tmp_path / "profile.csv"
+    path.write_bytes("\ufefft_s,accel_mps2\r\n0,0\r\n0.1,2.0\r\n0.2,0\r\n".encode())
+    assert MeasuredProfile.from_csv(path).accel_mps2.tolist() == [0.0, 2.0, 0.0]
+
+
 def test_profile_csv_blank_lines_are_skipped(tmp_path):
     path = write_csv(tmp_path, "t_s,accel_mps2\n0,0\n\n0.1,1.0\n0.2,0\n\n")
     assert len(MeasuredProfile.from_csv(path).t_s) == 3
@@ -260,6 +266,7 @@ BAD_CSVS = {
     "infinite acceleration": ("t_s,accel_mps2\n0,0\n0.1,inf\n0.2,0\n", "accel_mps2"),
     "no forward acceleration": ("t_s,accel_mps2\n0,0\n0.1,-1\n0.2,0\n", "accel_mps2"),
     "acceleration beyond any bench": ("t_s,accel_mps2\n0,0\n0.1,98.1\n0.2,0\n", "accel_mps2"),
+    "times in milliseconds": ("t_s,accel_mps2\n0,0\n1500,4.9\n3000,0\n", "t_s"),
 }
 
 

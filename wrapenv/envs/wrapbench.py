@@ -27,6 +27,7 @@ from wrapenv.load import PAIRS, PATTERNS, Friction, FrictionPair, Layout, LoadUn
 from wrapenv.material import MATERIALS, Material
 from wrapenv.profile import eumos_levels
 from wrapenv.render import Renderer, fitting_camera, rest_state, torn_net
+from wrapenv.scene import BUNDLES, PALLET
 from wrapenv.trace import Trace
 from wrapenv.wrap import WrapFormat
 
@@ -385,7 +386,7 @@ class WrapBenchEnv(gym.Env):
             self._renderer = Renderer(layout, fitting_camera(layout, *RENDER_SIZE))
         if self._last is None:
             pos, rot = rest_state(layout)
-            return self._renderer.frame(pos[0], rot[0], pos[1:], rot[1:])
+            return self._renderer.frame(pos[PALLET], rot[PALLET], pos[BUNDLES], rot[BUNDLES])
         trace, wrap = self._last
         finite = np.flatnonzero([np.isfinite(trace.pallet_pos[i]).all()
                                  and np.isfinite(trace.bundle_pos[i]).all()

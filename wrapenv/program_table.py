@@ -1,0 +1,113 @@
+"""WRAP.toml's [program] and [machine] tables (CONTRACTS.md): read and checked into
+`wrapenv.program`'s `Program` and `Machine`, and written back.
+
+wrapenv/wrap.py reads the rest of the file (material, web, bands) and calls these.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict
+from typing import Any
+
+from wrapenv.config import InputError, Table
+from wrapenv.material import MAX_PRESTRETCH, Material, check_tension
+from wrapenv.program import Machine, Program, Reinforcement
+
+#: Fastest rotation accepted: rotary-arm and ring wrappers reach a few tens of rpm.
+MAX_RPM = 100.0
+
+
+def machine_from_table(t: Table) -> Machine:
+    """WRAP.toml's [machine] table: the wrapper's speeds and handling time."""
+    default = Machine()
+    machine = Machine(
+        rpm=t.number("rpm", default.rpm, positive=True, maximum=MAX_RPM),
+        carriage_speed_mps=t.number("carriage_speed_mps", default.carriage_speed_mps,
+                                    positive=True, maximum=2.0),
+        handling_s=t.number("handling_s", default.handling_s, minimum=0.0, maximum=3600.0),
+    )
+    t.done()
+    return machine
+
+
+def check_program_fits(program: Program, load_height_m: float, web_width_m: float,
+                       source: str) -> None:
+    """Heights a program names must lie on the load."""
+    h = load_height_m
+    if program.bottom_from_m >= h:
+        raise InputError(source, "program.bottom_from_m", f"{program.bottom_from_m} m is not "
+                         f"below the top of the load ({h:.3f} m)")
+    for i, r in enumerate(program.reinforcements):
+        if r.from_m >= h:
+            raise InputError(source, f"program.reinforcement[{i}].from_m",
+                             f"{r.from_m} m is outside the load (0 to {h:.3f} m)")
+
+
+#: Overlaps are fractions of the web; a spiral must rise (< 1), gaps up to a web wide (>= -1).
+MIN_OVERLAP = -1.0
+
+
+def program_from_table(t: Table, material: Material, web_width_m: float) -> Program:
+    """Validate WRAP.toml's [program] table (CONTRACTS.md): wraps, overlaps, tensions, heights
+    that can be checked without the load; `check_program_fits` does the rest."""
+    film = material.kind == "film"
+    program = Program(
+        bottom_wraps=t.integer("bottom_wraps", minimum=0),
+        bottom_from_m=t.number("bottom_from_m", 0.0, minimum=0.0),
+        bottom_tension_n=check_tension(t, "bottom_tension_n", material, web_width_m),
+        up_overlap=_overlap(t, "up_overlap"),
+        middle_tension_n=check_tension(t, "middle_tension_n", material, web_width_m),
+        top_wraps=t.integer("top_wraps", minimum=0),
+        top_overhang_m=_overhang(t, web_width_m),
+        top_tension_n=check_tension(t, "top_tension_n", material, web_width_m),
+        down_overlap=_overlap(t, "down_overlap") if t.has("down_overlap") else None,
+        rpm=t.number("rpm", positive=True, maximum=MAX_RPM) if t.has("rpm") else None,
+        reinforcements=tuple(
+            _reinforcement(Table(item, t.source, f"{t.field('reinforcement')}[{i}]"), material,
+                           web_width_m)
+            for i, item in enumerate(t.array("reinforcement") if t.has("reinforcement") else [])),
+        roping=t.boolean("roping", False),
+        prestretch=(t.number("prestretch", minimum=0.0, maximum=MAX_PRESTRETCH)
+                    if t.has("prestretch") else None),
+    )
+    if program.roping and not film:
+        raise t.error("roping", f"{material.name} is not roped: only film gathers into a rope")
+    if program.prestretch is not None and material.prestretch is None:
+        raise t.error("prestretch", f"{material.name} is not pre-stretched")
+    t.done()
+    return program
+
+
+def _overlap(t: Table, key: str) -> float:
+    value = t.number(key, minimum=MIN_OVERLAP)
+    if value >= 1.0:
+        raise t.error(key, f"must be < 1: at an overlap of 1 the carriage never rises "
+                      f"(got {value})")
+    return value
+
+
+def _overhang(t: Table, web_width_m: float) -> float:
+    value = t.number("top_overhang_m", 0.05, minimum=0.0)
+    if value >= web_width_m:
+        raise t.error("top_overhang_m", f"must be below the web width ({web_width_m} m): the top "
+                      f"wraps would lay nothing on the load (got {value})")
+    return value
+
+
+def _reinforcement(t: Table, material: Material, web_width_m: float) -> Reinforcement:
+    r = Reinforcement(from_m=t.number("from_m", minimum=0.0),
+                      wraps=t.integer("wraps", minimum=1),
+                      tension_n=check_tension(t, "tension_n", material, web_width_m))
+    t.done()
+    return r
+
+
+def program_to_dict(program: Program) -> dict[str, Any]:
+    """WRAP.toml's [program] table, optional keys only when they are set."""
+    out = {k: v for k, v in asdict(program).items()
+           if k not in ("reinforcements", "roping") and v is not None}
+    if program.roping:
+        out["roping"] = True
+    if program.reinforcements:
+        out["reinforcement"] = [asdict(r) for r in program.reinforcements]
+    return out
