@@ -52,6 +52,7 @@ class Criterion:
     limit: float
     of_height: bool
     strict: bool
+    note: str = ""  # what a reader needs besides the limit
 
     def limit_m(self, load_height_m: float) -> float:
         return self.limit * load_height_m if self.of_height else self.limit
@@ -63,18 +64,30 @@ class Criterion:
     def value(self, level: LevelVerdict) -> float | None:
         return getattr(level, self.figure)
 
-    def describe(self, load_height_m: float) -> str:
-        """The limit as a reader wants it: "<= 40.2 mm (5 % of height)"."""
-        sign = "<" if self.strict else "<="
-        text = f"{sign} {1000 * self.limit_m(load_height_m):.1f} mm"
-        return text + (f" ({100 * self.limit:g} % of height)" if self.of_height else "")
+    def describe(self, load_height_m: float, at_most: str = "<=") -> str:
+        """The limit as a reader wants it: "<= 40.2 mm (5 % of height)" (`at_most`: the sign
+        of <=, "≤" on a page)."""
+        sign = "<" if self.strict else at_most
+        if self.of_height:
+            return (f"{sign} {1000 * self.limit_m(load_height_m):.1f} mm "
+                    f"({100 * self.limit:g} % of height)")
+        return f"{sign} {1000 * self.limit:.0f} mm" + (f" ({self.note})" if self.note else "")
+
+    def figure_text(self, level: LevelVerdict, load_height_m: float) -> str:
+        """The level's figure in mm, and in % of the load height if the limit is."""
+        value = self.value(level)
+        if value is None:
+            return "n/a"
+        pct = f" ({100 * value / load_height_m:.1f} %)" if self.of_height else ""
+        return f"{1000 * value:.1f} mm{pct}"
 
 
 ELASTIC = Criterion("elastic_10pct", "Elastic max", "elastic_max_m", 0.10, True, False)
 PERMANENT = Criterion("permanent_5pct", "Permanent max", "permanent_total_max_m", 0.05, True,
                       False)
 LOW_ZONE = Criterion("low20_4cm", f"Lowest {100 * LOW_ZONE_HEIGHT_M:.0f} cm, permanent",
-                     "permanent_low20_m", 0.04, False, True)
+                     "permanent_low20_m", 0.04, False, True,
+                     f"bundles below {100 * LOW_ZONE_HEIGHT_M:.0f} cm")
 #: EUMOS 40509's figure criteria, in the order tables show them.
 EUMOS_CRITERIA = (ELASTIC, PERMANENT, LOW_ZONE)
 #: The key of the optional limit on the shift between layers (`Limits.layer_shift_fraction`).
