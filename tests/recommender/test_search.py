@@ -291,6 +291,8 @@ def test_a_load_that_passes_long_but_fails_short_gets_a_program_that_passes_both
     (["--target-short", "1.5"], "--target-short"),
     (["--orientation", "long", "--target-short", "0.5"], "--target-short"),
     (["--hours-since-wrapping", "-1"], "--hours-since-wrapping"),
+    (["--target-long", "1.2"], "--target-long"),
+    (["--layer-shift-limit-pct", "0"], "--layer-shift-limit-pct"),
 ])
 def test_bad_orientation_targets_and_hours_exit_2(argv, field, load_file, tmp_path, capsys):
     code = main(["recommend", str(load_file(base=SMALL)), *argv,
