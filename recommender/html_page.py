@@ -204,7 +204,10 @@ def _levels_section(t: OrientationRun) -> str:
             + ["Damage<br><small>limit none</small>", "Pallet slip", "Wrap (peak force)",
                "Result"])
     target = f", target {t.target_g:.2f} g" if t.target_g is not None else ""
-    summary = (f"highest level passed: {_highest(t)}{target}"
+    sequence = ("one unit through the levels, each from where the last left it (permanent: "
+                "since it was put on the sled)" if v.sequence == "cumulative"
+                else "a fresh unit for every level")
+    summary = (f"highest level passed: {_highest(t)}{target}; {sequence}"
                + ("" if v.valid else "; the simulation became unphysical (INVALID rows never "
                                      "pass)"))
     return (f'<section class="levels"><h3>{_t(_side(t))}</h3>'
