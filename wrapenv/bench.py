@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import math
 from collections.abc import Iterable
 from dataclasses import dataclass
@@ -99,16 +100,12 @@ def run_level(layout: Layout, profile: Profile, settings: SimSettings = SimSetti
 
 
 class BenchUnit:
-    """One unit on the sled through as many levels as a lab runs on it: stacked (and wrapped)
-    once, then each level starts from the state the last one left: every body where it rested
-    (velocities zero), the wrap's rest lengths, plastic stretch, tears and seam as they were
-    (only its peaks start again, as its report is per level); the sled still, every contact
-    sticking. The world is kept between levels, so the contacts a resting stack made carry too
-    (rebuilding it at the same poses jolted a 3-layer stack by 1.5 mm at 0.05 g; kept, 0.5 mm,
-    against 0.03 mm on a fresh unit).
-
-    Use as a context manager or call `close()`.
-    """
+    """One unit on the sled through the levels a lab runs on it, stacked and wrapped once:
+    each level starts where the last left it, every body at rest (velocities zero), the wrap's
+    rest lengths, plastic stretch, tears and seam as they were (its peaks start again: its
+    report is per level), the sled still, every contact sticking. The world is kept, so the
+    resting stack's contacts carry too: rebuilt at the same poses, a 3-layer stack jolted by
+    1.5 mm at 0.05 g; kept, 0.5 mm (a fresh unit: 0.03 mm). A context manager (or `close()`)."""
 
     def __init__(self, layout: Layout, settings: SimSettings = SimSettings(),
                  wrap: WrapFormat | None = None) -> None:
@@ -121,9 +118,8 @@ class BenchUnit:
         self.origin_m: np.ndarray | None = None
 
     def _stick_slip(self) -> StickSlip:
-        if not self.wrapped:
-            return StickSlip(self.layout)
-        return StickSlip(self.layout, WRAPPED_SLIP_SPEED_MPS, WRAPPED_STICK_SPEED_MPS)
+        speeds = (WRAPPED_SLIP_SPEED_MPS, WRAPPED_STICK_SPEED_MPS) if self.wrapped else ()
+        return StickSlip(self.layout, *speeds)
 
     def level(self, profile: Profile, push: Push | None = None) -> Trace:
         """Run one level on the unit as it stands: settled and wrapped first if it is new."""
@@ -168,8 +164,8 @@ def run_levels(
     layout = load.layout(orientation)  # type: ignore[arg-type]
     verdicts: list[LevelVerdict] = []
     traces: list[Trace] = []
-    unit = None if fresh else BenchUnit(layout, settings, wrap)
-    try:
+    with contextlib.ExitStack() as stack:
+        unit = None if fresh else stack.enter_context(BenchUnit(layout, settings, wrap))
         for level in levels:
             profile = PulseProfile(level) if isinstance(level, int | float) else level
             trace = (run_level(layout, profile, settings, wrap) if unit is None
@@ -181,9 +177,6 @@ def run_levels(
                 break
             if unit is not None and (not trace.valid or trace.stopped_early):
                 break
-    finally:
-        if unit is not None:
-            unit.close()
     sequence = "fresh" if fresh else "cumulative"
     return BenchRun(Verdict(layout.load_height_m, tuple(verdicts), sequence), tuple(traces))
 

@@ -47,6 +47,7 @@ def run(argv: list[str]) -> int:
     try:
         return main(argv)
     except SystemExit as exc:
+        assert isinstance(exc.code, int), exc.code
         return exc.code
 
 
