@@ -44,6 +44,12 @@ def _number(text: str) -> float:
     return value
 
 
+def _layer_shift_flag(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--layer-shift-limit-pct", type=_number, metavar="P",
+                        help="also fail a level whose layers shifted on each other by more "
+                             "than P %% of the load height (vendors quote 2)")
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = _Parser(prog="wrapbench", description=__doc__.splitlines()[0])
     sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
@@ -66,6 +72,10 @@ def build_parser() -> argparse.ArgumentParser:
                      help="pallet side along the motion (default: as the load file lays it out)")
     sim.add_argument("--hours-since-wrapping", type=_number, default=0.0, metavar="H",
                      help="test the wrap after its tension relaxed for H hours (default 0)")
+    sim.add_argument("--fresh", action="store_true",
+                     help="restack and rewrap the unit before every level (default: one unit "
+                          "through the levels, each starting where the last left it, as a lab)")
+    _layer_shift_flag(sim)
     sim.add_argument("--json", type=Path, metavar="OUT", help="write the verdict as JSON")
     sim.add_argument("--plot", type=Path, metavar="OUT.png", help="plot displacement vs time")
     sim.add_argument("--report", type=Path, metavar="DIR",
@@ -112,6 +122,10 @@ def build_parser() -> argparse.ArgumentParser:
     rec.add_argument("--hours-since-wrapping", type=_number, default=TRANSPORT_HOURS, metavar="H",
                      help=f"hours the wrap relaxes before the road (default {TRANSPORT_HOURS:g}: "
                           "ASTM D5414 rests a wrapped load 16 h before testing)")
+    rec.add_argument("--fresh", action="store_true",
+                     help="verify on a fresh unit per level (default: one unit through the "
+                          "EUMOS sequence, as a lab)")
+    _layer_shift_flag(rec)
     rec.add_argument("--max-cycle-s", type=_number, default=math.inf, metavar="S",
                      help="only programs the machine runs within S seconds per pallet")
     rec.add_argument("--cycle-weight", type=_number, default=0.0, metavar="W",

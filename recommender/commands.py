@@ -28,6 +28,7 @@ from recommender.text import program_text, verdict_table
 from wrapenv.bench import run_levels
 from wrapenv.calibrated import Calibration
 from wrapenv.config import InputError, check_output, printable, write_atomic
+from wrapenv.eumos import EUMOS_LIMITS, Limits
 from wrapenv.load import Layout, LoadUnit
 from wrapenv.material import MATERIALS
 from wrapenv.profile import MeasuredProfile, PulseProfile, eumos_levels
@@ -110,8 +111,10 @@ def run_simulate(args: argparse.Namespace) -> int:
     levels = _levels(args)
     if laid is not None:
         _warn("simulate", laid.warnings())
+    limits = _limits(args)
     stop = not args.level and not args.profile
-    run = run_levels(load, levels, orientation=args.orientation, stop_at_failure=stop, wrap=wrap)
+    run = run_levels(load, levels, orientation=args.orientation, stop_at_failure=stop, wrap=wrap,
+                     fresh=args.fresh, limits=limits)
     print(verdict_table(load, run, args.orientation))
     if laid is not None:
         print(program_text(laid, layout))
@@ -189,7 +192,19 @@ def _settings(args: argparse.Namespace) -> SearchSettings:
                           workers=args.workers, popsize=min(8, args.budget),
                           backend=args.backend, ray_address=args.ray_address,
                           max_cycle_s=args.max_cycle_s, cycle_weight=args.cycle_weight,
-                          hours_since_wrapping=args.hours_since_wrapping)
+                          hours_since_wrapping=args.hours_since_wrapping,
+                          limits=_limits(args), fresh=args.fresh)
+
+
+def _limits(args: argparse.Namespace) -> Limits:
+    """The criteria asked for: EUMOS 40509's, and the shift between layers if given."""
+    pct = args.layer_shift_limit_pct
+    if pct is None:
+        return EUMOS_LIMITS
+    if not 0 < pct <= 100:
+        raise InputError("arguments", "--layer-shift-limit-pct",
+                         f"must be in (0, 100] % of the load height (got {pct:g})")
+    return Limits(layer_shift_fraction=pct / 100)
 
 
 def _hours(hours: float) -> None:

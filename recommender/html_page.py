@@ -21,13 +21,7 @@ from recommender.text import step_cells
 from recommender.uncertainty import PassProbability
 from wrapenv.bench import BenchRun
 from wrapenv.config import printable
-from wrapenv.eumos import (
-    ELASTIC_LIMIT_FRACTION,
-    LOW_ZONE_HEIGHT_M,
-    LOW_ZONE_LIMIT_M,
-    PERMANENT_LIMIT_FRACTION,
-    LevelVerdict,
-)
+from wrapenv.eumos import EUMOS_CRITERIA, NO_DAMAGE, Criterion, LevelVerdict, Verdict
 from wrapenv.load import PAIRS, Layout, LoadUnit
 from wrapenv.wrap import WrapFormat, program_to_dict
 
@@ -169,37 +163,23 @@ def _wrap_section(wrap: WrapFormat | None, layout: Layout, hours: float) -> str:
                       "Tension N"], steps, "num") + "</section>\n")
 
 
-#: EUMOS 40509's criteria in the order the table shows them: (key, column).
-CRITERIA = (("elastic_10pct", "Elastic max"), ("permanent_5pct", "Permanent max"),
-            ("low20_4cm", "Lowest 20 cm, permanent"), ("no_damage", "Damage"))
+def _criteria(v: Verdict) -> tuple[Criterion, ...]:
+    """The figure criteria that judged the run, in the order the table shows them."""
+    return v.levels[0].limits.criteria() if v.levels else EUMOS_CRITERIA
 
 
-def _limits(height_m: float) -> dict[str, str]:
-    return {"elastic_10pct": f"≤ {1000 * ELASTIC_LIMIT_FRACTION * height_m:.1f} mm "
-                             f"({100 * ELASTIC_LIMIT_FRACTION:.0f} % of height)",
-            "permanent_5pct": f"≤ {1000 * PERMANENT_LIMIT_FRACTION * height_m:.1f} mm "
-                              f"({100 * PERMANENT_LIMIT_FRACTION:.0f} % of height)",
-            "low20_4cm": f"< {1000 * LOW_ZONE_LIMIT_M:.0f} mm (bundles below "
-                         f"{100 * LOW_ZONE_HEIGHT_M:.0f} cm)",
-            "no_damage": "none"}
+def _check(ok: bool) -> str:
+    return f'<span class="{"ok" if ok else "bad"}">{"pass" if ok else "fail"}</span>'
 
 
-def _figure_of(level: LevelVerdict, key: str) -> str:
-    if key == "elastic_10pct":
-        return f"{_mm(level.elastic_max_m)} ({level.elastic_max_pct or 0:.1f} %)"
-    if key == "permanent_5pct":
-        return f"{_mm(level.permanent_max_m)} ({level.permanent_max_pct or 0:.1f} %)"
-    if key == "low20_4cm":
-        return _mm(level.permanent_low20_m)
-    return _t(", ".join(level.damage) or "none")
-
-
-def _level_row(level: LevelVerdict) -> list[str]:
+def _level_row(level: LevelVerdict, criteria: tuple[Criterion, ...], height_m: float
+               ) -> list[str]:
     cells = [f"{level.level_g:.2f} g"]
-    for key, _ in CRITERIA:
-        ok = level.criteria.get(key, False) and level.valid
-        cells.append(f'{_figure_of(level, key)} <span class="{"ok" if ok else "bad"}">'
-                     f'{"pass" if ok else "fail"}</span>')
+    for c in criteria:
+        ok = level.criteria.get(c.key, False) and level.valid
+        cells.append(f"{c.figure_text(level, height_m)} {_check(ok)}")
+    ok = level.criteria.get(NO_DAMAGE, False) and level.valid
+    cells.append(f'{_t(", ".join(level.damage) or "none")} {_check(ok)}')
     cells.append(_mm(level.pallet_slip_m))
     w = level.wrap
     cells.append("—" if w is None else (
@@ -218,15 +198,20 @@ def _highest(t: OrientationRun) -> str:
 
 def _levels_section(t: OrientationRun) -> str:
     v = t.run.verdict
-    limits = _limits(v.load_height_m)
-    head = (["Level"] + [f"{name}<br><small>limit {limits[key]}</small>" for key, name in CRITERIA]
-            + ["Pallet slip", "Wrap (peak force)", "Result"])
+    h, criteria = v.load_height_m, _criteria(v)
+    head = (["Level"] + [f"{c.label}<br><small>limit {c.describe(h, '≤')}</small>"
+                         for c in criteria]
+            + ["Damage<br><small>limit none</small>", "Pallet slip", "Wrap (peak force)",
+               "Result"])
     target = f", target {t.target_g:.2f} g" if t.target_g is not None else ""
-    summary = (f"highest level passed: {_highest(t)}{target}"
+    sequence = ("one unit through the levels, each from where the last left it (permanent: "
+                "since it was put on the sled)" if v.sequence == "cumulative"
+                else "a fresh unit for every level")
+    summary = (f"highest level passed: {_highest(t)}{target}; {sequence}"
                + ("" if v.valid else "; the simulation became unphysical (INVALID rows never "
                                      "pass)"))
     return (f'<section class="levels"><h3>{_t(_side(t))}</h3>'
-            + _table(head, [_level_row(level) for level in v.levels], "levels")
+            + _table(head, [_level_row(level, criteria, h) for level in v.levels], "levels")
             + f"<p>{summary}</p></section>\n")
 
 

@@ -19,7 +19,7 @@ from matplotlib.colors import Normalize  # noqa: E402
 
 from wrapenv.bench import BenchRun  # noqa: E402
 from wrapenv.config import printable, write_atomic  # noqa: E402
-from wrapenv.eumos import ELASTIC_LIMIT_FRACTION, PERMANENT_LIMIT_FRACTION  # noqa: E402
+from wrapenv.eumos import ELASTIC, PERMANENT  # noqa: E402
 from wrapenv.load import Layout  # noqa: E402
 from wrapenv.render import Renderer, fitting_camera, torn_net  # noqa: E402
 from wrapenv.trace import Trace  # noqa: E402
@@ -29,7 +29,10 @@ from wrapenv.wrap_report import Place, WrapReport  # noqa: E402
 
 
 def plot_displacements(run: BenchRun, path: str | Path, title: str = "") -> bytes:
-    """One panel per level: each bundle's displacement in the pallet frame against time."""
+    """One panel per level: each bundle's displacement in the pallet frame against time, from
+    where it stood when the level began, with the elastic and permanent limits; after the first
+    level of a cumulative sequence the title adds the permanent displacement since the unit
+    was put on the sled (what the permanent limit judges)."""
     n = len(run.traces)
     fig, axes = plt.subplots(n, 1, figsize=(9, 2.8 * n + 0.6), squeeze=False, sharex=True)
     h = run.verdict.load_height_m
@@ -37,14 +40,16 @@ def plot_displacements(run: BenchRun, path: str | Path, title: str = "") -> byte
         disp_mm = trace.bundle_displacement_m() * 1000
         for k, name in enumerate(trace.names):
             ax.plot(trace.t_s, disp_mm[:, k], lw=0.8, label=name if k < 12 else None)
-        ax.axhline(ELASTIC_LIMIT_FRACTION * h * 1000, color="red", ls="--",
-                   label="elastic limit (10 % of height)")
-        ax.axhline(PERMANENT_LIMIT_FRACTION * h * 1000, color="orange", ls="--",
-                   label="permanent limit (5 % of height)")
+        for c, colour in ((ELASTIC, "red"), (PERMANENT, "orange")):
+            ax.axhline(c.limit_m(h) * 1000, color=colour, ls="--",
+                       label=f"{c.label.split()[0].lower()} limit ({100 * c.limit:g} % of height)")
         result = "PASS" if verdict.passed else ("INVALID" if not verdict.valid else "FAIL")
-        ax.set_title(f"{verdict.level_g:.2f} g: {result}", fontsize=10)
+        total_m = verdict.permanent_total_max_m
+        total = (f", permanent since put on the sled {1000 * total_m:.1f} mm"
+                 if trace.origin_m is not None and total_m is not None else "")
+        ax.set_title(f"{verdict.level_g:.2f} g: {result}{total}", fontsize=10)
         ax.set_ylabel("displacement [mm]")
-        ax.set_ylim(0, max(ELASTIC_LIMIT_FRACTION * h * 1000 * 1.3, float(disp_mm.max()) * 1.05))
+        ax.set_ylim(0, max(ELASTIC.limit_m(h) * 1000 * 1.3, float(disp_mm.max()) * 1.05))
     axes[-1, 0].set_xlabel("time from pulse start [s]")
     axes[0, 0].legend(fontsize=6, ncol=4, loc="upper right")
     if title:

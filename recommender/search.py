@@ -39,6 +39,7 @@ from wrapenv.bench import BenchRun, SimSettings, run_levels
 from wrapenv.calibrated import Calibration
 from wrapenv.config import InputError, read_json, write_atomic
 from wrapenv.design import INTEGER_INDICES, N_PARAMS, ProgramSpace
+from wrapenv.eumos import EUMOS_LIMITS, Limits
 from wrapenv.load import Layout, LoadUnit
 from wrapenv.profile import PulseProfile, eumos_levels
 from wrapenv.wrap import WrapFormat
@@ -87,6 +88,10 @@ class SearchSettings:
     cycle_weight: float = 0.0      # objective per second of cycle, in reference masses
     hours_since_wrapping: float = TRANSPORT_HOURS
     sim: SimSettings = SimSettings()
+    #: The criteria a level is judged by (EUMOS 40509's, optionally a layer-shift limit).
+    limits: Limits = EUMOS_LIMITS
+    #: Verify on a fresh unit per level instead of one unit through the sequence, as a lab.
+    fresh: bool = False
 
     @property
     def target_g(self) -> float:
@@ -99,7 +104,9 @@ class SearchSettings:
                 "hours_since_wrapping": self.hours_since_wrapping, "samples": self.samples,
                 "margin_goal": self.margin_goal, "popsize": self.popsize,
                 "sigma0": self.sigma0, "seed": self.seed, "max_cycle_s": _json_float(
-                    self.max_cycle_s), "cycle_weight": self.cycle_weight}
+                    self.max_cycle_s), "cycle_weight": self.cycle_weight,
+                **({} if self.limits.layer_shift_fraction is None else
+                   {"layer_shift_limit": self.limits.layer_shift_fraction})}
 
 
 @dataclass(frozen=True)
@@ -242,7 +249,7 @@ def _trial(problem: Problem, wrap: WrapFormat, seed: int) -> Trial:
     passed = True
     for orientation, target in problem.settings.targets:
         verdict = run_levels(load, [target], problem.settings.sim, orientation=orientation,
-                             wrap=laid).verdict
+                             wrap=laid, limits=problem.settings.limits).verdict
         passed &= verdict.passed
         if weakest is None or verdict.margin < weakest.margin:
             weakest = Trial(verdict.passed, verdict.margin, orientation,
@@ -400,12 +407,14 @@ class Verification:
 
 def verify(problem: Problem, wrap: WrapFormat, samples: int, seed: int = 12345,
            workers: int = 1) -> Verification:
-    """The EUMOS sequence in every orientation on the nominal load, and the pass rate at the
-    targets over `samples` fresh samples of the uncertain parameters."""
+    """The EUMOS sequence in every orientation on the nominal load (one unit through the levels,
+    as a lab runs it, unless `fresh` is set), and the pass rate at the targets over `samples`
+    fresh samples of the uncertain parameters."""
     s = problem.settings
     runs = {orientation: run_levels(problem.load, eumos_levels(target), s.sim,
                                     orientation=orientation, stop_at_failure=True,
-                                    wrap=problem.simulated(wrap))
+                                    wrap=problem.simulated(wrap), fresh=s.fresh,
+                                    limits=s.limits)
             for orientation, target in s.targets}
     with executor(s.backend, workers, s.ray_address) as pool:
         trials = list(pool.map(_trial, [problem] * samples, [wrap] * samples,

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from wrapenv.bench import BenchRun
 from wrapenv.config import printable
-from wrapenv.eumos import LevelVerdict
+from wrapenv.eumos import EUMOS_CRITERIA, LevelVerdict
 from wrapenv.load import Layout, LoadUnit
 from wrapenv.program import Pass, Program
 from wrapenv.wrap import WrapFormat
@@ -15,31 +15,47 @@ def _mm(x: float | None) -> str:
     return "   n/a" if x is None else f"{x * 1000:6.1f}"
 
 
-def _row(v: LevelVerdict) -> str:
+def _pct(x: float | None, height_m: float) -> str:
+    return "      " if x is None else f"({100 * x / height_m:4.1f} %)"
+
+
+def _row(v: LevelVerdict, height_m: float) -> str:
     result = "PASS" if v.passed else ("INVALID" if not v.valid else "FAIL")
     failed = [k for k, ok in v.criteria.items() if not ok]
     note = v.invalid_reason or (", ".join(failed) if failed else "")
     damage = f"; {len(v.damage)} damaged: {', '.join(v.damage[:4])}" if v.damage else ""
     if len(v.damage) > 4:
         damage += ", ..."
-    return (f"{v.level_g:5.2f} g  {result:7s} {_mm(v.elastic_max_m)} mm "
-            f"({v.elastic_max_pct or 0:5.1f} %)"
-            f"  {_mm(v.permanent_max_m)} mm ({v.permanent_max_pct or 0:5.1f} %)"
-            f"  {_mm(v.permanent_low20_m)} mm  {_mm(v.pallet_slip_m)} mm  {note}{damage}")
+    total = v.permanent_total_max_m
+    return (f"{v.level_g:5.2f} g  {result:7s} {_mm(v.elastic_max_m)} "
+            f"{_pct(v.elastic_max_m, height_m)}  {_mm(v.permanent_max_m)} {_mm(total)} "
+            f"{_pct(total, height_m)}  {_mm(v.permanent_low20_m)}"
+            f"  {_mm(v.layer_shift_max_m)} {_pct(v.layer_shift_max_m, height_m)}"
+            f"  {_mm(v.pallet_slip_m)}  {note}{damage}")
 
 
 def verdict_table(load: LoadUnit, run: BenchRun, orientation: str | None) -> str:
-    """The unit, the EUMOS limits, one row per level run, the highest level passed."""
+    """The unit, the sequence, the criteria, one row per level run, the highest level passed.
+    Figures in mm; "permanent" is this level's, then since the unit was put on the sled (what
+    the criterion judges)."""
     layout = load.layout(orientation)  # type: ignore[arg-type]
     v = run.verdict
+    h = v.load_height_m
+    criteria = v.levels[0].limits.criteria() if v.levels else EUMOS_CRITERIA
+    limits = ", ".join(f"{c.label.lower()} {c.describe(h)}" for c in criteria)
+    sequence = ("one unit through the levels, each from where the last left it"
+                if v.sequence == "cumulative" else "a fresh unit for every level")
     lines = [
         f"{printable(load.name)}: {len(layout.bundles)} bundles, {load.stack.layers} layers "
-        f"({load.stack.pattern}), load height {v.load_height_m:.3f} m, {load.mass_kg:.0f} kg",
-        f"EUMOS 40509 limits: elastic <= {100 * v.load_height_m:.1f} mm, permanent <= "
-        f"{50 * v.load_height_m:.1f} mm, lowest 20 cm < 40 mm, no damage",
-        "level    result    elastic max            permanent max       low 20 cm  pallet slip",
+        f"({load.stack.pattern}), load height {h:.3f} m, {load.mass_kg:.0f} kg",
+        f"sequence: {v.sequence} ({sequence})",
+        f"limits: {limits}, no damage",
+        "figures in mm (% of load height); permanent: during the level, then since the unit "
+        "was put on the sled",
+        f"{'level    result':17}{'elastic max':>15}  {'permanent':>6} {'total':>15}  "
+        f"{'low20cm':>6}  {'layer shift':>15}  {'pallet slip':>6}",
     ]
-    lines += [_row(level) for level in v.levels]
+    lines += [_row(level, h) for level in v.levels]
     torn = [f"{level.level_g:.2f} g" for level in v.levels if level.wrap and level.wrap.torn]
     if torn:
         lines.append(f"wrap torn at: {', '.join(torn)}")

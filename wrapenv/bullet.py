@@ -12,7 +12,7 @@ import contextlib
 import ctypes
 import os
 import sys
-from collections.abc import Iterator, Sequence
+from collections.abc import Iterable, Iterator, Sequence
 
 import numpy as np
 
@@ -216,6 +216,13 @@ class BulletWorld:
             if self._anchor_wanted[body]:
                 pb.changeDynamics(body, -1, frictionAnchor=1, physicsClientId=self._id)
         self._refreshing.clear()
+
+    def stop(self, indices: Iterable[int]) -> None:
+        """Set the bodies' velocities to zero: a unit that rested starts the next level still."""
+        for index in indices:
+            pb.resetBaseVelocity(self._ids[index], [0.0, 0.0, 0.0], [0.0, 0.0, 0.0],
+                                 physicsClientId=self._id)
+        self._last_state = None
 
     # -- state ----------------------------------------------------------------------------
     def poses(self, indices: Sequence[int]) -> tuple[np.ndarray, np.ndarray]:

@@ -4,28 +4,117 @@ Per test level (paper, section 2): (i) permanent displacement of every part <= 5
 height; (ii) permanent displacement in the lowest 20 cm < 4 cm relative to the pallet;
 (iii) elastic displacement during the test <= 10 % of the load height; (iv) no structural damage:
 here no bundle fallen or toppled (and, with a wrap, no torn wrap and no seam that let go).
+Each figure criterion is one row of `EUMOS_CRITERIA`, which the verdict, the margin, the printed
+table and the reports read.
+
+Permanent means since the unit was first put on the sled. A lab runs one unit through the
+levels, and the published summaries define the permanent deformation as what is left of the
+load unit after the test, against the unit before it: the source paper (section 2: "the residual
+deformations of the load unit after the test ended") and the Wikipedia summary of EUMOS 40509
+("Acceleration test": the certificate shows "a picture of the pallet load before and after the
+test", https://en.wikipedia.org/wiki/Acceleration_test). So criteria (i) and (ii), and the
+optional shift between layers, read the displacement since the unit was put on the sled
+(`permanent_total_max_m`), which for a fresh unit per level is the level's own
+(`permanent_max_m`). Elastic displacement is what a pulse does while it acts: measured from where
+the unit stood when that level began.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 
 import numpy as np
 
 from wrapenv.trace import Trace
 from wrapenv.wrap_report import WrapReport
 
-PERMANENT_LIMIT_FRACTION = 0.05
-ELASTIC_LIMIT_FRACTION = 0.10
 LOW_ZONE_HEIGHT_M = 0.20
-LOW_ZONE_LIMIT_M = 0.04
 #: A bundle left leaning by more than this is toppled: boxes stacked flat never rest tilted.
 TOPPLE_ANGLE_RAD = math.radians(10.0)
 #: The damage entry of a wrap element that reached its breaking force.
 WRAP_TORN = "wrap_torn"
 #: The damage entry of a wrap whose tail seam let go: the rings it closed went slack.
 WRAP_OPENED = "wrap_opened"
+#: The criterion of damage (it reads no figure: any damage fails it).
+NO_DAMAGE = "no_damage"
+
+
+@dataclass(frozen=True)
+class Criterion:
+    """One figure criterion: `figure` (a `LevelVerdict` field, in metres) must stay within
+    `limit`, a fraction of the load height (`of_height`) or metres; `strict`: below it (<),
+    else at most it (<=)."""
+
+    key: str        # as in the verdict's `criteria`
+    label: str      # for tables and reports
+    figure: str
+    limit: float
+    of_height: bool
+    strict: bool
+    note: str = ""  # what a reader needs besides the limit
+
+    def limit_m(self, load_height_m: float) -> float:
+        return self.limit * load_height_m if self.of_height else self.limit
+
+    def holds(self, figure_m: float, load_height_m: float) -> bool:
+        limit = self.limit_m(load_height_m)
+        return bool(figure_m < limit if self.strict else figure_m <= limit)
+
+    def value(self, level: LevelVerdict) -> float | None:
+        return getattr(level, self.figure)
+
+    def describe(self, load_height_m: float, at_most: str = "<=") -> str:
+        """The limit as a reader wants it: "<= 40.2 mm (5 % of height)" (`at_most`: the sign
+        of <=, "≤" on a page)."""
+        sign = "<" if self.strict else at_most
+        if self.of_height:
+            return (f"{sign} {1000 * self.limit_m(load_height_m):.1f} mm "
+                    f"({100 * self.limit:g} % of height)")
+        return f"{sign} {1000 * self.limit:.0f} mm" + (f" ({self.note})" if self.note else "")
+
+    def figure_text(self, level: LevelVerdict, load_height_m: float) -> str:
+        """The level's figure in mm, and in % of the load height if the limit is."""
+        value = self.value(level)
+        if value is None:
+            return "n/a"
+        pct = f" ({100 * value / load_height_m:.1f} %)" if self.of_height else ""
+        return f"{1000 * value:.1f} mm{pct}"
+
+
+ELASTIC = Criterion("elastic_10pct", "Elastic max", "elastic_max_m", 0.10, True, False)
+PERMANENT = Criterion("permanent_5pct", "Permanent max", "permanent_total_max_m", 0.05, True,
+                      False)
+LOW_ZONE = Criterion("low20_4cm", f"Lowest {100 * LOW_ZONE_HEIGHT_M:.0f} cm, permanent",
+                     "permanent_low20_m", 0.04, False, True,
+                     f"bundles below {100 * LOW_ZONE_HEIGHT_M:.0f} cm")
+#: EUMOS 40509's figure criteria, in the order tables show them.
+EUMOS_CRITERIA = (ELASTIC, PERMANENT, LOW_ZONE)
+#: The key of the optional limit on the shift between layers (`Limits.layer_shift_fraction`).
+LAYER_SHIFT = "layer_shift"
+
+
+def layer_shift_criterion(fraction: float) -> Criterion:
+    """A limit on the permanent shift of a layer on the one below, as a fraction of the load
+    height: not in EUMOS 40509 itself; secondary summaries and vendors quote 2 %."""
+    return Criterion(LAYER_SHIFT, "Layer shift", "layer_shift_max_m", fraction, True, False)
+
+
+@dataclass(frozen=True)
+class Limits:
+    """Which criteria judge a level: EUMOS 40509's, and optionally a limit on the permanent
+    shift of a layer on the one below (a fraction of the load height; None: not judged)."""
+
+    layer_shift_fraction: float | None = None
+
+    def criteria(self) -> tuple[Criterion, ...]:
+        if self.layer_shift_fraction is None:
+            return EUMOS_CRITERIA
+        return (*EUMOS_CRITERIA, layer_shift_criterion(self.layer_shift_fraction))
+
+
+#: EUMOS 40509's criteria alone.
+EUMOS_LIMITS = Limits()
 
 
 @dataclass(frozen=True)
@@ -54,9 +143,24 @@ class LevelVerdict:
     #: Why the level was stopped before rest, already failed (`SimSettings.stop_when_decided`);
     #: its figures are then those at the stop.
     stopped_early: str = ""
+    #: Permanent displacement since the unit was first put on the sled (the criteria's figure;
+    #: `permanent_max_m` is this level's own). None: not measured (the level's own is used).
+    permanent_total_max_m: float | None = None
+    permanent_total_max_pct: float | None = None
+    #: The largest permanent shift of a layer on the one below, since the unit was put on.
+    layer_shift_max_m: float | None = None
+    layer_shift_max_pct: float | None = None
+    #: The criteria that judged the level (not part of the JSON: `criteria` names them).
+    limits: Limits = EUMOS_LIMITS
+
+    def __post_init__(self) -> None:
+        if self.permanent_total_max_m is None:
+            object.__setattr__(self, "permanent_total_max_m", self.permanent_max_m)
+            object.__setattr__(self, "permanent_total_max_pct", self.permanent_max_pct)
 
     def to_json(self) -> dict:
         out = asdict(self)
+        del out["limits"]
         out["damage"] = list(self.damage)
         out["bodies"] = [asdict(b) for b in self.bodies]
         if self.valid:
@@ -74,6 +178,8 @@ class LevelVerdict:
 class Verdict:
     load_height_m: float
     levels: tuple[LevelVerdict, ...] = field(default_factory=tuple)
+    #: "cumulative": one unit through the levels, as a lab runs it; "fresh": a new unit each.
+    sequence: str = "cumulative"
 
     @property
     def valid(self) -> bool:
@@ -95,6 +201,7 @@ class Verdict:
 
     def to_json(self) -> dict:
         return {
+            "sequence": self.sequence,
             "valid": self.valid,
             "load_height_m": round(self.load_height_m, 6),
             "levels": [level.to_json() for level in self.levels],
@@ -103,39 +210,34 @@ class Verdict:
 
 
 def level_margin(level: LevelVerdict, load_height_m: float) -> float:
-    """The smallest of 1 - figure/limit over elastic, permanent and lowest-20-cm displacement:
-    0 on a limit, 0.5 at half of it, < 0 beyond. Damage or an invalid run is -1 at best."""
-    elastic, permanent, low20 = level.elastic_max_m, level.permanent_max_m, level.permanent_low20_m
-    if not level.valid or elastic is None or permanent is None or low20 is None:
+    """The smallest of 1 - figure/limit over the figure criteria that judged the level: 0 on
+    a limit, 0.5 at half of it, < 0 beyond. Damage or an invalid run is -1 at best."""
+    figures = [(c, c.value(level)) for c in level.limits.criteria()]
+    if not level.valid or any(f is None for _, f in figures):
         return -1.0
-    ratios = (elastic / (ELASTIC_LIMIT_FRACTION * load_height_m),
-              permanent / (PERMANENT_LIMIT_FRACTION * load_height_m),
-              low20 / LOW_ZONE_LIMIT_M)
-    margin = 1.0 - max(ratios)
+    margin = 1.0 - max(f / c.limit_m(load_height_m) for c, f in figures)  # type: ignore[operator]
     return min(margin, -1.0) if level.damage else margin
 
 
-def evaluate(trace: Trace, extra_damage: tuple[str, ...] = ()) -> LevelVerdict:
-    """Judge one level from its trace. `extra_damage` adds damage found elsewhere (torn wrap)."""
+def evaluate(trace: Trace, extra_damage: tuple[str, ...] = (),
+             limits: Limits = EUMOS_LIMITS) -> LevelVerdict:
+    """Judge one level from its trace against `limits`. `extra_damage` adds damage found
+    elsewhere (torn wrap)."""
     h = trace.load_height_m
     disp = trace.bundle_displacement_m()
     permanent, elastic = disp[-1], disp.max(axis=0)
+    total = trace.permanent_total_m()
     low = trace.bottom_z_m < LOW_ZONE_HEIGHT_M
-    low20 = float(permanent[low].max()) if np.any(low) else 0.0
+    low20 = float(total[low].max()) if np.any(low) else 0.0
+    shift = trace.layer_shift_m()
     damage = _damage(trace) + tuple(extra_damage)
     if trace.wrap is not None and trace.wrap.torn:
         damage += (WRAP_TORN,)
     if trace.wrap is not None and trace.wrap.opened:
         damage += (WRAP_OPENED,)
-    criteria = {
-        "permanent_5pct": bool(permanent.max() <= PERMANENT_LIMIT_FRACTION * h),
-        "low20_4cm": low20 < LOW_ZONE_LIMIT_M,
-        "elastic_10pct": bool(elastic.max() <= ELASTIC_LIMIT_FRACTION * h),
-        "no_damage": not damage,
-    }
-    return LevelVerdict(
+    level = LevelVerdict(
         level_g=round(trace.level_g, 4),
-        passed=trace.valid and all(criteria.values()),
+        passed=False,
         valid=trace.valid,
         elastic_max_m=_r(elastic.max()),
         elastic_max_pct=_r(100 * elastic.max() / h, 3),
@@ -144,7 +246,7 @@ def evaluate(trace: Trace, extra_damage: tuple[str, ...] = ()) -> LevelVerdict:
         permanent_low20_m=_r(low20),
         pallet_slip_m=_r(trace.pallet_slip_m()),
         damage=damage,
-        criteria=criteria,
+        criteria={},
         bodies=tuple(
             BodyResult(n, _r(p), _r(e)) for n, p, e in zip(trace.names, permanent, elastic,
                                                           strict=True)
@@ -152,7 +254,24 @@ def evaluate(trace: Trace, extra_damage: tuple[str, ...] = ()) -> LevelVerdict:
         invalid_reason=trace.invalid_reason,
         wrap=trace.wrap,
         stopped_early=trace.stopped_early,
+        permanent_total_max_m=_r(total.max()),
+        permanent_total_max_pct=_r(100 * total.max() / h, 3),
+        layer_shift_max_m=_r(shift),
+        layer_shift_max_pct=_r(100 * shift / h, 3),
+        limits=limits,
     )
+    return _judged(level, h)
+
+
+def _judged(level: LevelVerdict, load_height_m: float) -> LevelVerdict:
+    """The level with each criterion's result (a figure that is not finite fails) and the
+    verdict: passed only if the run stayed valid and every criterion holds."""
+    criteria = {}
+    for c in level.limits.criteria():
+        figure = c.value(level)
+        criteria[c.key] = figure is not None and c.holds(figure, load_height_m)
+    criteria[NO_DAMAGE] = not level.damage
+    return replace(level, criteria=criteria, passed=level.valid and all(criteria.values()))
 
 
 def fallen(bundle_z_m: np.ndarray, bottom_z_m: np.ndarray) -> np.ndarray:

@@ -13,8 +13,10 @@ from wrapenv.wrap_physics import WrapReport
 class Trace:
     """Poses in the sled frame, sampled from the start of the pulse (t = 0) until rest.
 
-    The first sample is the reference state the displacements are measured from (the stack after
-    settling on the still sled).
+    The first sample is the reference state the displacements during the level are measured
+    from (the stack as it rests on the still sled when the pulse starts). In a cumulative
+    sequence (one unit through several levels) `origin_m` holds where the bundles stood when the
+    unit was first put on the sled, for the displacements since then.
     """
 
     level_g: float
@@ -33,11 +35,46 @@ class Trace:
     #: Why the run stopped before rest, its verdict already decided failed ("": it ran to rest).
     #: The figures of such a trace are those at the stop, not the permanent ones.
     stopped_early: str = ""
+    #: (n,) the layer of each bundle (1 at the bottom); None: all in one layer.
+    layers: np.ndarray | None = None
+    #: (n, 3) bundle centres in the pallet's frame when the unit was first put on the sled
+    #: (None: at this level's first sample, a fresh unit).
+    origin_m: np.ndarray | None = None
 
     def bundle_displacement_m(self) -> np.ndarray:
         """(T, n) horizontal displacement of each bundle centre in the pallet's frame."""
         rel = in_pallet_frame(self.pallet_pos, self.pallet_rot, self.bundle_pos)
         return np.linalg.norm((rel - rel[0])[..., :2], axis=-1)
+
+    def permanent_total_m(self) -> np.ndarray:
+        """(n,) horizontal displacement of each bundle centre in the pallet's frame from where
+        it stood when the unit was first put on the sled to where it rests at the end."""
+        moved = self._end_in_pallet() - self.origin()
+        return np.linalg.norm(moved[:, :2], axis=1)
+
+    def layer_shift_m(self) -> float:
+        """The largest horizontal shift of a layer relative to the layer below it (layer 1
+        relative to the pallet) since the unit was first put on the sled: per layer, the
+        displacement of the mean of its bundle centres in the pallet's frame, less the lower
+        layer's."""
+        moved = (self._end_in_pallet() - self.origin())[:, :2]
+        layers = self.layers if self.layers is not None else np.ones(len(moved), int)
+        below = np.zeros(2)  # the pallet does not move in its own frame
+        largest = 0.0
+        for layer in np.unique(layers):
+            mean = moved[layers == layer].mean(axis=0)
+            largest = max(largest, float(np.linalg.norm(mean - below)))
+            below = mean
+        return largest
+
+    def _end_in_pallet(self) -> np.ndarray:
+        return in_pallet_frame(self.pallet_pos[-1], self.pallet_rot[-1], self.bundle_pos[-1])
+
+    def origin(self) -> np.ndarray:
+        """(n, 3) bundle centres in the pallet's frame when the unit was first put on the sled."""
+        if self.origin_m is not None:
+            return self.origin_m
+        return in_pallet_frame(self.pallet_pos[0], self.pallet_rot[0], self.bundle_pos[0])
 
     def pallet_slip_m(self) -> float:
         """Permanent horizontal displacement of the pallet on the sled."""

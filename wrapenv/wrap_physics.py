@@ -216,6 +216,15 @@ class WrapNet:
         self.panels.length_m = length.copy()
         self.frozen = True
 
+    def next_level(self) -> None:
+        """Carry the wrap into the next level of the same unit: its rest lengths, plastic
+        stretch, tears and an opened seam stay as they are; the peaks start again, since the
+        report is per level."""
+        for e in (self.rings, self.panels):
+            e.peak[:], e.peak_force[:], e.peak_t[:], e.rising[:] = 0.0, 0.0, np.nan, False
+        self.ring_edge[:] = 1.0
+        self.seam_peak, self.seam_peak_force, self.seam_peak_t = 0.0, 0.0, math.nan
+
     def _panel_lengths(self, p: np.ndarray) -> np.ndarray:
         nodes = self.panel_spec.nodes
         if not len(nodes):

@@ -47,6 +47,7 @@ def run(argv: list[str]) -> int:
     try:
         return main(argv)
     except SystemExit as exc:
+        assert isinstance(exc.code, int), exc.code
         return exc.code
 
 
@@ -204,6 +205,41 @@ def test_usage_error_exits_2_with_one_line(argv, load_file, capsys):
     path = str(load_file())
     assert run([path if a == "LOAD" else a for a in argv]) == 2
     assert one_line(capsys.readouterr().err).startswith("wrapbench")
+
+
+@pytest.mark.parametrize("argv, field", [
+    (["--hours-since-wrapping", "-1"], "--hours-since-wrapping"),
+    (["--layer-shift-limit-pct", "0"], "--layer-shift-limit-pct"),
+    (["--layer-shift-limit-pct", "101"], "--layer-shift-limit-pct"),
+    (["--layer-shift-limit-pct", "nan"], "--layer-shift-limit-pct"),
+])
+def test_bad_hours_or_layer_shift_limit_exits_2_naming_the_flag(argv, field, load_file,
+                                                                 tmp_path, capsys):
+    out = tmp_path / "out.json"
+    assert run(["simulate", str(load_file()), "--level", "0.2", *argv, "--json", str(out)]) == 2
+    err = one_line(capsys.readouterr().err)
+    assert field in err and not out.exists()
+
+
+@pytest.mark.parametrize("fresh", [False, True], ids=["cumulative", "fresh"])
+def test_repeated_levels_run_one_unit_unless_fresh_and_report_the_sequence(fresh, load_file,
+                                                                           tmp_path, capsys):
+    out = tmp_path / "verdict.json"
+    argv = ["simulate", str(load_file(base=TINY_LOAD)), "--level", "0.2", "--level", "0.2",
+            "--layer-shift-limit-pct", "2", "--json", str(out)] + (["--fresh"] if fresh else [])
+    assert run(argv) == 0
+    printed = capsys.readouterr().out
+    verdict = json.loads(out.read_text())
+    assert verdict["sequence"] == ("fresh" if fresh else "cumulative")
+    assert f"sequence: {verdict['sequence']}" in printed
+    assert "layer shift <= 9.5 mm (2 % of height)" in printed  # 2 % of 0.474 m
+    for level in verdict["levels"]:
+        assert {"permanent_total_max_m", "permanent_total_max_pct", "layer_shift_max_m",
+                "layer_shift_max_pct"} <= set(level)
+        assert set(level["criteria"]) == CRITERIA | {"layer_shift"}
+        assert level["permanent_total_max_m"] >= 0 and level["layer_shift_max_m"] >= 0
+    if fresh:  # the same fresh unit twice (the carried unit: tests/wrapenv/test_sequence.py)
+        assert verdict["levels"][0] == verdict["levels"][1]
 
 
 @pytest.mark.parametrize("flag, name", [("--json", "out.json"), ("--plot", "out.png")])

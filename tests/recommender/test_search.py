@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 import tomllib
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -17,10 +18,12 @@ from recommender.search import (
     Problem,
     RobustSearch,
     SearchSettings,
+    verify,
 )
 from recommender.uncertainty import MASS_SPREAD
 from wrapenv.calibrated import Calibration
 from wrapenv.config import InputError
+from wrapenv.eumos import LAYER_SHIFT, Limits
 from wrapenv.load import LoadUnit
 from wrapenv.wrap import WrapFormat
 
@@ -291,6 +294,8 @@ def test_a_load_that_passes_long_but_fails_short_gets_a_program_that_passes_both
     (["--target-short", "1.5"], "--target-short"),
     (["--orientation", "long", "--target-short", "0.5"], "--target-short"),
     (["--hours-since-wrapping", "-1"], "--hours-since-wrapping"),
+    (["--target-long", "1.2"], "--target-long"),
+    (["--layer-shift-limit-pct", "0"], "--layer-shift-limit-pct"),
 ])
 def test_bad_orientation_targets_and_hours_exit_2(argv, field, load_file, tmp_path, capsys):
     code = main(["recommend", str(load_file(base=SMALL)), *argv,
@@ -318,3 +323,18 @@ def test_too_many_workers_and_absurd_arguments_exit_2(load_file, tmp_path, capsy
         main(["simulate", str(load), "--level", "abc"])
     assert exit_.value.code == 2
     assert "expected a level in g such as 0.4 (got 'abc')" in capsys.readouterr().err
+
+
+
+def test_verification_runs_one_unit_like_a_lab_and_judges_the_asked_layer_shift(small_load):
+    settings = replace(FAST, targets=(("long", 0.3),), limits=Limits(layer_shift_fraction=1e-6))
+    problem = Problem.build(small_load, settings)
+    check = verify(problem, problem.space.wrap(problem.space.high), samples=1, workers=1)
+    verdict = check.runs["long"].verdict
+    assert verdict.sequence == "cumulative"
+    # a shift of a micrometre is too much: the asked criterion judged both the nominal
+    # sequence and the sample
+    assert verdict.levels[0].criteria[LAYER_SHIFT] is False and not check.passed
+    assert check.worst is not None and check.worst.level["criteria"][LAYER_SHIFT] is False
+    assert settings.identity()["layer_shift_limit"] == 1e-6
+    assert "layer_shift_limit" not in FAST.identity()  # older checkpoints stay valid

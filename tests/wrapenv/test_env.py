@@ -229,7 +229,8 @@ def test_info_keys_and_verdict_json(tiny):
     env.reset()
     *_, info = env.step(np.zeros(N_PARAMS, np.float32))
     assert INFO_KEYS <= set(info)
-    assert set(info["verdict"]) == {"valid", "load_height_m", "levels", "highest_passed_g"}
+    assert set(info["verdict"]) == {"sequence", "valid", "load_height_m", "levels",
+                                    "highest_passed_g"}
     assert [lv["level_g"] for lv in info["verdict"]["levels"]] == [0.2, 0.3]
     level = info["verdict"]["levels"][-1]
     assert {"level_g", "passed", "elastic_max_m", "permanent_max_m", "permanent_low20_m",
