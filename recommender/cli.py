@@ -53,6 +53,19 @@ def _layer_shift_flag(parser: argparse.ArgumentParser) -> None:
 def build_parser() -> argparse.ArgumentParser:
     parser = _Parser(prog="wrapbench", description=__doc__.splitlines()[0])
     sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
+    _add_simulate(sub)
+    rec = sub.add_parser("recommend", help="search the wrapping program with the least web that "
+                                           "passes EUMOS 40509 up to the target")
+    _add_recommend_problem(rec)
+    _add_recommend_run(rec)
+    _add_train(sub)
+    commands.add_synth(sub)
+    commands.add_track(sub)
+    commands.add_calibrate(sub)
+    return parser
+
+
+def _add_simulate(sub: argparse._SubParsersAction) -> None:
     sim = sub.add_parser("simulate", help="run a load unit on the virtual ESTL bench")
     sim.add_argument("load", type=Path, help="LOAD.toml")
     sim.add_argument("--wrap", type=Path, metavar="WRAP.toml",
@@ -85,8 +98,9 @@ def build_parser() -> argparse.ArgumentParser:
                      help="with --wrap: the envelope unrolled, coloured by each place's peak "
                           "utilisation, torn and opened places marked")
 
-    rec = sub.add_parser("recommend", help="search the wrapping program with the least web that "
-                                           "passes EUMOS 40509 up to the target")
+
+def _add_recommend_problem(rec: argparse.ArgumentParser) -> None:
+    """The load, the web, the method and where it runs, the targets and what is uncertain."""
     rec.add_argument("load", type=Path, nargs="?", default=EXAMPLE_LOAD,
                      help="LOAD.toml (default: the bundled 2-layer example)")
     rec.add_argument("--calibration", type=Path, help="CAL.json (friction and its uncertainty)")
@@ -98,7 +112,8 @@ def build_parser() -> argparse.ArgumentParser:
     rec.add_argument("--policy", type=Path, metavar="FILE",
                      help="policy.zip written by `wrapbench train` (with --method ppo)")
     rec.add_argument("--samples", type=int, default=3, metavar="K",
-                     help="robust samples of friction and masses per candidate (default 3)")
+                     help="robust samples of the uncertain parameters per candidate "
+                          "(default 3)")
     rec.add_argument("--margin", type=float, default=0.2,
                      help="wanted EUMOS margin of the worst sample (default 0.2)")
     rec.add_argument("--budget", type=int, default=48, metavar="N",
@@ -126,6 +141,10 @@ def build_parser() -> argparse.ArgumentParser:
                      help="verify on a fresh unit per level (default: one unit through the "
                           "EUMOS sequence, as a lab)")
     _layer_shift_flag(rec)
+
+
+def _add_recommend_run(rec: argparse.ArgumentParser) -> None:
+    """The price of cycle time, the checkpoint and the outputs."""
     rec.add_argument("--max-cycle-s", type=_number, default=math.inf, metavar="S",
                      help="only programs the machine runs within S seconds per pallet")
     rec.add_argument("--cycle-weight", type=_number, default=0.0, metavar="W",
@@ -143,6 +162,8 @@ def build_parser() -> argparse.ArgumentParser:
                           "tension_map.png, search.png and test.mp4/test.webm (the "
                           "recommended program's test at the target level) into DIR")
 
+
+def _add_train(sub: argparse._SubParsersAction) -> None:
     tr = sub.add_parser("train", help="train a PPO policy on random load units "
                                       "(wrapenv/WrapBenchRandom-v1)")
     tr.add_argument("--out", type=Path, required=True, metavar="DIR",
@@ -153,11 +174,6 @@ def build_parser() -> argparse.ArgumentParser:
     tr.add_argument("--material", default="kraft")
     tr.add_argument("--target", type=level_g, default=0.5, metavar="G")
     tr.add_argument("--seed", type=int, default=0)
-
-    commands.add_synth(sub)
-    commands.add_track(sub)
-    commands.add_calibrate(sub)
-    return parser
 
 
 class _Terminated(KeyboardInterrupt):
