@@ -17,13 +17,13 @@ from wrapenv.config import InputError, read_json, write_atomic
 
 #: /2: every candidate records the fidelity it was judged with (multi-fidelity search).
 CHECKPOINT_FORMAT = "wrapbench-search/2"
-#: The keys of one checkpointed generation, each a list with one entry per candidate ("x": the
-#: asked vectors).
+#: The keys of one checkpointed generation that are lists with one entry per candidate ("x": the
+#: asked vectors); "simulations" counts the levels the generation simulated.
 GENERATION_KEYS = ("x", "objective", "margins", "passed", "fidelity")
 
 
 def save(path: Path | None, identity: dict[str, Any],
-         generations: list[dict[str, list[Any]]]) -> None:
+         generations: list[dict[str, Any]]) -> None:
     """Write the checkpoint atomically (nothing half-written if interrupted); None: nowhere."""
     if path is None:
         return
@@ -31,7 +31,7 @@ def save(path: Path | None, identity: dict[str, Any],
     write_atomic(path, (json.dumps(data) + "\n").encode())
 
 
-def load(path: Path | None, identity: dict[str, Any]) -> list[dict[str, list[Any]]]:
+def load(path: Path | None, identity: dict[str, Any]) -> list[dict[str, Any]]:
     """The generations of the checkpoint at `path`, if it is this search's (`identity`)."""
     if path is None or not path.exists():
         raise InputError(str(path), "resume", "no checkpoint to resume from")

@@ -63,6 +63,8 @@ class SearchSettings:
     sim: SimSettings = SimSettings()
     #: The fidelity candidates are screened with; None: every candidate at `sim`.
     screen: SimSettings | None = SimSettings.screening()
+    #: Samples a candidate is screened in (the first of the K); a confirmation runs all K.
+    screen_samples: int = 3
 
     @property
     def target_g(self) -> float:
@@ -77,7 +79,8 @@ class SearchSettings:
                 "sigma0": self.sigma0, "seed": self.seed, "max_cycle_s": _json_float(
                     self.max_cycle_s), "cycle_weight": self.cycle_weight,
                 "sim": asdict(self.sim),
-                "screen": None if self.screen is None else asdict(self.screen)}
+                "screen": None if self.screen is None else asdict(self.screen),
+                "screen_samples": self.screen_samples}
 
 
 @dataclass(frozen=True)

@@ -92,6 +92,8 @@ class SearchState:
     history: list[Evaluation] = field(default_factory=list)
     generation: int = 0
     stale_generations: int = 0
+    #: Levels simulated so far (screening, confirmations).
+    simulations: int = 0
 
     def finished(self, settings: SearchSettings) -> bool:
         """Done when CMA-ES stops, when another generation would try more candidates than
@@ -119,6 +121,7 @@ class Trial:
     orientation: str
     level: dict[str, Any]  # the weakest orientation's level verdict (simulate's JSON)
     sample: dict[str, Any]
+    simulations: int = 1  # levels run (fewer than the orientations once decided)
 
 
 def _trial(problem: Problem, wrap: WrapFormat, seed: int, sim: SimSettings) -> Trial:
@@ -128,17 +131,18 @@ def _trial(problem: Problem, wrap: WrapFormat, seed: int, sim: SimSettings) -> T
     sample = problem.sample(seed)
     load, laid = sample.load(problem.load), sample.wrap(wrap)
     weakest: Trial | None = None
-    passed = True
+    passed, simulations = True, 0
     for orientation, target in problem.settings.targets:
         verdict = run_levels(load, [target], sim, orientation=orientation, wrap=laid).verdict
         passed &= verdict.passed
+        simulations += 1
         if weakest is None or verdict.margin < weakest.margin:
             weakest = Trial(verdict.passed, verdict.margin, orientation,
                             verdict.levels[-1].to_json(), sample.to_json())
         if not passed and sim.stop_when_decided:
             break
     assert weakest is not None
-    return replace(weakest, passed=passed)
+    return replace(weakest, passed=passed, simulations=simulations)
 
 
 Progress = Callable[[int, int, SearchState], None]
@@ -150,7 +154,8 @@ class RobustSearch:
     def __init__(self, problem: Problem, checkpoint: Path | None = None) -> None:
         self.problem, self.checkpoint = problem, checkpoint
         #: Every generation as data: what was asked ("x") and how each candidate scored.
-        self._generations: list[dict[str, list[Any]]] = []
+        self._generations: list[dict[str, Any]] = []
+        self._simulations = 0  # levels simulated in the generation under way
 
     def _strategy(self, x0: np.ndarray) -> cma.CMAEvolutionStrategy:
         s = self.problem.settings
@@ -165,7 +170,7 @@ class RobustSearch:
     def start(self, x0: np.ndarray | None = None) -> SearchState:
         """A new search from `x0` (default `LIGHT_START`: the light side, where the cheapest
         safe program usually is)."""
-        self._generations = []
+        self._generations, self._simulations = [], 0
         return SearchState(self._strategy(np.array(LIGHT_START if x0 is None else x0, float)))
 
     def resume(self) -> SearchState:
@@ -188,7 +193,7 @@ class RobustSearch:
                 "tension_scale": [u.tension_scale, u.tension_scale_std],
                 "friction_std": {k: list(v) for k, v in u.friction_std.items()}}
 
-    def _replay(self, state: SearchState, generation: dict[str, list[Any]]) -> None:
+    def _replay(self, state: SearchState, generation: dict[str, Any]) -> None:
         """A checkpointed generation told again: its programs rebuilt, nothing simulated."""
         asked = np.array(state.es.ask(), float)
         xs = np.array(generation["x"], float)
@@ -202,6 +207,7 @@ class RobustSearch:
             for x, margins, passed, objective, fidelity in zip(
                 asked, generation["margins"], generation["passed"], generation["objective"],
                 generation["fidelity"], strict=True)]
+        self._simulations = int(generation["simulations"])
         self._record(state, asked, evaluations)
 
     def _evaluation(self, x: np.ndarray, margins: list[float], passed: list[bool],
@@ -235,23 +241,28 @@ class RobustSearch:
         if s.screen is None:
             evaluations = self._simulate(pool, xs, seeds, s.sim, DEFAULT)
         else:
-            evaluations = self._confirm(state, pool, xs, seeds,
-                                        self._simulate(pool, xs, seeds, s.screen, SCREENING))
+            screened = self._simulate(pool, xs, seeds[:s.screen_samples], s.screen, SCREENING)
+            evaluations = self._confirm(state, pool, xs, seeds, screened)
         self._record(state, xs, evaluations)
 
     def _simulate(self, pool: Executor, xs: np.ndarray, seeds: list[int],
                   sim: SimSettings, fidelity: str) -> list[Evaluation]:
-        """Candidates in every sample at one fidelity; over the cycle limit: not simulated."""
+        """Candidates in every sample at one fidelity; over the cycle limit: not simulated.
+        With `sim.stop_when_decided`, in two rounds: the first sample, then the others only
+        for the candidates that passed it (a failed sample has decided the candidate)."""
         problem = self.problem
         wraps = [problem.wrap(x) for x in xs]
-        futures = [[] if problem.too_slow(w) is not None else
-                   [pool.submit(_trial, problem, w, seed, sim) for seed in seeds] for w in wraps]
-        evaluations = []
-        for x, fs in zip(xs, futures, strict=True):
-            trials = [f.result() for f in fs]
-            evaluations.append(self._evaluation(x, [t.margin for t in trials],
-                                                [t.passed for t in trials], fidelity))
-        return evaluations
+        rounds = [seeds[:1], seeds[1:]] if sim.stop_when_decided else [seeds]
+        trials: list[list[Trial]] = [[] for _ in xs]
+        for round_seeds in rounds:
+            futures = [[] if problem.too_slow(w) is not None or not all(t.passed for t in done)
+                       else [pool.submit(_trial, problem, w, seed, sim) for seed in round_seeds]
+                       for w, done in zip(wraps, trials, strict=True)]
+            for done, fs in zip(trials, futures, strict=True):
+                done.extend(f.result() for f in fs)
+        self._simulations += sum(t.simulations for done in trials for t in done)
+        return [self._evaluation(x, [t.margin for t in done], [t.passed for t in done],
+                                 fidelity) for x, done in zip(xs, trials, strict=True)]
 
     def _confirm(self, state: SearchState, pool: Executor, xs: np.ndarray, seeds: list[int],
                  screened: list[Evaluation]) -> list[Evaluation]:
@@ -278,10 +289,13 @@ class RobustSearch:
         state.es.tell(list(xs), values)
         state.history.extend(evaluations)
         state.generation += 1
-        self._generations.append({"x": xs.tolist(), "objective": values,
+        state.simulations += self._simulations
+        self._generations.append({"simulations": self._simulations, "x": xs.tolist(),
+                                  "objective": values,
                                   "margins": [list(e.margins) for e in evaluations],
                                   "passed": [list(e.passed) for e in evaluations],
                                   "fidelity": [e.fidelity for e in evaluations]})
+        self._simulations = 0
         after = state.best(s.margin_goal)
         improved = after is not None and (before is None or after.mass_kg < before.mass_kg - 1e-9)
         state.stale_generations = 0 if improved else state.stale_generations + 1
@@ -311,19 +325,20 @@ def verify(problem: Problem, wrap: WrapFormat, samples: int, seed: int = 12345,
     """The EUMOS sequence in every orientation on the nominal load, and the pass rate at the
     targets over `samples` fresh samples of the uncertain parameters. The samples stop a level
     (and the sample) once it has failed: a pass probability needs only the verdicts (the worst
-    sample's figures are then those at its stop)."""
+    sample's figures are then those at its stop). The nominal sequences run in the pool
+    too, alongside the samples."""
     s = problem.settings
     decided = replace(s.sim, stop_when_decided=True)
-    runs = {orientation: run_levels(problem.load, eumos_levels(target), s.sim,
-                                    orientation=orientation, stop_at_failure=True,
-                                    wrap=problem.simulated(wrap))
-            for orientation, target in s.targets}
     with executor(s.backend, workers, s.ray_address) as pool:
+        nominal = {orientation: pool.submit(run_levels, problem.load, eumos_levels(target),
+                                            s.sim, orientation=orientation,
+                                            stop_at_failure=True, wrap=problem.simulated(wrap))
+                   for orientation, target in s.targets}
         trials = list(pool.map(_trial, [problem] * samples, [wrap] * samples,
                                [seed + k for k in range(samples)], [decided] * samples))
+        runs = {orientation: future.result() for orientation, future in nominal.items()}
     worst = min(trials, key=lambda t: t.margin, default=None)
     return Verification(runs, PassProbability(sum(t.passed for t in trials), samples), worst)
-
 
 
 __all__ = ["Evaluation", "Problem", "RobustSearch", "SearchSettings", "SearchState", "Trial",
