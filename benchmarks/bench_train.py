@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import resource
 import time
 
 import numpy as np
@@ -35,10 +36,12 @@ VEC_ENVS: dict[str, tuple[int, type[DummyVecEnv] | type[SubprocVecEnv]]] = {
 
 
 def episodes_per_s(sim: SimSettings, n_envs: int, cls: type[DummyVecEnv] | type[SubprocVecEnv],
-                   episodes: int, seed: int) -> tuple[float, float]:
-    """Episodes per second of wall time and the mean reward, over `episodes` (a multiple of
-    `n_envs`) with seeded random actions."""
+                   episodes: int, seed: int) -> tuple[float, float, float]:
+    """Episodes per second of wall time, episodes per CPU second of the whole process tree
+    (env workers included, their start-up too) and the mean reward, over `episodes` (a multiple
+    of `n_envs`) with seeded random actions."""
     settings = TrainSettings()
+    cpu0 = _cpu_s()
     vec = make_vec_env(MAKE_ID, n_envs=n_envs, seed=seed, vec_env_cls=cls,
                        env_kwargs={"material": settings.material, "target_g": settings.target_g,
                                    "levels": settings.levels, "settings": sim})
@@ -53,8 +56,14 @@ def episodes_per_s(sim: SimSettings, n_envs: int, cls: type[DummyVecEnv] | type[
             rewards.extend(reward.tolist())
         wall = time.perf_counter() - t0
     finally:
-        vec.close()
-    return len(rewards) / wall, float(np.mean(rewards))
+        vec.close()  # joins the workers, so their CPU time is counted
+    return len(rewards) / wall, len(rewards) / (_cpu_s() - cpu0), float(np.mean(rewards))
+
+
+def _cpu_s() -> float:
+    own, children = (resource.getrusage(w) for w in (resource.RUSAGE_SELF,
+                                                      resource.RUSAGE_CHILDREN))
+    return own.ru_utime + own.ru_stime + children.ru_utime + children.ru_stime
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -64,19 +73,20 @@ def main(argv: list[str] | None = None) -> None:
     args = parser.parse_args(argv)
     print(f"{os.cpu_count()} cores; {args.episodes} episodes per configuration and round, "
           f"{args.rounds} rounds (goal >= 5 episodes/s on 2 cores)")
-    rates: dict[tuple[str, str], list[float]] = {}
+    rates: dict[tuple[str, str], list[tuple[float, float]]] = {}
     for round_ in range(args.rounds):
         for vec_name, (n_envs, cls) in VEC_ENVS.items():
             for sim_name, sim in SETTINGS.items():
-                rate, reward = episodes_per_s(sim, n_envs, cls, args.episodes, seed=round_)
-                rates.setdefault((vec_name, sim_name), []).append(rate)
-                print(f"  round {round_}: {vec_name:18s} {sim_name:22s} {rate:5.2f} episodes/s "
-                      f"(mean reward {reward:+.3f})", flush=True)
-    print(f"\n{'vector env':18s} " + " ".join(f"{name:>22s}" for name in SETTINGS) + "  ratio")
+                wall, cpu, reward = episodes_per_s(sim, n_envs, cls, args.episodes, seed=round_)
+                rates.setdefault((vec_name, sim_name), []).append((wall, cpu))
+                print(f"  round {round_}: {vec_name:18s} {sim_name:22s} {wall:5.2f} episodes/s, "
+                      f"{cpu:5.2f} per CPU s (mean reward {reward:+.3f})", flush=True)
+    print("\nepisodes/s of wall time (episodes per CPU second); ratio of the wall figures")
+    print(f"{'vector env':18s} " + " ".join(f"{name:>24s}" for name in SETTINGS) + "  ratio")
     for vec_name in VEC_ENVS:
-        mean = [float(np.mean(rates[vec_name, sim_name])) for sim_name in SETTINGS]
-        print(f"{vec_name:18s} " + " ".join(f"{m:15.2f} eps/s" for m in mean)
-              + f"  {mean[1] / mean[0]:.2f} x")
+        mean = [np.mean(rates[vec_name, sim_name], axis=0) for sim_name in SETTINGS]
+        print(f"{vec_name:18s} " + " ".join(f"{w:11.2f} ({c:.2f} /CPU s)" for w, c in mean)
+              + f"  {mean[1][0] / mean[0][0]:.2f} x")
 
 
 if __name__ == "__main__":

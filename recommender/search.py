@@ -12,10 +12,11 @@ margin shortfall, cycle time) are in `recommender.problem`. A blown-up simulatio
 Multi-fidelity: candidates are screened with `SimSettings.screening()` (a level ends at its
 first rest in the deceleration or once it has failed, a sample once an orientation has failed),
 which agrees with the default settings on every verdict and within 0.002 of margin in
-benchmarks/bench_screening.py. A screened pass can only become the answer once confirmed with
-the default settings in the same samples: the lightest screened passes that would replace the
-incumbent are confirmed in rank order until one holds; one that fails its confirmation is
-recorded as failed. Only confirmed passes rank (`SearchState.ranked`).
+benchmarks/bench_screening.py, in the first `screen_samples` of the K samples. A screened pass
+can only become the answer once confirmed with the default settings in all K samples: the
+lightest screened passes that would replace the incumbent are confirmed in rank order until
+one holds; one that fails its confirmation is recorded as failed. Only confirmed passes rank
+(`SearchState.ranked`).
 
 The loop is pycma's ask/tell, one generation at a time; samples run in parallel (worker
 processes, or Ray tasks: `recommender.parallel`). After every generation the search is

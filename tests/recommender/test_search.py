@@ -163,8 +163,11 @@ def test_the_answer_is_confirmed_at_the_default_fidelity_and_the_search_repeats(
     with ThreadPoolExecutor(2) as pool:
         screened = search._simulate(pool, np.array([best.vector]), seeds, FAST.screen,
                                     SCREENING)[0]
+    assert len(best.passed) == FAST.samples  # confirmed in all K samples
     assert screened.passed == best.passed
     assert np.allclose(screened.margins, best.margins, atol=0.01)
+    screened_once = [e for e in state.history if e.fidelity == SCREENING]
+    assert all(len(e.passed) == FAST.screen_samples == 1 for e in screened_once)
 
 
 def test_a_screened_pass_that_fails_its_confirmation_is_recorded_as_failed(small_load,
@@ -193,7 +196,7 @@ def test_a_screened_pass_that_fails_its_confirmation_is_recorded_as_failed(small
 
 @pytest.mark.parametrize("other", [{"material": "lldpe"}, {"targets": (("long", 0.6),)},
                                    {"seed": 3}, {"hours_since_wrapping": 16.0},
-                                   {"screen": None}])
+                                   {"screen": None}, {"screen_samples": 2}])
 def test_resume_refuses_another_search_s_checkpoint(small_load, tmp_path, other,
                                                     assert_input_error):
     ckpt = tmp_path / "search.json"
