@@ -182,7 +182,8 @@ def add_calibrate(sub: argparse._SubParsersAction) -> None:
                         "cmaes or momentum (the source paper's gradient descent) on single "
                         "replays")
     p.add_argument("--params", choices=PARAMS, default="all",
-                   help="friction, wrap (stiffness and tension scales) or all (default)")
+                   help="friction, wrap (the web's stiffness and tension scales and the "
+                        "load's give) or all (default)")
     p.add_argument("--budget", type=int, default=300, metavar="N",
                    help="most simulations of the fit (default 300)")
     p.add_argument("--workers", type=int, default=os.cpu_count() or 1,
@@ -309,7 +310,8 @@ def _summary(result) -> str:
         else:
             lines.append(f"{name:14s}  >= {p.static:.3f}      (never slipped)  no")
     lines.append(f"wrap: stiffness scale {cal.stiffness_scale:.2f} ± {cal.stiffness_scale_std:.2f}"
-                 f", tension scale {cal.tension_scale:.2f} ± {cal.tension_scale_std:.2f}")
+                 f", tension scale {cal.tension_scale:.2f} ± {cal.tension_scale_std:.2f}"
+                 f", load's give scale {cal.give_scale:.2f} ± {cal.give_scale_std:.2f}")
     lines += [f"advice: {name}: {text}" for name, text in result.advice.items()]
     spread = (f" (replays scatter {1e3 * result.spread_rms_m:.2f} mm about their mean)"
               if result.spread_rms_m else "")

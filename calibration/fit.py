@@ -44,7 +44,7 @@ RATIO_RANGE = (0.5, 1.0)          # kinetic / static
 #: only changes when it starts; a box mostly of units that never slip would be wasted.
 KINETIC_HEADROOM_G = 0.1
 #: The wrap stage's parameters: base-2 logarithm ranges of scales in `replay.WRAP_SCALES`.
-WRAP_PARAMS = {"stiffness": (-2.0, 2.0), "tension": (-2.0, 2.0)}
+WRAP_PARAMS = {"stiffness": (-2.0, 2.0), "tension": (-2.0, 2.0), "give": (-2.0, 2.0)}
 #: A static coefficient with a larger standard deviation than this is reported as unresolved,
 #: and so is a wrap scale whose base-2 logarithm's is larger than this (1 sigma = +-20 %).
 RESOLVED_STATIC_STD = 0.025
@@ -302,4 +302,4 @@ def _calibration(found: _Fitted, slipped: frozenset[str], bounds: dict[str, iden
     scales = {name: found.scales.get(name, 1.0) for name in WRAP_PARAMS}
     stds = {name: found.stds.get((name, ""), 0.0) for name in WRAP_PARAMS}
     return Calibration(pairs, scales["stiffness"], scales["tension"], stds["stiffness"],
-                       stds["tension"])
+                       stds["tension"], scales["give"], stds["give"])

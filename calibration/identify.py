@@ -110,5 +110,7 @@ def advice_scale(name: str, scale: float, std: float) -> str:
     why = ("the recorded motion hardly depends on it: where the web is much stiffer than the "
            "load-side compliance in series with it (paper on shrink-wrapped bundles), that "
            "compliance decides how far the load moves" if name == "stiffness" else
+           "the recorded motion hardly depends on it: where the web is much softer than the "
+           "load's edges (film), the web decides how far the load moves" if name == "give" else
            "the recorded motion hardly depends on it")
     return f"{name} scale not resolved ({scale:.2f} ± {std:.2f}): {why}"

@@ -35,11 +35,13 @@ MIN_FRAMES = 10
 #: Replays meant to show the bench's run-to-run scatter let the unit settle this much longer
 #: each (repeated bench tests never start from quite the same state).
 SETTLE_STEP_S = 0.05
-#: The wrap's scalar parameters a calibration can fit: name -> the wrap replayed with a value.
-#: One more entry (and its range in `calibration.fit.WRAP_PARAMS`) adds a parameter.
-WRAP_SCALES: dict[str, Callable[[WrapFormat, float], WrapFormat]] = {
-    "stiffness": lambda wrap, s: wrap.scaled(stiffness_scale=s),
-    "tension": lambda wrap, s: wrap.scaled(tension_scale=s),
+#: The wrapped unit's scalar parameters a calibration can fit: name -> the load and wrap
+#: replayed with a value (the give is the load's: its bundles' edges under the web). One more
+#: entry (and its range in `calibration.fit.WRAP_PARAMS`) adds a parameter.
+WRAP_SCALES: dict[str, Callable[[LoadUnit, WrapFormat, float], tuple[LoadUnit, WrapFormat]]] = {
+    "stiffness": lambda load, wrap, s: (load, wrap.scaled(stiffness_scale=s)),
+    "tension": lambda load, wrap, s: (load, wrap.scaled(tension_scale=s)),
+    "give": lambda load, wrap, s: (load.with_give(s), wrap),
 }
 
 
@@ -120,10 +122,11 @@ def replay(obs: Observation, friction: Friction, scales: Mapping[str, float] | N
     """Simulated displacements and rotations (n, 3) of the observed objects at their frame
     times, from the first one (as `Observation.states`), until the last window's end; None when
     the simulation became unphysical. `scales` maps `WRAP_SCALES` names to values."""
-    layout = obs.load.with_friction(friction).layout()
-    wrap = obs.wrap
-    for name, value in (scales or {}).items():
-        wrap = WRAP_SCALES[name](wrap, value) if wrap is not None else None
+    load, wrap = obs.load.with_friction(friction), obs.wrap
+    if wrap is not None:
+        for name, value in (scales or {}).items():
+            load, wrap = WRAP_SCALES[name](load, wrap, value)
+    layout = load.layout()
     t, a = obs.profile.t_s, obs.profile.accel_mps2
     keep = t <= obs.end_s + (t[1] - t[0])
     profile = replace(obs.profile, t_s=t[keep], accel_mps2=a[keep])

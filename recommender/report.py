@@ -118,7 +118,7 @@ def plot_tension_map(run: BenchRun, layout: Layout, path: str | Path, title: str
     fig.colorbar(plt.cm.ScalarMappable(norm=norm, cmap=cmap), ax=axes[:, 0].tolist(),
                  label="peak force / what the place bears", fraction=0.04)
     if title:
-        fig.suptitle(title, fontsize=11)
+        fig.suptitle(printable(title, 120), fontsize=11, parse_math=False)
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=110)
     plt.close(fig)

@@ -3,7 +3,8 @@
 A recommendation is robust when it passes in samples of every parameter the model is unsure of:
 each friction pair (its calibrated standard deviation, or the CTU Code's quoted ±0.03), the
 bundles' mass (±5 %), the web's stiffness and the tension the machine really lays (calibrated,
-or assumed ±10 %), and how much of that tension is left when the load travels (its material's
+or assumed ±10 %), the load's give under the web (its bundles' edge stiffness: calibrated, or
+assumed ±25 %), and how much of that tension is left when the load travels (its material's
 relaxation law, ±5 % of the tension [A]). Every draw is seeded, so the same seed gives the same
 sample in any process.
 """
@@ -28,6 +29,10 @@ MASS_SPREAD = 0.05
 #: fractions [A]: supplier cards quote stiffness to about ±10 %, and a wrapper's tension
 #: setting is a brake or a dancer, not a measurement.
 DEFAULT_SCALE_STD = 0.10
+#: Standard deviation of the load's give (its bundles' edge stiffness under the web) without a
+#: calibration, as a fraction [A]: docs/materials.md section 5; the design chart
+#: (benchmarks/design_chart.py) shows what halving or doubling it does.
+DEFAULT_GIVE_STD = 0.25
 #: Standard deviation of the tension left after relaxing, as a fraction of it [A].
 RELAXATION_STD = 0.05
 #: Hours between wrapping and the road that `recommend` assumes: ASTM D5414 rests a wrapped
@@ -47,6 +52,8 @@ class Uncertainty:
     tension_scale: float = 1.0
     tension_scale_std: float = DEFAULT_SCALE_STD
     hours_since_wrapping: float = 0.0
+    #: Relative to the load's give as given (a calibrated give is already in the load).
+    give_std: float = DEFAULT_GIVE_STD
 
     @classmethod
     def of(cls, calibration: Calibration | None, hours_since_wrapping: float) -> Uncertainty:
@@ -57,10 +64,11 @@ class Uncertainty:
         for name, pair in calibration.friction.items():
             std[name] = (pair.static_std or DEFAULT_FRICTION_STD,
                          pair.kinetic_std or DEFAULT_FRICTION_STD)
+        give_std = calibration.give_scale_std / calibration.give_scale
         return cls(std, calibration.stiffness_scale,
                    calibration.stiffness_scale_std or DEFAULT_SCALE_STD,
                    calibration.tension_scale, calibration.tension_scale_std or DEFAULT_SCALE_STD,
-                   hours_since_wrapping)
+                   hours_since_wrapping, give_std or DEFAULT_GIVE_STD)
 
     def nominal(self, wrap: WrapFormat) -> WrapFormat:
         """The wrap as the bench simulates it at the nominal values."""
@@ -84,6 +92,7 @@ class Uncertainty:
             tension_scale=_positive(rng, self.tension_scale, self.tension_scale_std),
             relaxation_scale=_positive(rng, 1.0, RELAXATION_STD),
             hours_since_wrapping=self.hours_since_wrapping,
+            give_scale=_positive(rng, 1.0, self.give_std),
         )
 
 
@@ -102,10 +111,12 @@ class Sample:
     tension_scale: float
     relaxation_scale: float
     hours_since_wrapping: float
+    give_scale: float = 1.0
 
     def load(self, load: LoadUnit) -> LoadUnit:
         bundle = replace(load.bundle, mass_kg=load.bundle.mass_kg * self.mass_scale)
-        return replace(load, bundle=bundle, friction=replace(load.friction, **self.friction))
+        drawn = replace(load, bundle=bundle, friction=replace(load.friction, **self.friction))
+        return drawn.with_give(self.give_scale)
 
     def wrap(self, wrap: WrapFormat) -> WrapFormat:
         """The wrap as this sample lays it: stiffness and tension scaled, then relaxed (the
@@ -121,6 +132,7 @@ class Sample:
                 "stiffness_scale": round(self.stiffness_scale, 4),
                 "tension_scale": round(self.tension_scale, 4),
                 "relaxation_scale": round(self.relaxation_scale, 4),
+                "give_scale": round(self.give_scale, 4),
                 "hours_since_wrapping": self.hours_since_wrapping}
 
 

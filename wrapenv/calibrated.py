@@ -38,8 +38,10 @@ class Calibration:
     give_scale_std: float = 0.0
 
     def wrap_scales(self) -> dict[str, float]:
-        """The wrap's scales by the names `calibration.replay.WRAP_SCALES` applies them by."""
-        return {"stiffness": self.stiffness_scale, "tension": self.tension_scale}
+        """The wrapped unit's scales by the names `calibration.replay.WRAP_SCALES` applies
+        them by."""
+        return {"stiffness": self.stiffness_scale, "tension": self.tension_scale,
+                "give": self.give_scale}
 
     def apply(self, load: LoadUnit) -> LoadUnit:
         """The load with its friction replaced by the calibrated pairs and its give scaled."""

@@ -111,5 +111,6 @@ def test_wrap_stiffness_fit_finds_the_hidden_scale(tmp_path):
     result = fit([observe(rec, tracked)], FitSettings(params="wrap", budget=50, workers=2))
     assert abs(result.calibration.stiffness_scale / 1.3 - 1) <= 0.2
     assert result.calibration.stiffness_scale_std > 0
+    assert result.calibration.give_scale_std > 0  # the load's give fitted with the wrap
     assert result.calibration.friction == {}  # not asked for: the load file's values stand
     assert result.simulations <= 50

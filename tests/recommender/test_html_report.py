@@ -190,7 +190,7 @@ def simulated_report(tmp_path_factory) -> Path:
 
 def test_simulate_report_writes_the_page_its_figures_and_both_videos(simulated_report):
     names = sorted(p.name for p in simulated_report.iterdir())
-    assert names == ["displacement.png", PAGE, "test.mp4", "test.webm"]
+    assert names == ["displacement.png", PAGE, "tension_map.png", "test.mp4", "test.webm"]
     for video in ("test.mp4", "test.webm"):
         capture = cv2.VideoCapture(str(simulated_report / video))
         assert capture.isOpened() and capture.get(cv2.CAP_PROP_FRAME_COUNT) > 10
@@ -260,7 +260,7 @@ def test_the_report_opens_in_chromium_without_errors_showing_the_table_and_image
     assert shown["rows"] == ["0.20 g", "0.30 g"] and shown["rowsShown"]
     assert shown["title"].startswith('Bench test report: <script>alert("x")</script>')
     assert shown["scripts"] == 0, "the hostile name stayed text"
-    assert_images_and_video_shown(shown, [990])  # the displacement plot, 9 in wide
+    assert_images_and_video_shown(shown, [990, 1100])  # displacement (9 in), tension map (10 in)
     assert pdf.startswith(b"%PDF") and len(re.findall(rb"/Type\s*/Page\b", pdf)) >= 2
 
 
@@ -287,4 +287,4 @@ def test_recommend_report_adds_how_sure_and_the_search(tmp_path):
     assert re.fullmatch(r"\d+ % \(\d of 8 samples; 95 % interval \d+ %–\d+ %, Wilson\)",
                         shown["facts"]["Pass probability"])
     assert shown["facts"]["Search"].startswith("4 candidate programs")
-    assert_images_and_video_shown(shown, [990, 770])  # displacement (9 in) and search (7 in)
+    assert_images_and_video_shown(shown, [990, 1100, 770])  # displacement, tension map, search

@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 from recommender.uncertainty import (
+    DEFAULT_GIVE_STD,
     DEFAULT_SCALE_STD,
     MASS_SPREAD,
     PassProbability,
@@ -44,6 +45,19 @@ def test_a_calibration_sets_the_wrap_s_scales_and_their_spread():
     stiffness = np.array([u.draw(LOAD, s).stiffness_scale for s in range(200)])
     assert abs(stiffness.mean() - 1.4) < 0.01 and stiffness.std() < 0.03
     assert u.tension_scale_std == DEFAULT_SCALE_STD  # not calibrated: the default spread
+
+
+def test_the_load_s_give_is_drawn_round_the_load_s_own():
+    """Uncalibrated, the bundles' edge stiffness spreads by the assumed 25 %; a calibration's
+    relative standard deviation replaces it (the calibrated give is already in the load)."""
+    corner = LOAD.bundle.corner_stiffness_n_per_m2
+    draws = [Uncertainty.of(None, 0.0).draw(LOAD, s) for s in range(400)]
+    given = np.array([d.load(LOAD).bundle.corner_stiffness_n_per_m2 for d in draws]) / corner
+    assert given == pytest.approx([d.give_scale for d in draws])
+    assert abs(given.mean() - 1.0) < 0.04
+    assert given.std() == pytest.approx(DEFAULT_GIVE_STD, rel=0.15)
+    cal = Calibration(give_scale=2.0, give_scale_std=0.1)
+    assert Uncertainty.of(cal, 0.0).give_std == pytest.approx(0.05)
 
 
 def test_a_sample_relaxes_the_wrap_by_its_material_law_scaled_by_its_draw():

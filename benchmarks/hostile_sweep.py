@@ -1,0 +1,204 @@
+"""The hostile-input sweep of issue 17, re-run: every case is a `wrapbench` command a careless or
+hostile user could type, run as a separate process in a scratch folder. Each is checked for what
+the product promises about bad input: exit status 2, one line on stderr naming the file or flag
+(no traceback), and nothing written. Cases that are not bad input (a BOM in profile.csv, a tiny
+video, an escaped name) are checked for their own promise.
+
+    python -m benchmarks.hostile_sweep            # prints one row per case, exits 1 on a failure
+    python -m benchmarks.hostile_sweep -k synth   # only the cases whose name contains 'synth'
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+LOAD = (ROOT / "examples/pet_2layer_columnar.toml").read_text()
+WRAP = (ROOT / "examples/program_kraft_default.toml").read_text()
+#: Every case gets at most this long (a refusal takes a second; a case that runs is a failure).
+TIMEOUT_S = 120
+
+
+@dataclass(frozen=True)
+class Case:
+    """One command line, the files it is given and what must come of it."""
+
+    name: str
+    args: list[str]
+    files: dict[str, str] = field(default_factory=dict)
+    status: int = 2
+    #: Words the one-line error must hold (the file or flag, what is wrong).
+    needles: tuple[str, ...] = ()
+    #: A further check on the scratch folder and the output (None: nothing to check).
+    check: Callable[[Path, str], str] | None = None
+
+
+def _load(**replace: str) -> str:
+    """The example load with whole lines replaced: key -> new line."""
+    lines = LOAD.splitlines()
+    for key, new in replace.items():
+        lines = [new if line.split("=")[0].strip() == key else line for line in lines]
+    return "\n".join(lines) + "\n"
+
+
+def _bundle(keys: str) -> str:
+    """The example load with its bundle given by these keys instead of its preset."""
+    return LOAD.replace('[bundle]\npreset = "PET6x1.5L"', f"[bundle]\n{keys}")
+
+
+def _escaped(_: Path, out: str) -> str:
+    return "" if "\x1b" not in out else "an escape code reached the terminal"
+
+
+def _recording_made(folder: Path, _: str) -> str:
+    return "" if (folder / "rec" / "profile.csv").exists() else "no recording written"
+
+
+CASES = [
+    # outputs found unusable before any work, inputs never overwritten
+    Case("simulate --json into a folder", ["simulate", "L.toml", "--level", "0.2", "--json", "d"],
+         {"L.toml": LOAD, "d/.keep": ""}, needles=("--json", "folder")),
+    Case("simulate --plot under /proc", ["simulate", "L.toml", "--level", "0.2", "--plot",
+                                         "/proc/x.png"], {"L.toml": LOAD}, needles=("--plot",)),
+    Case("simulate --json onto its input", ["simulate", "L.toml", "--level", "0.2", "--json",
+                                            "L.toml"], {"L.toml": LOAD}, needles=("--json",)),
+    Case("recommend --json into a folder", ["recommend", "L.toml", "--json", "d"],
+         {"L.toml": LOAD, "d/.keep": ""}, needles=("--json",)),
+    Case("recommend --workers 1000", ["recommend", "L.toml", "--workers", "1000"],
+         {"L.toml": LOAD}, needles=("--workers",)),
+    Case("recommend --resume without a checkpoint", ["recommend", "L.toml", "--resume",
+                                                     "--checkpoint", "none.json"],
+         {"L.toml": LOAD}, needles=("checkpoint",)),
+    Case("recommend --ray-address without Ray's client", ["recommend", "L.toml", "--backend",
+                                                         "ray", "--ray-address", "ray://x:1"],
+         {"L.toml": LOAD}, needles=("ray",)),
+    Case("recommend --method ppo with a bad zip", ["recommend", "L.toml", "--method", "ppo",
+                                                  "--policy", "p.zip"],
+         {"L.toml": LOAD, "p.zip": "not a zip"}, needles=("p.zip",)),
+    Case("simulate --level abc", ["simulate", "L.toml", "--level", "abc"], {"L.toml": LOAD},
+         needles=("--level", "abc")),
+    Case("simulate --hours-since-wrapping -1", ["simulate", "L.toml", "--wrap", "W.toml",
+                                                "--hours-since-wrapping", "-1"],
+         {"L.toml": LOAD, "W.toml": WRAP}, needles=("--hours-since-wrapping",)),
+    Case("recommend --target-long 1.5", ["recommend", "L.toml", "--target-long", "1.5"],
+         {"L.toml": LOAD}, needles=("--target-long",)),
+    # impossible or malformed load units, wraps and calibrations
+    Case("load: NaN friction", ["simulate", "L.toml"],
+         {"L.toml": _load(sled_pallet="sled_pallet = { static = nan, kinetic = 0.4 }")},
+         needles=("L.toml", "sled_pallet")),
+    Case("load: a million layers", ["simulate", "L.toml"],
+         {"L.toml": _load(layers="layers = 1000000")}, needles=("L.toml", "layers")),
+    Case("load: 200 layers (66 m, 30 t)", ["simulate", "L.toml"],
+         {"L.toml": _load(layers="layers = 200")}, needles=("L.toml",)),
+    Case("load: a 1 mm bundle", ["simulate", "L.toml"],
+         {"L.toml": _bundle("length_m = 0.001\nwidth_m = 0.001\nheight_m = 0.001\n"
+                            "mass_kg = 0.001")},
+         needles=("L.toml", "bundle")),
+    Case("load: a 1e-9 m bundle", ["simulate", "L.toml"],
+         {"L.toml": _bundle("length_m = 1e-9\nwidth_m = 1e-9\nheight_m = 1e-9\nmass_kg = 1.0")},
+         needles=("L.toml", "bundle")),
+    Case("load: unknown key", ["simulate", "L.toml"],
+         {"L.toml": LOAD.replace("[stack]", "[stack]\nlayrs = 2")}, needles=("L.toml", "layrs")),
+    Case("wrap: negative tension", ["simulate", "L.toml", "--wrap", "W.toml"],
+         {"L.toml": LOAD, "W.toml": WRAP.replace("bottom_tension_n = 800.0",
+                                                  "bottom_tension_n = -800.0")},
+         needles=("W.toml", "bottom_tension_n")),
+    Case("wrap: paper asked to rope", ["simulate", "L.toml", "--wrap", "W.toml"],
+         {"L.toml": LOAD, "W.toml": WRAP.replace("[program]", "[program]\nroping = true")},
+         needles=("W.toml", "roping")),
+    Case("CAL.json with a key given twice", ["simulate", "L.toml", "--calibration", "c.json"],
+         {"L.toml": LOAD, "c.json": '{"friction": {}, "friction": {}}'},
+         needles=("c.json", "friction")),
+    Case("CAL.json truncated", ["simulate", "L.toml", "--calibration", "c.json"],
+         {"L.toml": LOAD, "c.json": '{"friction": {"sled_pallet": {"static": 0.4'},
+         needles=("c.json",)),
+    # recordings
+    Case("synth --size 100000x100000", ["synth", "L.toml", "--out", "rec", "--size",
+                                        "100000x100000"], {"L.toml": LOAD}, needles=("--size",)),
+    Case("synth --fps 100000", ["synth", "L.toml", "--out", "rec", "--fps", "100000"],
+         {"L.toml": LOAD}, needles=("--fps",)),
+    Case("synth --level 5", ["synth", "L.toml", "--out", "rec", "--level", "5"],
+         {"L.toml": LOAD}, needles=("--level",)),
+    Case("synth --out under /proc", ["synth", "L.toml", "--out", "/proc/rec"], {"L.toml": LOAD},
+         needles=("/proc/rec",)),
+    Case("track a folder without a video", ["track", "rec"], {"rec/setup.toml": ""},
+         needles=("rec",)),
+    Case("synth a tiny 64x64 video", ["synth", "L.toml", "--out", "rec", "--size", "64x64",
+                                      "--fps", "5"], {"L.toml": LOAD}, status=0,
+         check=_recording_made),
+    Case("a load name with escape codes", ["simulate", "L.toml", "--level", "0.2"],
+         {"L.toml": LOAD.replace('name = "6x1.5 L PET bundles, 2 layers, columnar"',
+                                 'name = "evil\\u001b[2J"')},
+         status=0, check=_escaped),
+]
+
+
+def run(case: Case) -> tuple[bool, str, float]:
+    """Run one case in a fresh scratch folder; (as promised, what was wrong, seconds)."""
+    with tempfile.TemporaryDirectory(prefix="wrapbench-sweep-") as tmp:
+        folder = Path(tmp)
+        for name, text in case.files.items():
+            (folder / name).parent.mkdir(parents=True, exist_ok=True)
+            (folder / name).write_text(text)
+        before = sorted(p.relative_to(folder) for p in folder.rglob("*"))
+        t0 = time.perf_counter()
+        env = {**os.environ, "PYTHONPATH": str(ROOT)}
+        try:
+            proc = subprocess.run([sys.executable, "-m", "recommender.cli", *case.args],
+                                  cwd=folder, capture_output=True, text=True, env=env,
+                                  timeout=TIMEOUT_S)
+        except subprocess.TimeoutExpired:
+            return False, f"still running after {TIMEOUT_S} s", TIMEOUT_S
+        seconds = time.perf_counter() - t0
+        return _judge(case, proc, folder, before, seconds)
+
+
+def _judge(case: Case, proc: subprocess.CompletedProcess, folder: Path, before: list[Path],
+           seconds: float) -> tuple[bool, str, float]:
+    lines = proc.stderr.strip().splitlines()
+    if proc.returncode != case.status:
+        last = lines[-1] if lines else ""
+        return False, f"exit {proc.returncode}, expected {case.status}: {last[:120]}", seconds
+    if "Traceback" in proc.stderr:
+        return False, "traceback on stderr", seconds
+    if case.status == 2:
+        errors = [line for line in lines if line.startswith("wrapbench")]
+        if len(errors) != 1:
+            return False, f"{len(lines)} lines on stderr", seconds
+        missing = [n for n in case.needles if n.lower() not in errors[0].lower()]
+        if missing:
+            return False, f"message lacks {missing}: {errors[0][:120]}", seconds
+        after = sorted(p.relative_to(folder) for p in folder.rglob("*"))
+        if after != before:
+            return False, f"wrote {sorted(set(after) - set(before))}", seconds
+        return True, errors[0][:110], seconds
+    problem = case.check(folder, proc.stdout) if case.check else ""
+    return not problem, problem or "as promised", seconds
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("-k", default="", help="only cases whose name contains this")
+    args = parser.parse_args()
+    cases = [c for c in CASES if args.k in c.name]
+    failed = 0
+    print("| case | exit | ok | s | message or problem |\n|---|---|---|---|---|")
+    for case in cases:
+        ok, text, seconds = run(case)
+        failed += not ok
+        print(f"| {case.name} | {case.status} | {'yes' if ok else 'NO'} | {seconds:.1f} | "
+              f"{text.replace('|', '/')} |", flush=True)
+    print(f"{len(cases) - failed} of {len(cases)} cases as promised")
+    return 1 if failed else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
