@@ -275,7 +275,7 @@ def run_recommend(args: argparse.Namespace) -> int:
         return 1
     best, check = chosen
     _print_recommendation(problem, best, check)
-    simulations = sum(len(e.passed) for e in state.history) * len(settings.targets)
+    simulations = state.simulations
     print(f"searched {len(state.history)} candidates ({simulations} simulations) in "
           f"{time.perf_counter() - t0:.0f} s ({args.workers} workers, {args.backend})")
     _write_outputs(args, problem, best, check, simulations, candidates=len(state.history))

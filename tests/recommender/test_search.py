@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 import tomllib
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import replace
 from pathlib import Path
 
@@ -15,6 +16,8 @@ import pytest
 from recommender.cli import EXAMPLE_LOAD, main
 from recommender.search import (
     CHECKPOINT_FORMAT,
+    DEFAULT,
+    SCREENING,
     Problem,
     RobustSearch,
     SearchSettings,
@@ -142,8 +145,61 @@ def test_search_finds_a_robust_pass_and_resumes_from_its_checkpoint(small_load, 
     assert best is not None and best.robust_pass
 
 
+def test_the_answer_is_confirmed_at_the_default_fidelity_and_the_search_repeats(small_load,
+                                                                              tmp_path):
+    """Candidates are screened; the best is a pass confirmed with the default settings, whose
+    screened verdicts and margins it reproduces; the same seed gives the same checkpoint."""
+    ckpts = [tmp_path / "a.json", tmp_path / "b.json"]
+    states = [RobustSearch(Problem.build(small_load, FAST), c).run(
+        RobustSearch(Problem.build(small_load, FAST), c).start()) for c in ckpts]
+    assert ckpts[0].read_text() == ckpts[1].read_text()
+    state = states[0]
+    fidelities = [e.fidelity for e in state.history]
+    assert SCREENING in fidelities and DEFAULT in fidelities
+    best = state.best(FAST.margin_goal)
+    assert best is not None and best.fidelity == DEFAULT and best.robust_pass
+    assert all(e.fidelity == DEFAULT for e in state.ranked(FAST.margin_goal))
+    search = RobustSearch(Problem.build(small_load, FAST))
+    index = state.history.index(best)
+    seeds = [FAST.seed * 1_000_003 + (index // FAST.popsize) * 1009 + k
+             for k in range(FAST.samples)]
+    with ThreadPoolExecutor(2) as pool:
+        screened = search._simulate(pool, np.array([best.vector]), seeds, FAST.screen,
+                                    SCREENING)[0]
+    assert len(best.passed) == FAST.samples  # confirmed in all K samples
+    assert screened.passed == best.passed
+    assert np.allclose(screened.margins, best.margins, atol=0.01)
+    screened_once = [e for e in state.history if e.fidelity == SCREENING]
+    assert all(len(e.passed) == FAST.screen_samples == 1 for e in screened_once)
+
+
+def test_a_screened_pass_that_fails_its_confirmation_is_recorded_as_failed(small_load,
+                                                                            tmp_path):
+    class Stricter(RobustSearch):
+        """A bench whose default fidelity fails everything the screening passed."""
+
+        def _simulate(self, pool, xs, seeds, sim, fidelity):
+            out = super()._simulate(pool, xs, seeds, sim, fidelity)
+            if fidelity == DEFAULT:
+                out = [self._evaluation(np.array(e.vector), [-0.5] * len(e.margins),
+                                        [False] * len(e.passed), DEFAULT) for e in out]
+            return out
+
+    ckpt = tmp_path / "search.json"
+    search = Stricter(Problem.build(small_load, FAST), ckpt)
+    state = search.run(search.start())
+    confirmed = [e for e in state.history if e.fidelity == DEFAULT]
+    assert confirmed, "the small load passes in screening"
+    # with no incumbent, every screened pass was tried, and each failed its confirmation
+    assert not any(e.robust_pass for e in state.history)
+    assert state.best(FAST.margin_goal) is None  # nothing unconfirmed can be the answer
+    saved = json.loads(ckpt.read_text())["generations"]
+    assert [f for g in saved for f in g["fidelity"]] == [e.fidelity for e in state.history]
+
+
 @pytest.mark.parametrize("other", [{"material": "lldpe"}, {"targets": (("long", 0.6),)},
-                                   {"seed": 3}, {"hours_since_wrapping": 16.0}])
+                                   {"seed": 3}, {"hours_since_wrapping": 16.0},
+                                   {"screen": None}, {"screen_samples": 2}])
 def test_resume_refuses_another_search_s_checkpoint(small_load, tmp_path, other,
                                                     assert_input_error):
     ckpt = tmp_path / "search.json"

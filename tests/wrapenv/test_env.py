@@ -19,6 +19,7 @@ from gymnasium.utils.env_checker import check_env as gym_check_env
 from stable_baselines3.common.env_checker import check_env as sb3_check_env
 
 import wrapenv
+from wrapenv.bench import SimSettings
 from wrapenv.config import InputError
 from wrapenv.design import N_PARAMS
 from wrapenv.envs import OBS_NAMES, WrapBenchEnv, WrapBenchRandomEnv
@@ -216,6 +217,21 @@ def test_cheaper_passing_program_scores_higher(tiny):
         "middle_tension_n": 800.0, "top_wraps": 3, "top_overhang_m": 0.05,
         "top_tension_n": 800.0}
     assert default["reward_terms"]["material"] == pytest.approx(-1)
+
+
+def test_the_training_settings_keep_the_reward_of_a_pass(tiny):
+    """`TrainSettings.sim` (`SimSettings.screening()`: a level ends at its first rest, or once
+    failed) judges a pass as the defaults do: same verdict, the margin within 0.002."""
+    default, screening = (make(tiny, settings=s) for s in (SimSettings(),
+                                                           SimSettings.screening()))
+    for action in (CHEAP, EXPENSIVE):
+        default.reset(seed=0)
+        screening.reset(seed=0)
+        _, full, *_, a = default.step(action)
+        _, screened, *_, b = screening.step(action)
+        assert a["passed"] and b["passed"]
+        assert b["margin"] == pytest.approx(a["margin"], abs=0.002)
+        assert screened == pytest.approx(full, abs=0.002)
 
 
 def test_material_weight_scales_the_material_term(tiny):

@@ -1,0 +1,103 @@
+"""PPO training throughput: episodes per second of the training envs, settings side by side.
+
+The vector env `wrapbench train` builds (`wrapenv/WrapBenchRandom-v1`, target level only, a new
+random unit every one-step episode) stepped with uniformly random actions, as PPO's rollouts
+step it (the policy's forward pass and its update take well under 1 % of a rollout here).
+Both settings of a vector env see the same units and actions (seeded); the configurations are
+alternated in rounds so a busy machine disturbs each alike:
+
+- the bench's default settings (`SimSettings()`, before issue 15) and the training settings
+  (`TrainSettings.sim`: `SimSettings.screening()`);
+- `DummyVecEnv` (1 env, in this process) and `SubprocVecEnv` with 2 and 4 env processes (a
+  vector step waits for its slowest env; more envs than cores let the others use the wait).
+
+    python -m benchmarks.bench_train [--episodes 32] [--rounds 2]
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import resource
+import time
+from pathlib import Path
+
+import numpy as np
+from stable_baselines3.common.env_util import make_vec_env
+from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv
+
+from recommender.policy import MAKE_ID, TrainSettings
+from wrapenv.bench import SimSettings
+from wrapenv.design import N_PARAMS
+
+SETTINGS = {"default SimSettings()": SimSettings(), "TrainSettings.sim": TrainSettings().sim}
+VEC_ENVS: dict[str, tuple[int, type[DummyVecEnv] | type[SubprocVecEnv]]] = {
+    "DummyVecEnv x 1": (1, DummyVecEnv), "SubprocVecEnv x 2": (2, SubprocVecEnv),
+    "SubprocVecEnv x 4": (4, SubprocVecEnv)}
+
+
+def episodes_per_s(sim: SimSettings, n_envs: int, cls: type[DummyVecEnv] | type[SubprocVecEnv],
+                   episodes: int, seed: int) -> tuple[float, float, float]:
+    """Episodes per second of wall time, episodes per CPU second of the whole process tree
+    (env workers included, their start-up too; Linux) and the mean reward, over `episodes`
+    (a multiple of `n_envs`) with seeded random actions."""
+    settings = TrainSettings()
+    cpu0 = _cpu_s()
+    vec = make_vec_env(MAKE_ID, n_envs=n_envs, seed=seed, vec_env_cls=cls,
+                       env_kwargs={"material": settings.material, "target_g": settings.target_g,
+                                   "levels": settings.levels, "settings": sim})
+    rng = np.random.default_rng(seed)
+    rewards = []
+    try:
+        vec.reset()
+        t0 = time.perf_counter()
+        for _ in range(episodes // n_envs):
+            actions = rng.uniform(-1, 1, (n_envs, N_PARAMS)).astype(np.float32)
+            _, reward, _, _ = vec.step(actions)
+            rewards.extend(reward.tolist())
+        wall = time.perf_counter() - t0
+        cpu = _cpu_s() - cpu0 + sum(_process_cpu_s(p.pid)
+                                    for p in getattr(vec, "processes", []))
+    finally:
+        vec.close()
+    return len(rewards) / wall, len(rewards) / cpu, float(np.mean(rewards))
+
+
+def _cpu_s() -> float:
+    """This process's CPU time."""
+    own = resource.getrusage(resource.RUSAGE_SELF)
+    return own.ru_utime + own.ru_stime
+
+
+def _process_cpu_s(pid: int) -> float:
+    """CPU time of an env worker (SubprocVecEnv starts them from a forkserver: they are not
+    this process's children, so `getrusage` never counts them)."""
+    fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+
+
+def main(argv: list[str] | None = None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--episodes", type=int, default=32, help="per configuration and round")
+    parser.add_argument("--rounds", type=int, default=2)
+    args = parser.parse_args(argv)
+    print(f"{os.cpu_count()} cores; {args.episodes} episodes per configuration and round, "
+          f"{args.rounds} rounds (goal >= 5 episodes/s on 2 cores)")
+    rates: dict[tuple[str, str], list[tuple[float, float]]] = {}
+    for round_ in range(args.rounds):
+        for vec_name, (n_envs, cls) in VEC_ENVS.items():
+            for sim_name, sim in SETTINGS.items():
+                wall, cpu, reward = episodes_per_s(sim, n_envs, cls, args.episodes, seed=round_)
+                rates.setdefault((vec_name, sim_name), []).append((wall, cpu))
+                print(f"  round {round_}: {vec_name:18s} {sim_name:22s} {wall:5.2f} episodes/s, "
+                      f"{cpu:5.2f} per CPU s (mean reward {reward:+.3f})", flush=True)
+    print("\nepisodes/s of wall time (episodes per CPU second); ratio of the wall figures")
+    print(f"{'vector env':18s} " + " ".join(f"{name:>24s}" for name in SETTINGS) + "  ratio")
+    for vec_name in VEC_ENVS:
+        mean = [np.mean(rates[vec_name, sim_name], axis=0) for sim_name in SETTINGS]
+        print(f"{vec_name:18s} " + " ".join(f"{w:11.2f} ({c:.2f} /CPU s)" for w, c in mean)
+              + f"  {mean[1][0] / mean[0][0]:.2f} x")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,55 @@
+"""A robust search's checkpoint: data (JSON), never a pickle.
+
+The file holds what identifies the search (the load, the settings that change what is asked or
+how it is scored) and every generation as it was told to CMA-ES: the candidates asked ("x"),
+their objective, margins and verdicts per sample, and the fidelity each was judged with
+("screening" or "default", see `recommender.search`). A resumed search replays the generations
+into a new CMA-ES with the same seed, without simulating, and refuses a file of another search.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+from wrapenv.config import InputError, read_json, write_atomic
+
+#: /2: every candidate records the fidelity it was judged with (multi-fidelity search).
+CHECKPOINT_FORMAT = "wrapbench-search/2"
+#: The keys of one checkpointed generation that are lists with one entry per candidate ("x": the
+#: asked vectors); "simulations" counts the levels the generation simulated.
+GENERATION_KEYS = ("x", "objective", "margins", "passed", "fidelity")
+
+
+def save(path: Path | None, identity: dict[str, Any],
+         generations: list[dict[str, Any]]) -> None:
+    """Write the checkpoint atomically (nothing half-written if interrupted); None: nowhere."""
+    if path is None:
+        return
+    data = {"format": CHECKPOINT_FORMAT, "problem": identity, "generations": generations}
+    write_atomic(path, (json.dumps(data) + "\n").encode())
+
+
+def load(path: Path | None, identity: dict[str, Any]) -> list[dict[str, Any]]:
+    """The generations of the checkpoint at `path`, if it is this search's (`identity`)."""
+    if path is None or not path.exists():
+        raise InputError(str(path), "resume", "no checkpoint to resume from")
+    data = read_json(path)
+    if data.get("format") != CHECKPOINT_FORMAT:
+        raise InputError(str(path), "format", f"not a wrapbench search checkpoint of this "
+                                              f"version ({CHECKPOINT_FORMAT})")
+    for key, value in identity.items():
+        if data.get("problem", {}).get(key) != value:
+            raise InputError(str(path), f"problem.{key}", "the checkpoint is of another "
+                             "search (load, material, target, seed or fidelity differ)")
+    generations = data.get("generations")
+    if not isinstance(generations, list) or not all(
+            isinstance(g, dict) and all(isinstance(g.get(k), list) for k in GENERATION_KEYS)
+            for g in generations):
+        raise InputError(str(path), "generations", f"must be a list of objects with the lists "
+                                                   f"{', '.join(GENERATION_KEYS)}")
+    return generations
+
+
+__all__ = ["CHECKPOINT_FORMAT", "load", "save"]

@@ -1,0 +1,173 @@
+"""What a robust search searches: its settings, and the problem the workers simulate.
+
+`Problem` holds the load, its layout, the program space, the uncertainty and the objective
+(minimised): the kg of web laid relative to the machine's default program, plus a penalty that
+grows with the shortfall of the worst sample's margin below the wanted margin, plus an optional
+price on cycle time; a program slower than the cycle-time limit is rejected without a
+simulation. Picklable and free of Bullet state, so it travels to worker processes.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from dataclasses import asdict, dataclass
+from typing import Any
+
+import numpy as np
+
+from recommender.uncertainty import TRANSPORT_HOURS, Sample, Uncertainty
+from wrapenv.bench import SimSettings
+from wrapenv.calibrated import Calibration
+from wrapenv.design import INTEGER_INDICES, ProgramSpace
+from wrapenv.eumos import EUMOS_LIMITS, Limits
+from wrapenv.load import Layout, LoadUnit
+from wrapenv.profile import PulseProfile
+from wrapenv.wrap import WrapFormat
+
+#: Objective penalty per unit of margin shortfall (below the margin goal): a tenth of margin is
+#: worth the web of one machine-default program.
+PENALTY_PER_MARGIN = 10.0
+#: Objective of a program slower than the cycle-time limit (plus its relative excess): worse
+#: than any simulated candidate (whose margin is at worst -1 of every level), so the search
+#: moves back under the limit.
+SLOW_PENALTY = 2 * PENALTY_PER_MARGIN + 10.0
+#: Objective per unit of mean tension (as a fraction of the searched range): a tie-breaker,
+#: among programs of equal web the gentler one is kinder to the web at the load's corners.
+TENSION_PRICE = 0.05
+
+#: A load is only as safe as its weaker orientation: road rules ask 0.8 g forward and 0.5 g
+#: sideways and rearward (EN 12195-1); the default searches both sides at 0.5 g.
+BOTH_SIDES = (("long", 0.5), ("short", 0.5))
+
+
+@dataclass(frozen=True)
+class SearchSettings:
+    #: (orientation, target level in g) pairs every candidate must pass.
+    targets: tuple[tuple[str, float], ...] = BOTH_SIDES
+    material: str = "kraft"
+    samples: int = 3               # K robust samples per candidate
+    margin_goal: float = 0.2       # wanted margin of the worst sample (0.2: 80 % of each limit)
+    popsize: int = 8
+    max_candidates: int = 48
+    #: Stop after this many generations without a lighter robust pass.
+    patience: int = 3
+    sigma0: float = 0.3
+    seed: int = 0
+    workers: int = max(1, os.cpu_count() or 1)
+    backend: str = "process"       # "process" (this machine) or "ray"
+    ray_address: str | None = None  # None: a local Ray instance; "auto" or "ray://...": a cluster
+    max_cycle_s: float = math.inf  # programs slower than this are rejected
+    cycle_weight: float = 0.0      # objective per second of cycle, in reference masses
+    hours_since_wrapping: float = TRANSPORT_HOURS
+    #: The default fidelity: confirmations and the verification.
+    sim: SimSettings = SimSettings()
+    #: The fidelity candidates are screened with; None: every candidate at `sim`.
+    screen: SimSettings | None = SimSettings.screening()
+    #: Samples a candidate is screened in (the first of the K); a confirmation runs all K. One:
+    #: on the bundled example the search then asks the same candidates and finds the same
+    #: answer as screening in all three, with half the simulations (benchmarks/bench_recommend.py).
+    screen_samples: int = 1
+    #: The criteria a level is judged by (EUMOS 40509's, optionally a layer-shift limit).
+    limits: Limits = EUMOS_LIMITS
+    #: Verify on a fresh unit per level instead of one unit through the sequence, as a lab.
+    fresh: bool = False
+
+    @property
+    def target_g(self) -> float:
+        """The highest target of any orientation."""
+        return max(g for _, g in self.targets)
+
+    def identity(self) -> dict[str, Any]:
+        """What makes two searches the same search (a checkpoint must match it)."""
+        return {"targets": [list(t) for t in self.targets], "material": self.material,
+                "hours_since_wrapping": self.hours_since_wrapping, "samples": self.samples,
+                "margin_goal": self.margin_goal, "popsize": self.popsize,
+                "sigma0": self.sigma0, "seed": self.seed, "max_cycle_s": _json_float(
+                    self.max_cycle_s), "cycle_weight": self.cycle_weight,
+                "sim": asdict(self.sim),
+                "screen": None if self.screen is None else asdict(self.screen),
+                "screen_samples": self.screen_samples,
+                **({} if self.limits.layer_shift_fraction is None else
+                   {"layer_shift_limit": self.limits.layer_shift_fraction})}
+
+
+@dataclass(frozen=True)
+class Problem:
+    """What the workers need: picklable, no Bullet state."""
+
+    load: LoadUnit
+    layout: Layout
+    uncertainty: Uncertainty
+    space: ProgramSpace
+    settings: SearchSettings
+    reference_mass_kg: float
+    #: Web of the heaviest program of the space, in reference masses.
+    heaviest_ratio: float
+
+    @classmethod
+    def build(cls, load: LoadUnit, settings: SearchSettings,
+              calibration: Calibration | None = None) -> Problem:
+        if calibration is not None:
+            load = calibration.apply(load)
+        for _, target in settings.targets:
+            PulseProfile(target)  # validates every target against the bench
+        layout = load.layout()
+        space = ProgramSpace.for_layout(layout, settings.material)
+        reference = space.reference_mass_kg(layout)
+        heaviest = space.wrap(space.high).material_used_on(layout).mass_kg / reference
+        uncertainty = Uncertainty.of(calibration, settings.hours_since_wrapping)
+        return cls(load, layout, uncertainty, space, settings, reference, heaviest)
+
+    def values(self, x: np.ndarray) -> np.ndarray:
+        """ProgramSpace values of a search vector: wraps as they are, the continuous
+        coordinates from fractions of their range."""
+        lo, hi = self.space.low, self.space.high
+        v = lo + np.asarray(x, float) * (hi - lo)
+        v[list(INTEGER_INDICES)] = np.asarray(x, float)[list(INTEGER_INDICES)]
+        return v
+
+    def wrap(self, x: np.ndarray) -> WrapFormat:
+        """The program to enter into the machine (what `--wrap-out` writes)."""
+        return self.space.wrap(self.values(x))
+
+    def simulated(self, wrap: WrapFormat) -> WrapFormat:
+        """The wrap as the (calibrated) bench sees it at the nominal values: stiffness and
+        tension scaled, tension relaxed for the hours since wrapping."""
+        return self.uncertainty.nominal(wrap)
+
+    def sample(self, seed: int) -> Sample:
+        """The uncertain parameters drawn for one seed."""
+        return self.uncertainty.draw(self.load, seed)
+
+    def sample_load(self, seed: int) -> LoadUnit:
+        """The load with friction and masses drawn within their uncertainty."""
+        return self.sample(seed).load(self.load)
+
+    def objective(self, wrap: WrapFormat, mass_kg: float, margins: list[float],
+                  passed: list[bool]) -> float:
+        """Web relative to the machine's default program, a penalty for the margin shortfall,
+        a price on cycle time (if asked) and on tension (a tie-breaker). A failure in any
+        sample also pays the web of the heaviest program of the space, so it never scores
+        better than a pass."""
+        s = self.settings
+        shortfall = max(0.0, s.margin_goal - min(margins))
+        t0, t1 = self.space.tension_range_n
+        tension = np.mean([(p.tension_n - t0) / (t1 - t0) for p in wrap.passes])
+        failed = 0.0 if all(passed) else self.heaviest_ratio
+        return (mass_kg / self.reference_mass_kg + PENALTY_PER_MARGIN * shortfall + failed
+                + s.cycle_weight * wrap.cycle_time_s + TENSION_PRICE * float(tension))
+
+    def too_slow(self, wrap: WrapFormat) -> float | None:
+        """The objective of a program over the cycle-time limit, None if within it."""
+        limit = self.settings.max_cycle_s
+        cycle = wrap.cycle_time_s
+        return None if cycle <= limit else SLOW_PENALTY * (1 + (cycle - limit) / limit)
+
+
+def _json_float(x: float) -> float | str:
+    return x if math.isfinite(x) else "inf"
+
+
+__all__ = ["BOTH_SIDES", "PENALTY_PER_MARGIN", "SLOW_PENALTY", "TENSION_PRICE", "Problem",
+           "SearchSettings"]
