@@ -44,7 +44,7 @@ from wrapenv.calibrated import Calibration
 from wrapenv.config import InputError
 from wrapenv.design import N_PARAMS, NAMES
 from wrapenv.envs import WrapBenchEnv, WrapBenchRandomEnv
-from wrapenv.envs.wrapbench import OBS_NAMES
+from wrapenv.envs.observation import OBS_NAMES
 from wrapenv.load import LoadUnit
 from wrapenv.wrap import WrapFormat
 

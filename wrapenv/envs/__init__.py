@@ -1,7 +1,8 @@
 """Gymnasium environments of the virtual bench (registered by ``import wrapenv``):
-``wrapenv/WrapBench-v0`` (`WrapBenchEnv`) and ``wrapenv/WrapBenchRandom-v0``
-(`WrapBenchRandomEnv`)."""
+``wrapenv/WrapBench-v1`` (`WrapBenchEnv`) and ``wrapenv/WrapBenchRandom-v1``
+(`WrapBenchRandomEnv`); what they observe is `wrapenv.envs.observation`."""
 
-from wrapenv.envs.wrapbench import OBS_NAMES, WrapBenchEnv, WrapBenchRandomEnv, reward_terms
+from wrapenv.envs.observation import OBS_NAMES
+from wrapenv.envs.wrapbench import WrapBenchEnv, WrapBenchRandomEnv, reward_terms
 
 __all__ = ["OBS_NAMES", "WrapBenchEnv", "WrapBenchRandomEnv", "reward_terms"]

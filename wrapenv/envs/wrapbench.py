@@ -22,9 +22,11 @@ from wrapenv.bench import BenchRun, SimSettings, run_levels
 from wrapenv.calibrated import Calibration
 from wrapenv.config import InputError
 from wrapenv.design import N_PARAMS, ProgramSpace
+from wrapenv.envs import random_units
+from wrapenv.envs.observation import OBS_FEATURES, OBS_NAMES, observe
 from wrapenv.eumos import Verdict
-from wrapenv.load import PAIRS, PATTERNS, Friction, FrictionPair, Layout, LoadUnit
-from wrapenv.material import MATERIALS, Material
+from wrapenv.load import Layout, LoadUnit
+from wrapenv.material import MATERIALS
 from wrapenv.profile import eumos_levels
 from wrapenv.render import Renderer, fitting_camera, rest_state, torn_net
 from wrapenv.scene import BUNDLES, PALLET
@@ -35,48 +37,6 @@ from wrapenv.wrap import WrapFormat
 #: examples/ folder, next to the package; recommender/cli.py's EXAMPLE_LOAD).
 DEFAULT_LOAD = Path(__file__).resolve().parents[2] / "examples" / "pet_2layer_columnar.toml"
 LEVEL_MODES: tuple[str, ...] = ("eumos", "target")
-
-# Scales of the observation's features (divisors), chosen so usual loads land in [0, 1].
-LAYERS_SCALE = 4.0
-BUNDLE_SIZE_SCALE_M = 0.5
-BUNDLE_MASS_SCALE_KG = 20.0
-PALLET_SIZE_SCALE_M = 1.2   # the EUR pallet's length
-LOAD_HEIGHT_SCALE_M = 2.0
-
-#: Observation features in order: (name, upper bound of the space). Every lower bound is 0.
-OBS_FEATURES: tuple[tuple[str, float], ...] = (
-    ("layers", 10.0),
-    ("bundle_length", 10.0),
-    ("bundle_width", 10.0),
-    ("bundle_height", 10.0),
-    ("bundle_mass", 10.0),
-    ("pallet_length", 10.0),
-    ("pallet_width", 10.0),
-    ("pallet_height", 10.0),
-    ("load_height", 10.0),
-    *((f"pattern_{p}", 1.0) for p in PATTERNS),
-    *((f"friction_{pair}_{kind}", 2.0) for pair in PAIRS for kind in ("static", "kinetic")),
-    ("target_g", 1.1),
-    *((f"friction_{pair}_{kind}_std", 2.0) for pair in PAIRS for kind in ("static", "kinetic")),
-    ("material_grammage", 10.0),
-    ("material_log_stiffness", 10.0),
-    ("material_yield_strain", 10.0),
-    ("material_break_strain", 10.0),
-    ("material_break_force", 10.0),
-    ("material_is_paper", 1.0),
-)
-OBS_NAMES: tuple[str, ...] = tuple(name for name, _ in OBS_FEATURES)
-
-# WrapBenchRandomEnv's distribution of load units.
-RANDOM_LAYERS = (1, 3)
-RANDOM_BUNDLE_LENGTH_M = (0.2, 0.4)
-RANDOM_BUNDLE_WIDTH_M = (0.15, 0.3)
-RANDOM_BUNDLE_HEIGHT_M = (0.2, 0.35)
-RANDOM_BUNDLE_MASS_KG = (4.0, 14.0)
-RANDOM_PATTERNS = ("columnar", "interlocked")
-RANDOM_FRICTION_SPREAD = 0.15
-RANDOM_KINETIC_RATIO = 0.8
-RANDOM_MAX_TRIES = 100
 
 #: Rendered frames: a small side camera (the recordings' camera model, wrapenv.render).
 RENDER_SIZE = (480, 300)
@@ -281,7 +241,8 @@ class WrapBenchEnv(gym.Env):
         """Make `unit` (friction as simulated) the unit programs are tested on."""
         layout = unit.layout()
         space = ProgramSpace.for_layout(layout, self.material)
-        obs = self._features(unit, layout)
+        obs = observe(unit, layout, self.target_g, MATERIALS[self.material],
+                      self.calibration)
         outside = np.flatnonzero(~((obs >= 0) & (obs <= self.observation_space.high)))
         if len(outside):
             i = int(outside[0])
@@ -294,33 +255,6 @@ class WrapBenchEnv(gym.Env):
         self.reference_mass_kg = space.reference_mass_kg(layout)
         self._obs = obs
         self._last = None
-
-    def _features(self, unit: LoadUnit, layout: Layout) -> np.ndarray:
-        b, p = unit.bundle, unit.pallet
-        cal = self.calibration.friction if self.calibration is not None else {}
-        friction, std = [], []
-        for pair in PAIRS:
-            fp = unit.friction.pair(pair)
-            friction += [fp.static, fp.kinetic]
-            c = cal.get(pair)
-            std += [c.static_std, c.kinetic_std] if c is not None else [0.0, 0.0]
-        values = [
-            unit.stack.layers / LAYERS_SCALE,
-            b.length_m / BUNDLE_SIZE_SCALE_M,
-            b.width_m / BUNDLE_SIZE_SCALE_M,
-            b.height_m / BUNDLE_SIZE_SCALE_M,
-            b.mass_kg / BUNDLE_MASS_SCALE_KG,
-            p.length_m / PALLET_SIZE_SCALE_M,
-            p.width_m / PALLET_SIZE_SCALE_M,
-            p.height_m / PALLET_SIZE_SCALE_M,
-            layout.load_height_m / LOAD_HEIGHT_SCALE_M,
-            *(float(unit.stack.pattern == pattern) for pattern in PATTERNS),
-            *friction,
-            self.target_g,
-            *std,
-            *_material_features(MATERIALS[self.material]),
-        ]
-        return np.array(values, np.float32)
 
     def _require_unit(self) -> None:
         if self.unit is None:
@@ -433,56 +367,14 @@ class WrapBenchRandomEnv(WrapBenchEnv):
         if "load" in kwargs:
             raise TypeError("WrapBenchRandomEnv draws its load units; it takes no `load`")
         super().__init__(**kwargs)
-        base = Friction()
-        if self.calibration is not None:
-            pairs = {k: FrictionPair(p.static, p.kinetic)
-                     for k, p in self.calibration.friction.items()}
-            base = Friction(**{**{k: base.pair(k) for k in PAIRS}, **pairs})
-        self.base_friction = base
+        self.base_friction = random_units.base_friction(self.calibration)
 
     def _new_unit(self) -> None:
         self._set_unit(self.sample_unit(self.np_random))
 
     def sample_unit(self, rng: np.random.Generator) -> LoadUnit:
         """A load unit drawn from the distribution of the class docstring."""
-        for _ in range(RANDOM_MAX_TRIES):
-            data: dict[str, Any] = {
-                "name": "random unit",
-                "pallet": {"preset": "EUR"},
-                "bundle": {
-                    "length_m": round(float(rng.uniform(*RANDOM_BUNDLE_LENGTH_M)), 3),
-                    "width_m": round(float(rng.uniform(*RANDOM_BUNDLE_WIDTH_M)), 3),
-                    "height_m": round(float(rng.uniform(*RANDOM_BUNDLE_HEIGHT_M)), 3),
-                    "mass_kg": round(float(rng.uniform(*RANDOM_BUNDLE_MASS_KG)), 1),
-                },
-                "stack": {
-                    "layers": int(rng.integers(RANDOM_LAYERS[0], RANDOM_LAYERS[1] + 1)),
-                    "pattern": str(RANDOM_PATTERNS[int(rng.integers(len(RANDOM_PATTERNS)))]),
-                },
-                "friction": {},
-                "fixture": {"pallet_stopper": True},
-            }
-            for pair in PAIRS:
-                spread = rng.uniform(1 - RANDOM_FRICTION_SPREAD, 1 + RANDOM_FRICTION_SPREAD)
-                static = round(float(self.base_friction.pair(pair).static * spread), 3)
-                data["friction"][pair] = {"static": static,
-                                          "kinetic": round(RANDOM_KINETIC_RATIO * static, 3)}
-            b, s = data["bundle"], data["stack"]
-            data["name"] = (f"random: {s['layers']} x {s['pattern']}, bundle "
-                            f"{b['length_m']:.3f} x {b['width_m']:.3f} x {b['height_m']:.3f} m, "
-                            f"{b['mass_kg']:.1f} kg")
-            try:
-                return LoadUnit.from_dict(data, source="random unit")
-            except InputError:
-                continue
-        raise RuntimeError(f"no valid load unit in {RANDOM_MAX_TRIES} draws")
-
-
-def _material_features(card: Material) -> list[float]:
-    """The web as the observation sees it (rows 25-30 of the class docstring)."""
-    return [card.grammage_kg_m2 / 0.1, math.log10(card.stiffness_n_per_m) / 6,
-            card.yield_strain, card.break_strain, card.break_force_n_per_m / 1e4,
-            float(card.kind == "paper")]
+        return random_units.sample_unit(rng, self.base_friction)
 
 
 def reward_terms(verdict: Verdict, material_ratio: float,

@@ -1,0 +1,67 @@
+"""The distribution of load units `WrapBenchRandomEnv` draws from (its class docstring says it
+in words): EUR pallets against the stopper, 1-3 layers of random bundles, friction about a
+base."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from wrapenv.calibrated import Calibration
+from wrapenv.config import InputError
+from wrapenv.load import PAIRS, Friction, FrictionPair, LoadUnit
+
+RANDOM_LAYERS = (1, 3)
+RANDOM_BUNDLE_LENGTH_M = (0.2, 0.4)
+RANDOM_BUNDLE_WIDTH_M = (0.15, 0.3)
+RANDOM_BUNDLE_HEIGHT_M = (0.2, 0.35)
+RANDOM_BUNDLE_MASS_KG = (4.0, 14.0)
+RANDOM_PATTERNS = ("columnar", "interlocked")
+RANDOM_FRICTION_SPREAD = 0.15
+RANDOM_KINETIC_RATIO = 0.8
+RANDOM_MAX_TRIES = 100
+
+
+def base_friction(calibration: Calibration | None) -> Friction:
+    """The friction random units spread about: the defaults, or the calibrated pairs."""
+    base = Friction()
+    if calibration is None:
+        return base
+    pairs = {k: FrictionPair(p.static, p.kinetic) for k, p in calibration.friction.items()}
+    return Friction(**{**{k: base.pair(k) for k in PAIRS}, **pairs})
+
+
+def sample_unit(rng: np.random.Generator, base_friction: Friction) -> LoadUnit:
+    """A load unit drawn from the distribution (`WrapBenchRandomEnv`'s docstring)."""
+    for _ in range(RANDOM_MAX_TRIES):
+        data: dict[str, Any] = {
+            "name": "random unit",
+            "pallet": {"preset": "EUR"},
+            "bundle": {
+                "length_m": round(float(rng.uniform(*RANDOM_BUNDLE_LENGTH_M)), 3),
+                "width_m": round(float(rng.uniform(*RANDOM_BUNDLE_WIDTH_M)), 3),
+                "height_m": round(float(rng.uniform(*RANDOM_BUNDLE_HEIGHT_M)), 3),
+                "mass_kg": round(float(rng.uniform(*RANDOM_BUNDLE_MASS_KG)), 1),
+            },
+            "stack": {
+                "layers": int(rng.integers(RANDOM_LAYERS[0], RANDOM_LAYERS[1] + 1)),
+                "pattern": str(RANDOM_PATTERNS[int(rng.integers(len(RANDOM_PATTERNS)))]),
+            },
+            "friction": {},
+            "fixture": {"pallet_stopper": True},
+        }
+        for pair in PAIRS:
+            spread = rng.uniform(1 - RANDOM_FRICTION_SPREAD, 1 + RANDOM_FRICTION_SPREAD)
+            static = round(float(base_friction.pair(pair).static * spread), 3)
+            data["friction"][pair] = {"static": static,
+                                      "kinetic": round(RANDOM_KINETIC_RATIO * static, 3)}
+        b, s = data["bundle"], data["stack"]
+        data["name"] = (f"random: {s['layers']} x {s['pattern']}, bundle "
+                        f"{b['length_m']:.3f} x {b['width_m']:.3f} x {b['height_m']:.3f} m, "
+                        f"{b['mass_kg']:.1f} kg")
+        try:
+            return LoadUnit.from_dict(data, source="random unit")
+        except InputError:
+            continue
+    raise RuntimeError(f"no valid load unit in {RANDOM_MAX_TRIES} draws")
