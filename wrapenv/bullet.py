@@ -13,6 +13,7 @@ import ctypes
 import os
 import sys
 from collections.abc import Iterable, Iterator, Sequence
+from typing import Any
 
 import numpy as np
 
@@ -94,6 +95,14 @@ def _step_velocities(pos0: np.ndarray, quat0: np.ndarray, pos1: np.ndarray, quat
     return (pos1 - pos0) / dt, turn * (scale / dt)[:, None]
 
 
+class _Client(bullet_client.BulletClient):
+    """pybullet's client wrapper, safe to collect half-built: an interrupt (Ctrl-C, SIGTERM)
+    inside its `__init__`, before it set `_client`, made its `__del__` look the attribute up in
+    the pybullet module and print an ignored AttributeError with a traceback."""
+
+    _client = -1
+
+
 class BulletWorld:
     """Boxes in a Bullet world of their own (`BulletClient`, DIRECT), addressed by index.
 
@@ -103,7 +112,7 @@ class BulletWorld:
 
     def __init__(self, timestep_s: float, solver_iterations: int) -> None:
         with _quiet_stdout():
-            self._client = bullet_client.BulletClient(connection_mode=pb.DIRECT)
+            self._client: Any = _Client(connection_mode=pb.DIRECT)
         self.timestep_s = timestep_s
         # Per-step calls go to pybullet with this client's id: the same client, without the
         # BulletClient wrapper's attribute lookup (halves the cost of a state read or a step).
