@@ -7,7 +7,7 @@ finds for 0.5 g, each run through the EUMOS sequence up to 0.8 g (the road rule 
 `wrapbench simulate LOAD --wrap WRAP --target 0.8` does: web laid, cycle time, highest level
 passed and the margin at 0.5 g. Prints a Markdown table.
 
-    python benchmarks/programs.py [--budget 48] [--workers 2]
+    python benchmarks/programs.py [--budget 48] [--workers 2] [--loads LOAD.toml ...]
 """
 
 from __future__ import annotations
@@ -33,8 +33,10 @@ MATERIALS = ("kraft", "lldpe")
 ROAD_RULE_G = 0.8
 
 
-def recommended(load: str, material: str, budget: int, workers: int) -> tuple[WrapFormat, float]:
-    """The program `wrapbench recommend` writes (--wrap-out), and its wall time."""
+def recommended(load: str, material: str, budget: int,
+                workers: int) -> tuple[WrapFormat | None, float]:
+    """The program `wrapbench recommend` writes (--wrap-out), and its wall time; None when it
+    found none that passes (exit status 1)."""
     with tempfile.TemporaryDirectory() as tmp:
         wrap = Path(tmp) / "wrap.toml"
         t0 = time.perf_counter()
@@ -43,6 +45,8 @@ def recommended(load: str, material: str, budget: int, workers: int) -> tuple[Wr
              "--budget", str(budget), "--workers", str(workers), "--wrap-out", str(wrap)],
             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL).returncode
         wall = time.perf_counter() - t0
+        if code == 1:
+            return None, wall
         if code != 0:
             raise SystemExit(f"recommend {load} --material {material}: exit {code}")
         return WrapFormat.from_toml(wrap, LoadUnit.from_toml(load).load_height_m), wall
@@ -68,18 +72,23 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--budget", type=int, default=48)
     parser.add_argument("--workers", type=int, default=2)
+    parser.add_argument("--loads", nargs="+", default=EXAMPLES, metavar="LOAD.toml")
     args = parser.parse_args()
     print("| load | web | program | settings | web laid | cycle | highest passed (to 0.8 g) | "
           "margin at 0.5 g | search |")
     print("|---|---|---|---|---|---|---|---|---|")
-    for load_path in EXAMPLES:
+    for load_path in args.loads:
         layout = LoadUnit.from_toml(load_path).layout()
         for material in MATERIALS:
             space = ProgramSpace.for_layout(layout, material)
             print(row(load_path, "machine default", space.laid(space.machine_default())),
                   flush=True)
             wrap, wall = recommended(load_path, material, args.budget, args.workers)
-            print(row(load_path, "recommended for 0.5 g", wrap, f"{wall:.0f} s"), flush=True)
+            if wrap is None:
+                print(f"| {Path(load_path).stem} | {material} | recommended for 0.5 g | none "
+                      f"passes within the budget (exit 1) | | | | | {wall:.0f} s |", flush=True)
+            else:
+                print(row(load_path, "recommended for 0.5 g", wrap, f"{wall:.0f} s"), flush=True)
 
 
 if __name__ == "__main__":
