@@ -28,7 +28,7 @@ from recommender.text import program_text, verdict_table
 from wrapenv.bench import run_levels
 from wrapenv.calibrated import Calibration
 from wrapenv.config import InputError, check_output, printable, write_atomic
-from wrapenv.eumos import EUMOS_LIMITS, Limits
+from wrapenv.eumos import EUMOS_LIMITS, LevelVerdict, Limits
 from wrapenv.load import Layout, LoadUnit
 from wrapenv.material import MATERIALS
 from wrapenv.profile import MeasuredProfile, PulseProfile, eumos_levels
@@ -113,8 +113,11 @@ def run_simulate(args: argparse.Namespace) -> int:
         _warn("simulate", laid.warnings())
     limits = _limits(args)
     stop = not args.level and not args.profile
-    run = run_levels(load, levels, orientation=args.orientation, stop_at_failure=stop, wrap=wrap,
-                     fresh=args.fresh, limits=limits)
+    with tqdm(total=len(levels), desc="levels", unit="level", file=sys.stderr,
+              disable=None) as bar:
+        run = run_levels(load, levels, orientation=args.orientation, stop_at_failure=stop,
+                         wrap=wrap, fresh=args.fresh, limits=limits,
+                         on_level=lambda v: _level_done(bar, v))
     print(verdict_table(load, run, args.orientation))
     if laid is not None:
         print(program_text(laid, layout))
@@ -282,6 +285,12 @@ def run_recommend(args: argparse.Namespace) -> int:
     if args.report:
         _write_report(args, problem, check, best, state)
     return 0
+
+
+def _level_done(bar: Any, verdict: LevelVerdict) -> None:
+    """Progress of `simulate`: one tick per level, with the last one's result."""
+    bar.update(1)
+    bar.set_postfix(level=f"{verdict.level_g:.2f} g", result="pass" if verdict.passed else "fail")
 
 
 def _targets_text(settings: SearchSettings) -> str:

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import contextlib
 import math
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 
 import numpy as np
@@ -155,11 +155,13 @@ def run_levels(
     wrap: WrapFormat | None = None,
     fresh: bool = False,
     limits: Limits = EUMOS_LIMITS,
+    on_level: Callable[[LevelVerdict], None] | None = None,
 ) -> BenchRun:
     """Run test levels (in g, or explicit profiles) as a lab does: one unit, each level
     starting from the state the last one left (`fresh`: a freshly stacked and wrapped unit per
     level). A cumulative sequence ends after a level that did not end at rest (invalid, or
-    stopped once decided): there is no state to go on from."""
+    stopped once decided): there is no state to go on from. `on_level` hears each level's
+    verdict as it is decided (progress for people)."""
     layout = load.layout(orientation)  # type: ignore[arg-type]
     verdicts: list[LevelVerdict] = []
     traces: list[Trace] = []
@@ -172,6 +174,8 @@ def run_levels(
             verdict = evaluate(trace, limits=limits)
             traces.append(trace)
             verdicts.append(verdict)
+            if on_level is not None:
+                on_level(verdict)
             if stop_at_failure and not verdict.passed:
                 break
             if unit is not None and (not trace.valid or trace.stopped_early):

@@ -131,3 +131,11 @@ def test_a_cumulative_sequence_ends_where_a_level_did_not_come_to_rest():
     fresh = run_levels(slick, [0.5, 0.5], settings, fresh=True)
     assert lab.verdict.levels[0].stopped_early and not lab.verdict.passed
     assert len(lab.verdict.levels) == 1 and len(fresh.verdict.levels) == 2
+
+
+def test_each_level_s_verdict_is_heard_as_it_is_decided():
+    """`on_level` (simulate's progress) hears every level run, in order, and no other."""
+    heard = []
+    run = run_levels(two_by_two((0.8, 0.7)), [0.1, 0.2], on_level=heard.append)
+    assert heard == list(run.verdict.levels)
+    assert [v.level_g for v in heard] == [0.1, 0.2]
