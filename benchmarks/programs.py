@@ -8,6 +8,7 @@ finds for 0.5 g, each run through the EUMOS sequence up to 0.8 g (the road rule 
 passed and the margin at 0.5 g. Prints a Markdown table.
 
     python benchmarks/programs.py [--budget 48] [--workers 2] [--loads LOAD.toml ...]
+                                  [--materials kraft lldpe]
 """
 
 from __future__ import annotations
@@ -73,13 +74,14 @@ def main() -> None:
     parser.add_argument("--budget", type=int, default=48)
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--loads", nargs="+", default=EXAMPLES, metavar="LOAD.toml")
+    parser.add_argument("--materials", nargs="+", default=MATERIALS, choices=MATERIALS)
     args = parser.parse_args()
     print("| load | web | program | settings | web laid | cycle | highest passed (to 0.8 g) | "
           "margin at 0.5 g | search |")
     print("|---|---|---|---|---|---|---|---|---|")
     for load_path in args.loads:
         layout = LoadUnit.from_toml(load_path).layout()
-        for material in MATERIALS:
+        for material in args.materials:
             space = ProgramSpace.for_layout(layout, material)
             print(row(load_path, "machine default", space.laid(space.machine_default())),
                   flush=True)

@@ -98,7 +98,8 @@ class SearchState:
 
     def finished(self, settings: SearchSettings) -> bool:
         """Done when CMA-ES stops, when another generation would try more candidates than
-        the budget, or after `patience` generations without a lighter robust pass."""
+        the budget, or after `patience` generations without a lighter robust pass (counted
+        once there is one)."""
         return bool(self.es.stop()
                     or len(self.history) + self.es.popsize > settings.max_candidates
                     or self.stale_generations >= settings.patience)
@@ -299,8 +300,17 @@ class RobustSearch:
                                   "fidelity": [e.fidelity for e in evaluations]})
         self._simulations = 0
         after = state.best(s.margin_goal)
-        improved = after is not None and (before is None or after.mass_kg < before.mass_kg - 1e-9)
-        state.stale_generations = 0 if improved else state.stale_generations + 1
+        state.stale_generations = stale_generations(before, after, state.stale_generations)
+
+
+def stale_generations(before: Evaluation | None, after: Evaluation | None, stale: int) -> int:
+    """Generations in a row without a lighter robust pass, counted from the first pass: a
+    search with none yet goes on to its budget (3-layer LLDPE searches stopped after
+    `patience` generations with nothing passing)."""
+    if after is None:
+        return 0
+    improved = before is None or after.mass_kg < before.mass_kg - 1e-9
+    return 0 if improved else stale + 1
 
 
 @dataclass(frozen=True)

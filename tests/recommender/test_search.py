@@ -9,6 +9,7 @@ import tomllib
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import replace
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -21,6 +22,7 @@ from recommender.search import (
     Problem,
     RobustSearch,
     SearchSettings,
+    stale_generations,
     verify,
 )
 from recommender.uncertainty import MASS_SPREAD
@@ -394,3 +396,13 @@ def test_verification_runs_one_unit_like_a_lab_and_judges_the_asked_layer_shift(
     assert check.worst is not None and check.worst.level["criteria"][LAYER_SHIFT] is False
     assert settings.identity()["layer_shift_limit"] == 1e-6
     assert "layer_shift_limit" not in FAST.identity()  # older checkpoints stay valid
+
+
+def test_patience_counts_from_the_first_pass():
+    """A search with no pass yet is never stale (it goes on to its budget); once it has one,
+    every generation without a lighter pass counts, and a lighter one resets the count."""
+    heavy, light = (SimpleNamespace(mass_kg=m) for m in (0.5, 0.3))
+    assert stale_generations(None, None, 5) == 0
+    assert stale_generations(None, heavy, 0) == 0          # the first pass
+    assert stale_generations(heavy, heavy, 1) == 2         # no lighter pass
+    assert stale_generations(heavy, light, 2) == 0         # a lighter pass

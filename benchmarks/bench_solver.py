@@ -1,0 +1,64 @@
+"""Are 20 solver iterations enough for a wrapped unit? The same EUMOS sequences (one unit
+through 0.2 -> 0.8 g) with Bullet's solver at 20, 50 and 100 iterations: the machine's default
+Kraft program and the Kraft band example on the 3-layer example, the default LLDPE program on
+the 2-layer one; then the heaviest program of the search space on a two-bundle unit at 0.3 g
+(the env tests' unit), which a stiffer solve can make blow up. Prints, per level, passed,
+elastic and total permanent displacement (mm), and the CPU time.
+
+    python -m benchmarks.bench_solver [--iterations 20 50 100]
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import numpy as np
+
+from wrapenv.bench import SimSettings, run_levels
+from wrapenv.design import N_PARAMS, ProgramSpace
+from wrapenv.load import LoadUnit
+from wrapenv.profile import eumos_levels
+from wrapenv.wrap import WrapFormat
+
+CASES = (("examples/pet_3layer_columnar.toml", "examples/program_kraft_default.toml"),
+         ("examples/pet_3layer_columnar.toml", "examples/wrap_kraft_3layer.toml"),
+         ("examples/pet_2layer_columnar.toml", "examples/program_lldpe_default.toml"))
+TWO_BUNDLES = {"name": "two bundles", "pallet": {"preset": "EUR"},
+               "bundle": {"preset": "PET6x1.5L"},
+               "stack": {"layers": 1, "pattern": "explicit",
+                         "positions": [[-0.2, 0.0], [0.2, 0.0]]}}
+
+
+def sequence(load: LoadUnit, wrap: WrapFormat, levels: list[float], iterations: int) -> str:
+    t0 = time.process_time()
+    run = run_levels(load, levels, SimSettings(solver_iterations=iterations),
+                     stop_at_failure=True, wrap=wrap)
+    cells = [f"{v.level_g:.1f} g " + ("pass" if v.passed else "FAIL" if v.valid else
+                                      f"INVALID ({v.invalid_reason})")
+             + (f" {1e3 * v.elastic_max_m:.1f}/{1e3 * v.permanent_total_max_m:.1f}"
+                if v.valid else "") for v in run.verdict.levels]
+    return f"{iterations:4d} it, {time.process_time() - t0:5.1f} CPU s: " + "; ".join(cells)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--iterations", type=int, nargs="+", default=[20, 50, 100])
+    args = parser.parse_args()
+    print("per level: result, elastic / total permanent mm")
+    for load_path, wrap_path in CASES:
+        load = LoadUnit.from_toml(load_path)
+        wrap = WrapFormat.from_toml(wrap_path, load.layout().load_height_m)
+        print(f"{load_path} + {wrap_path}", flush=True)
+        for it in args.iterations:
+            print("  " + sequence(load, wrap, eumos_levels(0.8), it), flush=True)
+    load = LoadUnit.from_dict(TWO_BUNDLES)
+    space = ProgramSpace.for_layout(load.layout(), "kraft")
+    heaviest = space.decode(np.ones(N_PARAMS))
+    print("two bundles + the search space's heaviest Kraft program", flush=True)
+    for it in args.iterations:
+        print("  " + sequence(load, heaviest, [0.3], it), flush=True)
+
+
+if __name__ == "__main__":
+    main()
