@@ -17,6 +17,7 @@ from pathlib import Path
 from calibration import commands
 from calibration.commands import level_g
 from recommender import commands as bench_commands
+from recommender import simulate
 from recommender.parallel import BACKENDS
 from recommender.uncertainty import TRANSPORT_HOURS
 from wrapenv.config import InputError
@@ -187,7 +188,7 @@ def _terminate(signum: int, frame: object) -> None:
 
 def main(argv: Sequence[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
-    command = {"simulate": bench_commands.run_simulate,
+    command = {"simulate": simulate.run_simulate,
                "recommend": bench_commands.run_recommend,
                "train": bench_commands.run_train,
                "synth": commands.run_synth, "track": commands.run_track,

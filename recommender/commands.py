@@ -1,4 +1,5 @@
-"""The bench's own commands: `simulate`, `recommend` and `train`.
+"""The bench's own commands `recommend` and `train` (`simulate` is recommender/simulate.py),
+and what they share with it.
 
 Each takes the parsed arguments, checks every input and output before any simulation, and maps
 the domain's errors (which name domain fields) onto the flags a user typed.
@@ -20,18 +21,16 @@ from tqdm import tqdm
 from recommender.html_report import (
     check_report_folder,
     recommend_page,
-    simulate_page,
     write_report,
 )
 from recommender.search import Evaluation, Problem, SearchSettings, SearchState, Verification
 from recommender.text import program_text, verdict_table
-from wrapenv.bench import run_levels
 from wrapenv.calibrated import Calibration
 from wrapenv.config import InputError, check_output, printable, write_atomic
-from wrapenv.eumos import EUMOS_LIMITS, LevelVerdict, Limits
+from wrapenv.eumos import EUMOS_LIMITS, Limits
 from wrapenv.load import Layout, LoadUnit
 from wrapenv.material import MATERIALS
-from wrapenv.profile import MeasuredProfile, PulseProfile, eumos_levels
+from wrapenv.profile import PulseProfile
 from wrapenv.wrap import WrapFormat
 
 #: Robust passes tried, lightest first, until one passes the whole EUMOS sequence.
@@ -62,85 +61,9 @@ def _material(key: str) -> None:
                          f"must be one of {', '.join(map(repr, MATERIALS))} (got {key!r})")
 
 
-def _warn(command: str, messages: tuple[str, ...]) -> None:
+def warn(command: str, messages: tuple[str, ...]) -> None:
     for message in messages:
         sys.stderr.write(f"wrapbench {command}: warning: {message}\n")
-
-
-# --- simulate ----------------------------------------------------------------------------------
-
-
-def _levels(args: argparse.Namespace) -> list[Any]:
-    """The profiles asked for: a measured one, the given levels, or the EUMOS sequence."""
-    if args.profile and (args.level or args.eumos):
-        raise InputError("arguments", "--profile", "cannot be combined with --level or --eumos")
-    if args.level and args.eumos:
-        raise InputError("arguments", "--level", "cannot be combined with --eumos")
-    if args.profile:
-        return [MeasuredProfile.from_csv(args.profile)]
-    try:
-        if args.level:
-            return [PulseProfile(g) for g in args.level]  # every level checked before running
-        return [PulseProfile(g) for g in eumos_levels(args.target, args.start)]
-    except InputError as exc:
-        raise as_flag(exc) from None
-
-
-def run_simulate(args: argparse.Namespace) -> int:
-    load = LoadUnit.from_toml(args.load)
-    layout = load.layout(args.orientation)
-    wrap = WrapFormat.from_toml(args.wrap, layout.load_height_m) if args.wrap else None
-    laid = wrap
-    if args.calibration:
-        calibration = Calibration.from_json(args.calibration)
-        load = calibration.apply(load)
-        if wrap is not None:
-            wrap = wrap.scaled(calibration.stiffness_scale, calibration.tension_scale)
-    _hours(args.hours_since_wrapping)
-    if wrap is not None:
-        wrap = wrap.relaxed(args.hours_since_wrapping)
-    inputs = [p for p in (args.load, args.wrap, args.calibration, args.profile) if p]
-    check_output(args.json, "--json", inputs=inputs)
-    check_output(args.plot, "--plot", inputs=inputs)
-    if args.report is not None:
-        check_report_folder(args.report, inputs)
-    check_output(args.tension_map, "--tension-map", inputs=inputs)
-    if args.tension_map and wrap is None:
-        raise InputError("arguments", "--tension-map", "needs --wrap (an unwrapped unit has "
-                                                       "no envelope to map)")
-    levels = _levels(args)
-    if laid is not None:
-        _warn("simulate", laid.warnings())
-    limits = _limits(args)
-    stop = not args.level and not args.profile
-    with tqdm(total=len(levels), desc="levels", unit="level", file=sys.stderr,
-              disable=None) as bar:
-        run = run_levels(load, levels, orientation=args.orientation, stop_at_failure=stop,
-                         wrap=wrap, fresh=args.fresh, limits=limits,
-                         on_level=lambda v: _level_done(bar, v))
-    print(verdict_table(load, run, args.orientation))
-    if laid is not None:
-        print(program_text(laid, layout))
-    if args.json:
-        out = run.verdict.to_json()
-        if wrap is not None and laid is not None:
-            out.update(wrap_json(wrap, laid, layout))
-            out["hours_since_wrapping"] = args.hours_since_wrapping
-        write_atomic(args.json, (json.dumps(out, indent=2) + "\n").encode())
-    if args.plot:
-        from recommender.report import plot_displacements
-
-        plot_displacements(run, args.plot, title=load.name)
-    if args.report:
-        given = {"load unit": args.load, "wrap": args.wrap, "calibration": args.calibration,
-                 "sled profile": args.profile}
-        write_report(args.report, lambda stage: simulate_page(
-            stage, load, run, laid, wrap, args.orientation, args.hours_since_wrapping, given))
-    if args.tension_map:
-        from recommender.report import plot_tension_map
-
-        plot_tension_map(run, layout, args.tension_map, title=load.name)
-    return 0 if run.verdict.passed else 1
 
 
 def wrap_json(simulated: WrapFormat, laid: WrapFormat, layout: Layout) -> dict[str, Any]:
@@ -151,6 +74,7 @@ def wrap_json(simulated: WrapFormat, laid: WrapFormat, layout: Layout) -> dict[s
                                                  if laid.program is not None else {})},
             "material_used": asdict(laid.material_used_on(layout)),
             "cycle_time_s": round(cycle, 3), "pallets_per_hour": round(3600 / cycle, 2)}
+
 
 
 # --- recommend ---------------------------------------------------------------------------------
@@ -188,7 +112,7 @@ def _settings(args: argparse.Namespace) -> SearchSettings:
     if not args.cycle_weight >= 0:
         raise InputError("arguments", "--cycle-weight",
                          f"must be >= 0 (got {args.cycle_weight})")
-    _hours(args.hours_since_wrapping)
+    check_hours(args.hours_since_wrapping)
     _material(args.material)
     return SearchSettings(targets=_targets(args), material=args.material, samples=args.samples,
                           margin_goal=args.margin, max_candidates=args.budget, seed=args.seed,
@@ -196,10 +120,10 @@ def _settings(args: argparse.Namespace) -> SearchSettings:
                           backend=args.backend, ray_address=args.ray_address,
                           max_cycle_s=args.max_cycle_s, cycle_weight=args.cycle_weight,
                           hours_since_wrapping=args.hours_since_wrapping,
-                          limits=_limits(args), fresh=args.fresh)
+                          limits=criteria_limits(args), fresh=args.fresh)
 
 
-def _limits(args: argparse.Namespace) -> Limits:
+def criteria_limits(args: argparse.Namespace) -> Limits:
     """The criteria asked for: EUMOS 40509's, and the shift between layers if given."""
     pct = args.layer_shift_limit_pct
     if pct is None:
@@ -210,7 +134,7 @@ def _limits(args: argparse.Namespace) -> Limits:
     return Limits(layer_shift_fraction=pct / 100)
 
 
-def _hours(hours: float) -> None:
+def check_hours(hours: float) -> None:
     if not hours >= 0:
         raise InputError("arguments", "--hours-since-wrapping", f"must be >= 0 (got {hours})")
 
@@ -285,12 +209,6 @@ def run_recommend(args: argparse.Namespace) -> int:
     if args.report:
         _write_report(args, problem, check, best, state)
     return 0
-
-
-def _level_done(bar: Any, verdict: LevelVerdict) -> None:
-    """Progress of `simulate`: one tick per level, with the last one's result."""
-    bar.update(1)
-    bar.set_postfix(level=f"{verdict.level_g:.2f} g", result="pass" if verdict.passed else "fail")
 
 
 def _targets_text(settings: SearchSettings) -> str:

@@ -1,0 +1,102 @@
+"""`wrapbench simulate`: a load unit (wrapped or not) through test levels on the bench, with
+the verdict, the program's text and the outputs a user asked for; every input and output
+checked before any simulation."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from typing import Any
+
+from tqdm import tqdm
+
+from recommender.commands import as_flag, check_hours, criteria_limits, warn, wrap_json
+from recommender.html_report import check_report_folder, simulate_page, write_report
+from recommender.text import program_text, verdict_table
+from wrapenv.bench import run_levels
+from wrapenv.calibrated import Calibration
+from wrapenv.config import InputError, check_output, write_atomic
+from wrapenv.eumos import LevelVerdict
+from wrapenv.load import LoadUnit
+from wrapenv.profile import MeasuredProfile, PulseProfile, eumos_levels
+from wrapenv.wrap import WrapFormat
+
+
+def _levels(args: argparse.Namespace) -> list[Any]:
+    """The profiles asked for: a measured one, the given levels, or the EUMOS sequence."""
+    if args.profile and (args.level or args.eumos):
+        raise InputError("arguments", "--profile", "cannot be combined with --level or --eumos")
+    if args.level and args.eumos:
+        raise InputError("arguments", "--level", "cannot be combined with --eumos")
+    if args.profile:
+        return [MeasuredProfile.from_csv(args.profile)]
+    try:
+        if args.level:
+            return [PulseProfile(g) for g in args.level]  # every level checked before running
+        return [PulseProfile(g) for g in eumos_levels(args.target, args.start)]
+    except InputError as exc:
+        raise as_flag(exc) from None
+
+
+def run_simulate(args: argparse.Namespace) -> int:
+    load = LoadUnit.from_toml(args.load)
+    layout = load.layout(args.orientation)
+    wrap = WrapFormat.from_toml(args.wrap, layout.load_height_m) if args.wrap else None
+    laid = wrap
+    if args.calibration:
+        calibration = Calibration.from_json(args.calibration)
+        load = calibration.apply(load)
+        if wrap is not None:
+            wrap = wrap.scaled(calibration.stiffness_scale, calibration.tension_scale)
+    check_hours(args.hours_since_wrapping)
+    if wrap is not None:
+        wrap = wrap.relaxed(args.hours_since_wrapping)
+    inputs = [p for p in (args.load, args.wrap, args.calibration, args.profile) if p]
+    check_output(args.json, "--json", inputs=inputs)
+    check_output(args.plot, "--plot", inputs=inputs)
+    if args.report is not None:
+        check_report_folder(args.report, inputs)
+    check_output(args.tension_map, "--tension-map", inputs=inputs)
+    if args.tension_map and wrap is None:
+        raise InputError("arguments", "--tension-map", "needs --wrap (an unwrapped unit has "
+                                                       "no envelope to map)")
+    levels = _levels(args)
+    if laid is not None:
+        warn("simulate", laid.warnings())
+    limits = criteria_limits(args)
+    stop = not args.level and not args.profile
+    with tqdm(total=len(levels), desc="levels", unit="level", file=sys.stderr,
+              disable=None) as bar:
+        run = run_levels(load, levels, orientation=args.orientation, stop_at_failure=stop,
+                         wrap=wrap, fresh=args.fresh, limits=limits,
+                         on_level=lambda v: _level_done(bar, v))
+    print(verdict_table(load, run, args.orientation))
+    if laid is not None:
+        print(program_text(laid, layout))
+    if args.json:
+        out = run.verdict.to_json()
+        if wrap is not None and laid is not None:
+            out.update(wrap_json(wrap, laid, layout))
+            out["hours_since_wrapping"] = args.hours_since_wrapping
+        write_atomic(args.json, (json.dumps(out, indent=2) + "\n").encode())
+    if args.plot:
+        from recommender.report import plot_displacements
+
+        plot_displacements(run, args.plot, title=load.name)
+    if args.report:
+        given = {"load unit": args.load, "wrap": args.wrap, "calibration": args.calibration,
+                 "sled profile": args.profile}
+        write_report(args.report, lambda stage: simulate_page(
+            stage, load, run, laid, wrap, args.orientation, args.hours_since_wrapping, given))
+    if args.tension_map:
+        from recommender.report import plot_tension_map
+
+        plot_tension_map(run, layout, args.tension_map, title=load.name)
+    return 0 if run.verdict.passed else 1
+
+
+def _level_done(bar: Any, verdict: LevelVerdict) -> None:
+    """Progress of `simulate`: one tick per level, with the last one's result."""
+    bar.update(1)
+    bar.set_postfix(level=f"{verdict.level_g:.2f} g", result="pass" if verdict.passed else "fail")
