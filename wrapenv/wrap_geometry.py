@@ -230,3 +230,28 @@ def seam_rings(wrap: WrapFormat, rings: list[Ring]) -> list[int]:
         return inside
     middle = lo + height / 2
     return [min(range(len(rings)), key=lambda i: abs(rings[i].z - middle))]
+
+
+def ring_give(ring: Ring, corner_stiffness: np.ndarray) -> float:
+    """A ring's load-side stiffness (tension per metre of perimeter): each edge it turns round
+    by an angle a dents under 2 T sin(a/2), which shortens the perimeter by 2 sin(a/2) times
+    the dent, so the edges add 4 sin²(a/2) / k_edge of compliance each."""
+    xy = np.array(ring.rest_xy)
+    into, out = xy - np.roll(xy, 1, axis=0), np.roll(xy, -1, axis=0) - xy
+    turn = np.arctan2(into[:, 0] * out[:, 1] - into[:, 1] * out[:, 0],
+                      np.einsum("ij,ij->i", into, out))
+    k_edge = corner_stiffness[[body for body, _ in ring.slots]] * ring.height_m
+    compliance = float(np.sum(4 * np.sin(turn / 2) ** 2 / k_edge))
+    return 1.0 / compliance if compliance > 0 else math.inf
+
+
+def hull_neighbours(active: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """For every slot of every ring, the previous and next active slot (cyclic)."""
+    m = active.shape[1]
+    twice = np.concatenate([active, active], axis=1)
+    ids = np.arange(2 * m)
+    before = np.maximum.accumulate(np.where(twice, ids, -1), axis=1)
+    after = np.minimum.accumulate(np.where(twice, ids, 2 * m)[:, ::-1], axis=1)[:, ::-1]
+    prev = before[:, m - 1:2 * m - 1] % m
+    nxt = np.concatenate([after[:, 1:], np.full((len(active), 1), 2 * m)], axis=1)[:, :m] % m
+    return prev, nxt

@@ -46,7 +46,14 @@ import numpy as np
 from wrapenv.load import Layout
 from wrapenv.wrap import WrapFormat
 from wrapenv.wrap_elements import Elements, bend_curvature, bend_factor, element_set, series
-from wrapenv.wrap_geometry import corner_positions_m, panel_specs, ring_specs, seam_rings
+from wrapenv.wrap_geometry import (
+    corner_positions_m,
+    hull_neighbours,
+    panel_specs,
+    ring_give,
+    ring_specs,
+    seam_rings,
+)
 from wrapenv.wrap_report import WrapReport, places_of
 
 #: The pallet's corners under the wrap, N/m per m of edge [A] (docs/materials.md section 5,
@@ -126,7 +133,7 @@ class WrapNet:
             pretension=np.array([r.tension_n for r in rings]),
             mass=np.array([mass[[b for b, _ in r.slots]].mean() for r in rings]),
             height=self.ring_heights, length=perimeter,
-            give=np.array([_ring_give(r, self.corner_stiffness) for r in rings]),
+            give=np.array([ring_give(r, self.corner_stiffness) for r in rings]),
         )
 
     def _panel_elements(self, mass: np.ndarray) -> Elements:
@@ -248,7 +255,7 @@ class WrapNet:
         order = np.argsort(angle, axis=1, kind="stable")
         s_xyz, s_valid, active = xyz[rows, order], valid[rows, order], self._active[rows, order]
         for _ in range(2 * xyz.shape[1]):
-            prev, nxt = _neighbours(active)
+            prev, nxt = hull_neighbours(active)
             a, c = s_xyz[rows, prev], s_xyz[rows, nxt]
             # < 0: the slot is right of its hull edge (a -> c), i.e. outside the hull
             side = ((c[..., 0] - a[..., 0]) * (s_xyz[..., 1] - a[..., 1])
@@ -259,7 +266,7 @@ class WrapNet:
             # drop reflex corners first; add outside slots only when no corner is reflex
             drop = active & changed
             active = active & ~drop if drop.any() else active | changed
-        prev, nxt = _neighbours(active)
+        prev, nxt = hull_neighbours(active)
         back = np.argsort(order, axis=1)                # sorted position of each rest slot
         active = active[rows, back]
         prev, nxt = order[rows, prev][rows, back], order[rows, nxt][rows, back]
@@ -388,19 +395,6 @@ class WrapNet:
         )
 
 
-def _ring_give(ring, corner_stiffness: np.ndarray) -> float:
-    """A ring's load-side stiffness (tension per metre of perimeter): each edge it turns round
-    by an angle a dents under 2 T sin(a/2), which shortens the perimeter by 2 sin(a/2) times
-    the dent, so the edges add 4 sin²(a/2) / k_edge of compliance each."""
-    xy = np.array(ring.rest_xy)
-    into, out = xy - np.roll(xy, 1, axis=0), np.roll(xy, -1, axis=0) - xy
-    turn = np.arctan2(into[:, 0] * out[:, 1] - into[:, 1] * out[:, 0],
-                      np.einsum("ij,ij->i", into, out))
-    k_edge = corner_stiffness[[body for body, _ in ring.slots]] * ring.height_m
-    compliance = float(np.sum(4 * np.sin(turn / 2) ** 2 / k_edge))
-    return 1.0 / compliance if compliance > 0 else math.inf
-
-
 def _strain(e: Elements) -> np.ndarray:
     """Permanent stretch of each element over its length (0 for a degenerate element)."""
     return np.divide(e.plastic, e.length_m, out=np.zeros_like(e.plastic), where=e.length_m > 0)
@@ -411,15 +405,3 @@ def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.stack([a[:, 1] * b[:, 2] - a[:, 2] * b[:, 1],
                      a[:, 2] * b[:, 0] - a[:, 0] * b[:, 2],
                      a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]], axis=1)
-
-
-def _neighbours(active: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """For every slot of every ring, the previous and next active slot (cyclic)."""
-    m = active.shape[1]
-    twice = np.concatenate([active, active], axis=1)
-    ids = np.arange(2 * m)
-    before = np.maximum.accumulate(np.where(twice, ids, -1), axis=1)
-    after = np.minimum.accumulate(np.where(twice, ids, 2 * m)[:, ::-1], axis=1)[:, ::-1]
-    prev = before[:, m - 1:2 * m - 1] % m
-    nxt = np.concatenate([after[:, 1:], np.full((len(active), 1), 2 * m)], axis=1)[:, :m] % m
-    return prev, nxt
