@@ -39,7 +39,9 @@ def cached_recording(load: str, level_g: float, size: tuple[int, int], *, wrap: 
     fps = PROBE_FPS
     if frames is not None:
         probe = cached_recording(load, level_g, (480, 300), wrap=wrap, cache=cache)
-        fps = round(PROBE_FPS * frames / _frame_count(probe), 1)
+        # whole frames per second: an AVI stores its rate as an integer, and `Recording.read`
+        # refuses a setup.toml whose rate the video does not have (62.5 against 62)
+        fps = round(PROBE_FPS * frames / _frame_count(probe))
     tag = f"{Path(load).stem}-{Path(wrap).stem if wrap else 'bare'}-{level_g}g-{size[0]}x{size[1]}"
     folder = cache / f"{tag}-{fps:g}fps"
     if (folder / "truth.json").exists():
