@@ -124,11 +124,7 @@ def plot_tension_map(run: BenchRun, layout: Layout, path: str | Path, title: str
                  label="peak force / what the place bears", fraction=0.04)
     if title:
         fig.suptitle(printable(title, 120), fontsize=11, parse_math=False)
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=110)
-    plt.close(fig)
-    write_atomic(path, buf.getvalue())
-    return buf.getvalue()
+    return _save(fig, path)
 
 
 def _map_places(ax: Axes, report: WrapReport, cmap, norm: Normalize) -> None:
