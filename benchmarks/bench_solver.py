@@ -1,11 +1,12 @@
-"""Are 20 solver iterations enough for a wrapped unit? The same EUMOS sequences (one unit
-through 0.2 -> 0.8 g) with Bullet's solver at 20, 50 and 100 iterations: the machine's default
-Kraft program and the Kraft band example on the 3-layer example, the default LLDPE program on
-the 2-layer one; then the heaviest program of the search space on a two-bundle unit at 0.3 g
-(the env tests' unit), which a stiffer solve can make blow up. Prints, per level, passed,
-elastic and total permanent displacement (mm), and the CPU time.
+"""How converged must a wrapped unit's solve be? The same EUMOS sequences (one unit through
+0.2 -> 0.8 g) with Bullet's solver at several iteration counts and contact ERPs
+(`SimSettings.wrapped_solver_iterations`, `wrapped_contact_erp`): the machine's default Kraft
+program and the Kraft band example on the 3-layer example, the default LLDPE program on the
+2-layer one; then the heaviest program of the search space on a two-bundle unit at 0.3 g (the
+env tests' unit), which a stiffer solve can make blow up. Prints, per level, passed, elastic and
+total permanent displacement (mm), and the CPU time of the sequence.
 
-    python -m benchmarks.bench_solver [--iterations 20 50 100]
+    python -m benchmarks.bench_solver [--solves 20:0.08 50:0.08 50:0.05 100:0.05]
 """
 
 from __future__ import annotations
@@ -30,34 +31,40 @@ TWO_BUNDLES = {"name": "two bundles", "pallet": {"preset": "EUR"},
                          "positions": [[-0.2, 0.0], [0.2, 0.0]]}}
 
 
-def sequence(load: LoadUnit, wrap: WrapFormat, levels: list[float], iterations: int) -> str:
+def sequence(load: LoadUnit, wrap: WrapFormat, levels: list[float], solve: str) -> str:
+    iterations, erp = solve.split(":")
+    settings = SimSettings(wrapped_solver_iterations=int(iterations),
+                           wrapped_contact_erp=float(erp))
     t0 = time.process_time()
-    run = run_levels(load, levels, SimSettings(solver_iterations=iterations),
-                     stop_at_failure=True, wrap=wrap)
+    run = run_levels(load, levels, settings, stop_at_failure=True, wrap=wrap)
     cells = [f"{v.level_g:.1f} g " + ("pass" if v.passed else "FAIL" if v.valid else
                                       f"INVALID ({v.invalid_reason})")
              + (f" {1e3 * v.elastic_max_m:.1f}/{1e3 * v.permanent_total_max_m:.1f}"
                 if v.valid else "") for v in run.verdict.levels]
-    return f"{iterations:4d} it, {time.process_time() - t0:5.1f} CPU s: " + "; ".join(cells)
+    return (f"{iterations:>4s} it, ERP {erp}, {time.process_time() - t0:5.1f} CPU s: "
+            + "; ".join(cells))
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--iterations", type=int, nargs="+", default=[20, 50, 100])
+    default = SimSettings()
+    parser.add_argument("--solves", nargs="+", metavar="ITERATIONS:ERP",
+                        default=["20:0.08", "50:0.08", f"{default.wrapped_solver_iterations}:"
+                                 f"{default.wrapped_contact_erp}", "100:0.05"])
     args = parser.parse_args()
     print("per level: result, elastic / total permanent mm")
     for load_path, wrap_path in CASES:
         load = LoadUnit.from_toml(load_path)
         wrap = WrapFormat.from_toml(wrap_path, load.layout().load_height_m)
         print(f"{load_path} + {wrap_path}", flush=True)
-        for it in args.iterations:
-            print("  " + sequence(load, wrap, eumos_levels(0.8), it), flush=True)
+        for solve in args.solves:
+            print("  " + sequence(load, wrap, eumos_levels(0.8), solve), flush=True)
     load = LoadUnit.from_dict(TWO_BUNDLES)
     space = ProgramSpace.for_layout(load.layout(), "kraft")
     heaviest = space.decode(np.ones(N_PARAMS))
     print("two bundles + the search space's heaviest Kraft program", flush=True)
-    for it in args.iterations:
-        print("  " + sequence(load, heaviest, [0.3], it), flush=True)
+    for solve in args.solves:
+        print("  " + sequence(load, heaviest, [0.3], solve), flush=True)
 
 
 if __name__ == "__main__":

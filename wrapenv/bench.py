@@ -39,6 +39,19 @@ class SimSettings:
 
     timestep_s: float = 1 / 240
     solver_iterations: int = 20
+    #: A wrapped unit's solve: the wrap squeezes each layer, and 20 iterations leave such a
+    #: stack unconverged, creeping a few mm/s under static friction (the machine's default
+    #: Kraft program on the 3-layer example: 15 mm at 0.2 g, failed at 0.3 g; with 50 it passes
+    #: every level to 0.8 g, as with 100). A stack that does not creep also comes to rest, so
+    #: the level ends sooner: a wrapped sequence takes less CPU at 50 than at 20
+    #: (benchmarks/bench_solver.py).
+    wrapped_solver_iterations: int = 50
+    #: A wrapped unit's contact ERP, the share of a penetration Bullet corrects per step
+    #: (pybullet's default: 0.08). Converged under a squeeze of many times the bundles' weight,
+    #: that correction kicks squeezed bodies apart: the search space's heaviest Kraft program
+    #: on a two-bundle unit blew up at 0.3 g (36 mm overlap) with 0.08, not with 0.05, which
+    #: moves the wrapped examples' figures by about a millimetre (benchmarks/bench_solver.py).
+    wrapped_contact_erp: float = 0.05
     #: Contact states are updated and poses recorded every `sample_every` steps.
     sample_every: int = 1
     settle_s: float = 0.3
@@ -109,7 +122,9 @@ class BenchUnit:
                  wrap: WrapFormat | None = None) -> None:
         self.layout, self.settings, self.wrapped = layout, settings, wrap is not None
         self.scene = BenchScene(layout)
-        self.world = BulletWorld(settings.timestep_s, settings.solver_iterations)
+        self.world = (BulletWorld(settings.timestep_s, settings.wrapped_solver_iterations,
+                                  settings.wrapped_contact_erp) if wrap is not None
+                      else BulletWorld(settings.timestep_s, settings.solver_iterations))
         _build(self.world, self.scene, self._stick_slip().coefficients())
         #: The wrap as the last level left it (None: unwrapped).
         self.wrap = WrapNet(wrap, layout) if wrap is not None else None

@@ -110,7 +110,9 @@ class BulletWorld:
     that build thousands of worlds do not leak them.
     """
 
-    def __init__(self, timestep_s: float, solver_iterations: int) -> None:
+    def __init__(self, timestep_s: float, solver_iterations: int,
+                 contact_erp: float | None = None) -> None:
+        """`contact_erp`: the share of a penetration corrected per step (None: pybullet's)."""
         with _quiet_stdout():
             self._client: Any = _Client(connection_mode=pb.DIRECT)
         self.timestep_s = timestep_s
@@ -121,6 +123,8 @@ class BulletWorld:
         self._client.setPhysicsEngineParameter(
             numSolverIterations=solver_iterations, deterministicOverlappingPairs=1
         )
+        if contact_erp is not None:
+            self._client.setPhysicsEngineParameter(contactERP=contact_erp)
         self._client.setGravity(0, 0, -G)
         self._ids: list[int] = []
         self._dynamic: list[int] = []
