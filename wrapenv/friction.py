@@ -15,6 +15,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from threadpoolctl import threadpool_limits
 
 from wrapenv.load import Friction, FrictionPair, Layout
 from wrapenv.scene import PALLET_NAME, SLED, BenchScene
@@ -57,20 +58,7 @@ class StickSlip:
         side = _side_contacts(self.scene)
         a_rest = _incidence(self.resting, self.n_bodies)
         a_side = _incidence(side, self.n_bodies)
-        # x = log m = P_rest @ b_rest + P_side @ b_side: meet resting contacts in least squares,
-        # then use the null space left over to meet side contacts (ridge keeps it well posed).
-        pinv = np.linalg.pinv(a_rest)
-        _, s, vt = np.linalg.svd(a_rest)
-        rank = int(np.sum(s > 1e-9))
-        null = vt[rank:].T
-        if null.shape[1] and a_side.shape[0]:
-            an = a_side @ null
-            z = np.linalg.solve(an.T @ an + 1e-6 * np.eye(an.shape[1]), an.T)
-            self._p_rest = pinv - null @ z @ a_side @ pinv
-            self._p_side = null @ z
-        else:
-            self._p_rest = pinv
-            self._p_side = np.zeros((self.n_bodies, a_side.shape[0]))
+        self._p_rest, self._p_side = _projections(a_rest, a_side)
         self._b_side = np.log([c.pair.static for c in side]) if side else np.zeros(0)
         self._static = np.log([c.pair.static for c in self.resting])
         self._kinetic = np.log([c.pair.kinetic for c in self.resting])
@@ -168,3 +156,21 @@ def _side_contacts(scene: BenchScene) -> list[Contact]:
                 out.append(Contact(scene.index(p.name), scene.index(q.name),
                                    layout.friction.bundle_bundle, (0.0, 0.0, 0.0)))
     return out
+
+
+def _projections(a_rest: np.ndarray, a_side: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """P_rest, P_side with log m = P_rest @ b_rest + P_side @ b_side: meet the resting contacts
+    in least squares, then use the null space left over to meet the side contacts (a ridge
+    keeps it well posed). On one BLAS thread: a threaded SVD rounds differently with the number
+    of cores, and a last-bit change of one coefficient changes a whole run (same inputs, same
+    results on every machine)."""
+    with threadpool_limits(limits=1, user_api="blas"):
+        pinv = np.linalg.pinv(a_rest)
+        _, s, vt = np.linalg.svd(a_rest)
+        rank = int(np.sum(s > 1e-9))
+        null = vt[rank:].T
+        if not (null.shape[1] and a_side.shape[0]):
+            return pinv, np.zeros((a_rest.shape[1], a_side.shape[0]))
+        an = a_side @ null
+        z = np.linalg.solve(an.T @ an + 1e-6 * np.eye(an.shape[1]), an.T)
+        return pinv - null @ z @ a_side @ pinv, null @ z
