@@ -41,6 +41,7 @@ from calibration.synth import synthesize
 from calibration.track import track
 from calibration.trajectories import Trajectories
 from calibration.validate import REPEATS, Validation, validate
+from wrapenv.bench import SimSettings
 from wrapenv.load import LoadUnit
 from wrapenv.wrap import WrapFormat
 
@@ -60,7 +61,11 @@ class Take:
     wrap: str | None = None
 
     def folder(self) -> Path:
-        wrap = f"-{Path(self.wrap).stem}-x{TRUE_STIFFNESS}" if self.wrap else ""
+        """The cache folder; a wrapped take's names the wrapped solve it was made with (a
+        recording made before that solve changed is not its truth)."""
+        s = SimSettings()
+        wrap = (f"-{Path(self.wrap).stem}-x{TRUE_STIFFNESS}-it{s.wrapped_solver_iterations}"
+                f"-erp{s.wrapped_contact_erp}" if self.wrap else "")
         return CACHE / "calibrate" / (f"{Path(self.load).stem}{wrap}-{self.level_g}g-"
                                       f"{self.size[0]}x{self.size[1]}-seed{SEED}")
 
