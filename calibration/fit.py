@@ -281,11 +281,21 @@ def _least_explained(observations: Sequence[Observation],
     may be its bare recordings')."""
     worst = ("", 0.0)
     for obs, runs in zip(observations, replays, strict=True):
-        rms, spread, _ = _prediction([obs], [runs])
-        if math.isfinite(rms):
-            left = math.sqrt(max(0.0, rms**2 - _expected(spread, len(runs)) ** 2))
+        left = unexplained([obs], [runs])
+        if math.isfinite(left):
             worst = max(worst, (obs.source, left), key=lambda w: w[1])
     return worst
+
+
+def unexplained(observations: Sequence[Observation],
+                replays: list[list[dict[str, np.ndarray] | None]]) -> float:
+    """RMS residual of the replays' mean that their own scatter does not explain (metres; inf
+    when a replay was unphysical): what `FitSettings.max_residual_m` bounds, whatever values
+    were replayed (the true ones, to see whether the test would accept them)."""
+    rms, spread, _ = _prediction(observations, replays)
+    if not math.isfinite(rms):
+        return math.inf
+    return math.sqrt(max(0.0, rms**2 - _expected(spread, len(replays[0])) ** 2))
 
 
 def _failure(rms: float, spread_rms: float, simulations: int, invalid: int,
