@@ -85,7 +85,7 @@ CASES: dict[str, tuple[tuple[Take, ...], tuple[Take, ...]]] = {
     "columnar3": ((Take("examples/pet_3layer_columnar.toml", 0.28),
                    Take("examples/pet_3layer_columnar.toml", 0.32)),
                   (Take("examples/pet_3layer_columnar.toml", 0.30),)),
-    **{m: ((Take(C2, 0.35), Take(C2, 0.45),
+    **{m: ((Take(C2, 0.35), Take(C2, 0.425), Take(C2, 0.45),
             Take(C2, 0.7, LARGE, f"examples/wrap_{m}_2layer.toml")),
            (Take(C2, 0.5, LARGE, f"examples/wrap_{m}_2layer.toml"),)) for m in ("kraft", "lldpe")},
     "slide": ((Take("examples/calibration_slide.toml", 0.45),
