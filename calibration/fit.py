@@ -261,27 +261,59 @@ def _result(observations: Sequence[Observation], bare: Sequence[Observation],
                and found.stds[name, ""] / (found.scales[name] * math.log(2))
                > RESOLVED_LOG2_SCALE_STD}
     repeats = len(replays[0])
-    reason = _failure(rms, spread_rms * math.sqrt(1 + 1 / repeats) if repeats > 1 else 0.0,
-                      progress.simulations, found.invalid, settings)
+    reason = _failure(rms, _expected(spread_rms, repeats), progress.simulations, found.invalid,
+                      settings, _least_explained(observations, replays))
     return FitResult(calibration, rms, progress.simulations, settings.method, progress.curve,
                      [runs[0] for runs in replays], not reason, spread_rms, replay_rms, reason,
                      advice, tuple(found.stages))
 
 
+def _expected(spread_rms: float, repeats: int) -> float:
+    """What the residual of the mean of `repeats` replays would be if the model were right:
+    the recording's own scatter and that left in the mean of the replays."""
+    return spread_rms * math.sqrt(1 + 1 / repeats) if repeats > 1 else 0.0
+
+
+def _least_explained(observations: Sequence[Observation],
+                     replays: list[list[dict[str, np.ndarray] | None]]) -> tuple[str, float]:
+    """The recording whose residual its replays' scatter explains least, and that unexplained
+    RMS: a joint fit's failure says which test the bench does not reproduce (a wrapped case's
+    may be its bare recordings')."""
+    worst = ("", 0.0)
+    for obs, runs in zip(observations, replays, strict=True):
+        left = unexplained([obs], [runs])
+        if math.isfinite(left):
+            worst = max(worst, (obs.source, left), key=lambda w: w[1])
+    return worst
+
+
+def unexplained(observations: Sequence[Observation],
+                replays: list[list[dict[str, np.ndarray] | None]]) -> float:
+    """RMS residual of the replays' mean that their own scatter does not explain (metres; inf
+    when a replay was unphysical): what `FitSettings.max_residual_m` bounds, whatever values
+    were replayed (the true ones, to see whether the test would accept them)."""
+    rms, spread, _ = _prediction(observations, replays)
+    if not math.isfinite(rms):
+        return math.inf
+    return math.sqrt(max(0.0, rms**2 - _expected(spread, len(replays[0])) ** 2))
+
+
 def _failure(rms: float, spread_rms: float, simulations: int, invalid: int,
-             settings: FitSettings) -> str:
+             settings: FitSettings, worst: tuple[str, float] = ("", 0.0)) -> str:
     """Why the fit is not to be trusted ("" when it is). `spread_rms` is what the residual of
-    the replays' mean would be if the model were right: the recording's own scatter and that
-    left in the mean of the replays."""
+    the replays' mean would be if the model were right (`_expected`); `worst` the recording
+    that explains least (`_least_explained`)."""
     if not math.isfinite(rms):
         return "the fitted values' replay became unphysical"
     unexplained = math.sqrt(max(0.0, rms**2 - spread_rms**2))
     if unexplained > settings.max_residual_m:
         scatter = (f" ({1e3 * spread_rms:.1f} mm of it the bench's own run-to-run scatter)"
                    if spread_rms else "")
+        most = (f"; most in {worst[0]} ({1e3 * worst[1]:.1f} mm unexplained)"
+                if worst[0] else "")
         return (f"residual RMS {1e3 * rms:.1f} mm{scatter}: {1e3 * unexplained:.1f} mm "
                 f"unexplained > {1e3 * settings.max_residual_m:g} mm after {simulations} "
-                "simulations")
+                f"simulations{most}")
     if invalid > simulations // 2:
         return f"{invalid} of {simulations} replays became unphysical"
     return ""
