@@ -47,8 +47,11 @@ CANDIDATES = {
     "end at first rest": SimSettings(simulate_stop=False),
     "stop when decided": SimSettings(stop_when_decided=True),
     "dt 1/160 s, end at first rest": SimSettings(timestep_s=1 / 160, simulate_stop=False),
-    "15 iterations, end at first rest": SimSettings(solver_iterations=15, simulate_stop=False),
-    "12 iterations, end at first rest": SimSettings(solver_iterations=12, simulate_stop=False),
+    # every case is wrapped: fewer iterations for a wrapped unit than its default 50
+    "30 iterations, end at first rest": SimSettings(wrapped_solver_iterations=30,
+                                                    simulate_stop=False),
+    "20 iterations, end at first rest": SimSettings(wrapped_solver_iterations=20,
+                                                    simulate_stop=False),
 }
 
 
