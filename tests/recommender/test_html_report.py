@@ -280,7 +280,7 @@ def test_recommend_report_adds_how_sure_and_the_search(tmp_path):
                  "--report", str(tmp_path / "report")])
     assert code == 0
     assert sorted(p.name for p in (tmp_path / "report").iterdir()) == [
-        "displacement.png", PAGE, "search.png", "test.mp4", "test.webm"]
+        "displacement.png", PAGE, "search.png", "tension_map.png", "test.mp4", "test.webm"]
     shown, errors, _ = open_in_chromium(tmp_path / "report" / PAGE, tmp_path / "profile")
     assert errors == []
     assert shown["rows"] == ["0.20 g", "0.30 g", "0.40 g", "0.50 g"]
