@@ -41,7 +41,7 @@ class SimSettings:
     solver_iterations: int = 20
     #: A wrapped unit's solve: the wrap squeezes each layer, and 20 iterations leave such a
     #: stack unconverged, creeping a few mm/s under static friction (the machine's default
-    #: Kraft program on the 3-layer example: 15 mm at 0.2 g, failed at 0.3 g; with 50 it passes
+    #: Kraft program on the 3-layer example: 15-25 mm at 0.2 g, then failed; with 50 it passes
     #: every level to 0.8 g, as with 100). A stack that does not creep also comes to rest, so
     #: the level ends sooner: a wrapped sequence takes less CPU at 50 than at 20
     #: (benchmarks/bench_solver.py).
