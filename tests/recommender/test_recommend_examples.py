@@ -2,8 +2,10 @@
 ``python -m pytest -m slow tests/recommender/test_recommend_examples.py``.
 
 The recommended program passes the target when re-simulated from its `--wrap-out` file; the
-same program with one wrap less in any zone, a spiral of less overlap, or every tension 20 %
-lower, loses margin or fails; a lower target never needs more web.
+same program with one wrap less in any zone or a spiral of less overlap loses margin or fails; a
+lower target never needs more web. (Lower tension is not less web, and it is not checked: Kraft
+is held by the load's give, and on the converged bench the 3-layer example's recommended spiral
+held 0.5 g with a margin of 0.87 at every tension 20 % lower against 0.83, 2026-11-24.)
 """
 
 from __future__ import annotations
@@ -43,8 +45,7 @@ def margin(load: LoadUnit, wrap: WrapFormat, target: float) -> float:
 
 
 def leaner(program: Program) -> list[Program]:
-    """The program with less of each thing it does: one wrap fewer in any zone, a spiral of
-    0.1 less overlap, every tension 20 % lower."""
+    """The program with less web: one wrap fewer in any zone, a spiral of 0.1 less overlap."""
     out = []
     if program.bottom_wraps:
         out.append(replace(program, bottom_wraps=program.bottom_wraps - 1))
@@ -56,12 +57,6 @@ def leaner(program: Program) -> list[Program]:
                                                     *program.reinforcements[i + 1:])))
     if program.up_overlap >= 0.1:
         out.append(replace(program, up_overlap=program.up_overlap - 0.1))
-    out.append(replace(
-        program, bottom_tension_n=0.8 * program.bottom_tension_n,
-        middle_tension_n=0.8 * program.middle_tension_n,
-        top_tension_n=0.8 * program.top_tension_n,
-        reinforcements=tuple(replace(r, tension_n=0.8 * r.tension_n)
-                             for r in program.reinforcements)))
     return out
 
 
