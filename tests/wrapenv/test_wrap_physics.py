@@ -14,7 +14,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from wrapenv.bench import Push, run_level
+from wrapenv.bench import Push, SimSettings, run_level, run_levels
 from wrapenv.eumos import WRAP_OPENED, WRAP_TORN, evaluate
 from wrapenv.load import FrictionPair, LoadUnit
 from wrapenv.material import MATERIALS
@@ -450,3 +450,24 @@ def test_the_3_layer_example_is_most_loaded_where_the_pallet_shears_the_load():
     higher = max(p.utilisation for p in diagonals if p.height_m > pallet_joint + 0.01)
     assert min(p.utilisation for p in top_two) > max(across, higher)
     assert not report.torn and 0.1 < report.peak_utilisation < 1.0
+
+
+@pytest.mark.parametrize("iterations, creeps", [(50, False), (20, True)])
+def test_a_squeezed_stack_does_not_creep_below_its_friction(iterations, creeps):
+    """Statics: at 0.2 and 0.3 g the sled pulls less than every static friction of the 3-layer
+    example holds (0.5 g on the pallet, 0.4 g between layers), and the wrap keeps its columns
+    from tipping, so nothing can slide: one unit through both levels ends where it stood. The
+    machine's 800 N Kraft default squeezes each layer with kilonewtons; a solve converged for
+    it (the wrapped default, 50 iterations) keeps it still, 20 iterations let it creep (measured
+    2026-11-24: 0.7 and 1.8 mm at 0.2 and 0.3 g, against 24.6 mm at 0.2 g with 20 iterations;
+    benchmarks/bench_solver.py)."""
+    load = LoadUnit.from_toml(EXAMPLE_3)
+    assert (load.friction.pallet_bundle.static, load.friction.bundle_bundle.static) == (0.5, 0.4)
+    wrap = WrapFormat.from_toml("examples/program_kraft_default.toml", load.load_height_m)
+    run = run_levels(load, [0.2, 0.3], SimSettings(wrapped_solver_iterations=iterations),
+                     wrap=wrap)
+    total = max(v.permanent_total_max_m for v in run.verdict.levels)
+    if creeps:
+        assert total > 0.010, total
+    else:
+        assert total < 0.003, total     # the bench's jitter at rest, not a slide
