@@ -305,13 +305,13 @@ def _failure(rms: float, spread_rms: float, simulations: int, invalid: int,
     that explains least (`_least_explained`)."""
     if not math.isfinite(rms):
         return "the fitted values' replay became unphysical"
-    unexplained = math.sqrt(max(0.0, rms**2 - spread_rms**2))
-    if unexplained > settings.max_residual_m:
+    left = math.sqrt(max(0.0, rms**2 - spread_rms**2))
+    if left > settings.max_residual_m:
         scatter = (f" ({1e3 * spread_rms:.1f} mm of it the bench's own run-to-run scatter)"
                    if spread_rms else "")
         most = (f"; most in {worst[0]} ({1e3 * worst[1]:.1f} mm unexplained)"
                 if worst[0] else "")
-        return (f"residual RMS {1e3 * rms:.1f} mm{scatter}: {1e3 * unexplained:.1f} mm "
+        return (f"residual RMS {1e3 * rms:.1f} mm{scatter}: {1e3 * left:.1f} mm "
                 f"unexplained > {1e3 * settings.max_residual_m:g} mm after {simulations} "
                 f"simulations{most}")
     if invalid > simulations // 2:
