@@ -189,8 +189,9 @@ def run_truth(name: str, repeats: int, workers: int) -> None:
     fit's acceptance test leaves unexplained (per fitted recording, then jointly, as `fit`
     computes it), and the held-out prediction: the best any calibration could do."""
     fitted, held = CASES[name]
-    observed = [observation(t)[0] for t in fitted]
-    cal = true_calibration(observation(fitted[0])[1])
+    taken = [observation(t) for t in fitted]
+    observed = [o for o, _ in taken]
+    cal = true_calibration(taken[0][1])
     with ProcessPoolExecutor(workers) as pool:
         runs = [[pool.submit(replay, o, cal.apply(o.load).friction, cal.wrap_scales(),
                              resettled(SimSettings(), k)) for k in range(repeats)]
