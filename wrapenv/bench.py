@@ -122,9 +122,9 @@ class BenchUnit:
                  wrap: WrapFormat | None = None) -> None:
         self.layout, self.settings, self.wrapped = layout, settings, wrap is not None
         self.scene = BenchScene(layout)
-        self.world = (BulletWorld(settings.timestep_s, settings.wrapped_solver_iterations,
-                                  settings.wrapped_contact_erp) if wrap is not None
-                      else BulletWorld(settings.timestep_s, settings.solver_iterations))
+        iterations, erp = ((settings.wrapped_solver_iterations, settings.wrapped_contact_erp)
+                           if wrap is not None else (settings.solver_iterations, None))
+        self.world = BulletWorld(settings.timestep_s, iterations, erp)
         _build(self.world, self.scene, self._stick_slip().coefficients())
         #: The wrap as the last level left it (None: unwrapped).
         self.wrap = WrapNet(wrap, layout) if wrap is not None else None
