@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import os
 from collections.abc import Iterator
-from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import Future, ThreadPoolExecutor, wait
 from pathlib import Path
 
 import cv2
@@ -47,11 +47,17 @@ class VideoReader:
                      int(self.cap.get(cv2.CAP_PROP_FRAME_HEIGHT)))
         self.decoded = 0
         self.truncated = False
+        #: The frame being decoded on the reader thread while the caller works (None: none).
+        self._pending: Future[np.ndarray | None] | None = None
 
     def __enter__(self) -> VideoReader:
         return self
 
     def __exit__(self, *exc: object) -> None:
+        # A caller that stops early (an error in its loop) leaves `frames` suspended with a
+        # read in flight: releasing the capture under it deadlocks FFmpeg's scaler threads.
+        if self._pending is not None:
+            wait([self._pending])
         self.cap.release()
 
     def frames(self) -> Iterator[np.ndarray]:
@@ -66,8 +72,10 @@ class VideoReader:
                     self.truncated = True  # `current` may be the frame the file was cut inside
                     return
                 pending = reader.submit(self._read) if following is not None else None
+                self._pending = pending
                 yield current
                 current, following = following, pending.result() if pending else None
+                self._pending = None
 
     def _read(self) -> np.ndarray | None:
         ok, bgr = self.cap.read()
