@@ -175,6 +175,9 @@ def _add_train(sub: argparse._SubParsersAction) -> None:
     tr.add_argument("--material", default="kraft")
     tr.add_argument("--target", type=level_g, default=0.5, metavar="G")
     tr.add_argument("--seed", type=int, default=0)
+    tr.add_argument("--minutes", type=float, default=None, metavar="M",
+                    help="stop after M minutes of training and write the policy learned so far "
+                         "(default: run all --timesteps)")
 
 
 class _Terminated(KeyboardInterrupt):

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
 import sys
 import time
@@ -319,6 +320,8 @@ def run_train(args: argparse.Namespace) -> int:
     for flag, value in (("--timesteps", args.timesteps), ("--envs", args.envs)):
         if value < 1:
             raise InputError("arguments", flag, f"must be >= 1 (got {value})")
+    if args.minutes is not None and not (math.isfinite(args.minutes) and args.minutes > 0):
+        raise InputError("arguments", "--minutes", f"must be > 0 (got {args.minutes})")
     _material(args.material)
     _target(args.target)
     if args.out.exists() and not args.out.is_dir():
@@ -329,7 +332,13 @@ def run_train(args: argparse.Namespace) -> int:
         raise InputError(str(args.out), "--out", f"cannot be created ({exc.strerror})") from None
     check_output(args.out / "policy.zip", "--out")
     settings = TrainSettings(timesteps=args.timesteps, n_envs=args.envs, material=args.material,
-                             target_g=args.target, seed=args.seed)
-    path = train(settings, args.out)
+                             target_g=args.target, seed=args.seed, max_minutes=args.minutes)
+    try:
+        path = train(settings, args.out)
+    except KeyboardInterrupt as exc:
+        kept = sorted((args.out / "checkpoints").glob("*.zip"), key=lambda p: p.stat().st_mtime)
+        if kept:
+            exc.add_note(f"interrupted; no policy.zip written, the last checkpoint is {kept[-1]}")
+        raise
     print(f"policy written to {path} (log: {args.out / 'log.csv'})")
     return 0

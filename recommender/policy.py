@@ -24,6 +24,7 @@ import csv
 import json
 import math
 import os
+import time
 import zipfile
 from dataclasses import dataclass
 from pathlib import Path
@@ -89,6 +90,10 @@ class TrainSettings:
     batch_size: int = 64
     learning_rate: float = 3e-4
     progress_bar: bool = True
+    #: Wall-clock budget in minutes (None: none): training ends after the vector step that
+    #: passes it, and the policy learned so far is written like a finished run's, so "train
+    #: for an hour" keeps the last hour's learning, not only the last checkpoint's.
+    max_minutes: float | None = None
 
     def check(self) -> None:
         """Reject settings SB3 would fail on late (or silently misuse), before any process
@@ -100,6 +105,10 @@ class TrainSettings:
         if not (math.isfinite(self.learning_rate) and self.learning_rate > 0):
             raise ValueError(f"TrainSettings.learning_rate must be > 0 "
                              f"(got {self.learning_rate!r})")
+        if self.max_minutes is not None and not (math.isfinite(self.max_minutes)
+                                                 and self.max_minutes >= 0):
+            raise ValueError(f"TrainSettings.max_minutes must be >= 0 or None "
+                             f"(got {self.max_minutes!r})")
 
 
 class EpisodeLog(BaseCallback):
@@ -150,8 +159,25 @@ class EpisodeLog(BaseCallback):
         self.close()
 
 
+class TimeBudget(BaseCallback):
+    """Ends training (SB3 stops when a callback returns False) once `minutes` have passed
+    since training started, at the end of a vector step."""
+
+    def __init__(self, minutes: float) -> None:
+        super().__init__()
+        self.seconds = 60.0 * minutes
+        self._deadline = math.inf
+
+    def _on_training_start(self) -> None:
+        self._deadline = time.monotonic() + self.seconds
+
+    def _on_step(self) -> bool:
+        return time.monotonic() < self._deadline
+
+
 def train(settings: TrainSettings, out_dir: Path) -> Path:
-    """Train PPO on wrapenv/WrapBenchRandom-v0; writes out_dir/policy.zip (final), periodic
+    """Train PPO on wrapenv/WrapBenchRandom-v1 for `settings.timesteps` (or until its
+    `max_minutes`); writes out_dir/policy.zip (final), periodic
     out_dir/checkpoints/policy_<steps>_steps.zip (SB3 CheckpointCallback), and out_dir/log.csv
     (one row per episode: timesteps, reward, passed, margin, material_kg, valid — via a small
     callback reading infos; written incrementally, flushed). Returns the policy path."""
@@ -178,7 +204,10 @@ def train(settings: TrainSettings, out_dir: Path) -> Path:
         # save_freq counts vector steps, each n_envs timesteps
         checkpoint = _StampedCheckpoints(meta, max(1, settings.checkpoint_every // settings.n_envs),
                                          str(checkpoints), name_prefix=CHECKPOINT_PREFIX)
-        model.learn(settings.timesteps, callback=CallbackList([checkpoint, log]),
+        callbacks: list[BaseCallback] = [checkpoint, log]
+        if settings.max_minutes is not None:
+            callbacks.append(TimeBudget(settings.max_minutes))
+        model.learn(settings.timesteps, callback=CallbackList(callbacks),
                     progress_bar=settings.progress_bar)
         path = out_dir / POLICY_FILE
         partial = out_dir / f".{POLICY_FILE}.partial.zip"

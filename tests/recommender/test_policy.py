@@ -63,7 +63,8 @@ def test_default_settings_are_a_sane_short_run():
 
 
 @pytest.mark.parametrize("field, value", [("timesteps", 0), ("n_envs", 0), ("batch_size", 1.5),
-                                          ("learning_rate", float("nan"))])
+                                          ("learning_rate", float("nan")),
+                                          ("max_minutes", -1.0), ("max_minutes", float("nan"))])
 def test_bad_settings_are_rejected_before_any_process_starts(tmp_path, field, value):
     with pytest.raises(ValueError, match=field):
         train(TrainSettings(**{field: value}), tmp_path / "out")
@@ -86,6 +87,18 @@ def test_train_writes_the_policy_checkpoints_and_one_log_row_per_episode(trained
         assert 0 < float(material_kg) < 5
         if valid == "0":
             assert passed == "0"  # a blown-up run is logged as a failure
+
+
+def test_a_time_budget_ends_training_early_and_still_writes_the_policy(tmp_path):
+    """A budget that has passed by the first step stops PPO there (SB3 ends `learn` when a
+    callback returns False); the policy learned so far is written as a finished run's."""
+    settings = TrainSettings(timesteps=64, n_envs=1, n_steps=8, batch_size=8,
+                             checkpoint_every=64, progress_bar=False, max_minutes=0.0)
+    path = train(settings, tmp_path)
+    assert path.is_file()
+    load_policy(path)  # a complete, stamped policy
+    with (tmp_path / "log.csv").open() as f:
+        assert [int(r["timesteps"]) for r in csv.DictReader(f)] == [1]
 
 
 def test_train_with_two_subprocess_envs(tmp_path):

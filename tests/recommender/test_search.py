@@ -301,6 +301,8 @@ def test_ppo_method_answers_from_a_policy_and_verifies_it(load_file, tmp_path, c
     (["train", "--out", "OUT", "--timesteps", "0"], "--timesteps"),
     (["train", "--out", "OUT", "--material", "cotton"], "--material"),
     (["train", "--out", "OUT", "--target", "2.0"], "--target"),
+    (["train", "--out", "OUT", "--minutes", "nan"], "--minutes"),
+    (["train", "--out", "OUT", "--minutes", "0"], "--minutes"),
 ])
 def test_bad_policy_arguments_exit_2_with_one_line(argv, field, tmp_path, capsys):
     argv = [str(tmp_path / "out") if a == "OUT" else a for a in argv]
