@@ -25,7 +25,7 @@ Measured with `python -m benchmarks.bench_calibrate --truth N [--offset PAIR.KIN
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -39,7 +39,7 @@ EXCUSED_PER_BODIES = 8
 #: What a right model leaves of a slip from the tracker alone: two tracked positions' noise.
 NOISE_VAR_M2 = 2 * features.TRACK_NOISE_M**2
 
-Runs = list[dict[str, np.ndarray] | None]
+Runs = Sequence[Mapping[str, np.ndarray] | None]
 
 
 @dataclass(frozen=True)

@@ -144,7 +144,7 @@ def fit(observations: Sequence[Observation], settings: FitSettings,
         stages.append((wrap_params, wrapped))
     progress = Progress(listener=listener)
     found = _Fitted(base)
-    repeats = FINAL_REPLAYS if settings.method == "surrogate" else 1
+    repeats = _final_replays(settings, len(observations))
     budget = settings.budget - repeats * len(observations)
     with ProcessPoolExecutor(max_workers=settings.workers) as pool:
         for k, (params, indices) in enumerate(stages):
@@ -160,6 +160,15 @@ def fit(observations: Sequence[Observation], settings: FitSettings,
         replays = [[f.result() for f in fs] for fs in runs]
     progress.spend(repeats * len(observations))
     return _result(observations, bare, settings, slipped, found, replays, progress)
+
+
+def _final_replays(settings: FitSettings, recordings: int) -> int:
+    """How many times the fitted values are replayed per recording: `FINAL_REPLAYS`, but at
+    most a third of a small budget (at least 3), which the stages need more; 1 for the
+    descents."""
+    if settings.method != "surrogate":
+        return 1
+    return min(FINAL_REPLAYS, max(3, settings.budget // (3 * recordings)))
 
 
 def _run_stage(objective: Objective, settings: FitSettings, limit: int, progress: Progress,
