@@ -221,18 +221,18 @@ def _verdict_line(label: str, verdict: Unexplained) -> str:
             f"unexplained by {verdict.by}{excused}")
 
 
-def _refusal_rate(observed: list[Observation], replays: list[list], draws: int = 200) -> str:
-    """How often the acceptance test refuses these values when a fit's `FINAL_REPLAYS`
-    replays are drawn at random (seed 0) from the ones made."""
+def _refusal_rate(observed: list[Observation], replays: list[list], size: int,
+                  draws: int = 200) -> str:
+    """How often the acceptance test refuses these values when a fit's `size` final replays
+    are drawn at random (seed 0) from the ones made."""
     rng = np.random.default_rng(0)
     limit = FitSettings().max_residual_m
     refused = 0
     for _ in range(draws):
-        pick = rng.choice(len(replays[0]), FINAL_REPLAYS, replace=False)
+        pick = rng.choice(len(replays[0]), size, replace=False)
         refused += acceptance.worst(observed, [[rs[k] for k in pick] for rs in replays]
                                     ).rms_m > limit
-    return (f"  {draws} random draws of {FINAL_REPLAYS} replays: refused {refused} "
-            f"({100 * refused / draws:.1f} %)")
+    return f"  {draws} random draws of {size} replays: refused {refused} ({refused / draws:.1%})"
 
 
 def run_truth(name: str, repeats: int, workers: int, offsets: Sequence[Offset] = ()) -> None:
@@ -262,8 +262,9 @@ def run_truth(name: str, repeats: int, workers: int, offsets: Sequence[Offset] =
     for g in groups:
         verdict = acceptance.worst(observed, [[rs[k] for k in g] for rs in replays])
         print(_verdict_line(f"replays {g.start}-{g.stop - 1}", verdict))
-    if repeats > FINAL_REPLAYS:
-        print(_refusal_rate(observed, replays))
+    for size in sorted({3, FINAL_REPLAYS}):
+        if repeats > size:
+            print(_refusal_rate(observed, replays, size))
     for check in checks:
         layer, c = check.largest
         pct = f" ({c.error_pct:+.0f} %)" if c.error_pct is not None else ""
