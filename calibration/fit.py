@@ -51,9 +51,9 @@ RESOLVED_STATIC_STD = 0.025
 RESOLVED_LOG2_SCALE_STD = math.log2(1.2)
 #: The surrogate's fitted values are replayed this many times per recording (each settling a
 #: little longer, `replay.resettled`): their mean is the prediction, their scatter the part of
-#: the residual no calibration can remove (`calibration.acceptance`: 3 replays of the 2-layer
-#: columnar unit's true values were refused now and then, 6 seldom; README). The descents get
-#: one.
+#: the residual no calibration can remove (`calibration.acceptance`). The 2-layer columnar
+#: unit's true values are refused in 22 % of draws of 3 replays, 3 % of 6 (`bench_calibrate
+#: --truth 24`). The descents get one.
 FINAL_REPLAYS = 6
 
 
