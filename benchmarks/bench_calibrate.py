@@ -26,15 +26,17 @@ as a Markdown table row.
                                          [--budget 300] [--workers 2] [--seed 0]
 
 Without a fit, what the best calibration could do: `--truth N` replays each case's recordings N
-times with their true values (the residual the fit's acceptance test would leave unexplained,
-and the held-out prediction); `--sensitivity` how far halving or doubling each wrap scale moves
-the wrapped recording's features.
+times with their true values (what the fit's acceptance test says of them, on all N replays and
+on each group of as many as a fit replays, and the held-out prediction); with `--offset
+PAIR.KIND=DELTA ...` the true values shifted, which the test should refuse; `--sensitivity`
+how far halving or doubling each wrap scale moves the wrapped recording's features.
 """
 
 from __future__ import annotations
 
 import argparse
 import time
+from collections.abc import Sequence
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
@@ -42,8 +44,10 @@ from pathlib import Path
 import numpy as np
 
 from benchmarks.bench_track import CACHE
+from calibration import acceptance
+from calibration.acceptance import Unexplained
 from calibration.features import TRACK_NOISE_M
-from calibration.fit import METHODS, FitResult, FitSettings, fit, unexplained
+from calibration.fit import FINAL_REPLAYS, METHODS, FitResult, FitSettings, fit
 from calibration.recording import Recording, Truth
 from calibration.replay import Observation, observe, replay, resettled, residuals
 from calibration.synth import synthesize
@@ -52,7 +56,7 @@ from calibration.trajectories import Trajectories
 from calibration.validate import REPEATS, Validation, validate
 from wrapenv.bench import SimSettings
 from wrapenv.calibrated import CalibratedPair, Calibration
-from wrapenv.load import Friction, LoadUnit
+from wrapenv.load import PAIRS, Friction, LoadUnit
 from wrapenv.wrap import WrapFormat
 
 SEED, JITTER, TRUE_STIFFNESS = 0, 0.1, 1.3
@@ -177,32 +181,90 @@ def run_case(name: str, method: str, args: argparse.Namespace) -> None:
     print(report(name, method, result, observed[0][1], wall, checks, wrapped), flush=True)
 
 
-def true_calibration(truth: Truth) -> Calibration:
-    """The values the recordings were made with (the web's stiffness applies to wrapped ones)."""
-    return Calibration({k: CalibratedPair(v["static"], v["kinetic"])
-                        for k, v in truth.params["friction"].items()},
-                       stiffness_scale=TRUE_STIFFNESS)
+def true_calibration(truth: Truth, offsets: Sequence[Offset] = ()) -> Calibration:
+    """The values the recordings were made with (the web's stiffness applies to wrapped ones),
+    each offset added (a kinetic coefficient above its static one lowered to it)."""
+    pairs = {k: dict(v) for k, v in truth.params["friction"].items()}
+    for off in offsets:
+        pairs[off.pair][off.kind] += off.delta
+    return Calibration({k: CalibratedPair(v["static"], min(v["kinetic"], v["static"]))
+                        for k, v in pairs.items()}, stiffness_scale=TRUE_STIFFNESS)
 
 
-def run_truth(name: str, repeats: int, workers: int) -> None:
-    """The case's recordings replayed `repeats` times with their TRUE values: the residual the
-    fit's acceptance test leaves unexplained (per fitted recording, then jointly, as `fit`
-    computes it), and the held-out prediction: the best any calibration could do."""
+@dataclass(frozen=True)
+class Offset:
+    """A shift of one true coefficient: `--offset pallet_bundle.static=+0.1`."""
+
+    pair: str
+    kind: str
+    delta: float
+
+    @classmethod
+    def parse(cls, text: str) -> Offset:
+        try:
+            name, value = text.split("=")
+            pair, kind = name.split(".")
+            off = cls(pair, kind, float(value))
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{text!r}: expected PAIR.KIND=DELTA") from None
+        if pair not in PAIRS or kind not in ("static", "kinetic"):
+            raise argparse.ArgumentTypeError(f"{text!r}: PAIR one of {', '.join(PAIRS)}, KIND "
+                                             "static or kinetic")
+        return off
+
+
+def _verdict_line(label: str, verdict: Unexplained) -> str:
+    limit = FitSettings().max_residual_m
+    word = "accepted" if verdict.rms_m <= limit else "REFUSED"
+    excused = f", excused {' '.join(verdict.excused)}" if verdict.excused else ""
+    return (f"  {label}: {word}, {Path(verdict.source).name} {1e3 * verdict.rms_m:.1f} mm "
+            f"unexplained by {verdict.by}{excused}")
+
+
+def _refusal_rate(observed: list[Observation], replays: list[list], size: int,
+                  draws: int = 200) -> str:
+    """How often the acceptance test refuses these values when a fit's `size` final replays
+    are drawn at random (seed 0) from the ones made."""
+    rng = np.random.default_rng(0)
+    limit = FitSettings().max_residual_m
+    refused = 0
+    for _ in range(draws):
+        pick = rng.choice(len(replays[0]), size, replace=False)
+        refused += acceptance.worst(observed, [[rs[k] for k in pick] for rs in replays]
+                                    ).rms_m > limit
+    return f"  {draws} random draws of {size} replays: refused {refused} ({refused / draws:.1%})"
+
+
+def run_truth(name: str, repeats: int, workers: int, offsets: Sequence[Offset] = ()) -> None:
+    """The case's recordings replayed `repeats` times with their TRUE values (shifted by
+    `offsets`): what the fit's acceptance test (`calibration.acceptance`) says of each
+    recording and of all, first on all replays, then on each group of `FINAL_REPLAYS` (as a
+    fit's final replays would be: how often it would refuse these values); and the held-out
+    prediction, the best any calibration could do."""
     fitted, held = CASES[name]
     taken = [observation(t) for t in fitted]
     observed = [o for o, _ in taken]
-    cal = true_calibration(taken[0][1])
+    cal = true_calibration(taken[0][1], offsets)
     with ProcessPoolExecutor(workers) as pool:
         runs = [[pool.submit(replay, o, cal.apply(o.load).friction, cal.wrap_scales(),
                              resettled(SimSettings(), k)) for k in range(repeats)]
                 for o in observed]
         replays = [[f.result() for f in fs] for fs in runs]
         checks = validate([observation(t)[0] for t in held], cal, pool, repeats=repeats)
-    print(f"{name} / true values, {repeats} replays each:")
+    shifted = " ".join(f"{o.pair}.{o.kind} {o.delta:+g}" for o in offsets)
+    print(f"{name} / true values{' shifted ' + shifted if shifted else ''}, {repeats} replays "
+          f"each (the fit refuses above {1e3 * FitSettings().max_residual_m:g} mm):")
     for o, rs in zip(observed, replays, strict=True):
-        print(f"  {Path(o.source).name}: {1e3 * unexplained([o], [rs]):.1f} mm unexplained")
-    print(f"  jointly: {1e3 * unexplained(observed, replays):.1f} mm unexplained (the fit "
-          f"fails above {1e3 * FitSettings().max_residual_m:g} mm)")
+        print(_verdict_line("recording", acceptance.recording(o, rs)))
+    print(_verdict_line(f"all {repeats} replays", acceptance.worst(observed, replays)))
+    groups = [range(k, k + FINAL_REPLAYS) for k in range(0, repeats - FINAL_REPLAYS + 1,
+                                                         FINAL_REPLAYS)]
+    for g in groups:
+        verdict = acceptance.worst(observed, [[rs[k] for k in g] for rs in replays])
+        print(_verdict_line(f"replays {g.start}-{g.stop - 1}", verdict))
+    for size in sorted({3, FINAL_REPLAYS}):
+        if repeats > size:
+            print(_refusal_rate(observed, replays, size))
     for check in checks:
         layer, c = check.largest
         pct = f" ({c.error_pct:+.0f} %)" if c.error_pct is not None else ""
@@ -252,12 +314,16 @@ def main() -> None:
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--truth", type=int, metavar="N", default=0,
                         help="no fit: replay each case N times with its true values")
+    parser.add_argument("--offset", nargs="+", type=Offset.parse, default=[],
+                        metavar="PAIR.KIND=DELTA",
+                        help="with --truth: replay with the true values shifted, e.g. "
+                             "pallet_bundle.static=+0.1 (the acceptance test should refuse)")
     parser.add_argument("--sensitivity", action="store_true",
                         help="no fit: how much each wrap scale moves the wrapped recording")
     args = parser.parse_args()
     for name in args.case:
         if args.truth:
-            run_truth(name, args.truth, args.workers)
+            run_truth(name, args.truth, args.workers, args.offset)
         elif args.sensitivity:
             run_sensitivity(name)
         else:

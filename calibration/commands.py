@@ -317,6 +317,11 @@ def _summary(result) -> str:
               if result.spread_rms_m else "")
     lines.append(f"residual RMS {1e3 * result.residual_rms_m:.2f} mm{spread}; one replay of "
                  f"the fitted values {1e3 * result.replay_rms_m:.2f} mm")
+    v = result.verdict
+    if v.source:
+        excused = f", {' '.join(v.excused)} excused" if v.excused else ""
+        lines.append(f"accepted: the least explained recording, {v.source}, "
+                     f"{1e3 * v.rms_m:.2f} mm unexplained by {v.by}{excused}")
     return "\n".join(lines)
 
 

@@ -128,3 +128,12 @@ def vector(states: States, body_map: Mapping[str, Body], frames: Mapping[str, in
         parts.append(body.height_m / 2 * np.clip(angle, -body.tip_rad, body.tip_rad))
     return np.concatenate(parts) if parts else np.zeros(0)
 
+
+
+def spans(frames: Mapping[str, int]) -> dict[str, np.ndarray]:
+    """Per body the indices of its features (its slip's, then its turn's) in `vector`."""
+    out, start = {}, 0
+    for name in sorted(frames):
+        out[name] = np.arange(start, start + 2 * frames[name])
+        start += 2 * frames[name]
+    return out

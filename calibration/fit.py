@@ -25,14 +25,14 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from calibration import identify
+from calibration import acceptance, identify
 from calibration.descent import UNIFORM_STD, descend
 from calibration.objective import Model, Objective, Param, Progress
 from calibration.replay import Observation, replay, resettled, residuals
 from calibration.surrogate import Stage, surrogate
 from wrapenv.bench import SimSettings
 from wrapenv.calibrated import CalibratedPair, Calibration
-from wrapenv.load import PAIRS, Friction
+from wrapenv.load import PAIRS, Friction, FrictionPair
 
 METHODS = ("surrogate", "cmaes", "momentum")
 PARAMS = ("friction", "wrap", "all")
@@ -51,8 +51,10 @@ RESOLVED_STATIC_STD = 0.025
 RESOLVED_LOG2_SCALE_STD = math.log2(1.2)
 #: The surrogate's fitted values are replayed this many times per recording (each settling a
 #: little longer, `replay.resettled`): their mean is the prediction, their scatter the part of
-#: the residual no calibration can remove. The descents, fitted to single replays, get one.
-FINAL_REPLAYS = 3
+#: the residual no calibration can remove (`calibration.acceptance`). The 2-layer columnar
+#: unit's true values are refused in 22 % of draws of 3 replays, 3 % of 6 (`bench_calibrate
+#: --truth 24`). The descents get one.
+FINAL_REPLAYS = 6
 
 
 @dataclass(frozen=True)
@@ -62,8 +64,8 @@ class FitSettings:
     budget: int = 300               # most simulations, final replays included
     workers: int = max(1, os.cpu_count() or 1)
     seed: int = 0
-    #: The fit fails (no output) when the residual its replays' own scatter does not explain
-    #: is above this (RMS, metres).
+    #: The fit fails (no output) when a recording's residual its replays' own scatter does not
+    #: explain is above this (RMS, metres; `calibration.acceptance`).
     max_residual_m: float = 0.01
     sim: SimSettings = SimSettings()
 
@@ -87,6 +89,8 @@ class FitResult:
     reason: str = ""
     advice: dict[str, str] = field(default_factory=dict)
     stages: tuple[Stage, ...] = ()
+    #: the acceptance test's verdict on the recording the final replays explain least
+    verdict: acceptance.Unexplained = acceptance.Unexplained("", 0.0)
 
 
 @dataclass
@@ -140,7 +144,7 @@ def fit(observations: Sequence[Observation], settings: FitSettings,
         stages.append((wrap_params, wrapped))
     progress = Progress(listener=listener)
     found = _Fitted(base)
-    repeats = FINAL_REPLAYS if settings.method == "surrogate" else 1
+    repeats = _final_replays(settings, len(observations))
     budget = settings.budget - repeats * len(observations)
     with ProcessPoolExecutor(max_workers=settings.workers) as pool:
         for k, (params, indices) in enumerate(stages):
@@ -156,6 +160,15 @@ def fit(observations: Sequence[Observation], settings: FitSettings,
         replays = [[f.result() for f in fs] for fs in runs]
     progress.spend(repeats * len(observations))
     return _result(observations, bare, settings, slipped, found, replays, progress)
+
+
+def _final_replays(settings: FitSettings, recordings: int) -> int:
+    """How many times the fitted values are replayed per recording: `FINAL_REPLAYS`, but at
+    most a third of a small budget (at least 3), which the stages need more; 1 for the
+    descents."""
+    if settings.method != "surrogate":
+        return 1
+    return min(FINAL_REPLAYS, max(3, settings.budget // (3 * recordings)))
 
 
 def _run_stage(objective: Objective, settings: FitSettings, limit: int, progress: Progress,
@@ -250,77 +263,52 @@ def _result(observations: Sequence[Observation], bare: Sequence[Observation],
     # friction not asked for is not reported: the bench keeps the load file's values
     present = identify.pairs_present(observations) if settings.params != "wrap" else ()
     bounds = identify.pair_bounds(bare, found.friction, slipped)
-    calibration = _calibration(found, slipped, bounds, present)
+    throughout = {name: b for name in present
+                  if (b := identify.slipped_throughout(name, bare, found.friction, slipped))}
+    calibration = _calibration(found, slipped, bounds, throughout, present)
     advice = {name: identify.advice_unslipped(name, bounds[name])
               for name in present if name not in slipped}
     advice |= {name: identify.advice_static(name, bare, p.static_std)
                for name, p in calibration.friction.items()
                if p.identified and p.static_std > RESOLVED_STATIC_STD}
+    advice |= {name: identify.advice_slipped_throughout(b, calibration.friction[name].static,
+                                                        calibration.friction[name].static_std)
+               for name, b in throughout.items()}
     advice |= {name: identify.advice_scale(name, found.scales[name], found.stds[name, ""])
                for name in found.scales if (name, "") in found.stds
                and found.stds[name, ""] / (found.scales[name] * math.log(2))
                > RESOLVED_LOG2_SCALE_STD}
-    repeats = len(replays[0])
-    reason = _failure(rms, _expected(spread_rms, repeats), progress.simulations, found.invalid,
-                      settings, _least_explained(observations, replays))
+    verdict = acceptance.worst(observations, replays)
+    reason = _failure(rms, verdict, progress.simulations, found.invalid, settings)
     return FitResult(calibration, rms, progress.simulations, settings.method, progress.curve,
                      [runs[0] for runs in replays], not reason, spread_rms, replay_rms, reason,
-                     advice, tuple(found.stages))
+                     advice, tuple(found.stages), verdict)
 
 
-def _expected(spread_rms: float, repeats: int) -> float:
-    """What the residual of the mean of `repeats` replays would be if the model were right:
-    the recording's own scatter and that left in the mean of the replays."""
-    return spread_rms * math.sqrt(1 + 1 / repeats) if repeats > 1 else 0.0
-
-
-def _least_explained(observations: Sequence[Observation],
-                     replays: list[list[dict[str, np.ndarray] | None]]) -> tuple[str, float]:
-    """The recording whose residual its replays' scatter explains least, and that unexplained
-    RMS: a joint fit's failure says which test the bench does not reproduce (a wrapped case's
-    may be its bare recordings')."""
-    worst = ("", 0.0)
-    for obs, runs in zip(observations, replays, strict=True):
-        left = unexplained([obs], [runs])
-        if math.isfinite(left):
-            worst = max(worst, (obs.source, left), key=lambda w: w[1])
-    return worst
-
-
-def unexplained(observations: Sequence[Observation],
-                replays: list[list[dict[str, np.ndarray] | None]]) -> float:
-    """RMS residual of the replays' mean that their own scatter does not explain (metres; inf
-    when a replay was unphysical): what `FitSettings.max_residual_m` bounds, whatever values
-    were replayed (the true ones, to see whether the test would accept them)."""
-    rms, spread, _ = _prediction(observations, replays)
-    if not math.isfinite(rms):
-        return math.inf
-    return math.sqrt(max(0.0, rms**2 - _expected(spread, len(replays[0])) ** 2))
-
-
-def _failure(rms: float, spread_rms: float, simulations: int, invalid: int,
-             settings: FitSettings, worst: tuple[str, float] = ("", 0.0)) -> str:
-    """Why the fit is not to be trusted ("" when it is). `spread_rms` is what the residual of
-    the replays' mean would be if the model were right (`_expected`); `worst` the recording
-    that explains least (`_least_explained`)."""
-    if not math.isfinite(rms):
+def _failure(rms: float, verdict: acceptance.Unexplained, simulations: int, invalid: int,
+             settings: FitSettings) -> str:
+    """Why the fit is not to be trusted ("" when it is): a replay that became unphysical, a
+    recording the replays leave unexplained (`calibration.acceptance`), or too many invalid
+    simulations."""
+    if not math.isfinite(rms) or not math.isfinite(verdict.rms_m):
         return "the fitted values' replay became unphysical"
-    left = math.sqrt(max(0.0, rms**2 - spread_rms**2))
-    if left > settings.max_residual_m:
-        scatter = (f" ({1e3 * spread_rms:.1f} mm of it the bench's own run-to-run scatter)"
-                   if spread_rms else "")
-        most = (f"; most in {worst[0]} ({1e3 * worst[1]:.1f} mm unexplained)"
-                if worst[0] else "")
-        return (f"residual RMS {1e3 * rms:.1f} mm{scatter}: {1e3 * left:.1f} mm "
-                f"unexplained > {1e3 * settings.max_residual_m:g} mm after {simulations} "
-                f"simulations{most}")
+    if verdict.rms_m > settings.max_residual_m:
+        excused = (f" (excused as a rare mode: {', '.join(verdict.excused)})"
+                   if verdict.excused else "")
+        return (f"{verdict.source} is left {1e3 * verdict.rms_m:.1f} mm unexplained > "
+                f"{1e3 * settings.max_residual_m:g} mm by the replays' scatter{excused}; "
+                f"residual RMS of all recordings {1e3 * rms:.1f} mm after {simulations} "
+                "simulations")
     if invalid > simulations // 2:
         return f"{invalid} of {simulations} replays became unphysical"
     return ""
 
 
 def _calibration(found: _Fitted, slipped: frozenset[str], bounds: dict[str, identify.Bound],
-                 present: tuple[str, ...]) -> Calibration:
+                 throughout: dict[str, identify.Bound], present: tuple[str, ...]) -> Calibration:
+    """The fitted values as CAL.json reports them: a pair that never slipped at its bound,
+    unidentified; one that slipped at every level (`throughout`) with the static coefficient's
+    standard deviation `static_std_above` allows at least."""
     pairs = {}
     for name in present:
         pair = found.friction.pair(name)
@@ -329,9 +317,21 @@ def _calibration(found: _Fitted, slipped: frozenset[str], bounds: dict[str, iden
             pairs[name] = CalibratedPair(bound, bound * pair.kinetic / pair.static,
                                          identified=False)
             continue
-        pairs[name] = CalibratedPair(pair.static, pair.kinetic, found.stds["static", name],
+        std = found.stds["static", name]
+        if name in throughout:
+            std = max(std, static_std_above(pair, throughout[name].demand_g))
+        pairs[name] = CalibratedPair(pair.static, pair.kinetic, std,
                                      found.stds["kinetic", name])
     scales = {name: found.scales.get(name, 1.0) for name in WRAP_PARAMS}
     stds = {name: found.stds.get((name, ""), 0.0) for name in WRAP_PARAMS}
     return Calibration(pairs, scales["stiffness"], scales["tension"], stds["stiffness"],
                        stds["tension"], scales["give"], stds["give"])
+
+
+def static_std_above(pair: FrictionPair, upper_g: float) -> float:
+    """The standard deviation of a static coefficient the data bound only from above: uniform
+    between the kinetic coefficient (static friction is never below it) and the upper bound
+    (or the fitted value, if the bench put it higher). A surrogate fitted to units that all
+    slipped reads the static coefficient off how a slide starts, which barely depends on it,
+    and reports a standard deviation far too small (+0.061 off at ± 0.012, issue 13)."""
+    return (max(upper_g, pair.static) - pair.kinetic) / math.sqrt(12)

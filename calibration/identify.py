@@ -46,20 +46,32 @@ def pair_bounds(observations: Sequence[Observation], fitted: Friction,
     """Per pair the largest acceleration it had to transmit, backwards under the pulse and
     forwards when the sled brakes; a stopped pallet is held backwards by the stopper, and a
     pair above a slipping one was only asked as much as that pair's kinetic friction passes."""
-    bounds = {}
-    for k, name in enumerate(PAIRS):
-        best = Bound(0.0, "level")
-        for obs in observations:
-            back, forward = obs.peak_accel_g
-            stopped = name == "sled_pallet" and obs.load.pallet_stopper
-            demand, why = (forward, "braking") if stopped else (max(back, forward), "level")
-            for below in PAIRS[:k]:
-                if below in slipped and fitted.pair(below).kinetic < demand:
-                    demand, why = fitted.pair(below).kinetic, below
-            if demand > best.demand_g:
-                best = Bound(demand, why)
-        bounds[name] = best
-    return bounds
+    return {name: max((_demand(name, obs, fitted, slipped) for obs in observations),
+                      key=lambda b: b.demand_g, default=Bound(0.0, "level"))
+            for name in PAIRS}
+
+
+def _demand(name: str, obs: Observation, fitted: Friction, slipped: frozenset[str]) -> Bound:
+    """The largest acceleration one recording asked a pair to transmit (see `pair_bounds`)."""
+    back, forward = obs.peak_accel_g
+    stopped = name == "sled_pallet" and obs.load.pallet_stopper
+    demand, why = (forward, "braking") if stopped else (max(back, forward), "level")
+    for below in PAIRS[:PAIRS.index(name)]:
+        if below in slipped and fitted.pair(below).kinetic < demand:
+            demand, why = fitted.pair(below).kinetic, below
+    return Bound(demand, why)
+
+
+def slipped_throughout(name: str, observations: Sequence[Observation], fitted: Friction,
+                       slipped: frozenset[str]) -> Bound | None:
+    """For a pair that slipped in every recording, the least it was asked to transmit: its
+    onset lies below every level, so its static coefficient is bounded only from above (about
+    that demand; a layer rocking on the one below passes up a little more). None when some
+    recording held it: then its onset is bracketed."""
+    if not observations or any(name not in o.slipped for o in observations):
+        return None
+    return min((_demand(name, o, fitted, slipped) for o in observations),
+               key=lambda b: b.demand_g)
 
 
 def held_stuck(nominal: Friction, bounds: dict[str, Bound], slipped: frozenset[str]
@@ -95,6 +107,10 @@ def advice_unslipped(name: str, bound: Bound) -> str:
             f"{_level_above(bound.demand_g):.2f} g or more")
 
 
+def _level_below(g: float) -> float:
+    return math.floor((g - LEVEL_MARGIN_G) / LEVEL_STEP_G + 1e-9) * LEVEL_STEP_G
+
+
 def advice_static(name: str, observations: Sequence[Observation], std: float) -> str:
     """For a pair that slipped whose static coefficient the recordings do not resolve."""
     first = min(o.peak_accel_g[0] for o in observations if name in o.slipped)
@@ -103,6 +119,14 @@ def advice_static(name: str, observations: Sequence[Observation], std: float) ->
     where = f"between {low:.2f} and {first:.2f} g" if low is not None else f"below {first:.2f} g"
     return (f"static coefficient not resolved (± {std:.3f}): a level {where}, where it "
             "starts to slip, would bracket it")
+
+
+def advice_slipped_throughout(bound: Bound, static: float, std: float) -> str:
+    """For a pair that slipped at every level (`slipped_throughout`)."""
+    return (f"slipped at every level, already under {bound.demand_g:.2f} g: the recordings "
+            f"bound its static coefficient only from above (about {bound.demand_g:.2f}), so "
+            f"the fitted {static:.3f} is not resolved (± {std:.3f} over kinetic to that bound); "
+            f"test at {_level_below(bound.demand_g):.2f} g or lower, where it holds")
 
 
 def advice_scale(name: str, scale: float, std: float) -> str:

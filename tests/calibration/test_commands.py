@@ -108,7 +108,8 @@ def test_calibrate_writes_cal_json_that_simulate_accepts(slide_dir, tmp_path, ca
     shutil.copytree(slide_dir, rec)
     cal = tmp_path / "cal.json"
     assert main(["calibrate", str(rec), "--out", str(cal), "--budget", "30"]) == 0
-    assert "pallet_bundle" in capsys.readouterr().out
+    out = capsys.readouterr().out
+    assert "pallet_bundle" in out and "accepted: the least explained recording" in out
     data = json.loads(cal.read_text())
     assert set(data) >= {"friction", "wrap", "residual_rms_m", "simulations", "method"}
     assert data["simulations"] <= 30 and data["method"] == "surrogate"
@@ -125,7 +126,7 @@ def test_calibrate_that_does_not_converge_writes_nothing(slide_dir, tmp_path, ca
     cal = tmp_path / "cal.json"
     assert main(["calibrate", str(slide_dir), "--out", str(cal), "--budget", "10",
                  "--max-residual-mm", "0.001"]) == 1
-    _one_line_error(capsys, "did not converge", "nothing written")
+    _one_line_error(capsys, "did not converge", "unexplained > 0.001 mm", "nothing written")
     assert list(tmp_path.iterdir()) == []
 
 

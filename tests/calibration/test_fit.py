@@ -114,21 +114,3 @@ def test_wrap_stiffness_fit_finds_the_hidden_scale(tmp_path):
     assert result.calibration.give_scale_std > 0  # the load's give fitted with the wrap
     assert result.calibration.friction == {}  # not asked for: the load file's values stand
     assert result.simulations <= 50
-
-
-def test_a_failed_joint_fit_names_the_recording_its_replays_do_not_explain(monkeypatch):
-    """Two recordings fitted jointly: the replays of "scattered" differ from it by +20, -20 and
-    0 mm (their mean hits it: all of it scatter), those of "offset" agree with each other and
-    miss it by 15 mm. By hand: "offset" leaves sqrt(15^2 - 0^2) = 15 mm unexplained, "scattered"
-    none; a failed fit's reason names "offset"."""
-    import calibration.fit as fit_module
-
-    monkeypatch.setattr(fit_module, "residuals", lambda obs, run: run["r"])
-    obs = [dataclasses.make_dataclass("Obs", ["source"])(name) for name in ("scattered", "offset")]
-    replays = [[{"r": np.full(2, v)} for v in (0.02, -0.02, 0.0)],
-               [{"r": np.full(2, 0.015)} for _ in range(3)]]
-    name, left = fit_module._least_explained(obs, replays)
-    assert name == "offset" and left == pytest.approx(0.015)
-    reason = fit_module._failure(0.015, 0.0, 30, 0, FitSettings(max_residual_m=0.005),
-                                 (name, left))
-    assert "most in offset (15.0 mm unexplained)" in reason

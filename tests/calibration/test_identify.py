@@ -6,14 +6,17 @@ from types import SimpleNamespace
 
 import pytest
 
+from calibration.fit import static_std_above
 from calibration.identify import (
     STUCK_MARGIN,
     Bound,
+    advice_slipped_throughout,
     advice_static,
     advice_unslipped,
     held_stuck,
     pair_bounds,
     pairs_present,
+    slipped_throughout,
 )
 from wrapenv.load import Friction, FrictionPair
 
@@ -79,3 +82,26 @@ def test_advice_on_an_unresolved_static_coefficient_brackets_the_first_slip():
 def test_a_single_layer_has_no_bundle_on_bundle_pair():
     assert pairs_present([_obs(0.4, set(), layers=1)]) == ("sled_pallet", "pallet_bundle")
     assert pairs_present([_obs(0.4, set())])[-1] == "bundle_bundle"
+
+
+def test_a_pair_that_slipped_at_every_level_is_bounded_only_from_above():
+    """Bundle on bundle slid at 0.35 and 0.45 g: the least it was asked to pass is the lower
+    level, its static coefficient at most about 0.35, and a lower level would bracket it; a
+    recording that held it (0.30 g) brackets its onset instead."""
+    slid = [_obs(0.35, {"bundle_bundle"}), _obs(0.45, {"bundle_bundle", "pallet_bundle"})]
+    bound = slipped_throughout("bundle_bundle", slid, FRICTION,
+                               frozenset({"bundle_bundle", "pallet_bundle"}))
+    assert bound == Bound(0.35, "level")
+    advice = advice_slipped_throughout(bound, 0.424, 0.036)
+    assert "only from above (about 0.35)" in advice and "test at 0.30 g or lower" in advice
+    assert slipped_throughout("bundle_bundle", [_obs(0.30, set()), *slid], FRICTION,
+                              frozenset({"bundle_bundle"})) is None
+    assert slipped_throughout("pallet_bundle", slid, FRICTION, frozenset()) is None
+
+
+def test_the_static_coefficient_bounded_from_above_gets_an_honest_spread():
+    """Uniform from the kinetic coefficient to the bound (or to the fitted value above it): by
+    hand (0.424 - 0.300) / sqrt(12) = 0.0358, well above a surrogate's 0.012 and the 0.025 at
+    which a static coefficient counts as resolved; bound above the fit: (0.40 - 0.30) / 3.464."""
+    assert static_std_above(FrictionPair(0.424, 0.300), 0.35) == pytest.approx(0.0358, abs=1e-4)
+    assert static_std_above(FrictionPair(0.36, 0.30), 0.40) == pytest.approx(0.0289, abs=1e-4)
