@@ -5,6 +5,7 @@ load that simulates in a fraction of a second."""
 from __future__ import annotations
 
 import json
+import math
 import tomllib
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import replace
@@ -89,6 +90,22 @@ def test_any_failing_candidate_scores_worse_than_any_passing_one(small_load):
     short = problem.objective(heaviest, heaviest.material_used_on(layout).mass_kg, [0.1],
                               [True])
     assert passing < short < failing
+
+
+def test_a_program_that_lays_no_web_scores_as_a_finite_failure():
+    """On a unit lower than the web, a spiral up has no height to climb: with no bottom or top
+    wraps the program lays nothing. Its objective must still be a number CMA-ES can rank (a
+    NaN from the mean tension of no passes reached pycma on a 1-layer random unit)."""
+    low = LoadUnit.from_dict({"name": "low", "pallet": {"preset": "EUR"},
+                              "bundle": {"length_m": 0.28, "width_m": 0.19, "height_m": 0.2,
+                                         "mass_kg": 6.0},
+                              "stack": {"layers": 1, "pattern": "columnar"}})
+    problem = Problem.build(low, FAST)
+    nothing = problem.wrap(np.array([0.0, 0.0, 0.0, 0.85, 0.6, 0.5, 0.3, 0.6, 0.9]))
+    assert low.load_height_m < nothing.web_width_m and not nothing.passes
+    score = problem.objective(nothing, 0.0, [-1.0], [False])
+    assert math.isfinite(score)
+    assert score > problem.objective(nothing, 0.0, [0.3], [True])
 
 
 def test_the_objective_is_the_web_relative_to_the_machine_s_default_program(small_load):
