@@ -315,7 +315,7 @@ def _write_report(args: argparse.Namespace, problem: Problem, check: Verificatio
 
 
 def run_train(args: argparse.Namespace) -> int:
-    from recommender.policy import TrainSettings, train
+    from recommender.policy import CHECKPOINT_DIR, TrainSettings, train
 
     for flag, value in (("--timesteps", args.timesteps), ("--envs", args.envs)):
         if value < 1:
@@ -336,7 +336,7 @@ def run_train(args: argparse.Namespace) -> int:
     try:
         path = train(settings, args.out)
     except KeyboardInterrupt as exc:
-        kept = sorted((args.out / "checkpoints").glob("*.zip"), key=lambda p: p.stat().st_mtime)
+        kept = sorted((args.out / CHECKPOINT_DIR).glob("*.zip"), key=lambda p: p.stat().st_mtime)
         if kept:
             exc.add_note(f"interrupted; no policy.zip written, the last checkpoint is {kept[-1]}")
         raise
