@@ -19,6 +19,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from recommender.cli import main
 from recommender.policy import (
     CHECKPOINT_DIR,
     LOG_COLUMNS,
@@ -259,3 +260,22 @@ def test_short_training_beats_random_actions_on_held_out_units(tmp_path):
           f"invalid {sum(not t.valid for t in mine + chance)}")
     assert rate["policy"] >= rate["random"]
     assert kg["policy"] <= (1 - MATERIAL_SAVING) * kg["random"]
+
+
+def test_an_interrupted_training_names_its_last_checkpoint(tmp_path, monkeypatch, capsys):
+    """Ctrl-C during `wrapbench train` writes no policy.zip, but the checkpoints already saved
+    are usable: the one line says which is the last, instead of "nothing written"."""
+    import recommender.policy
+
+    def interrupted(settings: TrainSettings, out: Path) -> Path:
+        (out / CHECKPOINT_DIR).mkdir()
+        for steps in (512, 1024):
+            (out / CHECKPOINT_DIR / f"policy_{steps}_steps.zip").write_bytes(b"")
+            time.sleep(0.01)  # distinct modification times
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(recommender.policy, "train", interrupted)
+    code = main(["train", "--out", str(tmp_path / "run")])
+    err = capsys.readouterr().err.strip()
+    assert code == 130 and "\n" not in err
+    assert "policy_1024_steps.zip" in err and "no policy.zip" in err
