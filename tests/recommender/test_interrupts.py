@@ -55,7 +55,9 @@ def _start(tmp_path: Path) -> tuple[subprocess.Popen, Path, Path]:
         [sys.executable, "-m", "recommender.cli", "recommend", str(load), "--budget", "48",
          "--samples", "2", "--workers", "2", "--orientation", "long", "--json", str(out)],
         stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
-        cwd=Path(__file__).resolve().parents[2])
+        cwd=Path(__file__).resolve().parents[2],
+        # a hung search dumps every thread's stack on SIGABRT (see `_hung`)
+        env={**os.environ, "PYTHONFAULTHANDLER": "1"})
     checkpoint = tmp_path / "rec.checkpoint.json"
     deadline = time.monotonic() + 600
     while not checkpoint.exists():  # one generation done: the workers are busy with the next
@@ -63,6 +65,18 @@ def _start(tmp_path: Path) -> tuple[subprocess.Popen, Path, Path]:
         assert time.monotonic() < deadline, "no generation finished"
         time.sleep(0.5)
     return proc, out, checkpoint
+
+
+def _hung(proc: subprocess.Popen) -> str:
+    """Fail with where a search that did not exit is stuck: SIGABRT makes faulthandler print
+    every thread's Python stack (an intermittent hang seen on 2026-11-24 left none)."""
+    proc.send_signal(signal.SIGABRT)
+    try:
+        proc.wait(timeout=10)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+    stacks = proc.stderr.read() if proc.stderr else ""
+    pytest.fail(f"the interrupted search hung; its threads:\n{stacks[-6000:]}")
 
 
 @pytest.mark.parametrize("signum, code", [(signal.SIGINT, 130), (signal.SIGTERM, 143)])
@@ -73,8 +87,7 @@ def test_an_interrupted_search_stops_its_workers_and_keeps_its_checkpoint(tmp_pa
     try:
         proc.wait(timeout=HANG_S)
     except subprocess.TimeoutExpired:
-        proc.kill()
-        pytest.fail("the interrupted search hung")
+        _hung(proc)
     err = proc.stderr.read() if proc.stderr else ""
     assert proc.returncode == code
     assert "Traceback" not in err and len(err.strip().splitlines()) == 1, err
@@ -91,6 +104,9 @@ def test_a_second_ctrl_c_prints_no_traceback(tmp_path):
     time.sleep(0.2)
     if proc.poll() is None:
         os.kill(proc.pid, signal.SIGINT)
-    proc.wait(timeout=HANG_S)
+    try:
+        proc.wait(timeout=HANG_S)
+    except subprocess.TimeoutExpired:
+        _hung(proc)
     err = proc.stderr.read() if proc.stderr else ""
     assert "Traceback" not in err and proc.returncode == 130, err
