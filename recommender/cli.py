@@ -213,7 +213,15 @@ def main(argv: Sequence[str] | None = None) -> int:
             signal.signal(signum, handler)
 
 
+def run() -> int:
+    """The `wrapbench` command: `main`, then, if it was interrupted, a Ctrl-C that comes while
+    the process winds down (the interpreter joins the worker pool's threads at exit) ignored
+    too. `main` itself restores its caller's handlers, as an in-process caller needs."""
+    code = main()
+    if code in (128 + signal.SIGINT, 128 + signal.SIGTERM):
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+    return code
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    sys.exit(run())

@@ -61,6 +61,15 @@ class RayExecutor(Executor):
         self._owns_instance = False
 
 
+def _worker_signals() -> None:
+    """A worker's signals: it leaves interrupts to its parent (a Ctrl-C reaches the whole
+    process group) and dies of SIGTERM. Forked workers inherit the CLI's handler, which turns
+    SIGTERM into an exception; `ProcessPoolExecutor`'s worker loop returns that exception as the
+    simulation's result and goes on to the next queued call, so `terminate()` did not stop it."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+
+
 class ProcessPool(ProcessPoolExecutor):
     """Worker processes that are stopped, not waited for, when the caller is interrupted.
 
@@ -68,6 +77,9 @@ class ProcessPool(ProcessPoolExecutor):
     simulation (minutes, and a Ctrl-C seemed to hang); here the queue is cancelled and the
     workers terminated at once, with further Ctrl-C ignored while they go.
     """
+
+    def __init__(self, max_workers: int) -> None:
+        super().__init__(max_workers=max_workers, initializer=_worker_signals)
 
     def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None,
                  tb: TracebackType | None) -> None:
@@ -93,7 +105,7 @@ class ProcessPool(ProcessPoolExecutor):
 def executor(backend: str, workers: int, address: str | None = None) -> Executor:
     """An executor of `workers` parallel simulations on the named backend."""
     if backend == "process":
-        return ProcessPool(max_workers=workers)
+        return ProcessPool(workers)
     if backend == "ray":
         return RayExecutor(workers, address)
     raise InputError("arguments", "--backend",

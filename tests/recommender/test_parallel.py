@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import builtins
 import dataclasses
+import signal
 
 import pytest
 
@@ -77,3 +78,25 @@ def test_a_ray_address_that_cannot_be_joined_is_one_line_naming_the_flag():
     pytest.importorskip("ray")
     with pytest.raises(InputError, match="--ray-address: cannot join 'ray://127.0.0.1:1'"):
         RayExecutor(1, "ray://127.0.0.1:1")
+
+
+def _worker_handlers() -> tuple[object, object]:
+    return signal.getsignal(signal.SIGTERM), signal.getsignal(signal.SIGINT)
+
+
+def _raise(signum: int, frame: object) -> None:
+    raise KeyboardInterrupt
+
+
+def test_process_workers_die_of_sigterm_and_leave_ctrl_c_to_their_parent():
+    """The CLI turns SIGTERM into an exception; forked workers inherited that handler, so
+    `ProcessPool.terminate()`'s SIGTERM only interrupted a simulation (the pool's worker loop
+    returns the exception as its result and takes the next call), and an interrupted search
+    could wait for its queued simulations or hang (issue 17's interrupt test, once)."""
+    previous = signal.signal(signal.SIGTERM, _raise)
+    try:
+        with executor("process", 1) as pool:
+            term, interrupt = pool.submit(_worker_handlers).result()
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+    assert term == signal.SIG_DFL and interrupt == signal.SIG_IGN
