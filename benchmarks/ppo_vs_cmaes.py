@@ -19,7 +19,6 @@ from __future__ import annotations
 import argparse
 import json
 import subprocess
-import sys
 import tempfile
 import time
 from pathlib import Path
@@ -51,28 +50,16 @@ def held_out(policy: Path, n: int, target_g: float, searched: int) -> None:
         with tempfile.TemporaryDirectory() as tmp:
             path = Path(tmp) / "load.toml"
             path.write_text(load.to_toml())
-            kg, result = search_material(str(path), target_g)
-        ratio = f"{trial.material_kg / kg:.2f} x" if kg else "-"
+            searched_kg, result = search_material(str(path), target_g)
+        ratio = f"{trial.material_kg / searched_kg:.2f} x" if searched_kg else "-"
         print(f"held-out unit {k} ({load.stack.layers} layers, {load.stack.pattern}): policy "
               f"{'pass' if trial.passed else 'FAIL'} {trial.material_kg:.3f} kg; search "
               f"{result}; policy / search {ratio}", flush=True)
 
 
-def search_material(load: str, target_g: float) -> tuple[float | None, str]:
-    """The CMA-ES search's material for a load (None when it found no passing program)."""
-    with tempfile.TemporaryDirectory() as tmp:
-        out = Path(tmp) / "out.json"
-        t0 = time.perf_counter()
-        code = subprocess.run(["wrapbench", "recommend", load, "--target", str(target_g),
-                               "--json", str(out)], cwd=tmp, stdout=subprocess.DEVNULL).returncode
-        wall = time.perf_counter() - t0
-        if code != 0 or not out.exists():
-            return None, f"exit {code}, no passing program, {wall:.0f} s"
-        kg = float(json.loads(out.read_text())["material_used"]["mass_kg"])
-        return kg, f"{kg:.3f} kg, {wall:.0f} s"
-
-
-def recommend(load: str, method: list[str], target_g: float) -> str:
+def run_recommend(load: str, method: list[str], target_g: float) -> tuple[dict | None, str]:
+    """`wrapbench recommend` run as a user runs it: its JSON (None when it found no passing
+    program) and, if none, why, with the wall time."""
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(tmp) / "out.json"
         t0 = time.perf_counter()
@@ -81,14 +68,29 @@ def recommend(load: str, method: list[str], target_g: float) -> str:
                               stdout=subprocess.DEVNULL).returncode
         wall = time.perf_counter() - t0
         if code != 0 or not out.exists():
-            return f"exit {code}, no passing format, {wall:.0f} s"
-        r = json.loads(out.read_text())
+            return None, f"exit {code}, no passing program, {wall:.0f} s"
+        return json.loads(out.read_text()), f"{wall:.0f} s"
+
+
+def search_material(load: str, target_g: float) -> tuple[float | None, str]:
+    """The CMA-ES search's material for a load (None when it found no passing program)."""
+    r, said = run_recommend(load, [], target_g)
+    if r is None:
+        return None, said
+    kg = float(r["material_used"]["mass_kg"])
+    return kg, f"{kg:.3f} kg, {said}"
+
+
+def recommend(load: str, method: list[str], target_g: float) -> str:
+    r, said = run_recommend(load, method, target_g)
+    if r is None:
+        return said
     program = program_summary(Program(**{
         k: v for k, v in r["program"].items() if k != "reinforcement"},
         reinforcements=tuple(Reinforcement(**x) for x in r["program"].get("reinforcement", []))))
     return (f"{r['material_used']['mass_kg']:.3f} kg ({program}), highest "
             f"{r['verdict']['highest_passed_g']:.1f} g, robust {r['robust_pass_rate']:.0%}, "
-            f"{r['evaluations']} simulations, {wall:.0f} s")
+            f"{r['evaluations']} simulations, {said}")
 
 
 def main() -> None:
@@ -117,4 +119,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    main()
