@@ -60,11 +60,13 @@ def plot_displacements(run: BenchRun, path: str | Path, title: str = "") -> byte
 
 
 def plot_search(history: list, best, path: str | Path, margin_goal: float) -> bytes:
-    """Every candidate of a search: material against its worst sample's margin, robust passes
-    in green, the recommendation circled: where the search found the cheap side of safe."""
+    """Every simulated candidate of a search: material against its worst sample's margin,
+    robust passes in green, the recommendation circled: where the search found the cheap side
+    of safe."""
     fig, ax = plt.subplots(figsize=(7, 4.5))
-    passed = [e for e in history if e.robust_pass]
-    failed = [e for e in history if not e.robust_pass]
+    simulated = [e for e in history if e.margins]
+    passed = [e for e in simulated if e.robust_pass]
+    failed = [e for e in simulated if not e.robust_pass]
     for group, colour, label in ((failed, "tab:red", "fails in a sample"),
                                  (passed, "tab:green", "passes in every sample")):
         if group:
@@ -77,7 +79,10 @@ def plot_search(history: list, best, path: str | Path, margin_goal: float) -> by
     ax.axhline(0.0, color="black", lw=0.6)
     ax.set_xlabel("material [kg]")
     ax.set_ylabel("EUMOS margin of the worst sample")
-    ax.set_title(f"search: {len(history)} candidates", fontsize=10)
+    skipped = len(history) - len(simulated)
+    ax.set_title(f"search: {len(history)} candidates" + (
+        f", {skipped} not simulated (heavier than a pass, or over the cycle limit)"
+        if skipped else ""), fontsize=10)
     ax.legend(fontsize=7)
     fig.tight_layout()
     return _save(fig, path)

@@ -9,14 +9,20 @@ the uncertain parameters (`recommender.uncertainty`: friction, masses, the web's
 tension, its relaxation since wrapping). The settings, the problem and its objective (web laid,
 margin shortfall, cycle time) are in `recommender.problem`. A blown-up simulation is a failure.
 
+A candidate heavier than a confirmed pass that meets the margin goal cannot become the answer,
+whatever it would score: it is not simulated, and CMA-ES is told the objective it would have if
+it passed with the margin goal (its web, a lower bound of its objective). After the first
+generations most candidates are heavier than the incumbent; this keeps the simulations for the
+candidates that could still win (benchmarks/bench_recommend.py).
+
 Multi-fidelity: candidates are screened with `SimSettings.screening()` (a level ends at its
-first rest in the deceleration or once it has failed, a sample once an orientation has failed),
-which agrees with the default settings on every verdict and within 0.002 of margin in
+first rest in the deceleration or once it has failed), which agrees with the default settings on every verdict and within 0.002 of margin in
 benchmarks/bench_screening.py, in the first `screen_samples` of the K samples. A screened pass
-can only become the answer once confirmed with the default settings in all K samples: the
-lightest screened passes that would replace the incumbent are confirmed in rank order until
-one holds; one that fails its confirmation is recorded as failed. Only confirmed passes rank
-(`SearchState.ranked`).
+can only become the answer once confirmed with the default settings in all K samples (a
+failing level stopped once decided: a failure only needs to be known): the lightest screened
+passes that would replace the incumbent are confirmed in rank order until one holds; one that
+fails its confirmation is recorded as failed. Only confirmed passes rank
+(`SearchState.ranked`). A sample's orientations run as tasks of their own, side by side.
 
 The loop is pycma's ask/tell, one generation at a time; samples run in parallel (worker
 processes, or Ray tasks: `recommender.parallel`). After every generation the search is
@@ -29,7 +35,7 @@ from __future__ import annotations
 
 import json
 from collections.abc import Callable
-from concurrent.futures import Executor
+from concurrent.futures import Executor, Future
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -54,8 +60,10 @@ LIGHT_START = (2.0, 1.0, 0.0, 1 / 3, 0.5, 0.5, 0.5, 0.5, 0.5)
 #: share of its range.
 COORDINATE_STDS = (5.0, 5.0, 3.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0)
 CHECKPOINT_FORMAT = checkpoint.CHECKPOINT_FORMAT
-#: The fidelity an evaluation was judged with: screened (cheap), or the default settings.
-SCREENING, DEFAULT = "screening", "default"
+#: How an evaluation was judged: screened (cheap), the default settings, or not simulated
+#: because a confirmed pass that meets the margin goal is lighter (it cannot be the answer).
+SCREENING, DEFAULT, DOMINATED = "screening", "default", "dominated"
+FIDELITIES = (SCREENING, DEFAULT, DOMINATED)
 
 
 @dataclass(frozen=True)
@@ -69,7 +77,7 @@ class Evaluation:
     margins: tuple[float, ...]
     passed: tuple[bool, ...]
     objective: float
-    fidelity: str = DEFAULT  # SCREENING or DEFAULT
+    fidelity: str = DEFAULT  # one of FIDELITIES
 
     @property
     def robust_pass(self) -> bool:
@@ -126,26 +134,29 @@ class Trial:
     simulations: int = 1  # levels run (fewer than the orientations once decided)
 
 
-def _trial(problem: Problem, wrap: WrapFormat, seed: int, sim: SimSettings) -> Trial:
-    """A program in one sample of the uncertain parameters (in a worker). With
-    `sim.stop_when_decided` the sample ends at its first failing orientation: it has failed,
-    and its margin is then a bound (the later orientations could only lower it)."""
+def _trial(problem: Problem, wrap: WrapFormat, seed: int, sim: SimSettings, orientation: str,
+           target_g: float) -> Trial:
+    """A program in one sample of the uncertain parameters, one orientation at its target (in a
+    worker: a sample's orientations run side by side)."""
     sample = problem.sample(seed)
-    load, laid = sample.load(problem.load), sample.wrap(wrap)
-    weakest: Trial | None = None
-    passed, simulations = True, 0
-    for orientation, target in problem.settings.targets:
-        verdict = run_levels(load, [target], sim, orientation=orientation, wrap=laid,
-                             limits=problem.settings.limits).verdict
-        passed &= verdict.passed
-        simulations += 1
-        if weakest is None or verdict.margin < weakest.margin:
-            weakest = Trial(verdict.passed, verdict.margin, orientation,
-                            verdict.levels[-1].to_json(), sample.to_json())
-        if not passed and sim.stop_when_decided:
-            break
-    assert weakest is not None
-    return replace(weakest, passed=passed, simulations=simulations)
+    verdict = run_levels(sample.load(problem.load), [target_g], sim, orientation=orientation,
+                         wrap=sample.wrap(wrap), limits=problem.settings.limits).verdict
+    return Trial(verdict.passed, verdict.margin, orientation, verdict.levels[-1].to_json(),
+                 sample.to_json())
+
+
+def _submit_sample(pool: Executor, problem: Problem, wrap: WrapFormat, seed: int,
+                   sim: SimSettings) -> list[Future[Trial]]:
+    """Every orientation of one sample, as tasks of the pool."""
+    return [pool.submit(_trial, problem, wrap, seed, sim, orientation, target)
+            for orientation, target in problem.settings.targets]
+
+
+def weakest(trials: list[Trial]) -> Trial:
+    """A sample's orientations as one trial: passed if every one passed, with the figures of
+    the one with the smallest margin."""
+    worst = min(trials, key=lambda t: t.margin)
+    return replace(worst, passed=all(t.passed for t in trials), simulations=len(trials))
 
 
 Progress = Callable[[int, int, SearchState], None]
@@ -202,8 +213,8 @@ class RobustSearch:
         xs = np.array(generation["x"], float)
         if asked.shape != xs.shape or not np.allclose(asked, xs, rtol=0, atol=1e-9):
             raise ValueError("its candidates are not what this version of the search asks")
-        if not set(generation["fidelity"]) <= {SCREENING, DEFAULT}:
-            raise ValueError(f"a fidelity is neither {SCREENING!r} nor {DEFAULT!r}")
+        if not set(generation["fidelity"]) <= set(FIDELITIES):
+            raise ValueError(f"a fidelity is none of {', '.join(FIDELITIES)}")
         evaluations = [
             self._evaluation(x, [float(m) for m in margins], [bool(p) for p in passed],
                              str(fidelity), float(objective))
@@ -236,17 +247,33 @@ class RobustSearch:
         return state
 
     def _generation(self, state: SearchState, pool: Executor) -> None:
-        """Ask, screen (or simulate at the default fidelity without screening), confirm,
-        tell."""
+        """Ask; screen (or simulate at the default fidelity without screening) and confirm
+        the candidates that could still win; tell."""
         s = self.problem.settings
         xs = np.array(state.es.ask(), float)
         seeds = [s.seed * 1_000_003 + state.generation * 1009 + k for k in range(s.samples)]
+        evaluations = [self._dominated(x, state.best(s.margin_goal)) for x in xs]
+        open_ = [i for i, e in enumerate(evaluations) if e is None]
         if s.screen is None:
-            evaluations = self._simulate(pool, xs, seeds, s.sim, DEFAULT)
+            judged = self._simulate(pool, xs[open_], seeds, s.sim, DEFAULT)
         else:
-            screened = self._simulate(pool, xs, seeds[:s.screen_samples], s.screen, SCREENING)
-            evaluations = self._confirm(state, pool, xs, seeds, screened)
-        self._record(state, xs, evaluations)
+            screened = self._simulate(pool, xs[open_], seeds[:s.screen_samples], s.screen,
+                                      SCREENING)
+            judged = self._confirm(state, pool, xs[open_], seeds, screened)
+        for i, evaluation in zip(open_, judged, strict=True):
+            evaluations[i] = evaluation
+        self._record(state, xs, [e for e in evaluations if e is not None])
+
+    def _dominated(self, x: np.ndarray, incumbent: Evaluation | None) -> Evaluation | None:
+        """A candidate heavier than an incumbent that meets the margin goal, scored without a
+        simulation as if it passed with the margin goal; None if it could still win."""
+        goal = self.problem.settings.margin_goal
+        if incumbent is None or incumbent.margin < goal:
+            return None
+        bound = self._evaluation(x, [goal], [True], DOMINATED)
+        if bound.mass_kg <= incumbent.mass_kg + 1e-9:
+            return None
+        return replace(bound, margins=(), passed=())
 
     def _simulate(self, pool: Executor, xs: np.ndarray, seeds: list[int],
                   sim: SimSettings, fidelity: str) -> list[Evaluation]:
@@ -259,10 +286,10 @@ class RobustSearch:
         trials: list[list[Trial]] = [[] for _ in xs]
         for round_seeds in rounds:
             futures = [[] if problem.too_slow(w) is not None or not all(t.passed for t in done)
-                       else [pool.submit(_trial, problem, w, seed, sim) for seed in round_seeds]
+                       else [_submit_sample(pool, problem, w, seed, sim) for seed in round_seeds]
                        for w, done in zip(wraps, trials, strict=True)]
-            for done, fs in zip(trials, futures, strict=True):
-                done.extend(f.result() for f in fs)
+            for done, samples in zip(trials, futures, strict=True):
+                done.extend(weakest([f.result() for f in sample]) for sample in samples)
         self._simulations += sum(t.simulations for done in trials for t in done)
         return [self._evaluation(x, [t.margin for t in done], [t.passed for t in done],
                                  fidelity) for x, done in zip(xs, trials, strict=True)]
@@ -271,8 +298,10 @@ class RobustSearch:
                  screened: list[Evaluation]) -> list[Evaluation]:
         """The generation's screened passes that would replace the incumbent, confirmed at
         the default fidelity in the same samples, best first, until one holds (the rest then
-        rank after it). A confirmation replaces the screened evaluation, pass or fail."""
+        rank after it). A confirmation replaces the screened evaluation, pass or fail; its
+        failing levels stop once decided."""
         s = self.problem.settings
+        confirming = replace(s.sim, stop_when_decided=True)
         out = list(screened)
         incumbent = state.best(s.margin_goal)
         for i in sorted((i for i, e in enumerate(out) if e.robust_pass),
@@ -280,7 +309,7 @@ class RobustSearch:
             if incumbent is not None and incumbent.rank(s.margin_goal) <= out[i].rank(
                     s.margin_goal):
                 break
-            out[i] = self._simulate(pool, xs[i:i + 1], seeds, s.sim, DEFAULT)[0]
+            out[i] = self._simulate(pool, xs[i:i + 1], seeds, confirming, DEFAULT)[0]
             if out[i].robust_pass:
                 break
         return out
@@ -337,8 +366,8 @@ def verify(problem: Problem, wrap: WrapFormat, samples: int, seed: int = 12345,
     """The EUMOS sequence in every orientation on the nominal load (one unit through the levels,
     as a lab runs it, unless `fresh` is set), and the pass rate at the targets over `samples`
     fresh samples of the uncertain parameters. The samples stop a level
-    (and the sample) once it has failed: a pass probability needs only the verdicts (the worst
-    sample's figures are then those at its stop). The nominal sequences run in the pool
+    once it has failed: a pass probability needs only the verdicts (the worst sample's figures
+    are then those at its stop). The nominal sequences run in the pool
     too, alongside the samples."""
     s = problem.settings
     decided = replace(s.sim, stop_when_decided=True)
@@ -348,12 +377,14 @@ def verify(problem: Problem, wrap: WrapFormat, samples: int, seed: int = 12345,
                                             stop_at_failure=True, wrap=problem.simulated(wrap),
                                             fresh=s.fresh, limits=s.limits)
                    for orientation, target in s.targets}
-        trials = list(pool.map(_trial, [problem] * samples, [wrap] * samples,
-                               [seed + k for k in range(samples)], [decided] * samples))
+        futures = [_submit_sample(pool, problem, wrap, seed + k, decided)
+                   for k in range(samples)]
+        trials = [weakest([f.result() for f in sample]) for sample in futures]
         runs = {orientation: future.result() for orientation, future in nominal.items()}
     worst = min(trials, key=lambda t: t.margin, default=None)
     return Verification(runs, PassProbability(sum(t.passed for t in trials), samples), worst)
 
 
-__all__ = ["Evaluation", "Problem", "RobustSearch", "SearchSettings", "SearchState", "Trial",
+__all__ = ["DEFAULT", "DOMINATED", "FIDELITIES", "SCREENING", "Evaluation", "Problem",
+           "RobustSearch", "SearchSettings", "SearchState", "Trial",
            "Verification", "verify"]

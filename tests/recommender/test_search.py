@@ -19,12 +19,15 @@ from recommender.cli import EXAMPLE_LOAD, main
 from recommender.search import (
     CHECKPOINT_FORMAT,
     DEFAULT,
+    DOMINATED,
     SCREENING,
     Problem,
     RobustSearch,
     SearchSettings,
+    Trial,
     stale_generations,
     verify,
+    weakest,
 )
 from recommender.uncertainty import MASS_SPREAD
 from wrapenv.calibrated import Calibration
@@ -214,6 +217,47 @@ def test_a_screened_pass_that_fails_its_confirmation_is_recorded_as_failed(small
     assert state.best(FAST.margin_goal) is None  # nothing unconfirmed can be the answer
     saved = json.loads(ckpt.read_text())["generations"]
     assert [f for g in saved for f in g["fidelity"]] == [e.fidelity for e in state.history]
+
+
+def test_candidates_heavier_than_a_pass_with_the_margin_goal_are_not_simulated(small_load):
+    """Once a confirmed pass meets the margin goal, a heavier candidate cannot become the
+    answer: nothing is simulated for it, and CMA-ES is told the objective it would have if it
+    passed with the margin goal."""
+
+    class Watched(RobustSearch):
+        simulated: list[tuple[float, ...]] = []
+
+        def _simulate(self, pool, xs, seeds, sim, fidelity):
+            self.simulated.extend(tuple(float(v) for v in x) for x in xs)
+            return super()._simulate(pool, xs, seeds, sim, fidelity)
+
+    settings = replace(FAST, max_candidates=16, patience=4)
+    problem = Problem.build(small_load, settings)
+    search = Watched(problem)
+    state = search.run(search.start())
+    goal = settings.margin_goal
+    dominated = [i for i, e in enumerate(state.history) if e.fidelity == DOMINATED]
+    assert dominated, "the small load passes early; later candidates are heavier"
+    for i in dominated:
+        e = state.history[i]
+        generation_start = i - i % settings.popsize
+        incumbents = [p.mass_kg for p in state.history[:generation_start]
+                      if p.robust_pass and p.fidelity == DEFAULT and p.margin >= goal]
+        assert incumbents and e.mass_kg > min(incumbents)
+        assert e.margins == () and e.passed == () and not e.robust_pass
+        assert e.vector not in search.simulated
+        assert e.objective == pytest.approx(problem.objective(e.wrap, e.mass_kg, [goal], [True]))
+    others = [e for e in state.history if e.fidelity != DOMINATED]
+    assert all(e.vector in search.simulated for e in others)
+
+
+def test_a_sample_is_as_strong_as_its_weakest_orientation():
+    long = Trial(True, 0.6, "long", {"elastic_max_m": 0.01}, {"seed": 1})
+    short = Trial(False, -0.2, "short", {"elastic_max_m": 0.09}, {"seed": 1})
+    both = weakest([long, short])
+    assert not both.passed and both.margin == -0.2 and both.orientation == "short"
+    assert both.level == short.level and both.simulations == 2
+    assert weakest([long, replace(short, passed=True, margin=0.3)]).passed
 
 
 @pytest.mark.parametrize("other", [{"material": "lldpe"}, {"targets": (("long", 0.6),)},
