@@ -16,13 +16,14 @@ generations most candidates are heavier than the incumbent; this keeps the simul
 candidates that could still win (benchmarks/bench_recommend.py).
 
 Multi-fidelity: candidates are screened with `SimSettings.screening()` (a level ends at its
-first rest in the deceleration or once it has failed), which agrees with the default settings on every verdict and within 0.002 of margin in
-benchmarks/bench_screening.py, in the first `screen_samples` of the K samples. A screened pass
-can only become the answer once confirmed with the default settings in all K samples (a
-failing level stopped once decided: a failure only needs to be known): the lightest screened
-passes that would replace the incumbent are confirmed in rank order until one holds; one that
-fails its confirmation is recorded as failed. Only confirmed passes rank
-(`SearchState.ranked`). A sample's orientations run as tasks of their own, side by side.
+first rest in the deceleration or once it has failed), which agrees with the default settings on
+every verdict and within 0.002 of margin in benchmarks/bench_screening.py, in the first
+`screen_samples` of the K samples. A screened pass can only become the answer once confirmed
+with the default settings in all K samples (a failing level stopped once decided: a failure only
+needs to be known): the lightest screened passes that would replace the incumbent are confirmed
+in rank order until one holds; one that fails its confirmation is recorded as failed. Only
+confirmed passes rank (`SearchState.ranked`). A sample's orientations run as tasks of their
+own, side by side.
 
 The loop is pycma's ask/tell, one generation at a time; samples run in parallel (worker
 processes, or Ray tasks: `recommender.parallel`). After every generation the search is
