@@ -19,11 +19,10 @@ Multi-fidelity: candidates are screened with `SimSettings.screening()` (a level 
 first rest in the deceleration or once it has failed), which agrees with the default settings on
 every verdict and within 0.002 of margin in benchmarks/bench_screening.py, in the first
 `screen_samples` of the K samples. A screened pass can only become the answer once confirmed
-with the default settings in all K samples (a failing level stopped once decided: a failure only
-needs to be known): the lightest screened passes that would replace the incumbent are confirmed
-in rank order until one holds; one that fails its confirmation is recorded as failed. Only
-confirmed passes rank (`SearchState.ranked`). A sample's orientations run as tasks of their
-own, side by side.
+with the default settings in all K samples: the lightest screened passes that would replace the
+incumbent are confirmed in rank order until one holds; one that fails its confirmation is
+recorded as failed. Only confirmed passes rank (`SearchState.ranked`). A sample's orientations
+run as tasks of their own, side by side.
 
 The loop is pycma's ask/tell, one generation at a time; samples run in parallel (worker
 processes, or Ray tasks: `recommender.parallel`). After every generation the search is
@@ -153,10 +152,15 @@ def _submit_sample(pool: Executor, problem: Problem, wrap: WrapFormat, seed: int
             for orientation, target in problem.settings.targets]
 
 
-def weakest(trials: list[Trial]) -> Trial:
-    """A sample's orientations as one trial: passed if every one passed, with the figures of
-    the one with the smallest margin."""
-    worst = min(trials, key=lambda t: t.margin)
+def weakest(trials: list[Trial], stop_when_decided: bool = False) -> Trial:
+    """A sample's orientations (in the order of the targets) as one trial: passed if every one
+    passed, with the figures of the one with the smallest margin. With `stop_when_decided` the
+    sample is judged as if it had ended at its first failing orientation (the margin of a level
+    stopped once decided is a bound; the later orientations' bounds are not told), as when the
+    orientations ran one after the other."""
+    failed = next((i for i, t in enumerate(trials) if not t.passed), len(trials))
+    told = trials[:failed + 1] if stop_when_decided else trials
+    worst = min(told, key=lambda t: t.margin)
     return replace(worst, passed=all(t.passed for t in trials), simulations=len(trials))
 
 
@@ -290,7 +294,8 @@ class RobustSearch:
                        else [_submit_sample(pool, problem, w, seed, sim) for seed in round_seeds]
                        for w, done in zip(wraps, trials, strict=True)]
             for done, samples in zip(trials, futures, strict=True):
-                done.extend(weakest([f.result() for f in sample]) for sample in samples)
+                done.extend(weakest([f.result() for f in sample], sim.stop_when_decided)
+                            for sample in samples)
         self._simulations += sum(t.simulations for done in trials for t in done)
         return [self._evaluation(x, [t.margin for t in done], [t.passed for t in done],
                                  fidelity) for x, done in zip(xs, trials, strict=True)]
@@ -299,10 +304,11 @@ class RobustSearch:
                  screened: list[Evaluation]) -> list[Evaluation]:
         """The generation's screened passes that would replace the incumbent, confirmed at
         the default fidelity in the same samples, best first, until one holds (the rest then
-        rank after it). A confirmation replaces the screened evaluation, pass or fail; its
-        failing levels stop once decided."""
+        rank after it). A confirmation replaces the screened evaluation, pass or fail. Its
+        failing levels run to their end: a level stopped once decided scores about -1 (the
+        displacement at the stop counts as permanent), and CMA-ES learns from the graded
+        margin of a full run (2-layer LLDPE: without it the search found no pass)."""
         s = self.problem.settings
-        confirming = replace(s.sim, stop_when_decided=True)
         out = list(screened)
         incumbent = state.best(s.margin_goal)
         for i in sorted((i for i, e in enumerate(out) if e.robust_pass),
@@ -310,7 +316,7 @@ class RobustSearch:
             if incumbent is not None and incumbent.rank(s.margin_goal) <= out[i].rank(
                     s.margin_goal):
                 break
-            out[i] = self._simulate(pool, xs[i:i + 1], seeds, confirming, DEFAULT)[0]
+            out[i] = self._simulate(pool, xs[i:i + 1], seeds, s.sim, DEFAULT)[0]
             if out[i].robust_pass:
                 break
         return out
@@ -380,7 +386,7 @@ def verify(problem: Problem, wrap: WrapFormat, samples: int, seed: int = 12345,
                    for orientation, target in s.targets}
         futures = [_submit_sample(pool, problem, wrap, seed + k, decided)
                    for k in range(samples)]
-        trials = [weakest([f.result() for f in sample]) for sample in futures]
+        trials = [weakest([f.result() for f in sample], True) for sample in futures]
         runs = {orientation: future.result() for orientation, future in nominal.items()}
     worst = min(trials, key=lambda t: t.margin, default=None)
     return Verification(runs, PassProbability(sum(t.passed for t in trials), samples), worst)

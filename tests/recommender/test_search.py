@@ -258,6 +258,13 @@ def test_a_sample_is_as_strong_as_its_weakest_orientation():
     assert not both.passed and both.margin == -0.2 and both.orientation == "short"
     assert both.level == short.level and both.simulations == 2
     assert weakest([long, replace(short, passed=True, margin=0.3)]).passed
+    # stopped once decided, a sample ends at its first failing orientation: a later one's
+    # margin (a bound) is not told, though it ran beside it
+    first_fails = weakest([replace(long, passed=False, margin=-0.3), short],
+                          stop_when_decided=True)
+    assert first_fails.margin == -0.3 and first_fails.orientation == "long"
+    assert first_fails.simulations == 2
+    assert weakest([long, short], stop_when_decided=True).margin == -0.2
 
 
 @pytest.mark.parametrize("other", [{"material": "lldpe"}, {"targets": (("long", 0.6),)},
