@@ -25,6 +25,7 @@ from wrapenv.bench import run_levels
 from wrapenv.design import ProgramSpace
 from wrapenv.eumos import level_margin
 from wrapenv.load import LoadUnit
+from wrapenv.material import MATERIALS as CARDS
 from wrapenv.profile import eumos_levels
 from wrapenv.wrap import WrapFormat
 
@@ -87,7 +88,8 @@ def main() -> None:
                   flush=True)
             wrap, wall = recommended(load_path, material, args.budget, args.workers)
             if wrap is None:
-                print(f"| {Path(load_path).stem} | {material} | recommended for 0.5 g | none "
+                web = CARDS[material].name.split(" (")[0]
+                print(f"| {Path(load_path).stem} | {web} | recommended for 0.5 g | none "
                       f"passes within the budget (exit 1) | | | | | {wall:.0f} s |", flush=True)
             else:
                 print(row(load_path, "recommended for 0.5 g", wrap, f"{wall:.0f} s"), flush=True)
