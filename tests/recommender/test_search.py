@@ -219,7 +219,8 @@ def test_a_screened_pass_that_fails_its_confirmation_is_recorded_as_failed(small
     assert [f for g in saved for f in g["fidelity"]] == [e.fidelity for e in state.history]
 
 
-def test_candidates_heavier_than_a_pass_with_the_margin_goal_are_not_simulated(small_load):
+def test_candidates_heavier_than_a_pass_with_the_margin_goal_are_not_simulated(small_load,
+                                                                               tmp_path):
     """Once a confirmed pass meets the margin goal, a heavier candidate cannot become the
     answer: nothing is simulated for it, and CMA-ES is told the objective it would have if it
     passed with the margin goal."""
@@ -233,7 +234,7 @@ def test_candidates_heavier_than_a_pass_with_the_margin_goal_are_not_simulated(s
 
     settings = replace(FAST, max_candidates=16, patience=4)
     problem = Problem.build(small_load, settings)
-    search = Watched(problem)
+    search = Watched(problem, tmp_path / "search.json")
     state = search.run(search.start())
     goal = settings.margin_goal
     dominated = [i for i, e in enumerate(state.history) if e.fidelity == DOMINATED]
@@ -249,6 +250,8 @@ def test_candidates_heavier_than_a_pass_with_the_margin_goal_are_not_simulated(s
         assert e.objective == pytest.approx(problem.objective(e.wrap, e.mass_kg, [goal], [True]))
     others = [e for e in state.history if e.fidelity != DOMINATED]
     assert all(e.vector in search.simulated for e in others)
+    # the checkpoint keeps them as such: a resumed search replays the same history
+    assert RobustSearch(problem, tmp_path / "search.json").resume().history == state.history
 
 
 def test_a_sample_is_as_strong_as_its_weakest_orientation():
