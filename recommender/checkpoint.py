@@ -3,8 +3,9 @@
 The file holds what identifies the search (the load, the settings that change what is asked or
 how it is scored) and every generation as it was told to CMA-ES: the candidates asked ("x"),
 their objective, margins and verdicts per sample, and the fidelity each was judged with
-("screening" or "default", see `recommender.search`). A resumed search replays the generations
-into a new CMA-ES with the same seed, without simulating, and refuses a file of another search.
+("screening", "default", or "dominated": not simulated, see `recommender.search`). A resumed
+search replays the generations into a new CMA-ES with the same seed, without simulating, and
+refuses a file of another search.
 """
 
 from __future__ import annotations

@@ -131,7 +131,7 @@ class Trial:
     orientation: str
     level: dict[str, Any]  # the weakest orientation's level verdict (simulate's JSON)
     sample: dict[str, Any]
-    simulations: int = 1  # levels run (fewer than the orientations once decided)
+    simulations: int = 1  # levels run: one per orientation
 
 
 def _trial(problem: Problem, wrap: WrapFormat, seed: int, sim: SimSettings, orientation: str,
@@ -257,7 +257,8 @@ class RobustSearch:
         s = self.problem.settings
         xs = np.array(state.es.ask(), float)
         seeds = [s.seed * 1_000_003 + state.generation * 1009 + k for k in range(s.samples)]
-        evaluations = [self._dominated(x, state.best(s.margin_goal)) for x in xs]
+        incumbent = state.best(s.margin_goal)
+        evaluations = [self._dominated(x, incumbent) for x in xs]
         open_ = [i for i, e in enumerate(evaluations) if e is None]
         if s.screen is None:
             judged = self._simulate(pool, xs[open_], seeds, s.sim, DEFAULT)
