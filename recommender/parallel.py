@@ -9,6 +9,7 @@ it is imported only when asked for.
 from __future__ import annotations
 
 import signal
+import threading
 from collections.abc import Callable
 from concurrent.futures import Executor, Future, ProcessPoolExecutor
 from types import TracebackType
@@ -93,11 +94,18 @@ class ProcessPool(ProcessPoolExecutor):
         try:
             # Python 3.11 has no public way to stop the workers (3.14 adds terminate_workers)
             workers = list((self._processes or {}).values())
+            # The manager thread closes its wake-up pipe as it ends; at interpreter exit Python
+            # 3.11 writes to that pipe without a lock (`_python_exit`), so a thread still ending
+            # then printed "OSError: Bad file descriptor" after an interrupt: it is waited for.
+            # (shutdown forgets it; typeshed types the attribute as the pipe, hence getattr)
+            manager: threading.Thread | None = getattr(self, "_executor_manager_thread", None)
             self.shutdown(wait=False, cancel_futures=True)
             for process in workers:
                 process.terminate()
             for process in workers:
                 process.join(timeout=5)
+            if manager is not None:
+                manager.join(timeout=5)
         finally:
             signal.signal(signal.SIGINT, previous)
 
