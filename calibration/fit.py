@@ -274,7 +274,8 @@ def _result(observations: Sequence[Observation], bare: Sequence[Observation],
     advice |= {name: identify.advice_slipped_throughout(b, calibration.friction[name].static,
                                                         calibration.friction[name].static_std)
                for name, b in throughout.items()}
-    advice |= {name: identify.advice_scale(name, found.scales[name], found.stds[name, ""])
+    paper = any(o.wrap is not None and o.wrap.material.kind == "paper" for o in observations)
+    advice |= {name: identify.advice_scale(name, found.scales[name], found.stds[name, ""], paper)
                for name in found.scales if (name, "") in found.stds
                and found.stds[name, ""] / (found.scales[name] * math.log(2))
                > RESOLVED_LOG2_SCALE_STD}

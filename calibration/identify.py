@@ -129,12 +129,23 @@ def advice_slipped_throughout(bound: Bound, static: float, std: float) -> str:
             f"test at {_level_below(bound.demand_g):.2f} g or lower, where it holds")
 
 
-def advice_scale(name: str, scale: float, std: float) -> str:
-    """For a wrap scale the recordings do not resolve."""
-    why = ("the recorded motion hardly depends on it: where the web is much stiffer than the "
-           "load-side compliance in series with it (paper on shrink-wrapped bundles), that "
-           "compliance decides how far the load moves" if name == "stiffness" else
-           "the recorded motion hardly depends on it: where the web is much softer than the "
-           "load's edges (film), the web decides how far the load moves" if name == "give" else
-           "the recorded motion hardly depends on it")
+def advice_scale(name: str, scale: float, std: float, paper: bool) -> str:
+    """For a wrap scale the recordings do not resolve, with the reason that fits the web: a
+    paper web is much stiffer than the load's edges, whose give then decides the motion; a film
+    is much softer, so its stiffness does show (LLDPE: x2 moves the 0.7 g take's features 3-5
+    mm, README "Calibration"), yet less than the replays scatter on the fit's budget."""
+    hardly = "the recorded motion hardly depends on it"
+    if name == "stiffness" and paper:
+        why = (f"{hardly}: where the web is much stiffer than the load-side compliance in series "
+               "with it (paper on shrink-wrapped bundles), that compliance decides how far the "
+               "load moves")
+    elif name == "stiffness":
+        why = ("the film decides how far the load moves, but its stiffness moves the recordings "
+               "less than the replays scatter: more wrapped takes, or a larger --budget, would "
+               "narrow it")
+    elif name == "give" and not paper:
+        why = (f"{hardly}: where the web is much softer than the load's edges (film), the web "
+               "decides how far the load moves")
+    else:
+        why = hardly
     return f"{name} scale not resolved ({scale:.2f} ± {std:.2f}): {why}"
