@@ -133,16 +133,21 @@ def advice_scale(name: str, scale: float, std: float, paper: bool) -> str:
     """For a wrap scale the recordings do not resolve, with the reason that fits the web: a
     paper web is much stiffer than the load's edges, whose give then decides the motion; a film
     is much softer, so its stiffness does show (LLDPE: x2 moves the 0.7 g take's features 3-5
-    mm, README "Calibration"), yet less than the replays scatter on the fit's budget."""
+    mm), but only together with the laid tension and the give: LLDPE fits over seeds and
+    budgets found stiffness 1.9-3.6 x, tension 2-4 x and give 0.4-2.2 x, the truth 1.3, 1 and 1
+    (README "Calibration")."""
     hardly = "the recorded motion hardly depends on it"
     if name == "stiffness" and paper:
         why = (f"{hardly}: where the web is much stiffer than the load-side compliance in series "
                "with it (paper on shrink-wrapped bundles), that compliance decides how far the "
                "load moves")
     elif name == "stiffness":
-        why = ("the film decides how far the load moves, but its stiffness moves the recordings "
-               "less than the replays scatter: more wrapped takes, or a larger --budget, would "
-               "narrow it")
+        why = ("the film decides how far the load moves, but these takes constrain its stiffness "
+               "only together with its laid tension and the load's give: measure the laid "
+               "tension or the containment force to pin one of them")
+    elif name == "tension" and not paper:
+        why = ("these takes constrain it together with the film's stiffness: measure the laid "
+               "tension or the containment force to pin it")
     elif name == "give" and not paper:
         why = (f"{hardly}: where the web is much softer than the load's edges (film), the web "
                "decides how far the load moves")
