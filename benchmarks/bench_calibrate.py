@@ -30,6 +30,10 @@ times with their true values (what the fit's acceptance test says of them, on al
 on each group of as many as a fit replays, and the held-out prediction); with `--offset
 PAIR.KIND=DELTA ...` the true values shifted, which the test should refuse; `--sensitivity`
 how far halving or doubling each wrap scale moves the wrapped recording's features.
+
+What limits the wrap's fit: `--known NAME=SCALE ...` holds wrap scales as measured (as
+`calibrate --known` does); `--true-friction` fits the wrap alone with the friction the recordings
+were made with, i.e. after a friction stage that made no error.
 """
 
 from __future__ import annotations
@@ -38,7 +42,7 @@ import argparse
 import time
 from collections.abc import Sequence
 from concurrent.futures import ProcessPoolExecutor
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -46,6 +50,7 @@ import numpy as np
 from benchmarks.bench_track import CACHE
 from calibration import acceptance
 from calibration.acceptance import Unexplained
+from calibration.commands import known_scales
 from calibration.features import TRACK_NOISE_M
 from calibration.fit import FINAL_REPLAYS, METHODS, FitResult, FitSettings, fit
 from calibration.recording import Recording, Truth
@@ -56,6 +61,7 @@ from calibration.trajectories import Trajectories
 from calibration.validate import REPEATS, Validation, validate
 from wrapenv.bench import SimSettings
 from wrapenv.calibrated import CalibratedPair, Calibration
+from wrapenv.config import InputError
 from wrapenv.load import PAIRS, Friction, LoadUnit
 from wrapenv.wrap import WrapFormat
 
@@ -144,7 +150,8 @@ def report(name: str, method: str, result: FitResult, truth: Truth, wall: float,
         lines.append(f"  stiffness scale {cal.stiffness_scale:.2f} ± {cal.stiffness_scale_std:.2f}"
                      f" (true {TRUE_STIFFNESS}, {err:+.0f} %{_flag(err, GOALS['stiffness_pct'])})"
                      f"; tension scale {cal.tension_scale:.2f} ± {cal.tension_scale_std:.2f}"
-                     " (true 1)")
+                     f" (true 1); give scale {cal.give_scale:.2f} ± {cal.give_scale_std:.2f}"
+                     f" (true 1){'; known: ' + ', '.join(cal.known) if cal.known else ''}")
         cells.append(f"stiffness {err:+.0f} %")
     for check in checks:
         layer, c = check.largest
@@ -170,10 +177,18 @@ def run_case(name: str, method: str, args: argparse.Namespace) -> None:
     fitted, held = CASES[name]
     observed = [observation(t) for t in fitted]
     held_out = [observation(t)[0] for t in held]
+    truth = observed[0][1]
+    params = "all"
+    if args.true_friction:
+        # the wrap stage alone, handed the friction the recordings were made with
+        exact = true_calibration(truth)
+        observed = [(replace(o, load=exact.apply(o.load)), t) for o, t in observed]
+        held_out = [replace(o, load=exact.apply(o.load)) for o in held_out]
+        params = "wrap"
     t0 = time.perf_counter()
     result = fit([o for o, _ in observed],
-                 FitSettings(method=method, params="all", budget=args.budget,
-                             workers=args.workers, seed=args.seed))
+                 FitSettings(method=method, params=params, budget=args.budget,
+                             workers=args.workers, seed=args.seed, known=args.known))
     with ProcessPoolExecutor(args.workers) as pool:
         checks = validate(held_out, result.calibration, pool) if held_out else []
     wall = time.perf_counter() - t0
@@ -305,6 +320,13 @@ def run_sensitivity(name: str) -> None:
                       f"largest {1e3 * np.max(np.abs(d)):.1f} mm")
 
 
+def _known(entry: str) -> tuple[tuple[str, float], ...]:
+    try:
+        return known_scales([entry])
+    except InputError as error:
+        raise argparse.ArgumentTypeError(error.message) from None
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--case", nargs="+", choices=list(CASES), default=list(CASES))
@@ -318,9 +340,15 @@ def main() -> None:
                         metavar="PAIR.KIND=DELTA",
                         help="with --truth: replay with the true values shifted, e.g. "
                              "pallet_bundle.static=+0.1 (the acceptance test should refuse)")
+    parser.add_argument("--known", nargs="+", type=_known, default=(), metavar="NAME=SCALE",
+                        help="wrap scales given as measured (calibrate --known), e.g. tension=1")
+    parser.add_argument("--true-friction", action="store_true",
+                        help="fit the wrap alone, with the friction the recordings were made "
+                             "with: what the wrap stage could do after an exact friction stage")
     parser.add_argument("--sensitivity", action="store_true",
                         help="no fit: how much each wrap scale moves the wrapped recording")
     args = parser.parse_args()
+    args.known = tuple(pair for entry in args.known for pair in entry)
     for name in args.case:
         if args.truth:
             run_truth(name, args.truth, args.workers, args.offset)

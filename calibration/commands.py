@@ -197,6 +197,10 @@ def add_calibrate(sub: argparse._SubParsersAction) -> None:
                         "report the prediction error per object (in CAL.json too)")
     p.add_argument("--mixed-loads", action="store_true",
                    help="accept recordings of different load units (their pairs fitted jointly)")
+    p.add_argument("--known", nargs="+", default=[], metavar="NAME=SCALE",
+                   help="wrap scales measured elsewhere, held instead of fitted: stiffness (the "
+                        "web's, against its material card), tension (laid, against WRAP.toml) "
+                        "or give (the load's edges, against LOAD.toml), e.g. tension=1 give=0.8")
     p.add_argument("--retrack", action="store_true",
                    help="track every recording even where DIR/trajectories.csv exists")
 
@@ -242,6 +246,31 @@ def _observations(recordings: list, retrack: bool) -> list:
     return observations
 
 
+def known_scales(entries: list[str]) -> tuple[tuple[str, float], ...]:
+    """`--known NAME=SCALE ...` as (name, scale) pairs, each a wrap scale the fit could search
+    (¼ to 4 ×), named once."""
+    from calibration.fit import WRAP_PARAMS
+
+    out: dict[str, float] = {}
+    for entry in entries:
+        name, _, text = entry.partition("=")
+        if name not in WRAP_PARAMS or name in out:
+            raise InputError("arguments", "--known",
+                             f"expected distinct NAME=SCALE with NAME one of "
+                             f"{', '.join(WRAP_PARAMS)} (got {printable(entry)!r})")
+        low, high = (2.0 ** v for v in WRAP_PARAMS[name])
+        try:
+            value = float(text)
+        except ValueError:
+            value = math.nan
+        if not low <= value <= high:
+            raise InputError("arguments", "--known",
+                             f"{name} must be a scale from {low:g} to {high:g} "
+                             f"(got {printable(text)!r})")
+        out[name] = value
+    return tuple(out.items())
+
+
 def _check_calibrate_args(args: argparse.Namespace) -> None:
     if args.budget < 10:
         raise InputError("arguments", "--budget", f"must be >= 10 (got {args.budget})")
@@ -255,6 +284,7 @@ def _check_calibrate_args(args: argparse.Namespace) -> None:
         if d.resolve() in fitted:
             raise InputError("arguments", "--validate",
                              f"{d} is also fitted; validate on recordings the fit did not see")
+    known_scales(args.known)
     check_output(args.out, "--out")
 
 
@@ -270,7 +300,7 @@ def run_calibrate(args: argparse.Namespace) -> int:
     observations = _observations(fitted, args.retrack)
     held_out = _observations(held, args.retrack)
     settings = FitSettings(args.method, args.params, args.budget, args.workers, args.seed,
-                           args.max_residual_mm / 1000)
+                           args.max_residual_mm / 1000, known=known_scales(args.known))
     t0 = time.perf_counter()
     with tqdm(total=args.budget, desc="simulations", unit="sim", leave=False,
               disable=None) as bar:
@@ -309,9 +339,12 @@ def _summary(result) -> str:
                          f"{p.kinetic:.3f} ± {p.kinetic_std:.3f}  yes")
         else:
             lines.append(f"{name:14s}  >= {p.static:.3f}      (never slipped)  no")
-    lines.append(f"wrap: stiffness scale {cal.stiffness_scale:.2f} ± {cal.stiffness_scale_std:.2f}"
-                 f", tension scale {cal.tension_scale:.2f} ± {cal.tension_scale_std:.2f}"
-                 f", load's give scale {cal.give_scale:.2f} ± {cal.give_scale_std:.2f}")
+    scales = (("stiffness", "stiffness scale", cal.stiffness_scale, cal.stiffness_scale_std),
+              ("tension", "tension scale", cal.tension_scale, cal.tension_scale_std),
+              ("give", "load's give scale", cal.give_scale, cal.give_scale_std))
+    lines.append("wrap: " + ", ".join(
+        f"{label} {value:.2f} " + ("(known)" if name in cal.known else f"± {std:.2f}")
+        for name, label, value, std in scales))
     lines += [f"advice: {name}: {text}" for name, text in result.advice.items()]
     spread = (f" (replays scatter {1e3 * result.spread_rms_m:.2f} mm about their mean)"
               if result.spread_rms_m else "")

@@ -68,6 +68,10 @@ class FitSettings:
     #: explain is above this (RMS, metres; `calibration.acceptance`).
     max_residual_m: float = 0.01
     sim: SimSettings = SimSettings()
+    #: Wrap scales measured elsewhere (name, value), held at their value instead of fitted: one
+    #: wrapped take constrains the film's stiffness only together with its laid tension and the
+    #: load's give, in series with it (README, "Calibration").
+    known: tuple[tuple[str, float], ...] = ()
 
 
 @dataclass(frozen=True)
@@ -136,14 +140,16 @@ def fit(observations: Sequence[Observation], settings: FitSettings,
     base = identify.held_stuck(nominal, identify.pair_bounds(bare, nominal, frozenset()),
                                slipped)
     friction_params = _friction_params(bare, slipped, settings.method)
-    wrap_params = tuple(Param(name, "", *r) for name, r in WRAP_PARAMS.items())
+    known = dict(settings.known)
+    wrap_params = tuple(Param(name, "", *r) for name, r in WRAP_PARAMS.items()
+                        if name not in known)
     stages = []
     if settings.params != "wrap" and friction_params:
         stages.append((friction_params, plain))
-    if settings.params in ("wrap", "all") and wrapped:
+    if settings.params in ("wrap", "all") and wrapped and wrap_params:
         stages.append((wrap_params, wrapped))
     progress = Progress(listener=listener)
-    found = _Fitted(base)
+    found = _Fitted(base, scales=known)
     repeats = _final_replays(settings, len(observations))
     budget = settings.budget - repeats * len(observations)
     with ProcessPoolExecutor(max_workers=settings.workers) as pool:
@@ -265,7 +271,8 @@ def _result(observations: Sequence[Observation], bare: Sequence[Observation],
     bounds = identify.pair_bounds(bare, found.friction, slipped)
     throughout = {name: b for name in present
                   if (b := identify.slipped_throughout(name, bare, found.friction, slipped))}
-    calibration = _calibration(found, slipped, bounds, throughout, present)
+    calibration = _calibration(found, slipped, bounds, throughout, present,
+                               tuple(name for name in WRAP_PARAMS if name in dict(settings.known)))
     advice = {name: identify.advice_unslipped(name, bounds[name])
               for name in present if name not in slipped}
     advice |= {name: identify.advice_static(name, bare, p.static_std)
@@ -306,10 +313,11 @@ def _failure(rms: float, verdict: acceptance.Unexplained, simulations: int, inva
 
 
 def _calibration(found: _Fitted, slipped: frozenset[str], bounds: dict[str, identify.Bound],
-                 throughout: dict[str, identify.Bound], present: tuple[str, ...]) -> Calibration:
+                 throughout: dict[str, identify.Bound], present: tuple[str, ...],
+                 known: tuple[str, ...]) -> Calibration:
     """The fitted values as CAL.json reports them: a pair that never slipped at its bound,
     unidentified; one that slipped at every level (`throughout`) with the static coefficient's
-    standard deviation `static_std_above` allows at least."""
+    standard deviation `static_std_above` allows at least; the known wrap scales as given."""
     pairs = {}
     for name in present:
         pair = found.friction.pair(name)
@@ -326,7 +334,7 @@ def _calibration(found: _Fitted, slipped: frozenset[str], bounds: dict[str, iden
     scales = {name: found.scales.get(name, 1.0) for name in WRAP_PARAMS}
     stds = {name: found.stds.get((name, ""), 0.0) for name in WRAP_PARAMS}
     return Calibration(pairs, scales["stiffness"], scales["tension"], stds["stiffness"],
-                       stds["tension"], scales["give"], stds["give"])
+                       stds["tension"], scales["give"], stds["give"], known)
 
 
 def static_std_above(pair: FrictionPair, upper_g: float) -> float:

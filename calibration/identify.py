@@ -133,24 +133,27 @@ def advice_scale(name: str, scale: float, std: float, paper: bool) -> str:
     """For a wrap scale the recordings do not resolve, with the reason that fits the web: a
     paper web is much stiffer than the load's edges, whose give then decides the motion; a film
     is much softer, so its stiffness does show (LLDPE: x2 moves the 0.7 g take's features 3-5
-    mm), but only together with the laid tension and the give: LLDPE fits over seeds and
-    budgets found stiffness 1.9-3.6 x, tension 2-4 x and give 0.4-2.2 x, the truth 1.3, 1 and 1
-    (README "Calibration")."""
+    mm), but only together with the laid tension and the give in series with it: fitted with
+    the true friction, the LLDPE take gave stiffness 3.9 x, tension 0.6 x and give 0.3 x for the
+    truth's 1.3, 1 and 1, and predicted the held-out take within 5 % (README "Calibration").
+    What is measured elsewhere is given as known (`calibrate --known`)."""
     hardly = "the recorded motion hardly depends on it"
+    known = "give it as known (--known)"
     if name == "stiffness" and paper:
         why = (f"{hardly}: where the web is much stiffer than the load-side compliance in series "
                "with it (paper on shrink-wrapped bundles), that compliance decides how far the "
-               "load moves")
+               "load moves; take the web's stiffness from its tensile test")
     elif name == "stiffness":
         why = ("the film decides how far the load moves, but these takes constrain its stiffness "
-               "only together with its laid tension and the load's give: measure the laid "
-               "tension or the containment force to pin one of them")
+               "only together with its laid tension and the load's give in series with it: "
+               f"measure the laid tension (or the containment force) and the give and {known}")
     elif name == "tension" and not paper:
         why = ("these takes constrain it together with the film's stiffness: measure the laid "
-               "tension or the containment force to pin it")
+               f"tension (or the containment force) and {known}")
     elif name == "give" and not paper:
-        why = (f"{hardly}: where the web is much softer than the load's edges (film), the web "
-               "decides how far the load moves")
+        why = ("these takes constrain it only together with the film's stiffness, in series with "
+               "it: measure it (a plate pressed on a bundle's edge, docs/materials.md B1) and "
+               f"{known}")
     else:
         why = hardly
     return f"{name} scale not resolved ({scale:.2f} ± {std:.2f}): {why}"

@@ -36,6 +36,9 @@ class Calibration:
     #: uncertain it is: a wrap-stage parameter like the web's stiffness.
     give_scale: float = 1.0
     give_scale_std: float = 0.0
+    #: The wrap scales that were measured and given to the fit (`calibrate --known`), not
+    #: fitted: their standard deviations are 0 because nothing was estimated.
+    known: tuple[str, ...] = ()
 
     def wrap_scales(self) -> dict[str, float]:
         """The wrapped unit's scales by the names `calibration.replay.WRAP_SCALES` applies
@@ -57,7 +60,8 @@ class Calibration:
                          "stiffness_scale_std": self.stiffness_scale_std,
                          "tension_scale_std": self.tension_scale_std,
                          "give_scale": self.give_scale,
-                         "give_scale_std": self.give_scale_std}}
+                         "give_scale_std": self.give_scale_std}
+                | ({"known": list(self.known)} if self.known else {})}
 
     @classmethod
     def from_json(cls, path: str | Path) -> Calibration:
@@ -91,11 +95,16 @@ class Calibration:
         stds = (wrap.number("stiffness_scale_std", 0.0, minimum=0.0),
                 wrap.number("tension_scale_std", 0.0, minimum=0.0))
         give = _give(wrap)
+        known = _known(wrap)
         wrap.done()
         # how the fit went and how it was checked: for people, the bench does not need them
         top.ignore(*DIAGNOSTICS)
         top.done()
-        return cls(pairs, stiffness, tension, *stds, *give)
+        return cls(pairs, stiffness, tension, *stds, *give, known)
+
+
+#: The wrap scales by their names in CAL.json's `wrap.known` and `calibrate --known`.
+WRAP_SCALE_NAMES = ("stiffness", "tension", "give")
 
 
 #: The give may be fitted anywhere within these factors of the load file's (the bundle's
@@ -108,3 +117,15 @@ def _give(wrap: Table) -> tuple[float, float]:
     low, high = GIVE_SCALE_RANGE
     return (wrap.number("give_scale", 1.0, minimum=low, maximum=high),
             wrap.number("give_scale_std", 0.0, minimum=0.0))
+
+
+def _known(wrap: Table) -> tuple[str, ...]:
+    """CAL.json's optional `wrap.known`: names of wrap scales that were measured, not fitted."""
+    if not wrap.has("known"):
+        return ()
+    names = wrap.array("known")
+    for name in names:
+        if name not in WRAP_SCALE_NAMES or names.count(name) > 1:
+            raise wrap.error("known", f"must list distinct names of {', '.join(WRAP_SCALE_NAMES)}"
+                                      f" (got {names!r})")
+    return tuple(names)

@@ -151,7 +151,12 @@ def test_calibrate_refuses_too_short_trajectories(slide_dir, tmp_path, capsys):
 
 @pytest.mark.parametrize("args, needle", [(["--budget", "5"], "--budget"),
                                           (["--workers", "0"], "--workers"),
-                                          (["--max-residual-mm", "nan"], "--max-residual-mm")])
+                                          (["--max-residual-mm", "nan"], "--max-residual-mm"),
+                                          (["--known", "friction=1"], "--known"),
+                                          (["--known", "tension"], "--known"),
+                                          (["--known", "tension=nan"], "--known"),
+                                          (["--known", "tension=9"], "--known"),
+                                          (["--known", "give=1", "give=0.9"], "--known")])
 def test_calibrate_rejects_bad_arguments(args, needle, slide_dir, tmp_path, capsys):
     assert main(["calibrate", str(slide_dir), "--out", str(tmp_path / "c.json"), *args]) == 2
     _one_line_error(capsys, needle)

@@ -93,24 +93,44 @@ def test_momentum_descent_lowers_the_loss_within_its_budget(slide):
     assert result.simulations <= 40
 
 
-def test_wrap_stiffness_fit_finds_the_hidden_scale(tmp_path):
+@pytest.fixture(scope="module")
+def wrapped_slide(tmp_path_factory):
     """The sliding unit in one light layer of LLDPE whose true stiffness is 1.3 times the
-    card's (friction as the load file says), at 1280 x 800 so the web's markers decode: the
-    fitted stiffness scale within ±20 %."""
+    card's (friction as the load file says), at 1280 x 800 so the web's markers decode."""
     from calibration.synth import synthesize
     from wrapenv.load import LoadUnit
     from wrapenv.wrap import WrapFormat
 
     wrap = WrapFormat.from_toml("examples/wrap_lldpe_1layer_light.toml")
-    out = tmp_path / "wrapped"
+    out = tmp_path_factory.mktemp("wrapped")
     synthesize(LoadUnit.from_toml("examples/calibration_slide.toml"), out, wrap=wrap,
                level_g=0.55, seed=2, size=(1280, 800), marker_size_m=0.075, stiffness_scale=1.3)
     rec = Recording.read(out)
     tracked = track(rec).trajectories
     assert {"L1C1R1", "L1C2R1", "pallet"} <= set(tracked.objects)
-    result = fit([observe(rec, tracked)], FitSettings(params="wrap", budget=50, workers=2))
+    return observe(rec, tracked)
+
+
+def test_wrap_stiffness_fit_finds_the_hidden_scale(wrapped_slide):
+    """The fitted stiffness scale within ±20 % of the hidden 1.3."""
+    result = fit([wrapped_slide], FitSettings(params="wrap", budget=50, workers=2))
     assert abs(result.calibration.stiffness_scale / 1.3 - 1) <= 0.2
     assert result.calibration.stiffness_scale_std > 0
     assert result.calibration.give_scale_std > 0  # the load's give fitted with the wrap
     assert result.calibration.friction == {}  # not asked for: the load file's values stand
     assert result.simulations <= 50
+    assert result.calibration.known == ()
+
+
+def test_known_wrap_scales_are_held_and_only_the_others_fitted(wrapped_slide):
+    """A laid tension and a give measured elsewhere (`--known`) are not searched: the wrap
+    stage fits the stiffness alone, and CAL.json reports the known values as given."""
+    known = (("tension", 1.0), ("give", 0.8))
+    result = fit([wrapped_slide], FitSettings(params="wrap", budget=30, workers=2, known=known))
+    cal = result.calibration
+    assert [len(stage.centre) for stage in result.stages] == [1] * len(result.stages)
+    assert (cal.tension_scale, cal.give_scale) == (1.0, 0.8)
+    assert (cal.tension_scale_std, cal.give_scale_std) == (0.0, 0.0)
+    assert cal.known == ("tension", "give")
+    assert cal.stiffness_scale_std > 0
+    assert set(result.advice) <= {"stiffness"}

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import copy
+import dataclasses
 import json
 
 import pytest
@@ -145,6 +146,9 @@ BAD_CALS = {
     "give scaled to nothing": (edited(wrap__give_scale=0.0), "wrap.give_scale"),
     "give scaled past any fit": (edited(wrap__give_scale=50.0), "wrap.give_scale"),
     "negative give std": (edited(wrap__give_scale_std=-0.1), "wrap.give_scale_std"),
+    "known names no wrap scale": (edited(wrap__known=["friction"]), "wrap.known"),
+    "known twice": (edited(wrap__known=["give", "give"]), "wrap.known"),
+    "known not a list": (edited(wrap__known="give"), "wrap.known"),
     "unknown top-level key": (edited(frictions={}), "frictions"),
 }
 
@@ -204,6 +208,9 @@ def test_a_calibration_written_as_a_dict_reads_back_equal():
         stiffness_scale=1.3, tension_scale=0.9, stiffness_scale_std=0.1, tension_scale_std=0.05,
         give_scale=0.7, give_scale_std=0.2)
     assert Calibration.from_dict(cal.to_dict()) == cal
+    measured = dataclasses.replace(cal, give_scale_std=0.0, known=("give",))
+    assert Calibration.from_dict(measured.to_dict()) == measured
+    assert "known" not in cal.to_dict()["wrap"]  # files without measured scales are unchanged
 
 
 def test_the_load_s_give_is_optional_and_one_without_changes_nothing():
