@@ -192,7 +192,7 @@ def _run_stage(objective: Objective, settings: FitSettings, limit: int, progress
             return rs
 
         result = surrogate(evaluate, len(u0), (limit - progress.simulations) // spp,
-                           settings.seed)
+                           settings.seed, shared=objective.shared_noise)
         u, cov = result.u, result.cov
         found.stages.extend(result.stages)
         found.invalid += result.invalid

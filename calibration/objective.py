@@ -15,6 +15,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from calibration import features
 from calibration.replay import Observation, replay, residuals
 from wrapenv.bench import SimSettings
 from wrapenv.load import PAIRS, Friction, FrictionPair
@@ -132,3 +133,15 @@ class Objective:
     @property
     def sims_per_point(self) -> int:
         return len(self.observations)
+
+    @property
+    def shared_noise(self) -> list[np.ndarray]:
+        """Indices into `residuals`' vectors of each body's slip and of its turn: each counted
+        from the body's first tracked frame, so that frame's tracker error is shared by all."""
+        out, start = [], 0
+        for obs in self.observations:
+            for idx in features.spans(obs.frames).values():
+                half = len(idx) // 2
+                out += [start + idx[:half], start + idx[half:]]
+            start += 2 * sum(obs.frames.values())
+        return out
