@@ -23,7 +23,8 @@ run, and fits the recording to the average, weighting each feature by its scatte
 The covariance is the sandwich A^-1 (J^T W S W J) A^-1 with A = J^T W J, J the emulator's
 Jacobian and S the scatter of the replays about the emulator (so correlated features, such as
 the frames of one sliding bundle, are not counted as independent), inflated by the emulator's
-own uncertainty (its leverage at the estimate), plus the tracker's noise.
+own uncertainty (its leverage at the estimate), plus the tracker's noise: per feature, and in the
+covariance returned also the error of a body's first frame, which all its later frames share.
 """
 
 from __future__ import annotations
