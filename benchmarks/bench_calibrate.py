@@ -13,6 +13,7 @@ than its material card; then tracked by `track`. Cases:
 - kraft, lldpe: columnar2's bare recordings for friction plus the unit wrapped in
   examples/wrap_{kraft,lldpe}_2layer.toml at 0.7 g for the wrap (1920x1200: the web's markers
   need the pixels), validated on the wrapped unit at 0.5 g;
+- lldpe2: the lldpe case with the wrapped 0.5 g take fitted too, validated at 0.6 g;
 - slide: examples/calibration_slide.toml at 0.45 g and 0.55 g (two bundles sliding on their
   own), every method.
 
@@ -98,6 +99,11 @@ CASES: dict[str, tuple[tuple[Take, ...], tuple[Take, ...]]] = {
     **{m: ((Take(C2, 0.35), Take(C2, 0.425), Take(C2, 0.45),
             Take(C2, 0.7, LARGE, f"examples/wrap_{m}_2layer.toml")),
            (Take(C2, 0.5, LARGE, f"examples/wrap_{m}_2layer.toml"),)) for m in ("kraft", "lldpe")},
+    # a second wrapped level: does it separate the film's stiffness from its tension and give?
+    "lldpe2": ((Take(C2, 0.35), Take(C2, 0.425), Take(C2, 0.45),
+                Take(C2, 0.5, LARGE, "examples/wrap_lldpe_2layer.toml"),
+                Take(C2, 0.7, LARGE, "examples/wrap_lldpe_2layer.toml")),
+               (Take(C2, 0.6, LARGE, "examples/wrap_lldpe_2layer.toml"),)),
     "slide": ((Take("examples/calibration_slide.toml", 0.45),
                Take("examples/calibration_slide.toml", 0.55)), ()),
 }
