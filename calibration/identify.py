@@ -135,8 +135,9 @@ def advice_scale(name: str, scale: float, std: float, paper: bool) -> str:
     is much softer, so its stiffness does show (LLDPE: x2 moves the 0.7 g take's features 3-5
     mm), but only together with the laid tension and the give in series with it: fitted with
     the true friction, the LLDPE take gave stiffness 3.9 x, tension 0.6 x and give 0.3 x for the
-    truth's 1.3, 1 and 1, and predicted the held-out take within 5 %; two wrapped levels gave
-    the stiffness within 13 % (README "Calibration").
+    truth's 1.3, 1 and 1, and predicted the held-out take within 5 %; with the tension and the
+    give known, +15 % and +14 % over two fit seeds; a second wrapped level instead, +13 to +120 %
+    over three (README "Calibration").
     What is measured elsewhere is given as known (`calibrate --known`)."""
     hardly = "the recorded motion hardly depends on it"
     known = "give it as known (--known)"
@@ -145,10 +146,9 @@ def advice_scale(name: str, scale: float, std: float, paper: bool) -> str:
                "with it (paper on shrink-wrapped bundles), that compliance decides how far the "
                "load moves; take the web's stiffness from its tensile test")
     elif name == "stiffness":
-        why = ("the film decides how far the load moves, but one wrapped level constrains its "
-               "stiffness only together with its laid tension and the load's give in series "
-               "with it: record the wrapped unit at a second level, or measure the laid tension "
-               f"(or the containment force) and the give and {known}")
+        why = ("the film decides how far the load moves, but these takes constrain its stiffness "
+               "only together with its laid tension and the load's give in series with it: "
+               f"measure the laid tension (or the containment force) and the give and {known}")
     elif name == "tension" and not paper:
         why = ("these takes constrain it together with the film's stiffness: measure the laid "
                f"tension (or the containment force) and {known}")
