@@ -326,13 +326,6 @@ def run_sensitivity(name: str) -> None:
                       f"largest {1e3 * np.max(np.abs(d)):.1f} mm")
 
 
-def _known(entry: str) -> tuple[tuple[str, float], ...]:
-    try:
-        return known_scales([entry])
-    except InputError as error:
-        raise argparse.ArgumentTypeError(error.message) from None
-
-
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--case", nargs="+", choices=list(CASES), default=list(CASES))
@@ -346,7 +339,7 @@ def main() -> None:
                         metavar="PAIR.KIND=DELTA",
                         help="with --truth: replay with the true values shifted, e.g. "
                              "pallet_bundle.static=+0.1 (the acceptance test should refuse)")
-    parser.add_argument("--known", nargs="+", type=_known, default=(), metavar="NAME=SCALE",
+    parser.add_argument("--known", nargs="+", default=[], metavar="NAME=SCALE",
                         help="wrap scales given as measured (calibrate --known), e.g. tension=1")
     parser.add_argument("--true-friction", action="store_true",
                         help="fit the wrap alone, with the friction the recordings were made "
@@ -354,7 +347,10 @@ def main() -> None:
     parser.add_argument("--sensitivity", action="store_true",
                         help="no fit: how much each wrap scale moves the wrapped recording")
     args = parser.parse_args()
-    args.known = tuple(pair for entry in args.known for pair in entry)
+    try:
+        args.known = known_scales(args.known)
+    except InputError as error:
+        parser.error(f"--known: {error.message}")
     for name in args.case:
         if args.truth:
             run_truth(name, args.truth, args.workers, args.offset)
