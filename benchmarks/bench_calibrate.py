@@ -24,7 +24,7 @@ slid most in the validation recording, recorded against predicted (goal ±15 %);
 as a Markdown table row.
 
     python -m benchmarks.bench_calibrate [--case columnar2 ...] [--method surrogate ...]
-                                         [--budget 300] [--workers 2] [--seed 0]
+                                         [--budget 300] [--workers 2] [--seed 0 ...]
 
 Without a fit, what the best calibration could do: `--truth N` replays each case's recordings N
 times with their true values (what the fit's acceptance test says of them, on all N replays and
@@ -179,7 +179,39 @@ def report(name: str, method: str, result: FitResult, truth: Truth, wall: float,
     return "\n".join([head, *lines, row])
 
 
-def run_case(name: str, method: str, args: argparse.Namespace) -> None:
+@dataclass(frozen=True)
+class Outcome:
+    """One fit's errors against the truth (`pair.kind` or "stiffness_pct") and verdict."""
+
+    errors: dict[str, float]
+    accepted: bool
+
+
+def outcome(result: FitResult, truth: Truth, wrapped: bool) -> Outcome:
+    true = truth.params["friction"]
+    errors = {f"{pair}.{kind}": getattr(p, kind) - true[pair][kind]
+              for pair, p in result.calibration.friction.items() if p.identified
+              for kind in ("kinetic", "static")}
+    if wrapped:
+        errors["stiffness_pct"] = 100 * (result.calibration.stiffness_scale / TRUE_STIFFNESS - 1)
+    return Outcome(errors, result.converged)
+
+
+def summary(name: str, method: str, seeds: Sequence[int], outcomes: Sequence[Outcome]) -> str:
+    """Over fit seeds: per fitted value its errors and how many are within the goal."""
+    lines = [f"{name} / {method} over seeds {' '.join(map(str, seeds))}: accepted "
+             f"{sum(o.accepted for o in outcomes)} of {len(outcomes)}"]
+    for key in outcomes[0].errors:
+        errs = [o.errors[key] for o in outcomes if key in o.errors]
+        goal = GOALS[key.split(".")[-1]]
+        unit = " %" if key.endswith("pct") else ""
+        within = sum(abs(e) <= goal for e in errs)
+        lines.append(f"  {key}: errors {' '.join(f'{e:+.3f}' for e in errs)}{unit}; "
+                     f"within ±{goal:g}{unit}: {within} of {len(errs)}")
+    return "\n".join(lines)
+
+
+def run_case(name: str, method: str, seed: int, args: argparse.Namespace) -> Outcome:
     fitted, held = CASES[name]
     observed = [observation(t) for t in fitted]
     held_out = [observation(t)[0] for t in held]
@@ -194,12 +226,13 @@ def run_case(name: str, method: str, args: argparse.Namespace) -> None:
     t0 = time.perf_counter()
     result = fit([o for o, _ in observed],
                  FitSettings(method=method, params=params, budget=args.budget,
-                             workers=args.workers, seed=args.seed, known=args.known))
+                             workers=args.workers, seed=seed, known=args.known))
     with ProcessPoolExecutor(args.workers) as pool:
         checks = validate(held_out, result.calibration, pool) if held_out else []
     wall = time.perf_counter() - t0
     wrapped = any(t.wrap for t in fitted)
     print(report(name, method, result, observed[0][1], wall, checks, wrapped), flush=True)
+    return outcome(result, observed[0][1], wrapped)
 
 
 def true_calibration(truth: Truth, offsets: Sequence[Offset] = ()) -> Calibration:
@@ -332,7 +365,8 @@ def main() -> None:
     parser.add_argument("--method", nargs="+", choices=METHODS, default=["surrogate"])
     parser.add_argument("--budget", type=int, default=300)
     parser.add_argument("--workers", type=int, default=2)
-    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--seed", type=int, nargs="+", default=[0],
+                        help="fit seeds; with several, a summary of the errors over them")
     parser.add_argument("--truth", type=int, metavar="N", default=0,
                         help="no fit: replay each case N times with its true values")
     parser.add_argument("--offset", nargs="+", type=Offset.parse, default=[],
@@ -358,7 +392,9 @@ def main() -> None:
             run_sensitivity(name)
         else:
             for method in args.method:
-                run_case(name, method, args)
+                outcomes = [run_case(name, method, seed, args) for seed in args.seed]
+                if len(outcomes) > 1:
+                    print(summary(name, method, args.seed, outcomes), flush=True)
 
 
 if __name__ == "__main__":

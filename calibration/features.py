@@ -50,6 +50,13 @@ class Body:
     supports: tuple[tuple[str, float], ...]
 
     @property
+    def pair(self) -> str:
+        """The contact pair its slip isolates (`wrapenv.load.PAIRS`)."""
+        if not self.supports:
+            return "sled_pallet"
+        return "pallet_bundle" if self.supports[0][0] == "pallet" else "bundle_bundle"
+
+    @property
     def tip_rad(self) -> float:
         """The angle at which its centre passes over its bottom edge."""
         return math.atan2(self.length_m, self.height_m)

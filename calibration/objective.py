@@ -134,6 +134,17 @@ class Objective:
     def sims_per_point(self) -> int:
         return len(self.observations)
 
+    def pair_features(self) -> dict[str, np.ndarray]:
+        """Indices into `residuals`' vectors of the features of each contact pair: the slips
+        and turns of the bodies resting on it (a slip isolates its pair)."""
+        out: dict[str, list[np.ndarray]] = {}
+        start = 0
+        for obs in self.observations:
+            for name, idx in features.spans(obs.frames).items():
+                out.setdefault(obs.bodies[name].pair, []).append(start + idx)
+            start += 2 * sum(obs.frames.values())
+        return {pair: np.concatenate(idx) for pair, idx in out.items()}
+
     @property
     def shared_noise(self) -> list[np.ndarray]:
         """Indices into `residuals`' vectors of each body's slip and of its turn: each counted

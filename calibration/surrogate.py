@@ -10,13 +10,15 @@ run, and fits the recording to the average, weighting each feature by its scatte
 
 1. Global stage: a space-filling design (Latin hypercube) over the whole unit box, each point
    replayed once per recording; the `ACCEPT` share of points whose features lie nearest the
-   recording's (rejection sampling) gives the next box: their mean and spread.
+   recording's (rejection sampling) gives the next box: their mean and spread (a friction
+   pair's coordinates judged by its own features, the slips across it).
 2. Local stages: a design in the box, an emulator per feature fitted by least squares to the
    replays in the box (`Emulator`); its residuals give each feature's run-to-run scatter s_f
    (at least the tracker's noise).
-3. The estimate minimises sum_f (emulated residual_f / s_f)^2 over the box (Gauss-Newton with
-   Levenberg damping, several starts): features a bundle's chaos scrambles count little, the
-   ones the parameters decide count a lot.
+3. The estimate minimises the expected sum_f (residual_f / s_f)^2 over the box: the emulated
+   residuals' plus their own uncertainty, which grows towards the box's thinly sampled edges
+   (Gauss-Newton with Levenberg damping, several starts). Features a bundle's chaos scrambles
+   count little, the ones the parameters decide count a lot.
 4. The next box is centred on the estimate, `BOX_SIGMAS` standard deviations wide (within
    `SHRINK` of the previous box); the replays inside it are reused.
 
@@ -138,20 +140,31 @@ class Emulator:
         return float(phi @ self.gram_inv @ phi)
 
 
+def _expected(em: Emulator, z: np.ndarray) -> np.ndarray:
+    """Residuals whose squares sum to the expected weighted residual at z: the emulated
+    residuals over their scatter, and sqrt(F x leverage), F the number of features: each
+    emulated mean is uncertain by its scatter times sqrt(leverage), which grows where the
+    design is thin (a box's edge). Where the data leave a direction flat, the estimate then
+    stays where the replays are, not at an edge the emulator extrapolates to."""
+    return np.append(em.predict(z) / em.sigma, math.sqrt(len(em.sigma) * em.leverage(z)))
+
+
 def _solve(em: Emulator, lo: np.ndarray, hi: np.ndarray, starts: Sequence[np.ndarray]
            ) -> np.ndarray:
-    """The point of [lo, hi] (scaled coordinates) minimising the weighted emulated residual."""
-    w = 1.0 / em.sigma
+    """The point of [lo, hi] (scaled coordinates) minimising the expected weighted residual
+    (`_expected`)."""
     best, best_cost = starts[0], math.inf
+    eye, step_size = np.eye(len(lo)), 1e-4
     for z in starts:
         z, lam = np.clip(z, lo, hi), 1e-3
-        f = em.predict(z) * w
+        f = _expected(em, z)
         for _ in range(ITERATIONS):
-            j = em.jacobian(z) * w[:, None]
+            j = np.stack([(_expected(em, z + step_size * e) - _expected(em, z - step_size * e))
+                          / (2 * step_size) for e in eye], axis=1)
             a, g = j.T @ j, j.T @ f
             step = -np.linalg.solve(a + lam * np.diag(np.diag(a) + 1e-12), g)
             trial = np.clip(z + step, lo, hi)
-            ft = em.predict(trial) * w
+            ft = _expected(em, trial)
             if ft @ ft < f @ f:
                 z, f, lam = trial, ft, lam / 3
                 if np.max(np.abs(step)) < 1e-6:
@@ -201,14 +214,15 @@ def stage_sizes(points: int, p: int) -> list[int]:
 
 
 def surrogate(evaluate: Evaluate, p: int, points: int, seed: int,
-              centre: np.ndarray | None = None, shared: Sequence[np.ndarray] = ()
-              ) -> SurrogateFit:
+              centre: np.ndarray | None = None, shared: Sequence[np.ndarray] = (),
+              informed_by: Sequence[np.ndarray | None] = ()) -> SurrogateFit:
     """Staged emulator fit over the unit box [0, 1]^p with at most `points` replays of every
     recording (see the module docstring); `centre` is the first box's centre (default: the
     box's), whose half-width is always the whole box's. The covariance returned counts the
     tracker error `shared` by groups of features (`_covariance`); the boxes follow the
     replays' scatter and independent noise, as they were tuned to (a 20-replay wrapped LLDPE
-    fit reported its stiffness at ± 3 % with frames counted independent)."""
+    fit reported its stiffness at ± 3 % with frames counted independent). `informed_by`: per
+    parameter the features that inform it (None: all), for the global stage (`_accepted`)."""
     rng = np.random.default_rng(seed)
     centre = np.full(p, 0.5) if centre is None else np.asarray(centre, float)
     half = np.full(p, 0.5)
@@ -229,7 +243,7 @@ def surrogate(evaluate: Evaluate, p: int, points: int, seed: int,
         inside = [i for i, u in enumerate(us) if np.all((u >= lo - 1e-12) & (u <= hi + 1e-12))]
         mid, scale = (lo + hi) / 2, np.maximum((hi - lo) / 2, 1e-9)
         if k == 0 and len(sizes) > 1:
-            u_hat, std = _accepted(np.array(us), np.array(rs))
+            u_hat, std = _accepted(np.array(us), np.array(rs), informed_by)
         else:
             z = (np.array([us[i] for i in inside]) - mid) / scale
             em = Emulator(z, np.array([rs[i] for i in inside]))
@@ -247,14 +261,24 @@ def surrogate(evaluate: Evaluate, p: int, points: int, seed: int,
     return SurrogateFit(u_hat, cov, tuple(stages), invalid)
 
 
-def _accepted(us: np.ndarray, rs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _accepted(us: np.ndarray, rs: np.ndarray, informed_by: Sequence[np.ndarray | None] = ()
+              ) -> tuple[np.ndarray, np.ndarray]:
     """The global stage's answer (rejection sampling): mean and standard deviation of the
     `ACCEPT` share of points whose features lie nearest the recording's, each feature scaled
-    by its spread over the whole design (its median absolute deviation)."""
+    by its spread over the whole design (its median absolute deviation). A parameter with
+    features of its own (`informed_by`: a friction pair's, the slips of the bodies resting on
+    it) is judged by those alone: otherwise the many chaotic slides of an upper layer decide
+    which points are near, and a pair that slipped in one recording only is left at random."""
     spread = np.maximum(np.median(np.abs(rs - np.median(rs, axis=0)), axis=0), TRACK_NOISE_M)
-    distance = np.sum((rs / spread) ** 2, axis=1)
-    best = us[np.argsort(distance)[:max(2, round(ACCEPT * len(us)))]]
-    return best.mean(axis=0), best.std(axis=0)
+    scaled = (rs / spread) ** 2
+    keep = max(2, round(ACCEPT * len(us)))
+    groups = list(informed_by) or [None] * us.shape[1]
+    mean, std = np.empty(us.shape[1]), np.empty(us.shape[1])
+    for k, group in enumerate(groups):
+        distance = np.sum(scaled if group is None else scaled[:, group], axis=1)
+        best = us[np.argsort(distance, kind="stable")[:keep], k]
+        mean[k], std[k] = best.mean(), best.std()
+    return mean, std
 
 
 def _box(centre: np.ndarray, half: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

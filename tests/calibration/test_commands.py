@@ -4,12 +4,16 @@ one-line errors and nothing half-written."""
 from __future__ import annotations
 
 import csv
+import dataclasses
 import json
 import shutil
 from pathlib import Path
 
+import numpy as np
 import pytest
 
+from calibration.recording import Truth
+from calibration.trajectories import ObjectPath, Trajectories
 from recommender.cli import main
 from wrapenv.calibrated import Calibration
 from wrapenv.load import LoadUnit
@@ -123,11 +127,19 @@ def test_calibrate_writes_cal_json_that_simulate_accepts(slide_dir, tmp_path, ca
 
 
 def test_calibrate_that_does_not_converge_writes_nothing(slide_dir, tmp_path, capsys):
-    cal = tmp_path / "cal.json"
-    assert main(["calibrate", str(slide_dir), "--out", str(cal), "--budget", "10",
-                 "--max-residual-mm", "0.001"]) == 1
-    _one_line_error(capsys, "did not converge", "unexplained > 0.001 mm", "nothing written")
-    assert list(tmp_path.iterdir()) == []
+    """A recording no friction explains (a bundle's tracked path jumps 30 mm forward at the
+    start of the pulse): the fit is refused and nothing is written."""
+    rec, out = tmp_path / "rec", tmp_path / "out"
+    shutil.copytree(slide_dir, rec)
+    out.mkdir()
+    paths = {k: ObjectPath(*(np.asarray(a) for a in (v.t_s, v.x_m, v.z_m, v.angle_rad)))
+             for k, v in Truth.read(rec).objects.items()}
+    jumped = paths["L1C1R1"]
+    paths["L1C1R1"] = dataclasses.replace(jumped, x_m=jumped.x_m + 0.03 * (jumped.t_s >= 0.3))
+    Trajectories(paths).to_csv(rec / "trajectories.csv")
+    assert main(["calibrate", str(rec), "--out", str(out / "cal.json"), "--budget", "10"]) == 1
+    _one_line_error(capsys, "did not converge", "unexplained > 10 mm", "nothing written")
+    assert list(out.iterdir()) == []
 
 
 def test_calibrate_refuses_recordings_of_different_loads(slide_dir, recording_dir, tmp_path,

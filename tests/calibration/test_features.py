@@ -37,6 +37,9 @@ def test_bodies_rest_on_what_is_seen_below_them(body_map):
     assert body_map["L1C1R1"].supports == (("pallet", 0.12),)
     assert body_map["L2C2R1"].supports == (("L1C2R1", H),)
     assert body_map["L2C1R1"].tip_rad == pytest.approx(math.atan2(L, H))
+    # each slip isolates one contact pair
+    assert [body_map[n].pair for n in ("pallet", "L1C1R1", "L2C2R1")] == [
+        "sled_pallet", "pallet_bundle", "bundle_bundle"]
     # an upper bundle whose support is hidden (row 2 is not seen) is not compared
     hidden = features.bodies(LoadUnit.from_dict(LOAD).layout(), SEEN | {"L2C1R2"})
     assert "L2C1R2" not in hidden
