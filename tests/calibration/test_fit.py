@@ -4,12 +4,11 @@ from tracked paths to values the fit was not told (synth -> track -> calibrate).
 from __future__ import annotations
 
 import dataclasses
-from types import SimpleNamespace
 
 import numpy as np
 import pytest
 
-from calibration.fit import FitSettings, _friction_params, fit
+from calibration.fit import FitSettings, fit
 from calibration.recording import Recording, Truth
 from calibration.replay import SLIP_M, observe, replay, residuals
 from calibration.track import track
@@ -65,23 +64,6 @@ def test_a_body_that_tips_about_its_edge_does_not_slip(slide):
     assert observe(rec, Trajectories(still | {name: tipping})).slipped == frozenset()
     slid = dataclasses.replace(tipping, angle_rad=np.zeros_like(angle))
     assert observe(rec, Trajectories(still | {name: slid})).slipped == {"pallet_bundle"}
-
-
-def test_the_surrogate_fits_the_coefficient_the_recordings_pin():
-    """Pallet-bundle held at 0.425 g and slipped at 0.45 g: its onset is bracketed, so its
-    static coefficient is fitted (up to 0.1 above the level). Bundle-bundle slipped at every
-    level: its onset is below them all, and how far it slid pins its kinetic coefficient. The
-    descents fit static coefficients."""
-    takes = [SimpleNamespace(peak_accel_g=(g, 0.1), slipped=frozenset(s)) for g, s in (
-        (0.425, {"bundle_bundle"}), (0.45, {"pallet_bundle", "bundle_bundle"}))]
-    slipped = frozenset({"pallet_bundle", "bundle_bundle"})
-    params = {(p.pair, p.kind): (p.low, p.high)
-              for p in _friction_params(takes, slipped, "surrogate")}
-    assert params == {("pallet_bundle", "static"): (0.05, pytest.approx(0.55)),
-                      ("pallet_bundle", "ratio"): (0.5, 1.0),
-                      ("bundle_bundle", "kinetic"): (0.05, pytest.approx(0.55)),
-                      ("bundle_bundle", "ratio"): (0.5, 1.0)}
-    assert {p.kind for p in _friction_params(takes, slipped, "cmaes")} == {"static", "ratio"}
 
 
 def test_friction_fit_finds_the_hidden_values_from_tracked_paths(slide):
