@@ -109,12 +109,8 @@ def _relative(path: ObjectPath, sled: ObjectPath | None, recording: Recording) -
 def _slipped(states: features.States, body_map: Mapping[str, features.Body]
              ) -> frozenset[str]:
     """The pairs across which a contact point moved more than `SLIP_M` (whole paths)."""
-    pairs = set()
-    for name, slip in features.slips(states, body_map).items():
-        if np.max(np.abs(slip)) > SLIP_M:
-            pairs.add("sled_pallet" if name == "pallet" else
-                      "pallet_bundle" if name.startswith("L1") else "bundle_bundle")
-    return frozenset(pairs)
+    return frozenset(body_map[name].pair for name, slip in features.slips(states, body_map).items()
+                     if np.max(np.abs(slip)) > SLIP_M)
 
 
 def replay(obs: Observation, friction: Friction, scales: Mapping[str, float] | None = None,
