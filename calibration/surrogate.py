@@ -130,14 +130,19 @@ class Emulator:
     def predict(self, z: np.ndarray) -> np.ndarray:
         return (self.basis(z) @ self.coef)[0]
 
-    def jacobian(self, z: np.ndarray, step: float = 1e-4) -> np.ndarray:
-        eye = np.eye(len(z))
-        return np.stack([(self.predict(z + step * e) - self.predict(z - step * e)) / (2 * step)
-                         for e in eye], axis=1)
+    def jacobian(self, z: np.ndarray) -> np.ndarray:
+        return _central_differences(self.predict, z)
 
     def leverage(self, z: np.ndarray) -> float:
         phi = self.basis(z)[0]
         return float(phi @ self.gram_inv @ phi)
+
+
+def _central_differences(f: Callable[[np.ndarray], np.ndarray], z: np.ndarray,
+                         step: float = 1e-4) -> np.ndarray:
+    """Jacobian (len(f(z)), len(z)) of f at z."""
+    return np.stack([(f(z + step * e) - f(z - step * e)) / (2 * step) for e in np.eye(len(z))],
+                    axis=1)
 
 
 def _expected(em: Emulator, z: np.ndarray) -> np.ndarray:
@@ -154,13 +159,11 @@ def _solve(em: Emulator, lo: np.ndarray, hi: np.ndarray, starts: Sequence[np.nda
     """The point of [lo, hi] (scaled coordinates) minimising the expected weighted residual
     (`_expected`)."""
     best, best_cost = starts[0], math.inf
-    eye, step_size = np.eye(len(lo)), 1e-4
     for z in starts:
         z, lam = np.clip(z, lo, hi), 1e-3
         f = _expected(em, z)
         for _ in range(ITERATIONS):
-            j = np.stack([(_expected(em, z + step_size * e) - _expected(em, z - step_size * e))
-                          / (2 * step_size) for e in eye], axis=1)
+            j = _central_differences(lambda x: _expected(em, x), z)
             a, g = j.T @ j, j.T @ f
             step = -np.linalg.solve(a + lam * np.diag(np.diag(a) + 1e-12), g)
             trial = np.clip(z + step, lo, hi)
