@@ -161,12 +161,12 @@ def report(name: str, method: str, result: FitResult, truth: Truth, wall: float,
         cells.append(f"stiffness {err:+.0f} %")
     for check in checks:
         layer, c = check.largest
-        pct = c.error_pct if c.error_pct is not None else float("nan")
+        pct = (f"{c.error_pct:+.0f} %{_flag(c.error_pct, GOALS['validation_pct'])}"
+               if c.error_pct is not None else "too small a slide for a % error")
         lines.append(f"  validation {Path(check.source).name}: layer {layer} slid "
                      f"{1e3 * c.recorded_m:.1f} mm, predicted {1e3 * c.predicted_m:.1f} ± "
-                     f"{1e3 * c.spread_m:.1f} mm ({pct:+.0f} %"
-                     f"{_flag(pct, GOALS['validation_pct'])})")
-        cells.append(f"layer {layer} {pct:+.0f} %")
+                     f"{1e3 * c.spread_m:.1f} mm ({pct})")
+        cells.append(f"layer {layer} {pct.removesuffix(' (beyond goal)')}")
     lines += [f"  advice: {k}: {v}" for k, v in result.advice.items()]
     lines += [f"  stage {k}: {s.added} new, {s.used} used; box {_unit(s.centre)} ± "
               f"{_unit(s.half_width)} -> {_unit(s.estimate)} ± {_unit(s.std)}"
