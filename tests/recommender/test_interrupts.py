@@ -47,6 +47,13 @@ def _processes_naming(marker: str) -> list[int]:
     return found
 
 
+def _as_from_a_terminal() -> None:
+    """Ctrl-C's default action in the search, as a command typed at a terminal has it: a test
+    run launched in the background (`cmd &` in a script) ignores SIGINT, the search would
+    inherit that and run to its end (seen in CI run so: exit status 0 instead of 130)."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def _start(tmp_path: Path) -> tuple[subprocess.Popen, Path, Path]:
     load = tmp_path / "load.toml"
     load.write_text(SMALL)
@@ -57,7 +64,7 @@ def _start(tmp_path: Path) -> tuple[subprocess.Popen, Path, Path]:
         stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
         cwd=Path(__file__).resolve().parents[2],
         # a hung search dumps every thread's stack on SIGABRT (see `_hung`)
-        env={**os.environ, "PYTHONFAULTHANDLER": "1"})
+        env={**os.environ, "PYTHONFAULTHANDLER": "1"}, preexec_fn=_as_from_a_terminal)
     checkpoint = tmp_path / "rec.checkpoint.json"
     deadline = time.monotonic() + 600
     while not checkpoint.exists():  # one generation done: the workers are busy with the next
