@@ -36,6 +36,7 @@ from stable_baselines3 import PPO
 from stable_baselines3.common.buffers import RolloutBuffer
 from stable_baselines3.common.callbacks import BaseCallback, CallbackList, CheckpointCallback
 from stable_baselines3.common.env_util import make_vec_env
+from stable_baselines3.common.logger import configure as configure_logger
 from stable_baselines3.common.policies import ActorCriticPolicy
 from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv
 
@@ -200,6 +201,9 @@ def train(settings: TrainSettings, out_dir: Path) -> Path:
         model = PPO("MlpPolicy", vec_env, n_steps=settings.n_steps,
                     batch_size=settings.batch_size, learning_rate=settings.learning_rate,
                     seed=settings.seed, device="cpu", verbose=0)
+        # SB3's default logger makes an empty folder in the system's temp dir per run, even
+        # writing nothing: ours writes nothing either, in the run's folder
+        model.set_logger(configure_logger(str(out_dir), []))
         meta = policy_meta(settings)
         # save_freq counts vector steps, each n_envs timesteps
         checkpoint = _StampedCheckpoints(meta, max(1, settings.checkpoint_every // settings.n_envs),

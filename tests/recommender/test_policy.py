@@ -12,8 +12,10 @@ from __future__ import annotations
 
 import csv
 import json
+import tempfile
 import time
 import zipfile
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -88,6 +90,20 @@ def test_train_writes_the_policy_checkpoints_and_one_log_row_per_episode(trained
         assert 0 < float(material_kg) < 5
         if valid == "0":
             assert passed == "0"  # a blown-up run is logged as a failure
+
+
+def test_a_training_run_leaves_nothing_of_its_own_in_the_temp_folder(tmp_path, monkeypatch):
+    """Many runs (tests, trials of settings) must not fill /tmp with SB3's empty log folders,
+    one per run. (torch keeps one cache folder there, shared by every run.)"""
+    temp = tmp_path / "temp"
+    temp.mkdir()
+    monkeypatch.setattr(tempfile, "tempdir", str(temp))
+    short = replace(TINY, timesteps=4, checkpoint_every=4)
+    train(short, tmp_path / "first")
+    after_one = sorted(temp.iterdir())
+    train(short, tmp_path / "second")
+    assert sorted(temp.iterdir()) == after_one
+    assert not [p for p in after_one if p.name.startswith("SB3-")]
 
 
 def test_a_time_budget_ends_training_early_and_still_writes_the_policy(tmp_path):
