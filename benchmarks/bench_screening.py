@@ -47,6 +47,7 @@ CANDIDATES = {
     "end at first rest": SimSettings(simulate_stop=False),
     "stop when decided": SimSettings(stop_when_decided=True),
     "dt 1/160 s, end at first rest": SimSettings(timestep_s=1 / 160, simulate_stop=False),
+    "dt 1/120 s, end at first rest": SimSettings(timestep_s=1 / 120, simulate_stop=False),
     # every case is wrapped: fewer iterations for a wrapped unit than its default 50
     "30 iterations, end at first rest": SimSettings(wrapped_solver_iterations=30,
                                                     simulate_stop=False),
@@ -95,6 +96,7 @@ def main(argv: list[str] | None = None) -> None:
     args = parser.parse_args(argv)
     settings = dict(CANDIDATES) if args.candidates else {}
     settings.setdefault("screening()", SimSettings.screening())
+    settings.setdefault("training()", SimSettings.training())
     results: dict[str, list[Outcome]] = {"default": [], **{name: [] for name in settings}}
     print(f"{len(CASES)} wrapped cases; default: {SimSettings()}")
     for case in CASES:

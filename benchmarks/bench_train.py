@@ -7,7 +7,8 @@ Both settings of a vector env see the same units and actions (seeded); the confi
 alternated in rounds so a busy machine disturbs each alike:
 
 - the bench's default settings (`SimSettings()`, before issue 15) and the training settings
-  (`TrainSettings.sim`: `SimSettings.screening()`);
+  (`TrainSettings.sim`: `SimSettings.training()`), and how far the latter's verdicts and
+  margins stand from the former's on the same episodes;
 - `DummyVecEnv` (1 env, in this process) and `SubprocVecEnv` with 2 and 4 env processes (a
   vector step waits for its slowest env; more envs than cores let the others use the wait).
 
@@ -36,11 +37,14 @@ VEC_ENVS: dict[str, tuple[int, type[DummyVecEnv] | type[SubprocVecEnv]]] = {
     "SubprocVecEnv x 4": (4, SubprocVecEnv)}
 
 
+Outcome = tuple[bool, float, bool]  # an episode's (passed, margin, valid)
+
+
 def episodes_per_s(sim: SimSettings, n_envs: int, cls: type[DummyVecEnv] | type[SubprocVecEnv],
-                   episodes: int, seed: int) -> tuple[float, float, float]:
+                   episodes: int, seed: int) -> tuple[float, float, float, list[Outcome]]:
     """Episodes per second of wall time, episodes per CPU second of the whole process tree
-    (env workers included, their start-up too; Linux) and the mean reward, over `episodes`
-    (a multiple of `n_envs`) with seeded random actions."""
+    (env workers included, their start-up too; Linux), the mean reward and each episode's
+    outcome, over `episodes` (a multiple of `n_envs`) with seeded random actions."""
     settings = TrainSettings()
     cpu0 = _cpu_s()
     vec = make_vec_env(MAKE_ID, n_envs=n_envs, seed=seed, vec_env_cls=cls,
@@ -48,19 +52,22 @@ def episodes_per_s(sim: SimSettings, n_envs: int, cls: type[DummyVecEnv] | type[
                                    "levels": settings.levels, "settings": sim})
     rng = np.random.default_rng(seed)
     rewards = []
+    outcomes: list[Outcome] = []
     try:
         vec.reset()
         t0 = time.perf_counter()
         for _ in range(episodes // n_envs):
             actions = rng.uniform(-1, 1, (n_envs, N_PARAMS)).astype(np.float32)
-            _, reward, _, _ = vec.step(actions)
+            _, reward, _, infos = vec.step(actions)
             rewards.extend(reward.tolist())
+            outcomes.extend((bool(i["passed"]), float(i["margin"]), bool(i["valid"]))
+                            for i in infos)
         wall = time.perf_counter() - t0
         cpu = _cpu_s() - cpu0 + sum(_process_cpu_s(p.pid)
                                     for p in getattr(vec, "processes", []))
     finally:
         vec.close()
-    return len(rewards) / wall, len(rewards) / cpu, float(np.mean(rewards))
+    return len(rewards) / wall, len(rewards) / cpu, float(np.mean(rewards)), outcomes
 
 
 def _cpu_s() -> float:
@@ -84,11 +91,14 @@ def main(argv: list[str] | None = None) -> None:
     print(f"{os.cpu_count()} cores; {args.episodes} episodes per configuration and round, "
           f"{args.rounds} rounds (goal >= 5 episodes/s on 2 cores)")
     rates: dict[tuple[str, str], list[tuple[float, float]]] = {}
+    outcomes: dict[str, list[Outcome]] = {name: [] for name in SETTINGS}
     for round_ in range(args.rounds):
         for vec_name, (n_envs, cls) in VEC_ENVS.items():
             for sim_name, sim in SETTINGS.items():
-                wall, cpu, reward = episodes_per_s(sim, n_envs, cls, args.episodes, seed=round_)
+                wall, cpu, reward, seen = episodes_per_s(sim, n_envs, cls, args.episodes,
+                                                         seed=round_)
                 rates.setdefault((vec_name, sim_name), []).append((wall, cpu))
+                outcomes[sim_name].extend(seen)
                 print(f"  round {round_}: {vec_name:18s} {sim_name:22s} {wall:5.2f} episodes/s, "
                       f"{cpu:5.2f} per CPU s (mean reward {reward:+.3f})", flush=True)
     print("\nepisodes/s of wall time (episodes per CPU second); ratio of the wall figures")
@@ -97,6 +107,20 @@ def main(argv: list[str] | None = None) -> None:
         mean = [np.mean(rates[vec_name, sim_name], axis=0) for sim_name in SETTINGS]
         print(f"{vec_name:18s} " + " ".join(f"{w:11.2f} ({c:.2f} /CPU s)" for w, c in mean)
               + f"  {mean[1][0] / mean[0][0]:.2f} x")
+    agreement(*outcomes.values())
+
+
+def agreement(default: list[Outcome], cheaper: list[Outcome]) -> None:
+    """How far the training settings' rewards stand from the defaults' on the same episodes:
+    verdicts, the margin where both passed (a failure's margin is bounded once decided), and
+    simulations that blew up (rewarded as failures)."""
+    agree = sum(a[0] == b[0] for a, b in zip(default, cheaper, strict=True))
+    error = np.array([abs(a[1] - b[1]) for a, b in zip(default, cheaper, strict=True)
+                      if a[0] and b[0]])
+    text = f"{error.mean():.3f} / {error.max():.3f}" if len(error) else "-"
+    print(f"TrainSettings.sim against the defaults on the same episodes: verdicts agree "
+          f"{agree} of {len(default)}, margin error where both passed (mean / max) {text}; "
+          f"blown up {sum(not o[2] for o in default)} and {sum(not o[2] for o in cheaper)}")
 
 
 if __name__ == "__main__":

@@ -34,6 +34,7 @@ from recommender.policy import (
     propose,
     train,
 )
+from wrapenv.bench import SimSettings
 from wrapenv.config import InputError
 from wrapenv.design import MAX_REINFORCEMENT_WRAPS, MAX_WRAPS, N_PARAMS, ProgramSpace
 from wrapenv.envs import WrapBenchRandomEnv
@@ -62,6 +63,7 @@ def test_default_settings_are_a_sane_short_run():
     assert 0 < s.checkpoint_every <= s.timesteps
     assert s.levels == "target" and s.material == "kraft" and s.target_g == 0.5
     assert 0 < s.learning_rate < 1e-2
+    assert s.sim == SimSettings.training()  # the envs' fidelity; proposals run at the defaults
     s.check()
 
 

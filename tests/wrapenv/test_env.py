@@ -219,9 +219,9 @@ def test_cheaper_passing_program_scores_higher(tiny):
     assert default["reward_terms"]["material"] == pytest.approx(-1)
 
 
-def test_the_training_settings_keep_the_reward_of_a_pass(tiny):
-    """`TrainSettings.sim` (`SimSettings.screening()`: a level ends at its first rest, or once
-    failed) judges a pass as the defaults do: same verdict, the margin within 0.002."""
+def test_the_screening_settings_keep_the_reward_of_a_pass(tiny):
+    """`SimSettings.screening()` (a level ends at its first rest, or once failed) judges a pass
+    as the defaults do: same verdict, the margin within 0.002."""
     default, screening = (make(tiny, settings=s) for s in (SimSettings(),
                                                            SimSettings.screening()))
     for action in (CHEAP, EXPENSIVE):
@@ -232,6 +232,22 @@ def test_the_training_settings_keep_the_reward_of_a_pass(tiny):
         assert a["passed"] and b["passed"]
         assert b["margin"] == pytest.approx(a["margin"], abs=0.002)
         assert screened == pytest.approx(full, abs=0.002)
+
+
+def test_the_training_settings_judge_a_pass_as_a_pass(tiny):
+    """`SimSettings.training()` (PPO's, the screening fidelity at a longer step)
+    gives the same verdicts, the margin within the bench's own reproducibility (0.15). Its
+    limit: the space's heaviest program squeezes these two bundles into each other (174 mm)
+    at that step; the random units of training fill a pallet, and never did in 200 episodes
+    (benchmarks/bench_train.py counts them)."""
+    default, training = (make(tiny, settings=s) for s in (SimSettings(),
+                                                          SimSettings.training()))
+    for action in (CHEAP, DEFAULT):
+        default.reset(seed=0)
+        training.reset(seed=0)
+        a, b = default.step(action)[4], training.step(action)[4]
+        assert a["passed"] and b["passed"]
+        assert b["margin"] == pytest.approx(a["margin"], abs=0.15)
 
 
 def test_material_weight_scales_the_material_term(tiny):
