@@ -238,8 +238,8 @@ def test_the_training_settings_judge_a_pass_as_a_pass(tiny):
     """`SimSettings.training()` (PPO's, the screening fidelity at a longer step)
     gives the same verdicts, the margin within the bench's own reproducibility (0.15). Its
     limit: the space's heaviest program squeezes these two bundles into each other (174 mm)
-    at that step; the random units of training fill a pallet, and never did in 200 episodes
-    (benchmarks/bench_train.py counts them)."""
+    at that step; the random units of training fill a pallet, and rarely blow up
+    (benchmarks/bench_train.py and a training run's log.csv count them)."""
     default, training = (make(tiny, settings=s) for s in (SimSettings(),
                                                           SimSettings.training()))
     for action in (CHEAP, DEFAULT):
