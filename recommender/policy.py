@@ -78,12 +78,11 @@ class TrainSettings:
     material: str = "kraft"
     target_g: float = 0.5
     levels: str = "target"         # env levels mode: "target" is 3-4x faster than "eumos"
-    #: The bench's settings in the training envs, `SimSettings.training()`: the screening
-    #: fidelity (a failure still scores in [-2, -1] below every pass, -2 when damaged, but a
-    #: level stopped once its elastic displacement passes the limit scores about -1 however far
-    #: it would have gone) at a 1.5 x longer step, which moves a margin about as much as the
-    #: bench's own ordering of contacts (benchmarks/bench_train.py, bench_screening.py).
-    #: Held-out evaluations (`evaluate`) and proposals run at the defaults.
+    #: The bench's settings in the training envs (why a reward bears them: its docstring). As
+    #: it stops once decided, a failure still scores in [-2, -1] below every pass, -2 when
+    #: damaged, but a level stopped once its elastic displacement passes the limit scores about
+    #: -1 however far it would have gone. Held-out evaluations (`evaluate`) and proposals run
+    #: at the defaults.
     sim: SimSettings = SimSettings.training()
     seed: int = 0
     checkpoint_every: int = 512    # timesteps between policy checkpoints
