@@ -153,9 +153,7 @@ class Problem:
         s = self.settings
         shortfall = max(0.0, s.margin_goal - min(margins))
         t0, t1 = self.space.tension_range_n
-        # a program may lay nothing (no bottom or top wraps on a unit lower than the web)
-        tension = (np.mean([(p.tension_n - t0) / (t1 - t0) for p in wrap.passes])
-                   if wrap.passes else 0.0)
+        tension = np.mean([(p.tension_n - t0) / (t1 - t0) for p in wrap.passes])
         failed = 0.0 if all(passed) else self.heaviest_ratio
         return (mass_kg / self.reference_mass_kg + PENALTY_PER_MARGIN * shortfall + failed
                 + s.cycle_weight * wrap.cycle_time_s + TENSION_PRICE * float(tension))

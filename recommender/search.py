@@ -178,10 +178,11 @@ class RobustSearch:
 
     def _strategy(self, x0: np.ndarray) -> cma.CMAEvolutionStrategy:
         s = self.problem.settings
-        hi = self.problem.space.high
+        lo, hi = self.problem.space.low, self.problem.space.high
+        lower = [float(lo[i]) if i in INTEGER_INDICES else 0.0 for i in range(N_PARAMS)]
         upper = [float(hi[i]) if i in INTEGER_INDICES else 1.0 for i in range(N_PARAMS)]
         return cma.CMAEvolutionStrategy(x0, s.sigma0, {
-            "bounds": [[0.0] * N_PARAMS, upper], "popsize": s.popsize, "seed": s.seed + 1,
+            "bounds": [lower, upper], "popsize": s.popsize, "seed": s.seed + 1,
             "verbose": -9, "maxfevals": s.max_candidates, "CMA_stds": list(COORDINATE_STDS),
             "integer_variables": list(INTEGER_INDICES),
         })

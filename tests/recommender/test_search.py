@@ -95,20 +95,22 @@ def test_any_failing_candidate_scores_worse_than_any_passing_one(small_load):
     assert passing < short < failing
 
 
-def test_a_program_that_lays_no_web_scores_as_a_finite_failure():
-    """On a unit lower than the web, a spiral up has no height to climb: with no bottom or top
-    wraps the program lays nothing. Its objective must still be a number CMA-ES can rank (a
-    NaN from the mean tension of no passes reached pycma on a 1-layer random unit)."""
+def test_every_program_of_the_space_lays_web_and_scores_a_finite_number():
+    """On a unit lower than the web a spiral up has no height to climb, but the bottom wrap
+    every program starts with still lays web: the objective stays a number CMA-ES can rank
+    (a NaN from the mean tension of no passes once reached pycma on a 1-layer random unit)."""
     low = LoadUnit.from_dict({"name": "low", "pallet": {"preset": "EUR"},
                               "bundle": {"length_m": 0.28, "width_m": 0.19, "height_m": 0.2,
                                          "mass_kg": 6.0},
                               "stack": {"layers": 1, "pattern": "columnar"}})
     problem = Problem.build(low, FAST)
-    nothing = problem.wrap(np.array([0.0, 0.0, 0.0, 0.85, 0.6, 0.5, 0.3, 0.6, 0.9]))
-    assert low.load_height_m < nothing.web_width_m and not nothing.passes
-    score = problem.objective(nothing, 0.0, [-1.0], [False])
+    least = problem.wrap(np.array([0.0, 0.0, 0.0, 0.85, 0.6, 0.5, 0.3, 0.6, 0.9]))
+    assert low.load_height_m < least.web_width_m
+    assert [p.zone for p in least.passes] == ["bottom"]
+    mass = least.material_used_on(problem.layout).mass_kg
+    score = problem.objective(least, mass, [-1.0], [False])
     assert math.isfinite(score)
-    assert score > problem.objective(nothing, 0.0, [0.3], [True])
+    assert score > problem.objective(least, mass, [0.3], [True])
 
 
 def test_the_objective_is_the_web_relative_to_the_machine_s_default_program(small_load):
@@ -127,7 +129,7 @@ def test_wraps_are_integer_variables_of_the_search(small_load):
     assert state.es.opts["integer_variables"] == [0, 1, 2]
     for x in state.es.ask():
         assert all(float(v).is_integer() for v in x[:3]), x
-        assert 0 <= x[0] <= 6 and 0 <= x[2] <= 4
+        assert 1 <= x[0] <= 6 and 0 <= x[2] <= 4
 
 
 def test_programs_over_the_cycle_limit_are_not_simulated_and_score_worst(small_load):

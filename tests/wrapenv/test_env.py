@@ -37,12 +37,14 @@ layers = 1
 pattern = "explicit"
 positions = [[-0.2, 0.0], [0.2, 0.0]]
 """
-#: One bottom wrap at the lowest tension and a touching spiral; everything at its maximum.
-CHEAP = np.array([-2 / 3, -1, -1, -1, -1, -1, -1, -1, -1], np.float32)
+#: One bottom wrap (the least of the space) at the lowest tension and a touching spiral;
+#: everything at its maximum.
+CHEAP = -np.ones(N_PARAMS, np.float32)
 EXPENSIVE = np.ones(N_PARAMS, np.float32)
-#: The machine's default program: 3 bottom and 3 top wraps, a 50 % spiral (0.5 / 0.75 of the
-#: overlap range), no reinforcement, every tension at half the yield force (the range's top).
-DEFAULT = np.array([0, 0, -1, 1 / 3, 0, 1, 1, 1, 1], np.float32)
+#: The machine's default program: 3 bottom wraps (of 1-6) and 3 top wraps (of 0-6), a 50 %
+#: spiral (0.5 / 0.75 of the overlap range), no reinforcement, every tension at half the yield
+#: force (the range's top).
+DEFAULT = np.array([-0.2, 0, -1, 1 / 3, 0, 1, 1, 1, 1], np.float32)
 INFO_KEYS = {"format", "verdict", "material_used", "cycle_time_s", "passed", "margin", "valid",
              "reward_terms"}
 

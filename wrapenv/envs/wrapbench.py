@@ -58,7 +58,7 @@ class WrapBenchEnv(gym.Env):
 
     | index | meaning                                         | -1 ... 1 maps to                  |
     |-------|-------------------------------------------------|-----------------------------------|
-    | 0     | bottom wraps (carriage parked at the sled)      | 0 ... 6                           |
+    | 0     | bottom wraps (carriage parked at the sled)      | 1 ... 6 (one holds the head)      |
     | 1     | top wraps (web 5 cm above the load, folded)     | 0 ... 6                           |
     | 2     | reinforcement wraps (0: none)                   | 0 ... 4                           |
     | 3     | spiral up overlap                               | 0 ... 0.75 (1 to 4 layers)        |

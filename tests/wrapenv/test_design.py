@@ -1,0 +1,38 @@
+"""The space of programs a search or a policy chooses from: what every program of it lays."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from wrapenv.design import MAX_WRAPS, N_PARAMS, ProgramSpace
+from wrapenv.load import LoadUnit
+
+
+@pytest.fixture
+def space() -> ProgramSpace:
+    load = LoadUnit.from_toml("examples/pet_2layer_columnar.toml")
+    return ProgramSpace.for_layout(load.layout(), "kraft")
+
+
+def test_every_program_starts_with_a_parked_revolution_over_the_web_s_head(space):
+    """The clamp lets the head go after the first revolution and paper does not cling: a
+    program whose first revolution travels would leave the head free (0.7 of a spiral turn
+    with nothing over its head once "held" the 2-layer example)."""
+    lightest = space.program(np.zeros(N_PARAMS))
+    assert lightest.bottom_wraps == 1
+    assert space.decode(-np.ones(N_PARAMS)).passes[0].zone == "bottom"
+    assert space.decode(-np.ones(N_PARAMS)).passes[0].turns == 1.0
+    assert space.program(space.high).bottom_wraps == MAX_WRAPS
+
+
+def test_tension_spans_5_to_50_percent_of_a_layer_s_yield_force(space):
+    lo, hi = space.tension_range_n
+    limit = space.material.yield_force_n_per_m * space.web_width_m
+    assert (lo, hi) == pytest.approx((0.05 * limit, 0.5 * limit))
+    assert space.program(space.high).middle_tension_n == pytest.approx(hi, abs=0.1)
+
+
+def test_a_vector_survives_program_and_back(space):
+    x = np.array([3, 2, 1, 0.4, 0.2, 200.0, 300.0, 400.0, 500.0])
+    assert np.allclose(space.values(space.program(x)), x)
