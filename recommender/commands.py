@@ -189,12 +189,12 @@ def run_recommend(args: argparse.Namespace) -> int:
     t0 = time.perf_counter()
     try:
         state = _run_search(search, state, settings)
-    except KeyboardInterrupt as exc:
+        chosen = _verified(problem, state, samples, args.workers)
+    except KeyboardInterrupt as exc:  # in the search or its answer's verification
         if checkpoint is not None and checkpoint.exists():
             exc.add_note(f"interrupted, nothing written; the search so far is kept in "
                          f"{checkpoint} (--resume continues it)")
         raise
-    chosen = _verified(problem, state, samples, args.workers)
     if checkpoint is not None:
         checkpoint.unlink(missing_ok=True)
     if chosen is None:
