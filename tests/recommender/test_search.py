@@ -21,6 +21,7 @@ from recommender.search import (
     DEFAULT,
     DOMINATED,
     SCREENING,
+    TIGHT_SPIRAL,
     Problem,
     RobustSearch,
     SearchSettings,
@@ -130,6 +131,19 @@ def test_wraps_are_integer_variables_of_the_search(small_load):
     for x in state.es.ask():
         assert all(float(v).is_integer() for v in x[:3]), x
         assert 1 <= x[0] <= 6 and 0 <= x[2] <= 4
+
+
+def test_the_first_generation_also_tries_the_tightest_lightest_program(small_load):
+    """One bottom wrap and a spiral with no overlap at the space's highest tension: the most
+    hold per kilogram of web, which CMA-ES from the light start did not reach by itself."""
+    search = RobustSearch(Problem.build(small_load, FAST))
+    first = np.array(search.start().es.ask())
+    assert np.allclose(first[0], TIGHT_SPIRAL)
+    program = search.problem.space.program(search.problem.values(first[0]))
+    top_n = search.problem.space.tension_range_n[1]
+    assert (program.bottom_wraps, program.top_wraps, program.up_overlap) == (1, 0, 0.0)
+    assert program.bottom_tension_n == program.middle_tension_n == pytest.approx(top_n, abs=0.1)
+    assert not np.allclose(first[1:], TIGHT_SPIRAL)  # the rest are CMA-ES's own samples
 
 
 def test_programs_over_the_cycle_limit_are_not_simulated_and_score_worst(small_load):
