@@ -56,6 +56,11 @@ __all__ = ["DEFAULT_TENSION_N", "MATERIALS", "Band", "Material", "MaterialUsed",
 MAX_WEB_WIDTH_M = 2.0
 #: A band may end this far above the load (rounding of heights in files) before it is rejected.
 FIT_TOLERANCE_M = 1e-3
+#: The warning for a paper program with no bottom wrap: the clamp lets the web's head go after
+#: the first revolution and paper does not cling, so a travelling first revolution leaves the
+#: head free. The bench does not model a free head: it judges the web as if held.
+UNHELD_HEAD = ("program.bottom_wraps = 0: nothing holds the web's head (paper does not cling; the"
+               " clamp lets go after the first revolution); the bench judges it as if held")
 
 
 @dataclass(frozen=True)
@@ -144,10 +149,13 @@ class WrapFormat:
                                  f" the load ({load_height_m:.3f} m)")
 
     def warnings(self) -> tuple[str, ...]:
-        """What the file asks that no machine lays: paper bands narrower than the web (only a
-        rope of film is narrower than the web, and paper is not roped)."""
-        if self.program is not None or self.material.kind != "paper":
+        """What the file asks that no machine lays or the bench cannot judge, on paper: bands
+        narrower than the web (only a rope of film is narrower, and paper is not roped); a
+        program without a bottom wrap, whose head nothing holds (wrapenv.design)."""
+        if self.material.kind != "paper":
             return ()
+        if self.program is not None:
+            return (UNHELD_HEAD,) if self.program.bottom_wraps == 0 else ()
         return tuple(f"band[{i}] is {b.height_m:.3f} m tall, narrower than the {self.web_width_m}"
                      " m web: no machine lays it (material is costed as full-width revolutions)"
                      for i, b in enumerate(self.bands) if b.height_m < self.web_width_m - 1e-9)

@@ -25,7 +25,7 @@ from wrapenv.program import (
     cycle_time_s,
     pass_area_m2,
 )
-from wrapenv.wrap import WrapFormat
+from wrapenv.wrap import UNHELD_HEAD, WrapFormat
 
 W = 0.5
 KRAFT, FILM = MATERIALS["kraft"], MATERIALS["lldpe"]
@@ -197,6 +197,13 @@ def test_paper_bands_narrower_than_the_web_are_warned_about_film_ones_are_not():
     warnings = WrapFormat(KRAFT, W, narrow, "kraft").warnings()
     assert len(warnings) == 1 and "band[0]" in warnings[0] and "no machine" in warnings[0]
     assert WrapFormat(FILM, W, narrow, "lldpe").warnings() == ()
+
+
+def test_a_paper_program_without_a_bottom_wrap_is_warned_about():
+    """Paper does not cling: without a parked first revolution nothing holds the web's head."""
+    assert laid(program(bottom_wraps=0)).warnings() == (UNHELD_HEAD,)
+    assert laid(program(bottom_wraps=1)).warnings() == ()
+    assert laid(program(bottom_wraps=0), material=FILM).warnings() == ()
 
 
 # --- cycle time --------------------------------------------------------------------------------
