@@ -134,8 +134,8 @@ def test_wraps_are_integer_variables_of_the_search(small_load):
 
 
 def test_the_first_generation_also_tries_the_tightest_lightest_program(small_load):
-    """One bottom wrap and a spiral with no overlap at the space's highest tension: the most
-    hold per kilogram of web, which CMA-ES from the light start did not reach by itself."""
+    """One bottom wrap and a spiral with no overlap at the space's highest tension: the least
+    web of the space with the most hold per kilogram."""
     search = RobustSearch(Problem.build(small_load, FAST))
     first = np.array(search.start().es.ask())
     assert np.allclose(first[0], TIGHT_SPIRAL)
