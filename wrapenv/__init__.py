@@ -4,8 +4,8 @@ import gymnasium as _gym
 
 #: The Gymnasium ids this package registers (entry points are imported only by `gym.make`).
 ENV_IDS = {
-    "wrapenv/WrapBench-v1": "wrapenv.envs:WrapBenchEnv",
-    "wrapenv/WrapBenchRandom-v1": "wrapenv.envs:WrapBenchRandomEnv",
+    "wrapenv/WrapBench-v2": "wrapenv.envs:WrapBenchEnv",
+    "wrapenv/WrapBenchRandom-v2": "wrapenv.envs:WrapBenchRandomEnv",
 }
 
 for _id, _entry_point in ENV_IDS.items():

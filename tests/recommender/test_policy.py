@@ -4,7 +4,7 @@ and is refused by a bench it does not fit, without unpickling anything; held-out
 reproducible and differ from the training envs'; and (slow) a short training run beats random
 actions on held-out units.
 
-Every step of `wrapenv/WrapBenchRandom-v1` simulates a random unit of 1-3 layers, about 1-3 s
+Every step of `wrapenv/WrapBenchRandom-v2` simulates a random unit of 1-3 layers, about 1-3 s
 each on one core, so the fast training test runs only 8 timesteps (about 20-30 s).
 """
 
@@ -139,7 +139,7 @@ def test_propose_returns_a_program_for_the_unit(trained):
     assert isinstance(wrap, WrapFormat) and wrap.material_key == "kraft"
     program = wrap.program
     assert program is not None
-    assert 0 <= program.bottom_wraps <= MAX_WRAPS and 0 <= program.top_wraps <= MAX_WRAPS
+    assert 1 <= program.bottom_wraps <= MAX_WRAPS and 0 <= program.top_wraps <= MAX_WRAPS
     assert all(r.wraps <= MAX_REINFORCEMENT_WRAPS for r in program.reinforcements)
     assert max(b.to_m for b in wrap.bands) <= load.layout().load_height_m + 1e-9
     # deterministic, and the same with the policy already loaded
@@ -152,7 +152,7 @@ def test_every_policy_file_says_what_it_was_trained_on(trained):
     for file in [path, *sorted((out / CHECKPOINT_DIR).iterdir())]:
         with zipfile.ZipFile(file) as archive:
             meta = json.loads(archive.read(POLICY_META))
-        assert meta["material"] == "kraft" and meta["env_id"] == "wrapenv/WrapBenchRandom-v1"
+        assert meta["material"] == "kraft" and meta["env_id"] == "wrapenv/WrapBenchRandom-v2"
         assert len(meta["observation"]) == 31 and len(meta["action"]) == N_PARAMS
 
 
@@ -186,6 +186,19 @@ def test_a_policy_of_another_observation_is_refused_in_one_line(trained, tmp_pat
     with pytest.raises(InputError) as info:
         load_policy(old)
     assert_input_error(info.value, str(old), "observation")
+
+
+def test_a_policy_of_an_earlier_env_version_is_refused_in_one_line(trained, tmp_path,
+                                                                  assert_input_error):
+    """v1's actions had the same names and meant other programs (bottom wraps from 0)."""
+    path, _ = trained
+    with zipfile.ZipFile(path) as archive:
+        meta = json.loads(archive.read(POLICY_META))
+    v1 = _rewritten(path, tmp_path / "v1.zip", meta={**meta,
+                                                     "env_id": "wrapenv/WrapBenchRandom-v1"})
+    with pytest.raises(InputError) as info:
+        load_policy(v1)
+    assert_input_error(info.value, str(v1), "env_id")
 
 
 def test_a_policy_is_loaded_without_unpickling_what_the_file_holds(trained, tmp_path):

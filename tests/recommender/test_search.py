@@ -370,7 +370,7 @@ def test_ppo_method_answers_from_a_policy_and_verifies_it(load_file, tmp_path, c
     from recommender.policy import TrainSettings, policy_meta, stamp
 
     load = load_file(base=SMALL)
-    env = gym.make("wrapenv/WrapBench-v1", load=str(load))
+    env = gym.make("wrapenv/WrapBench-v2", load=str(load))
     PPO("MlpPolicy", env, n_steps=64, batch_size=32, device="cpu", seed=0).save(tmp_path / "p")
     stamp(tmp_path / "p.zip", policy_meta(TrainSettings()))
     env.close()

@@ -25,8 +25,8 @@ from wrapenv.design import N_PARAMS
 from wrapenv.envs import OBS_NAMES, WrapBenchEnv, WrapBenchRandomEnv
 from wrapenv.load import LoadUnit
 
-ENV_ID = "wrapenv/WrapBench-v1"
-RANDOM_ID = "wrapenv/WrapBenchRandom-v1"
+ENV_ID = "wrapenv/WrapBench-v2"
+RANDOM_ID = "wrapenv/WrapBenchRandom-v2"
 TINY_LOAD = """name = "tiny"
 [pallet]
 preset = "EUR"
@@ -68,6 +68,14 @@ def test_import_registers_both_ids_and_reimport_is_silent():
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         importlib.reload(wrapenv)
+
+
+@pytest.mark.parametrize("old", ["wrapenv/WrapBench-v1", "wrapenv/WrapBenchRandom-v0"])
+def test_an_earlier_version_names_the_current_one(old):
+    """v1's actions meant other programs (no bottom wrap allowed); v0 laid bands."""
+    with pytest.raises(gym.error.DeprecatedEnv, match="-v2"), warnings.catch_warnings():
+        warnings.simplefilter("ignore", DeprecationWarning)
+        gym.make(old)
 
 
 @pytest.mark.parametrize("env_id", [ENV_ID, "wrapenv:" + ENV_ID])

@@ -133,7 +133,7 @@ class WrapBenchEnv(gym.Env):
     "cycle_time_s", "passed", "margin", "valid", "material_ratio", "reward_terms".
 
     ## Arguments
-    `gymnasium.make("wrapenv/WrapBench-v1", **kwargs)`, all keyword-only and checked at
+    `gymnasium.make("wrapenv/WrapBench-v2", **kwargs)`, all keyword-only and checked at
     construction (`InputError`, a `ValueError`, for bad values; `TypeError` for wrong types):
 
     | argument          | default                           | meaning                              |
@@ -162,6 +162,8 @@ class WrapBenchEnv(gym.Env):
     torn are drawn torn).
 
     ## Version History
+    * v2: every program starts with at least one bottom wrap (action 0 maps onto 1 ... 6, was
+      0 ... 6): paper's head is held only by a revolution laid over it (`wrapenv.design`).
     * v1: the action is a wrapping program (9 parameters, whole numbers of wraps) whose web is
       costed as the machine lays it, every revolution a full web width; the reward's reference
       is the machine's default program; the material is observed by its card's figures (31
@@ -357,6 +359,7 @@ class WrapBenchRandomEnv(WrapBenchEnv):
     As `WrapBenchEnv`, without `load`. The material is fixed per env instance.
 
     ## Version History
+    * v2: at least one bottom wrap (see `WrapBenchEnv`).
     * v1: programs instead of bands, material observed by its card (see `WrapBenchEnv`).
     * v0: initial version.
     """
