@@ -7,7 +7,7 @@ maps linearly onto the ranges, rounding the wraps.
 
     index  parameter              range
     0      bottom_wraps           1 .. 6 revolutions parked at the sled surface (whole)
-    1      top_wraps              0 .. 6 revolutions parked high (whole)
+    1      top_wraps              1 .. 6 revolutions parked high (whole)
     2      reinforcement_wraps    0 .. 4 revolutions parked at index 4's height (whole; 0: none)
     3      up_overlap             0 .. 0.75 of the web: a spiral of 1 to 4 layers
     4      reinforcement_from_m   0 .. load top - web width: where the reinforcement's web starts
@@ -18,8 +18,12 @@ Fixed for every program of the space: at least one bottom wrap, from the sled su
 the pallet to the load and holds the web's head: the machine's clamp lets the head go after the
 first revolution, and paper does not cling, so only a revolution laid over the head keeps the
 web anchored (without it a search found 0.7 of a revolution "holding" a 323 kg unit, the web
-never closing round it). The top wraps' web ends `TOP_OVERHANG_M` above the load and folds
-over; no spiral down (a higher overlap lays the same layers in one pass), the machine's speed.
+never closing round it). At least one top wrap, whose web ends `TOP_OVERHANG_M` above the load
+and folds over: with a bottom and a top wrap the web closes round the load at every height (a
+spiral lays at least one layer where its helix is complete, and its ends lie under the parked
+wraps), so no part of the load is held by part of a turn, which the bench would average round
+the load (`wrapenv.program`) although it presses on some faces only. No spiral down (a higher
+overlap lays the same layers in one pass); the machine's speed.
 """
 
 from __future__ import annotations
@@ -36,8 +40,10 @@ from wrapenv.wrap import WrapFormat
 
 WEB_WIDTH_M = 0.5
 MAX_WRAPS = 6
-#: A program's first revolution is parked: it holds the web's head (see the module docstring).
+#: A program's first revolution is parked: it holds the web's head; with a top wrap too, the
+#: web closes round the load at every height (see the module docstring).
 MIN_BOTTOM_WRAPS = 1
+MIN_TOP_WRAPS = 1
 MAX_REINFORCEMENT_WRAPS = 4
 MAX_OVERLAP = 0.75
 #: The top wraps' web reaches this far above the load and folds over its edge [A]: enough to
@@ -82,7 +88,7 @@ class ProgramSpace:
     @property
     def low(self) -> np.ndarray:
         t0, _ = self.tension_range_n
-        return np.array([MIN_BOTTOM_WRAPS, 0, 0, 0.0, 0.0, t0, t0, t0, t0])
+        return np.array([MIN_BOTTOM_WRAPS, MIN_TOP_WRAPS, 0, 0.0, 0.0, t0, t0, t0, t0])
 
     @property
     def high(self) -> np.ndarray:

@@ -61,6 +61,8 @@ FIT_TOLERANCE_M = 1e-3
 #: head free. The bench does not model a free head: it judges the web as if held.
 UNHELD_HEAD = ("program.bottom_wraps = 0: nothing holds the web's head (paper does not cling; the"
                " clamp lets go after the first revolution); the bench judges it as if held")
+#: Height step at which a program's layers are checked for a web that does not close.
+OPEN_STEP_M = 0.005
 
 
 @dataclass(frozen=True)
@@ -149,16 +151,29 @@ class WrapFormat:
                                  f" the load ({load_height_m:.3f} m)")
 
     def warnings(self) -> tuple[str, ...]:
-        """What the file asks that no machine lays or the bench cannot judge, on paper: bands
-        narrower than the web (only a rope of film is narrower, and paper is not roped); a
-        program without a bottom wrap, whose head nothing holds (wrapenv.design)."""
+        """What the file asks that no machine lays or the bench cannot judge: paper bands
+        narrower than the web (only a rope of film is narrower, and paper is not roped); a paper
+        program without a bottom wrap, whose head nothing holds; a program whose web does not
+        close round the load at some height (wrapenv.design)."""
+        if self.program is not None:
+            return self._program_warnings(self.program)
         if self.material.kind != "paper":
             return ()
-        if self.program is not None:
-            return (UNHELD_HEAD,) if self.program.bottom_wraps == 0 else ()
         return tuple(f"band[{i}] is {b.height_m:.3f} m tall, narrower than the {self.web_width_m}"
                      " m web: no machine lays it (material is costed as full-width revolutions)"
                      for i, b in enumerate(self.bands) if b.height_m < self.web_width_m - 1e-9)
+
+    def _program_warnings(self, program: Program) -> tuple[str, ...]:
+        out = [UNHELD_HEAD] if self.material.kind == "paper" and program.bottom_wraps == 0 else []
+        top = max((b.to_m for b in self.bands), default=0.0)
+        steps = int((top - program.bottom_from_m) / OPEN_STEP_M)
+        heights = (program.bottom_from_m + k * OPEN_STEP_M for k in range(steps))
+        open_ = [z for z in heights if 1e-9 < self.layers_at(z) < 1 - 1e-9]
+        if open_:
+            out.append(f"the web does not close round the load from {open_[0]:.2f} to "
+                       f"{open_[-1] + OPEN_STEP_M:.2f} m (less than one layer: part of a spiral "
+                       "turn, which the bench averages round the load); add a top wrap or overlap")
+        return tuple(out)
 
     def _material_entry(self) -> str | dict[str, Any]:
         """The card's name, or the card in full when it is not a named card (e.g. `scaled`)."""

@@ -139,7 +139,7 @@ def test_propose_returns_a_program_for_the_unit(trained):
     assert isinstance(wrap, WrapFormat) and wrap.material_key == "kraft"
     program = wrap.program
     assert program is not None
-    assert 1 <= program.bottom_wraps <= MAX_WRAPS and 0 <= program.top_wraps <= MAX_WRAPS
+    assert 1 <= program.bottom_wraps <= MAX_WRAPS and 1 <= program.top_wraps <= MAX_WRAPS
     assert all(r.wraps <= MAX_REINFORCEMENT_WRAPS for r in program.reinforcements)
     assert max(b.to_m for b in wrap.bands) <= load.layout().load_height_m + 1e-9
     # deterministic, and the same with the policy already loaded

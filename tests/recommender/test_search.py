@@ -97,8 +97,8 @@ def test_any_failing_candidate_scores_worse_than_any_passing_one(small_load):
 
 
 def test_every_program_of_the_space_lays_web_and_scores_a_finite_number():
-    """On a unit lower than the web a spiral up has no height to climb, but the bottom wrap
-    every program starts with still lays web: the objective stays a number CMA-ES can rank
+    """On a unit lower than the web a spiral up has no height to climb, but the bottom and top
+    wraps every program has still lay web: the objective stays a number CMA-ES can rank
     (a NaN from the mean tension of no passes once reached pycma on a 1-layer random unit)."""
     low = LoadUnit.from_dict({"name": "low", "pallet": {"preset": "EUR"},
                               "bundle": {"length_m": 0.28, "width_m": 0.19, "height_m": 0.2,
@@ -107,7 +107,7 @@ def test_every_program_of_the_space_lays_web_and_scores_a_finite_number():
     problem = Problem.build(low, FAST)
     least = problem.wrap(np.array([0.0, 0.0, 0.0, 0.85, 0.6, 0.5, 0.3, 0.6, 0.9]))
     assert low.load_height_m < least.web_width_m
-    assert [p.zone for p in least.passes] == ["bottom"]
+    assert [p.zone for p in least.passes] == ["bottom", "top"]
     mass = least.material_used_on(problem.layout).mass_kg
     score = problem.objective(least, mass, [-1.0], [False])
     assert math.isfinite(score)
@@ -130,19 +130,20 @@ def test_wraps_are_integer_variables_of_the_search(small_load):
     assert state.es.opts["integer_variables"] == [0, 1, 2]
     for x in state.es.ask():
         assert all(float(v).is_integer() for v in x[:3]), x
-        assert 1 <= x[0] <= 6 and 0 <= x[2] <= 4
+        assert 1 <= x[0] <= 6 and 1 <= x[1] <= 6 and 0 <= x[2] <= 4
 
 
 def test_the_first_generation_also_tries_the_tightest_lightest_program(small_load):
-    """One bottom wrap and a spiral with no overlap at the space's highest tension: the least
-    web of the space with the most hold per kilogram."""
+    """One bottom wrap, a spiral with no overlap and one top wrap at the space's highest
+    tension: the least web of the space with the most hold per kilogram."""
     search = RobustSearch(Problem.build(small_load, FAST))
     first = np.array(search.start().es.ask())
     assert np.allclose(first[0], TIGHT_SPIRAL)
     program = search.problem.space.program(search.problem.values(first[0]))
     top_n = search.problem.space.tension_range_n[1]
-    assert (program.bottom_wraps, program.top_wraps, program.up_overlap) == (1, 0, 0.0)
-    assert program.bottom_tension_n == program.middle_tension_n == pytest.approx(top_n, abs=0.1)
+    assert (program.bottom_wraps, program.top_wraps, program.up_overlap) == (1, 1, 0.0)
+    assert (program.bottom_tension_n == program.middle_tension_n == program.top_tension_n
+            == pytest.approx(top_n, abs=0.1))
     assert not np.allclose(first[1:], TIGHT_SPIRAL)  # the rest are CMA-ES's own samples
 
 

@@ -37,14 +37,14 @@ layers = 1
 pattern = "explicit"
 positions = [[-0.2, 0.0], [0.2, 0.0]]
 """
-#: One bottom wrap (the least of the space) at the lowest tension and a touching spiral;
-#: everything at its maximum.
+#: One bottom and one top wrap (the least of the space), a touching spiral, every tension at
+#: the lowest; everything at its maximum.
 CHEAP = -np.ones(N_PARAMS, np.float32)
 EXPENSIVE = np.ones(N_PARAMS, np.float32)
-#: The machine's default program: 3 bottom wraps (of 1-6) and 3 top wraps (of 0-6), a 50 %
-#: spiral (0.5 / 0.75 of the overlap range), no reinforcement, every tension at half the yield
-#: force (the range's top).
-DEFAULT = np.array([-0.2, 0, -1, 1 / 3, 0, 1, 1, 1, 1], np.float32)
+#: The machine's default program: 3 bottom and 3 top wraps (of 1-6), a 50 % spiral (0.5 / 0.75
+#: of the overlap range), no reinforcement, every tension at half the yield force (the range's
+#: top).
+DEFAULT = np.array([-0.2, -0.2, -1, 1 / 3, 0, 1, 1, 1, 1], np.float32)
 INFO_KEYS = {"format", "verdict", "material_used", "cycle_time_s", "passed", "margin", "valid",
              "reward_terms"}
 
@@ -72,7 +72,7 @@ def test_import_registers_both_ids_and_reimport_is_silent():
 
 @pytest.mark.parametrize("old", ["wrapenv/WrapBench-v1", "wrapenv/WrapBenchRandom-v0"])
 def test_an_earlier_version_names_the_current_one(old):
-    """v1's actions meant other programs (no bottom wrap allowed); v0 laid bands."""
+    """v1's actions meant other programs (no bottom or top wrap needed); v0 laid bands."""
     with pytest.raises(gym.error.DeprecatedEnv, match="-v2"), warnings.catch_warnings():
         warnings.simplefilter("ignore", DeprecationWarning)
         gym.make(old)

@@ -59,7 +59,7 @@ class WrapBenchEnv(gym.Env):
     | index | meaning                                         | -1 ... 1 maps to                  |
     |-------|-------------------------------------------------|-----------------------------------|
     | 0     | bottom wraps (carriage parked at the sled)      | 1 ... 6 (one holds the head)      |
-    | 1     | top wraps (web 5 cm above the load, folded)     | 0 ... 6                           |
+    | 1     | top wraps (web 5 cm above the load, folded)     | 1 ... 6                           |
     | 2     | reinforcement wraps (0: none)                   | 0 ... 4                           |
     | 3     | spiral up overlap                               | 0 ... 0.75 (1 to 4 layers)        |
     | 4     | reinforcement's lower edge                      | 0 ... load top - web width        |
@@ -162,8 +162,9 @@ class WrapBenchEnv(gym.Env):
     torn are drawn torn).
 
     ## Version History
-    * v2: every program starts with at least one bottom wrap (action 0 maps onto 1 ... 6, was
-      0 ... 6): paper's head is held only by a revolution laid over it (`wrapenv.design`).
+    * v2: every program has at least one bottom and one top wrap (actions 0 and 1 map onto
+      1 ... 6, were 0 ... 6): paper's head is held only by a revolution laid over it, and the
+      web then closes round the load at every height (`wrapenv.design`).
     * v1: the action is a wrapping program (9 parameters, whole numbers of wraps) whose web is
       costed as the machine lays it, every revolution a full web width; the reward's reference
       is the machine's default program; the material is observed by its card's figures (31
@@ -359,7 +360,7 @@ class WrapBenchRandomEnv(WrapBenchEnv):
     As `WrapBenchEnv`, without `load`. The material is fixed per env instance.
 
     ## Version History
-    * v2: at least one bottom wrap (see `WrapBenchEnv`).
+    * v2: at least one bottom and one top wrap (see `WrapBenchEnv`).
     * v1: programs instead of bands, material observed by its card (see `WrapBenchEnv`).
     * v0: initial version.
     """

@@ -1,0 +1,73 @@
+"""How much the Kraft recommendation leans on the cap on tension (docs/materials.md, P4).
+
+On Kraft, `recommend` answers the least web of its space, one bottom wrap, a spiral with no
+overlap and one top wrap, at the highest tension it searches: half the paper's yield force
+(800 N on a 0.5 m web), where machines are set because corners cause tension peaks. That cap is
+an assumption that decides the answer. This runs that program at 20 %, 30 %, 40 % and 50 % of
+the yield force on each example, both sides along the motion, 16 h after wrapping (relaxed, as
+`recommend` judges), through the EUMOS sequence to 0.5 g on the nominal load: the highest level
+passed, the margin at 0.5 g and the web's peak utilisation there. Prints a Markdown table.
+
+    python benchmarks/tension_cap.py [--workers 2]
+"""
+
+from __future__ import annotations
+
+import argparse
+from multiprocessing import Pool
+
+from wrapenv.bench import run_levels
+from wrapenv.design import MIN_BOTTOM_WRAPS, MIN_TOP_WRAPS, TOP_OVERHANG_M, ProgramSpace
+from wrapenv.eumos import level_margin
+from wrapenv.load import LoadUnit
+from wrapenv.profile import eumos_levels
+from wrapenv.program import Program
+
+EXAMPLES = ("examples/pet_2layer_columnar.toml", "examples/pet_3layer_columnar.toml",
+            "examples/pet_3layer_interlocked.toml")
+YIELD_FRACTIONS = (0.2, 0.3, 0.4, 0.5)
+ORIENTATIONS = ("long", "short")
+TARGET_G = 0.5
+HOURS_SINCE_WRAPPING = 16.0  # recommend's default (ASTM D5414's rest)
+
+
+def lightest(tension_n: float) -> Program:
+    """One bottom wrap, a touching spiral and one top wrap, every zone at `tension_n`."""
+    return Program(bottom_wraps=MIN_BOTTOM_WRAPS, bottom_tension_n=tension_n, up_overlap=0.0,
+                   middle_tension_n=tension_n, top_wraps=MIN_TOP_WRAPS,
+                   top_overhang_m=TOP_OVERHANG_M, top_tension_n=tension_n)
+
+
+def case(args: tuple[str, float, str]) -> str:
+    load_path, fraction, orientation = args
+    load = LoadUnit.from_toml(load_path)
+    space = ProgramSpace.for_layout(load.layout(), "kraft")
+    tension = fraction * space.material.yield_force_n_per_m * space.web_width_m
+    wrap = space.laid(lightest(tension)).relaxed(HOURS_SINCE_WRAPPING)
+    verdict = run_levels(load, eumos_levels(TARGET_G), orientation=orientation,
+                         stop_at_failure=True, wrap=wrap).verdict
+    at = {round(v.level_g, 2): v for v in verdict.levels}
+    last = at.get(TARGET_G)
+    margin = f"{level_margin(last, verdict.load_height_m):.2f}" if last else "–"
+    peak = f"{last.wrap.peak_utilisation:.2f}" if last and last.wrap else "–"
+    best = verdict.highest_passed_g
+    name = load_path.rsplit("/", 1)[-1].removesuffix(".toml")
+    return (f"| {name} | {fraction:.0%} ({tension:.0f} N) | {orientation} | "
+            f"{'none' if best is None else f'{best:.1f} g'} | {margin} | {peak} |")
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--workers", type=int, default=2)
+    args = parser.parse_args()
+    cases = [(load, f, o) for load in EXAMPLES for f in YIELD_FRACTIONS for o in ORIENTATIONS]
+    print("| load | tension (of yield force) | side along the motion | highest passed "
+          f"(to {TARGET_G} g) | margin at {TARGET_G} g | peak utilisation |")
+    print("|---|---|---|---|---|---|")
+    with Pool(args.workers) as pool:
+        for line in pool.imap(case, cases):
+            print(line, flush=True)
+
+
+if __name__ == "__main__":
+    main()
