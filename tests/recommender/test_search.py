@@ -21,7 +21,7 @@ from recommender.search import (
     DEFAULT,
     DOMINATED,
     SCREENING,
-    TIGHT_SPIRAL,
+    TIGHT_PROGRAMS,
     Problem,
     RobustSearch,
     SearchSettings,
@@ -96,6 +96,20 @@ def test_any_failing_candidate_scores_worse_than_any_passing_one(small_load):
     assert passing < short < failing
 
 
+def test_among_passes_laying_the_same_web_the_lower_tension_ranks_first(small_load):
+    """The tension price is the tie-breaker: the same program at 320 N and at 800 N, both with
+    the margin goal, lay the same web; the gentler one is the answer, whatever its margin."""
+    problem = Problem.build(small_load, FAST)
+    search = RobustSearch(problem)
+    tight, slack = (np.array(x, float) for x in TIGHT_PROGRAMS[:2])
+    hard, soft = (search._evaluation(x, [m], [True], DEFAULT)
+                  for x, m in ((tight, 0.9), (slack, 0.5)))
+    assert hard.mass_kg == soft.mass_kg
+    assert soft.rank(FAST.margin_goal) < hard.rank(FAST.margin_goal)
+    short = search._evaluation(slack, [0.1], [True], DEFAULT)  # short of the margin goal
+    assert hard.rank(FAST.margin_goal) < short.rank(FAST.margin_goal)
+
+
 def test_every_program_of_the_space_lays_web_and_scores_a_finite_number():
     """On a unit lower than the web a spiral up has no height to climb, but the bottom and top
     wraps every program has still lay web: the objective stays a number CMA-ES can rank
@@ -133,18 +147,20 @@ def test_wraps_are_integer_variables_of_the_search(small_load):
         assert 1 <= x[0] <= 6 and 1 <= x[1] <= 6 and 0 <= x[2] <= 4
 
 
-def test_the_first_generation_also_tries_the_tightest_lightest_program(small_load):
-    """One bottom wrap, a spiral with no overlap and one top wrap at the space's highest
-    tension: the least web of the space with the most hold per kilogram."""
+def test_the_first_generation_also_tries_the_least_web_at_three_tensions(small_load):
+    """One bottom wrap, a spiral with no overlap and one top wrap, at the top, middle and
+    bottom of the tension range: the least web of the space, at the tensions to choose from."""
     search = RobustSearch(Problem.build(small_load, FAST))
     first = np.array(search.start().es.ask())
-    assert np.allclose(first[0], TIGHT_SPIRAL)
-    program = search.problem.space.program(search.problem.values(first[0]))
-    top_n = search.problem.space.tension_range_n[1]
-    assert (program.bottom_wraps, program.top_wraps, program.up_overlap) == (1, 1, 0.0)
-    assert (program.bottom_tension_n == program.middle_tension_n == program.top_tension_n
-            == pytest.approx(top_n, abs=0.1))
-    assert not np.allclose(first[1:], TIGHT_SPIRAL)  # the rest are CMA-ES's own samples
+    lo, hi = search.problem.space.tension_range_n
+    programs = [search.problem.space.program(search.problem.values(x)) for x in first[:3]]
+    for program, tension in zip(programs, (hi, (lo + hi) / 2, lo), strict=True):
+        assert (program.bottom_wraps, program.top_wraps, program.up_overlap) == (1, 1, 0.0)
+        assert (program.bottom_tension_n == program.middle_tension_n == program.top_tension_n
+                == pytest.approx(tension, abs=0.1))
+    least = search.problem.wrap(first[0]).material_used_on(small_load.layout()).mass_kg
+    for x in first[3:]:  # CMA-ES's own samples lay more web
+        assert search.problem.wrap(x).material_used_on(small_load.layout()).mass_kg > least
 
 
 def test_programs_over_the_cycle_limit_are_not_simulated_and_score_worst(small_load):
