@@ -122,6 +122,22 @@ def windows(states: States, body_map: Mapping[str, Body], sled_stop_s: float
     return {name: int(np.sum(states[name][0] < end_s[name])) for name in body_map}
 
 
+def toppled(states: States, body_map: Mapping[str, Body]) -> bool:
+    """Whether some bundle turned past its tipping angle while it still stood on its support
+    (before it slid past the support's edge or dropped): a column toppled, rather than a
+    bundle tumbling as it fell off."""
+    slip = slips(states, body_map)
+    for name, body in body_map.items():
+        if not body.supports:
+            continue
+        xza = states[name][1]
+        turned = np.abs(xza[:, 2] - xza[0, 2]) > body.tip_rad
+        off = (np.abs(slip[name]) > body.length_m / 2) | (xza[:, 1] - xza[0, 1] < -FALL_M)
+        if turned.any() and (not off.any() or np.argmax(turned) < np.argmax(off)):
+            return True
+    return False
+
+
 def vector(states: States, body_map: Mapping[str, Body], frames: Mapping[str, int]
            ) -> np.ndarray:
     """The features of one run: per body (sorted by name) its clipped slip, then its clipped

@@ -6,8 +6,9 @@ is capped: a pair above one that slipped was only asked as much as the slipping 
 friction passes up, so raising the level does not load it further. The advice names the test
 that would: a higher level where the level is the limit; where a slipping pair shields it, a
 unit without that pair (one layer for pallet-bundle under slipping bundles, a stopped pallet
-for a pallet that slid) or, for the sled-pallet pair of a stopped pallet (only ever loaded by
-the braking), a test without the stopper.
+for a pallet that slid); where columns toppled, a lower unit (a toppling column passes no more
+shear down); or, for the sled-pallet pair of a stopped pallet (only ever loaded by the
+braking), a test without the stopper.
 """
 
 from __future__ import annotations
@@ -30,8 +31,9 @@ class Bound:
     """The largest demand (g) a pair transmitted, and what limited it."""
 
     demand_g: float
-    #: "level" (the test's acceleration), "braking" (a stopped pallet's sled contact), or the
-    #: slipping pair below whose kinetic friction capped it
+    #: "level" (the test's acceleration), "braking" (a stopped pallet's sled contact),
+    #: "toppling" (columns toppled, so a higher level loads the bundles' pairs no further), or
+    #: the slipping pair below whose kinetic friction capped it
     limited_by: str
 
 
@@ -56,6 +58,8 @@ def _demand(name: str, obs: Observation, fitted: Friction, slipped: frozenset[st
     back, forward = obs.peak_accel_g
     stopped = name == "sled_pallet" and obs.load.pallet_stopper
     demand, why = (forward, "braking") if stopped else (max(back, forward), "level")
+    if why == "level" and name != "sled_pallet" and obs.toppled:
+        why = "toppling"
     for below in PAIRS[:PAIRS.index(name)]:
         if below in slipped and fitted.pair(below).kinetic < demand:
             demand, why = fitted.pair(below).kinetic, below
@@ -96,6 +100,12 @@ def advice_unslipped(name: str, bound: Bound) -> str:
     if bound.limited_by == "braking":
         return (f"never slipped: the stopper held the pallet, only the braking loaded it "
                 f"({bound.demand_g:.2f} g); test without the pallet stopper at "
+                f"{_level_above(bound.demand_g):.2f} g or more")
+    if bound.limited_by == "toppling":
+        unit = ("a one-layer unit (bundles on the pallet only)" if name == "pallet_bundle"
+                else "a unit of fewer layers")
+        return (f"never slipped up to {bound.demand_g:.2f} g while its bundles stood: columns "
+                f"toppled first, and a higher level topples them sooner; test {unit} at "
                 f"{_level_above(bound.demand_g):.2f} g or more")
     if bound.limited_by != "level":
         unit = ("a one-layer unit (bundles on the pallet only)" if name == "pallet_bundle"

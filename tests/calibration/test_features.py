@@ -110,3 +110,20 @@ def test_replayed_slips_past_the_edge_are_clipped(body_map):
     vec = features.vector(states, body_map, frames)
     assert vec.min() == pytest.approx(-L / 2)
     assert len(vec) == 2 * len(T) * len(body_map)
+
+
+def test_a_column_that_tips_over_on_its_support_toppled(body_map):
+    """A bundle turning past atan(l / h) about its front bottom edge, still on the pallet, is a
+    toppled column; one that slides off the pallet's edge first and then tumbles is not."""
+    assert not features.toppled(_still(), body_map)
+    angle = np.linspace(0.0, 0.9, len(T))             # past atan(0.28 / 0.33) = 0.70 rad
+    states = _still()
+    x = L / 2 * (1 - np.cos(angle)) + H / 2 * np.sin(angle)   # its bottom edge stays put
+    states["L1C1R1"][1][:] = np.stack([x, L / 2 * np.sin(angle) + H / 2 * (np.cos(angle) - 1),
+                                       -angle], axis=1)
+    assert features.toppled(states, body_map)
+    states = _still()
+    slide = np.minimum(np.linspace(0.0, 0.4, len(T)), 0.4)      # past half its length first
+    tumble = np.where(slide > L / 2 + 0.05, 1.0, 0.0)
+    states["L1C1R1"][1][:] = np.stack([-slide, -0.2 * tumble, -tumble], axis=1)
+    assert not features.toppled(states, body_map)

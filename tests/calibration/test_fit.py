@@ -10,7 +10,7 @@ import pytest
 
 from calibration.fit import FitSettings, fit
 from calibration.recording import Recording, Truth
-from calibration.replay import SLIP_M, observe, replay, residuals
+from calibration.replay import SLIP_M, observe, replay, residuals, upright_slide_m
 from calibration.track import track
 from calibration.trajectories import ObjectPath, Trajectories
 from wrapenv.load import Friction, FrictionPair
@@ -64,6 +64,39 @@ def test_a_body_that_tips_about_its_edge_does_not_slip(slide):
     assert observe(rec, Trajectories(still | {name: tipping})).slipped == frozenset()
     slid = dataclasses.replace(tipping, angle_rad=np.zeros_like(angle))
     assert observe(rec, Trajectories(still | {name: slid})).slipped == {"pallet_bundle"}
+
+
+def test_a_bundle_dragged_by_a_toppling_column_does_not_slip(slide):
+    """A bottom bundle that slides 30 mm only while its column topples (turned 10-35 degrees,
+    as in the 3-layer example at 0.32 g) says nothing of its friction; the same 30 mm while it
+    stands upright is a slip."""
+    rec, truth, _ = slide
+    paths = _paths(truth).objects
+    sled = paths["sled"].x_m - paths["sled"].x_m[0]
+    still = {k: dataclasses.replace(p, x_m=p.x_m[0] + sled) if k != "sled" else p
+             for k, p in paths.items()}
+    name = "L1C1R1"
+    p = still[name]
+    n = len(p.t_s)
+    angle = np.concatenate([np.linspace(0.0, np.radians(10), n // 2),
+                            np.linspace(np.radians(10), np.radians(35), n - n // 2)])
+    # bottom centre 30 mm forward during the second half; the centre follows the rotation
+    bottom = np.concatenate([np.zeros(n // 2), np.linspace(0.0, 0.03, n - n // 2)])
+    x = p.x_m + bottom - 0.33 / 2 * np.sin(angle)
+    toppling = dataclasses.replace(p, x_m=x, angle_rad=angle)
+    assert observe(rec, Trajectories(still | {name: toppling})).slipped == frozenset()
+    upright = dataclasses.replace(p, x_m=p.x_m + bottom)
+    assert observe(rec, Trajectories(still | {name: upright})).slipped == {"pallet_bundle"}
+
+
+def test_a_slip_counts_within_one_upright_stretch():
+    """Rocked over, dragged 20 mm and back upright: the 20 mm it carries does not count; 6 mm
+    within an upright stretch does."""
+    angle = np.radians([0, 0, 20, 20, 0, 0, 0])
+    slip = np.array([0.0, 0.001, 0.010, 0.021, 0.021, 0.022, 0.027])
+    assert upright_slide_m(slip, angle) == pytest.approx(0.006)
+    assert upright_slide_m(slip, np.zeros(7)) == pytest.approx(0.027)
+    assert upright_slide_m(slip, np.full(7, 0.5)) == 0.0
 
 
 def test_friction_fit_finds_the_hidden_values_from_tracked_paths(slide):

@@ -22,12 +22,14 @@ from calibration.identify import (
 from wrapenv.load import Friction, FrictionPair
 
 
-def _obs(level_g: float, slipped: set[str], stopper: bool = True, layers: int = 2):
+def _obs(level_g: float, slipped: set[str], stopper: bool = True, layers: int = 2,
+         toppled: bool = False):
     """What identify reads of an observation: the pulse's peaks (braking at 0.25 x the level,
-    as the bench's pulse), the pairs seen slipping, the load's stopper and layers."""
+    as the bench's pulse), the pairs seen slipping, the load's stopper and layers, whether a
+    column toppled."""
     load = SimpleNamespace(pallet_stopper=stopper, stack=SimpleNamespace(layers=layers))
     return SimpleNamespace(peak_accel_g=(level_g, 0.25 * level_g), slipped=frozenset(slipped),
-                           load=load)
+                           load=load, toppled=toppled)
 
 
 FRICTION = Friction(sled_pallet=FrictionPair(0.45, 0.40),
@@ -51,6 +53,17 @@ def test_a_pair_above_a_slipping_one_gets_only_its_kinetic_friction():
     assert bounds["bundle_bundle"] == Bound(0.40, "sled_pallet")
     assert "a higher level does not load it more" in advice_unslipped(
         "pallet_bundle", bounds["pallet_bundle"])
+
+
+def test_where_columns_toppled_a_higher_level_is_not_the_advice():
+    """The 3-layer example's columns topple at 0.32 g before its bottom layer slides: a higher
+    level would topple them sooner, so the advice is a unit without the toppling columns."""
+    obs = [_obs(0.28, {"bundle_bundle"}), _obs(0.32, {"bundle_bundle"}, toppled=True)]
+    bounds = pair_bounds(obs, FRICTION, frozenset({"bundle_bundle"}))
+    assert bounds["pallet_bundle"] == Bound(0.32, "toppling")
+    assert bounds["sled_pallet"].limited_by == "braking"
+    text = advice_unslipped("pallet_bundle", bounds["pallet_bundle"])
+    assert "columns toppled first" in text and "one-layer unit" in text and "0.40 g" in text
 
 
 def test_pairs_held_stuck_in_the_replay_sit_above_their_demand():
