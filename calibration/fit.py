@@ -38,10 +38,10 @@ METHODS = ("surrogate", "cmaes", "momentum")
 PARAMS = ("friction", "wrap", "all")
 STATIC_RANGE = (0.05, 1.2)
 RATIO_RANGE = (0.5, 1.0)          # kinetic / static
-#: The surrogate's prior on a slipped pair's kinetic coefficient ends this far above the
-#: highest level it slipped at: once a contact slides, its kinetic coefficient decides how far
-#: (the level minus it, times the time), while its static one, up to ~25 % above the level,
-#: only changes when it starts; a box mostly of units that never slip would be wasted.
+#: The surrogate's prior on a slipped pair's first coefficient (`_friction_params`) ends this
+#: far above the highest level it slipped at: a pair slips only where it is asked more than its
+#: static coefficient, and a layer rocking on the one below passes up only a little more than
+#: the level; a box mostly of units that never slip would be wasted.
 KINETIC_HEADROOM_G = 0.1
 #: The wrap stage's parameters: base-2 logarithm ranges of scales in `replay.WRAP_SCALES`.
 WRAP_PARAMS = {"stiffness": (-2.0, 2.0), "tension": (-2.0, 2.0), "give": (-2.0, 2.0)}
@@ -110,15 +110,24 @@ class _Fitted:
 
 def _friction_params(observations: Sequence[Observation], slipped: frozenset[str],
                      method: str) -> tuple[Param, ...]:
-    """Per slipped pair its static (descents) or kinetic (surrogate, see `KINETIC_HEADROOM_G`)
-    coefficient, and the ratio kinetic / static."""
+    """Per slipped pair the coefficient the recordings pin best, and the ratio kinetic /
+    static. The descents fit the static coefficient. The surrogate, whose emulators are
+    smooth in the box's coordinates, fits the static coefficient of a pair whose onset the
+    recordings bracket (held at one level, slipped at another: the onset pins it) and the
+    kinetic one of a pair that slipped at every level (its onset lies below them all; how far
+    it slid pins the kinetic one); either up to `KINETIC_HEADROOM_G` above the highest level
+    it slipped at (see there). A bracketed onset bounds the static coefficient only because a
+    slip counts while its body stands upright (`replay.UPRIGHT_RAD`): the 3-layer example's
+    toppling columns dragged their bottom bundles at 0.32 g with a static coefficient of 0.477,
+    outside such a box."""
     out = []
     for name in PAIRS:
         if name not in slipped:
             continue
         if method == "surrogate":
             level = max(o.peak_accel_g[0] for o in observations if name in o.slipped)
-            first = Param("kinetic", name, STATIC_RANGE[0],
+            bracketed = any(name not in o.slipped for o in observations)
+            first = Param("static" if bracketed else "kinetic", name, STATIC_RANGE[0],
                           min(STATIC_RANGE[1], level + KINETIC_HEADROOM_G))
         else:
             first = Param("static", name, *STATIC_RANGE)

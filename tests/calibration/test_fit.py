@@ -4,11 +4,12 @@ from tracked paths to values the fit was not told (synth -> track -> calibrate).
 from __future__ import annotations
 
 import dataclasses
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
 
-from calibration.fit import FitSettings, fit
+from calibration.fit import FitSettings, _friction_params, fit
 from calibration.recording import Recording, Truth
 from calibration.replay import SLIP_M, observe, replay, residuals, upright_slide_m
 from calibration.track import track
@@ -97,6 +98,23 @@ def test_a_slip_counts_within_one_upright_stretch():
     assert upright_slide_m(slip, angle) == pytest.approx(0.006)
     assert upright_slide_m(slip, np.zeros(7)) == pytest.approx(0.027)
     assert upright_slide_m(slip, np.full(7, 0.5)) == 0.0
+
+
+def test_the_surrogate_fits_the_coefficient_the_recordings_pin():
+    """Pallet-bundle held at 0.425 g and slipped at 0.45 g: its onset is bracketed, so its
+    static coefficient is fitted (up to 0.1 above the level). Bundle-bundle slipped at every
+    level: its onset is below them all, and how far it slid pins its kinetic coefficient. The
+    descents fit static coefficients."""
+    takes = [SimpleNamespace(peak_accel_g=(g, 0.1), slipped=frozenset(s)) for g, s in (
+        (0.425, {"bundle_bundle"}), (0.45, {"pallet_bundle", "bundle_bundle"}))]
+    slipped = frozenset({"pallet_bundle", "bundle_bundle"})
+    params = {(p.pair, p.kind): (p.low, p.high)
+              for p in _friction_params(takes, slipped, "surrogate")}
+    assert params == {("pallet_bundle", "static"): (0.05, pytest.approx(0.55)),
+                      ("pallet_bundle", "ratio"): (0.5, 1.0),
+                      ("bundle_bundle", "kinetic"): (0.05, pytest.approx(0.55)),
+                      ("bundle_bundle", "ratio"): (0.5, 1.0)}
+    assert {p.kind for p in _friction_params(takes, slipped, "cmaes")} == {"static", "ratio"}
 
 
 def test_friction_fit_finds_the_hidden_values_from_tracked_paths(slide):
