@@ -20,7 +20,9 @@ interpreter start-up excluded, which only dilutes a ratio towards 1); wall and C
 printed (CPU time is less disturbed by other work on the machine). `--whole-process` also times
 each run as a fresh interpreter, imports included, as the issue measured; `--instructions`
 counts each run's instructions with valgrind's callgrind (an interpreter that makes the run minus
-one that only imports), which load on the machine does not disturb. Run it on one core:
+one that only imports), which load on the machine does not disturb. It also counts the contact
+points Bullet holds at rest after each run: the solver's work per iteration grows with them, and
+a wrapped unit's squeezed layers hold about twice the plain stack's. Run it on one core:
 
     taskset -c 0 python -m benchmarks.bench_baseline [--whole-process] [--instructions]
 """
@@ -43,7 +45,7 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 import numpy as np  # noqa: E402
 import pybullet as pb  # noqa: E402
 
-from wrapenv.bench import SimSettings, run_level  # noqa: E402
+from wrapenv.bench import BenchUnit, SimSettings, run_level  # noqa: E402
 from wrapenv.bullet import G  # noqa: E402
 from wrapenv.load import Layout, LoadUnit  # noqa: E402
 from wrapenv.profile import PulseProfile  # noqa: E402
@@ -69,8 +71,9 @@ def part_coefficients(scene: BenchScene) -> dict[int, float]:
 
 
 def plain_pybullet(layout: Layout, profile: PulseProfile, sim_s: float,
-                   timestep_s: float = 1 / 240, iterations: int = 20) -> None:
-    """The plain run: build, settle still for `SETTLE_S`, run the pulse, `sim_s` in all."""
+                   timestep_s: float = 1 / 240, iterations: int = 20) -> int:
+    """The plain run: build, settle still for `SETTLE_S`, run the pulse, `sim_s` in all.
+    Returns how many contact points Bullet holds at the end."""
     client = pb.connect(pb.DIRECT)
     try:
         pb.setTimeStep(timestep_s, physicsClientId=client)
@@ -89,6 +92,7 @@ def plain_pybullet(layout: Layout, profile: PulseProfile, sim_s: float,
         for accel in profile.accel((np.arange(steps) - settle) * timestep_s).tolist():
             pb.setGravity(-accel, 0.0, -G, physicsClientId=client)
             pb.stepSimulation(physicsClientId=client)
+        return len(pb.getContactPoints(physicsClientId=client))
     finally:
         pb.disconnect(client)
 
@@ -99,8 +103,16 @@ def bench_level() -> None:
               wrap=WrapFormat.from_toml(WRAP, load.load_height_m))
 
 
-def plain_level(sim_s: float, iterations: int = 20) -> None:
-    plain_pybullet(LoadUnit.from_toml(EXAMPLE).layout(), PulseProfile(LEVEL_G), sim_s,
+def bench_contact_points() -> int:
+    """The contact points of the bench's wrapped unit at rest after its level."""
+    load = LoadUnit.from_toml(EXAMPLE)
+    with BenchUnit(load.layout(), wrap=WrapFormat.from_toml(WRAP, load.load_height_m)) as unit:
+        unit.level(PulseProfile(LEVEL_G))
+        return unit.world.contact_points()
+
+
+def plain_level(sim_s: float, iterations: int = 20) -> int:
+    return plain_pybullet(LoadUnit.from_toml(EXAMPLE).layout(), PulseProfile(LEVEL_G), sim_s,
                    iterations=iterations)
 
 
@@ -183,6 +195,10 @@ def main(argv: list[str] | None = None) -> None:
     ]
     compare({name: fn for name, fn, _ in runs}, args.repeat, time.process_time,
             "in this process")
+    bench_points, plain_points = bench_contact_points(), plain_level(ISSUE_SIM_S)
+    print(f"contact points at rest after the level: bench {bench_points}, plain "
+          f"{plain_points} ({bench_points / plain_points:.2f} x: the wrap presses the bundles' "
+          "side faces together, up to four points per touching pair of faces)")
     if args.whole_process:
         compare({name: in_a_fresh_interpreter(code) for name, _, code in runs}, args.repeat,
                 child_cpu_s, "each run a fresh interpreter (imports included)")

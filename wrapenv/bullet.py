@@ -269,6 +269,11 @@ class BulletWorld:
         states = [get(self._ids[i], physicsClientId=cid) for i in indices]
         return np.array([s[0] for s in states]), np.array([s[1] for s in states])
 
+    def contact_points(self) -> int:
+        """How many contact points Bullet holds now: its solver's work per iteration grows with
+        them (benchmarks/bench_baseline.py)."""
+        return len(pb.getContactPoints(physicsClientId=self._id))
+
     def max_penetration_m(self) -> float:
         """Deepest overlap between any two bodies now (0 when none overlaps)."""
         contacts = self._client.getContactPoints()
