@@ -37,7 +37,8 @@ SLIP_M = 0.005
 #: topples drags its bottom bundle along whatever that bundle's friction: the 3-layer example at
 #: 0.32 g moved its bottom bundles 26-30 mm while they turned 16-37 degrees, under 1 mm while
 #: within 5. Counted as slips, those made the pallet-bundle pair a fitted one and its fit
-#: reported a kinetic coefficient 0.094 off at +- 0.013; the truth moved 0.084 replays as well.
+#: reported a kinetic coefficient 0.094 off at +- 0.013, where replays with the true value and
+#: with it 0.084 lower were equally close to the recordings.
 UPRIGHT_RAD = np.radians(5.0)
 #: Fewer tracked frames than this cannot constrain a fit.
 MIN_FRAMES = 10
