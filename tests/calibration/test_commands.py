@@ -14,6 +14,7 @@ import pytest
 
 from calibration.recording import Truth
 from calibration.trajectories import ObjectPath, Trajectories
+from calibration.validate import REPEATS
 from recommender.cli import main
 from wrapenv.calibrated import Calibration
 from wrapenv.load import LoadUnit
@@ -267,7 +268,7 @@ def test_calibrate_validates_on_a_recording_it_was_not_fitted_to(slide_dir, slid
     assert f"validation {slide_at_05}" in out
     data = json.loads(cal.read_text())
     (check,) = data["validation"]
-    assert check["recording"] == str(slide_at_05) and check["replays"] == 4
+    assert check["recording"] == str(slide_at_05) and check["replays"] == REPEATS
     assert set(check["objects"]) == {"pallet", "L1C1R1", "L1C2R1"}
     slide = check["objects"]["L1C1R1"]
     assert slide["recorded_m"] < -0.05                    # the bundle slid backwards
