@@ -47,8 +47,14 @@ class Calibration:
                 "give": self.give_scale}
 
     def apply(self, load: LoadUnit) -> LoadUnit:
-        """The load with its friction replaced by the calibrated pairs and its give scaled."""
-        pairs = {k: FrictionPair(p.static, p.kinetic) for k, p in self.friction.items()}
+        """The load with its friction replaced by the calibrated pairs and its give scaled. A
+        pair the recordings never saw slip keeps the load file's values unless its static
+        coefficient is below the bound the recordings support: that bound is what the pair
+        held, not what it is (a stopped pallet's sled contact is asked only the braking's
+        ~0.1 g, and a bench that took it for the pallet's friction let the pallet slide
+        forward when the sled braked)."""
+        pairs = {k: FrictionPair(p.static, p.kinetic) for k, p in self.friction.items()
+                 if p.identified or p.static > load.friction.pair(k).static}
         load = load.with_friction(replace(load.friction, **pairs))
         return load.with_give(self.give_scale) if self.give_scale != 1.0 else load
 

@@ -121,6 +121,14 @@ def test_apply_uses_the_static_lower_bound_of_an_unidentified_pair():
     assert unit.friction.bundle_bundle.static == 0.60
 
 
+def test_apply_keeps_the_load_files_pair_above_an_unidentified_bound():
+    """A stopped pallet that never slid says only that its sled contact held the braking
+    (~0.1 g): the load file's 0.3 stands, where the bound would let the pallet slide."""
+    cal = Calibration.from_dict({"friction": {"sled_pallet": {
+        "static": 0.11, "kinetic": 0.09, "identified": False}}})
+    assert cal.apply(load()).friction.sled_pallet == FrictionPair(0.3, 0.2)
+
+
 BAD_CALS = {
     # id: (CAL.json content, expected dotted field)
     "kinetic above static": (
