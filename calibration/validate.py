@@ -24,10 +24,10 @@ from calibration.replay import Observation, replay, resettled
 from wrapenv.bench import SimSettings
 from wrapenv.calibrated import Calibration
 
-#: Replays per recording. A chaotic take needs many: with 4, the 2-layer unit's 0.40 g take was
-#: predicted at -140.0 +- 0.0 mm (its whole visible top row past the edge in every replay) by
-#: values that, replayed 12 times, predict -84.1 +- 37.2 mm (benchmarks/bench_calibrate.py
-#: --case columnar2 --truth 12 with the seed-1 fit's errors as --offset).
+#: Replays per recording. A chaotic take needs many: the 2-layer unit's 0.40 g take, replayed 12
+#: times with values near the truth, spreads its top layer's slide by +- 37 mm (its bundles' by
+#: 23-61 mm; benchmarks/bench_calibrate.py --case columnar2 --truth 12 with the seed-1 fit's
+#: errors as --offset), so the mean of 4 replays is uncertain by +- 19 mm, of 12 by +- 11 mm.
 REPEATS = 12
 #: Relative errors of slides smaller than this are not reported (noise over noise).
 MIN_SLIDE_M = 0.01
