@@ -97,14 +97,9 @@ def plain_pybullet(layout: Layout, profile: PulseProfile, sim_s: float,
         pb.disconnect(client)
 
 
-def bench_level() -> None:
-    load = LoadUnit.from_toml(EXAMPLE)
-    run_level(load.layout(), PulseProfile(LEVEL_G),
-              wrap=WrapFormat.from_toml(WRAP, load.load_height_m))
-
-
-def bench_contact_points() -> int:
-    """The contact points of the bench's wrapped unit at rest after its level."""
+def bench_level() -> int:
+    """The bench's level (as `run_level` runs it); returns how many contact points Bullet
+    holds at rest after it."""
     load = LoadUnit.from_toml(EXAMPLE)
     with BenchUnit(load.layout(), wrap=WrapFormat.from_toml(WRAP, load.load_height_m)) as unit:
         unit.level(PulseProfile(LEVEL_G))
@@ -195,7 +190,7 @@ def main(argv: list[str] | None = None) -> None:
     ]
     compare({name: fn for name, fn, _ in runs}, args.repeat, time.process_time,
             "in this process")
-    bench_points, plain_points = bench_contact_points(), plain_level(ISSUE_SIM_S)
+    bench_points, plain_points = bench_level(), plain_level(ISSUE_SIM_S)
     print(f"contact points at rest after the level: bench {bench_points}, plain "
           f"{plain_points} ({bench_points / plain_points:.2f} x: the wrap presses the bundles' "
           "side faces together, up to four points per touching pair of faces)")

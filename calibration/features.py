@@ -103,6 +103,14 @@ def slips(states: States, body_map: Mapping[str, Body]) -> dict[str, np.ndarray]
     return out
 
 
+def _off_and_turned(xza: np.ndarray, slip: np.ndarray, body: Body
+                    ) -> tuple[np.ndarray, np.ndarray]:
+    """Per frame: whether the body has slid past its support's edge or dropped, and whether
+    it has turned past its tipping angle."""
+    off = (np.abs(slip) > body.length_m / 2) | (xza[:, 1] - xza[0, 1] < -FALL_M)
+    return off, np.abs(xza[:, 2] - xza[0, 2]) > body.tip_rad
+
+
 def windows(states: States, body_map: Mapping[str, Body], sled_stop_s: float
             ) -> dict[str, int]:
     """How many leading frames of each body's path the bench can predict (see the module
@@ -113,10 +121,8 @@ def windows(states: States, body_map: Mapping[str, Body], sled_stop_s: float
     for name in sorted(body_map, key=lambda n: (n != "pallet", n)):
         body = body_map[name]
         t, xza = states[name]
-        lost = ((np.abs(slip[name]) > body.length_m / 2)
-                | (np.abs(xza[:, 2] - xza[0, 2]) > body.tip_rad)
-                | (xza[:, 1] - xza[0, 1] < -FALL_M)
-                | (t > sled_stop_s + AFTER_STOP_S))
+        off, turned = _off_and_turned(xza, slip[name], body)
+        lost = off | turned | (t > sled_stop_s + AFTER_STOP_S)
         end = float(t[np.argmax(lost)]) if lost.any() else math.inf
         end_s[name] = min([end] + [end_s.get(s, math.inf) for s, _ in body.supports])
     return {name: int(np.sum(states[name][0] < end_s[name])) for name in body_map}
@@ -130,9 +136,7 @@ def toppled(states: States, body_map: Mapping[str, Body]) -> bool:
     for name, body in body_map.items():
         if not body.supports:
             continue
-        xza = states[name][1]
-        turned = np.abs(xza[:, 2] - xza[0, 2]) > body.tip_rad
-        off = (np.abs(slip[name]) > body.length_m / 2) | (xza[:, 1] - xza[0, 1] < -FALL_M)
+        off, turned = _off_and_turned(states[name][1], slip[name], body)
         if turned.any() and (not off.any() or np.argmax(turned) < np.argmax(off)):
             return True
     return False
