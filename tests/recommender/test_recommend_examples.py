@@ -17,6 +17,7 @@ import pytest
 
 from recommender.cli import main
 from wrapenv.bench import run_levels
+from wrapenv.design import MIN_BOTTOM_WRAPS, MIN_TOP_WRAPS
 from wrapenv.load import LoadUnit
 from wrapenv.profile import eumos_levels
 from wrapenv.program import Program
@@ -45,11 +46,13 @@ def margin(load: LoadUnit, wrap: WrapFormat, target: float) -> float:
 
 
 def leaner(program: Program) -> list[Program]:
-    """The program with less web: one wrap fewer in any zone, a spiral of 0.1 less overlap."""
+    """The program with less web within the programs `recommend` searches (every one keeps a
+    bottom wrap that holds the web's head and a top wrap that closes round the load,
+    `wrapenv.design`): one wrap fewer in any zone, a spiral of 0.1 less overlap."""
     out = []
-    if program.bottom_wraps:
+    if program.bottom_wraps > MIN_BOTTOM_WRAPS:
         out.append(replace(program, bottom_wraps=program.bottom_wraps - 1))
-    if program.top_wraps:
+    if program.top_wraps > MIN_TOP_WRAPS:
         out.append(replace(program, top_wraps=program.top_wraps - 1))
     for i, r in enumerate(program.reinforcements):
         fewer = (replace(r, wraps=r.wraps - 1),) if r.wraps > 1 else ()
