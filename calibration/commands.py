@@ -291,7 +291,7 @@ def _check_calibrate_args(args: argparse.Namespace) -> None:
 def run_calibrate(args: argparse.Namespace) -> int:
     from concurrent.futures import ProcessPoolExecutor
 
-    from calibration.fit import FitSettings, fit
+    from calibration.fit import FitSettings, fit, min_budget
     from calibration.report import plot_loss, plot_overlay
     from calibration.validate import validate
 
@@ -301,12 +301,18 @@ def run_calibrate(args: argparse.Namespace) -> int:
     held_out = _observations(held, args.retrack)
     settings = FitSettings(args.method, args.params, args.budget, args.workers, args.seed,
                            args.max_residual_mm / 1000, known=known_scales(args.known))
+    if args.budget < (least := min_budget(observations, settings)):
+        raise InputError("arguments", "--budget",
+                         f"must be >= {least} to fit these {len(observations)} recordings "
+                         f"(got {args.budget})")
     t0 = time.perf_counter()
     with tqdm(total=args.budget, desc="simulations", unit="sim", leave=False,
               disable=None) as bar:
         result = fit(observations, settings, lambda n: bar.update(n - bar.n))
     wall = time.perf_counter() - t0
     if not result.converged:
+        # what the refused fit found, and the advice: which test would pin what it missed
+        print("the refused fit (not written):\n" + _summary(result))
         sys.stderr.write(f"wrapbench calibrate: the fit did not converge: {result.reason}; "
                          "nothing written\n")
         return 1
@@ -353,8 +359,9 @@ def _summary(result) -> str:
     v = result.verdict
     if v.source:
         excused = f", {' '.join(v.excused)} excused" if v.excused else ""
-        lines.append(f"accepted: the least explained recording, {v.source}, "
-                     f"{1e3 * v.rms_m:.2f} mm unexplained by {v.by}{excused}")
+        lines.append(f"{'accepted' if result.converged else 'refused'}: the least explained "
+                     f"recording, {v.source}, {1e3 * v.rms_m:.2f} mm unexplained by "
+                     f"{v.by}{excused}")
     return "\n".join(lines)
 
 

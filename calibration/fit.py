@@ -21,7 +21,7 @@ import math
 import os
 from collections.abc import Callable, Sequence
 from concurrent.futures import ProcessPoolExecutor
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -29,7 +29,7 @@ from calibration import acceptance, identify
 from calibration.descent import UNIFORM_STD, descend
 from calibration.objective import Model, Objective, Param, Progress
 from calibration.replay import Observation, replay, resettled, residuals
-from calibration.surrogate import Stage, surrogate
+from calibration.surrogate import Stage, min_points, surrogate
 from wrapenv.bench import SimSettings
 from wrapenv.calibrated import CalibratedPair, Calibration
 from wrapenv.load import PAIRS, Friction, FrictionPair
@@ -140,32 +140,17 @@ def fit(observations: Sequence[Observation], settings: FitSettings,
     """Fit the asked parameters to the observations (see the module docstring). What slipped,
     and the bounds of what did not, are read off the recordings friction is fitted to: a wrap
     holds pairs that friction alone would not."""
-    wrapped = [i for i, o in enumerate(observations) if o.wrap is not None]
-    plain = ([i for i, o in enumerate(observations) if o.wrap is None]
-             or list(range(len(observations))))
-    bare = [observations[i] for i in plain]
-    slipped = frozenset().union(*(o.slipped for o in bare))
+    bare, slipped, stages = _stages(observations, settings)
     nominal = observations[0].load.friction
     base = identify.held_stuck(nominal, identify.pair_bounds(bare, nominal, frozenset()),
                                slipped)
-    friction_params = _friction_params(bare, slipped, settings.method)
-    known = dict(settings.known)
-    wrap_params = tuple(Param(name, "", *r) for name, r in WRAP_PARAMS.items()
-                        if name not in known)
-    stages = []
-    if settings.params != "wrap" and friction_params:
-        stages.append((friction_params, plain))
-    if settings.params in ("wrap", "all") and wrapped and wrap_params:
-        stages.append((wrap_params, wrapped))
     progress = Progress(listener=listener)
-    found = _Fitted(base, scales=known)
+    found = _Fitted(base, scales=dict(settings.known))
     repeats = _final_replays(settings, len(observations))
     budget = settings.budget - repeats * len(observations)
     with ProcessPoolExecutor(max_workers=settings.workers) as pool:
         for k, (params, indices) in enumerate(stages):
-            # the remaining budget shared in proportion to the stages' parameters
-            left = sum(len(q) for q, _ in stages[k:])
-            limit = progress.simulations + (budget - progress.simulations) * len(params) // left
+            limit = _stage_limit(budget, progress.simulations, stages[k:])
             model = Model(params, found.friction, dict(found.scales))
             objective = Objective([observations[i] for i in indices], model, pool, settings.sim)
             _run_stage(objective, settings, limit, progress, found)
@@ -175,6 +160,60 @@ def fit(observations: Sequence[Observation], settings: FitSettings,
         replays = [[f.result() for f in fs] for fs in runs]
     progress.spend(repeats * len(observations))
     return _result(observations, bare, settings, slipped, found, replays, progress)
+
+
+Stages = list[tuple[tuple[Param, ...], list[int]]]
+
+
+def _stages(observations: Sequence[Observation], settings: FitSettings
+            ) -> tuple[list[Observation], frozenset[str], Stages]:
+    """The recordings friction is fitted to, the pairs that slipped in them, and the stages:
+    each its parameters and the indices of the recordings it is fitted to."""
+    wrapped = [i for i, o in enumerate(observations) if o.wrap is not None]
+    plain = ([i for i, o in enumerate(observations) if o.wrap is None]
+             or list(range(len(observations))))
+    bare = [observations[i] for i in plain]
+    slipped = frozenset().union(*(o.slipped for o in bare))
+    friction_params = _friction_params(bare, slipped, settings.method)
+    wrap_params = tuple(Param(name, "", *r) for name, r in WRAP_PARAMS.items()
+                        if name not in dict(settings.known))
+    stages: Stages = []
+    if settings.params != "wrap" and friction_params:
+        stages.append((friction_params, plain))
+    if settings.params in ("wrap", "all") and wrapped and wrap_params:
+        stages.append((wrap_params, wrapped))
+    return bare, slipped, stages
+
+
+def _stage_limit(budget: int, spent: int, stages: Stages) -> int:
+    """The simulations spent once the first of `stages` is done: what is left of the budget,
+    shared in proportion to the stages' parameters."""
+    left = sum(len(params) for params, _ in stages)
+    return spent + (budget - spent) * len(stages[0][0]) // left
+
+
+def min_budget(observations: Sequence[Observation], settings: FitSettings) -> int:
+    """The least budget with which the surrogate can fit every stage (`surrogate.min_points`
+    replays of each of its recordings, after the final replays); `settings.budget` for the
+    descents, which spend what they are given."""
+    if settings.method != "surrogate":
+        return settings.budget
+    _, _, stages = _stages(observations, settings)
+
+    def enough(budget: int) -> bool:
+        repeats = _final_replays(replace(settings, budget=budget), len(observations))
+        left, spent = budget - repeats * len(observations), 0
+        for k, (params, indices) in enumerate(stages):
+            points = (_stage_limit(left, spent, stages[k:]) - spent) // len(indices)
+            if points < min_points(len(params)):
+                return False
+            spent += points * len(indices)
+        return True
+
+    budget = 1
+    while not enough(budget):
+        budget += 1
+    return budget
 
 
 def _final_replays(settings: FitSettings, recordings: int) -> int:

@@ -198,6 +198,12 @@ def _covariance(em: Emulator, z: np.ndarray, shared: Sequence[np.ndarray] = ()) 
     return a_inv @ (scatter + noise) @ a_inv
 
 
+def min_points(p: int) -> int:
+    """The fewest physical replays a stage can fit p parameters to: a linear emulator's p + 1
+    coefficients, and two degrees of freedom left for its scatter."""
+    return p + 3
+
+
 def latin_hypercube(n: int, p: int, rng: np.random.Generator) -> np.ndarray:
     """n points in [0, 1]^p, one in each of n slices of every coordinate."""
     cells = np.stack([rng.permutation(n) for _ in range(p)], axis=1)
@@ -234,6 +240,8 @@ def surrogate(evaluate: Evaluate, p: int, points: int, seed: int,
     invalid = 0
     stages: list[Stage] = []
     sizes = stage_sizes(points, p)
+    # with too few physical replays for any stage: the box's centre, as uncertain as the box
+    u_hat, cov, em = centre, np.diag(np.full(p, 1 / 12)), None
     for k, n in enumerate(sizes):
         lo, hi = _box(centre, half)
         design = [lo + (hi - lo) * x for x in latin_hypercube(n, p, rng)]
@@ -244,9 +252,12 @@ def surrogate(evaluate: Evaluate, p: int, points: int, seed: int,
                 us.append(u)
                 rs.append(r)
         inside = [i for i, u in enumerate(us) if np.all((u >= lo - 1e-12) & (u <= hi + 1e-12))]
+        if len(inside) < min_points(p):  # replays became unphysical: the last estimate stands
+            break
         mid, scale = (lo + hi) / 2, np.maximum((hi - lo) / 2, 1e-9)
         if k == 0 and len(sizes) > 1:
             u_hat, std = _accepted(np.array(us), np.array(rs), informed_by)
+            cov = np.diag(std**2)
         else:
             z = (np.array([us[i] for i in inside]) - mid) / scale
             em = Emulator(z, np.array([rs[i] for i in inside]))
@@ -259,7 +270,7 @@ def surrogate(evaluate: Evaluate, p: int, points: int, seed: int,
         centre = u_hat
         half = np.clip(BOX_SIGMAS * std, SHRINK[0] * scale, SHRINK[1] * scale)
         half = np.maximum(half, MIN_HALF_WIDTH)
-    if shared:
+    if shared and em is not None:
         cov = _covariance(em, z_hat, shared) * np.outer(scale, scale)
     return SurrogateFit(u_hat, cov, tuple(stages), invalid)
 

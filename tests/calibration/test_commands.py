@@ -129,7 +129,8 @@ def test_calibrate_writes_cal_json_that_simulate_accepts(slide_dir, tmp_path, ca
 
 def test_calibrate_that_does_not_converge_writes_nothing(slide_dir, tmp_path, capsys):
     """A recording no friction explains (a bundle's tracked path jumps 30 mm forward at the
-    start of the pulse): the fit is refused and nothing is written."""
+    start of the pulse): the fit is refused and nothing is written, but what it found and the
+    advice are printed, so the engineer knows which test to add."""
     rec, out = tmp_path / "rec", tmp_path / "out"
     shutil.copytree(slide_dir, rec)
     out.mkdir()
@@ -139,8 +140,28 @@ def test_calibrate_that_does_not_converge_writes_nothing(slide_dir, tmp_path, ca
     paths["L1C1R1"] = dataclasses.replace(jumped, x_m=jumped.x_m + 0.03 * (jumped.t_s >= 0.3))
     Trajectories(paths).to_csv(rec / "trajectories.csv")
     assert main(["calibrate", str(rec), "--out", str(out / "cal.json"), "--budget", "10"]) == 1
-    _one_line_error(capsys, "did not converge", "unexplained > 10 mm", "nothing written")
+    captured = capsys.readouterr()
+    err = [line for line in captured.err.strip().splitlines() if ": warning: " not in line]
+    assert len(err) == 1 and "did not converge" in err[0] and "nothing written" in err[0], err
+    assert "unexplained > 10 mm" in err[0]
+    found = captured.out.splitlines()
+    found = found[found.index("the refused fit (not written):"):]
+    assert any(line.startswith("pallet_bundle ") for line in found)
+    assert any(line.startswith("refused: the least explained recording") for line in found)
     assert list(out.iterdir()) == []
+
+
+def test_calibrate_refuses_a_budget_too_small_for_the_recordings(slide_dir, tmp_path, capsys):
+    """Two takes of the sliding pair: 2 parameters, each stage needs 2 + 3 replays of both
+    takes after 3 final replays of each, 16 simulations (`min_budget`): 12 is refused at once,
+    before any simulation, in one line naming the flag."""
+    second = tmp_path / "again"
+    shutil.copytree(slide_dir, second)
+    cal = tmp_path / "cal.json"
+    assert main(["calibrate", str(slide_dir), str(second), "--out", str(cal),
+                 "--budget", "12"]) == 2
+    _one_line_error(capsys, "--budget", "must be >= 16", "(got 12)")
+    assert not cal.exists()
 
 
 def test_calibrate_refuses_recordings_of_different_loads(slide_dir, recording_dir, tmp_path,

@@ -9,7 +9,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from calibration.fit import FitSettings, _friction_params, fit
+from calibration.fit import FitSettings, _friction_params, fit, min_budget
 from calibration.recording import Recording, Truth
 from calibration.replay import SLIP_M, observe, replay, residuals, upright_slide_m
 from calibration.track import track
@@ -115,6 +115,18 @@ def test_the_surrogate_fits_the_coefficient_the_recordings_pin():
                       ("bundle_bundle", "kinetic"): (0.05, pytest.approx(0.55)),
                       ("bundle_bundle", "ratio"): (0.5, 1.0)}
     assert {p.kind for p in _friction_params(takes, slipped, "cmaes")} == {"static", "ratio"}
+
+
+def test_the_least_budget_gives_every_stage_a_fittable_design():
+    """Two bare takes in which both bundle pairs slipped: 4 parameters (each pair's fitted
+    coefficient and ratio), whose linear emulator needs 4 + 3 = 7 replays of each take. At 20
+    simulations: 3 final replays of each take (6), 14 left, 7 points of 2 takes: enough; at 19,
+    6 points are not. The descents spend what they are given."""
+    takes = [SimpleNamespace(peak_accel_g=(g, 0.1), wrap=None,
+                             slipped=frozenset({"pallet_bundle", "bundle_bundle"}))
+             for g in (0.35, 0.45)]
+    assert min_budget(takes, FitSettings(budget=300)) == 20
+    assert min_budget(takes, FitSettings(method="cmaes", budget=12)) == 12
 
 
 def test_friction_fit_finds_the_hidden_values_from_tracked_paths(slide):

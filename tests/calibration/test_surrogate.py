@@ -14,6 +14,7 @@ from calibration.surrogate import (
     _covariance,
     _solve,
     latin_hypercube,
+    min_points,
     stage_sizes,
     surrogate,
 )
@@ -121,6 +122,30 @@ def test_unphysical_runs_are_left_out_and_counted():
     fit = surrogate(evaluate, 1, 30, seed=0)
     assert fit.invalid > 0
     assert fit.u[0] == pytest.approx(0.3, abs=0.01)
+
+
+def test_too_few_physical_runs_for_a_stage_leave_the_last_estimate_standing():
+    """A linear emulator of p parameters needs p + 3 runs (p + 1 coefficients, 2 degrees of
+    freedom for its scatter). With fewer physical ones the fit does not fail: every run
+    unphysical, it returns the box's centre as uncertain as the box (uniform, 1/12); runs that
+    turn unphysical after the global stage leave that stage's estimate."""
+    assert min_points(2) == 5
+    fit = surrogate(lambda us: [None] * len(us), 2, 40, seed=0)
+    assert fit.stages == () and fit.invalid == stage_sizes(40, 2)[0]   # and it stops there
+    assert fit.u.tolist() == [0.5, 0.5]
+    assert np.diag(fit.cov) == pytest.approx([1 / 12, 1 / 12])
+    calls = []
+
+    def physical_once(us):
+        calls.append(len(us))
+        if len(calls) > 1:
+            return [None] * len(us)
+        return [np.array([u[0] - 0.3, u[1] - 0.7]) for u in us]
+
+    fit = surrogate(physical_once, 2, 40, seed=0)
+    assert len(fit.stages) == 1 and fit.u == pytest.approx(fit.stages[0].estimate)
+    assert fit.u == pytest.approx([0.3, 0.7], abs=0.15)
+    assert np.diag(fit.cov) == pytest.approx(fit.stages[0].std**2)
 
 
 def test_a_pair_is_placed_by_its_own_features_in_the_global_stage():
