@@ -198,8 +198,7 @@ def run_recommend(args: argparse.Namespace) -> int:
     if checkpoint is not None:
         checkpoint.unlink(missing_ok=True)
     if chosen is None:
-        print(f"no program passed the EUMOS sequence ({_targets_text(settings)}) after "
-              f"{len(state.history)} candidates x {args.samples} samples")
+        print(_nothing_passed(state.history, settings, args.samples))
         return 1
     best, check = chosen
     _print_recommendation(problem, best, check)
@@ -210,6 +209,19 @@ def run_recommend(args: argparse.Namespace) -> int:
     if args.report:
         _write_report(args, problem, check, best, state)
     return 0
+
+
+def _nothing_passed(history: list[Evaluation], settings: SearchSettings, samples: int) -> str:
+    """Why no program is recommended: every candidate failed, or was over the cycle-time
+    limit and never simulated (`Evaluation.passed` empty)."""
+    slow = [e for e in history if not e.passed]
+    if history and len(slow) == len(history):
+        return (f"no program within the cycle-time limit of {settings.max_cycle_s:g} s: all "
+                f"{len(history)} candidates take longer (the fastest "
+                f"{min(e.cycle_s for e in slow):.0f} s)")
+    over = f", {len(slow)} of them over the cycle-time limit" if slow else ""
+    return (f"no program passed the EUMOS sequence ({_targets_text(settings)}) after "
+            f"{len(history)} candidates x {samples} samples{over}")
 
 
 def _targets_text(settings: SearchSettings) -> str:

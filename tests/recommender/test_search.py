@@ -14,6 +14,7 @@ from types import SimpleNamespace
 
 import numpy as np
 import pytest
+import tomli_w
 
 from recommender.cli import EXAMPLE_LOAD, main
 from recommender.search import (
@@ -175,6 +176,20 @@ def test_programs_over_the_cycle_limit_are_not_simulated_and_score_worst(small_l
     assert min(e.objective for e in over) > max(e.objective for e in under)
     best = state.best(slow.margin_goal)
     assert best is None or best.cycle_s <= 38.0
+
+
+def test_recommend_says_when_no_program_is_within_the_cycle_time_limit(tmp_path, capsys):
+    """Every program of the space takes longer than 1 s (the lightest, one bottom and one top
+    wrap, about half a minute at 12 rpm): nothing is simulated, and the answer says the limit,
+    not the EUMOS sequence, left no program."""
+    load = tmp_path / "small.toml"
+    load.write_text(tomli_w.dumps(SMALL))
+    assert main(["recommend", str(load), "--max-cycle-s", "1", "--budget", "3", "--samples",
+                 "1", "--workers", "1"]) == 1
+    out = capsys.readouterr().out.strip().splitlines()[-1]
+    assert out.startswith("no program within the cycle-time limit of 1 s: all 3 candidates")
+    fastest = float(out.split("the fastest ")[1].split(" s")[0])
+    assert 10 < fastest < 60
 
 
 def test_target_above_the_bench_is_a_clear_error(small_load):
