@@ -297,6 +297,9 @@ def run_calibrate(args: argparse.Namespace) -> int:
 
     _check_calibrate_args(args)
     fitted, held = _recordings(args)
+    if args.params == "wrap" and all(rec.wrap is None for rec in fitted):
+        raise InputError("arguments", "--params",
+                         "wrap: none of the recordings is of a wrapped unit (no wrap.toml)")
     observations = _observations(fitted, args.retrack)
     held_out = _observations(held, args.retrack)
     settings = FitSettings(args.method, args.params, args.budget, args.workers, args.seed,

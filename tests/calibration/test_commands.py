@@ -164,6 +164,16 @@ def test_calibrate_refuses_a_budget_too_small_for_the_recordings(slide_dir, tmp_
     assert not cal.exists()
 
 
+def test_calibrate_refuses_to_fit_the_wrap_to_unwrapped_recordings(slide_dir, tmp_path,
+                                                                   capsys):
+    """`--params wrap` on recordings without a wrap.toml has nothing to fit: refused before
+    any simulation (it used to write a CAL.json of unfitted scales 1 +- 0)."""
+    cal = tmp_path / "cal.json"
+    assert main(["calibrate", str(slide_dir), "--out", str(cal), "--params", "wrap"]) == 2
+    _one_line_error(capsys, "--params", "none of the recordings is of a wrapped unit")
+    assert not cal.exists()
+
+
 def test_calibrate_refuses_recordings_of_different_loads(slide_dir, recording_dir, tmp_path,
                                                          capsys):
     cal = tmp_path / "cal.json"
