@@ -1,0 +1,141 @@
+"""Would warm-starting Bullet's multibody solver let a wrapped unit converge in fewer iterations?
+
+Issue 15's bench costs what plain PyBullet costs at the same iterations, but a wrapped unit
+needs 50 where the issue's plain run takes 20: each step solves the squeezed stack's contacts
+from zero, because Bullet warm-starts the contacts of reduced-coordinate bodies only with the
+solver mode SOLVER_USE_ARTICULATED_WARMSTARTING, which pybullet's `setPhysicsEngineParameter`
+cannot set. `loadBullet` can: Bullet's world importer copies the solver mode of the file's world
+into the world it loads into. So an empty world is saved (`saveBullet`), its solver mode found
+(the int after the iteration count, set to a marker value) and patched, and each bench world
+loads it before the bench sets its own parameters again; the importer also resets the residual
+threshold, which pybullet sets to 1e-7, so that is set again too. A control run loads the
+unpatched file: it must reproduce the default bench exactly.
+
+Per run: the 3-layer example wrapped in Kraft bands and by the machine's default Kraft program,
+at 0.2 g (where an unconverged solve creeps) and 0.5 g, CPU s of the level, and the bundles'
+largest and mean displacement along the motion at its end (the converged reference: 100
+iterations).
+
+    taskset -c 0 python -m benchmarks.bench_warm_start [--iterations 10 20 50 100]
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import struct
+import tempfile
+import time
+from collections.abc import Iterator
+from pathlib import Path
+
+import numpy as np
+import pybullet as pb
+
+import wrapenv.bench
+from wrapenv.bench import SimSettings, run_level
+from wrapenv.bullet import BulletWorld, G
+from wrapenv.load import LoadUnit
+from wrapenv.profile import PulseProfile
+from wrapenv.wrap import WrapFormat
+
+EXAMPLE = "examples/pet_3layer_columnar.toml"
+#: the Kraft band example, and the machine's default Kraft program (3 + 3 wraps and a 50 %
+#: spiral at 800 N), which crept 15-25 mm at 0.2 g under 20 iterations (`SimSettings`)
+WRAPS = ("examples/wrap_kraft_3layer.toml", "examples/program_kraft_default.toml")
+#: btContactSolverInfo's solver mode flag (Bullet's btContactSolverInfo.h)
+SOLVER_USE_ARTICULATED_WARMSTARTING = 4096
+MARKER_ITERATIONS = 987654
+#: pybullet's residual threshold (PhysicsServerCommandProcessor), which the importer resets
+PYBULLET_RESIDUAL_THRESHOLD = 1e-7
+
+
+def world_file(folder: Path, warm: bool) -> Path:
+    """An empty world saved by pybullet, its solver mode with or without the warm-start flag."""
+    client = pb.connect(pb.DIRECT)
+    try:
+        pb.setPhysicsEngineParameter(numSolverIterations=MARKER_ITERATIONS,
+                                     physicsClientId=client)
+        path = folder / f"world-{'warm' if warm else 'plain'}.bullet"
+        pb.saveBullet(str(path), physicsClientId=client)
+    finally:
+        pb.disconnect(client)
+    data = bytearray(path.read_bytes())
+    marker = struct.pack("<i", MARKER_ITERATIONS)
+    if data.count(marker) != 1:
+        raise RuntimeError(f"{path}: the solver info's iteration count is not found once")
+    at = data.index(marker) + len(marker)  # m_solverMode follows m_numIterations
+    (mode,) = struct.unpack_from("<i", data, at)
+    struct.pack_into("<i", data, at, mode | (SOLVER_USE_ARTICULATED_WARMSTARTING if warm else 0))
+    path.write_bytes(bytes(data))
+    return path
+
+
+@contextlib.contextmanager
+def worlds_loaded_from(path: Path | None) -> Iterator[None]:
+    """Every bench world built meanwhile loads `path` first (None: the bench as it is)."""
+    if path is None:
+        yield
+        return
+
+    class Loaded(BulletWorld):
+        def __init__(self, timestep_s: float, solver_iterations: int,
+                     contact_erp: float | None = None) -> None:
+            super().__init__(timestep_s, solver_iterations, contact_erp)
+            client = self._client  # the world's own pybullet client (benchmark only)
+            client.loadBullet(str(path))
+            client.setTimeStep(timestep_s)
+            client.setPhysicsEngineParameter(numSolverIterations=solver_iterations,
+                                             deterministicOverlappingPairs=1,
+                                             solverResidualThreshold=PYBULLET_RESIDUAL_THRESHOLD)
+            if contact_erp is not None:
+                client.setPhysicsEngineParameter(contactERP=contact_erp)
+            client.setGravity(0, 0, -G)
+
+    wrapenv.bench.BulletWorld = Loaded  # type: ignore[misc]
+    try:
+        yield
+    finally:
+        wrapenv.bench.BulletWorld = BulletWorld  # type: ignore[misc]
+
+
+def level(load: LoadUnit, wrap: WrapFormat, level_g: float, iterations: int,
+          world: Path | None) -> tuple[float, float, float]:
+    """CPU s, largest and mean displacement (m) along the motion of the bundles."""
+    settings = SimSettings(wrapped_solver_iterations=iterations)
+    with worlds_loaded_from(world):
+        t0 = time.process_time()
+        trace = run_level(load.layout(), PulseProfile(level_g), settings, wrap=wrap)
+        cpu = time.process_time() - t0
+    dx = trace.bundle_pos[-1, :, 0] - trace.bundle_pos[0, :, 0]
+    return cpu, float(np.max(np.abs(dx))), float(np.mean(dx))
+
+
+def main(argv: list[str] | None = None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--iterations", type=int, nargs="+", default=[10, 20, 50, 100])
+    parser.add_argument("--levels", type=float, nargs="+", default=[0.2, 0.5])
+    args = parser.parse_args(argv)
+    load = LoadUnit.from_toml(EXAMPLE)
+    with tempfile.TemporaryDirectory() as folder:
+        plain, warm = world_file(Path(folder), False), world_file(Path(folder), True)
+        default = SimSettings().wrapped_solver_iterations
+        for path, g in ((p, g) for p in WRAPS for g in args.levels):
+            wrap = WrapFormat.from_toml(path, load.load_height_m)
+            base = level(load, wrap, g, default, None)
+            control = level(load, wrap, g, default, plain)
+            print(f"{path}, {g} g: a world loaded from the unpatched file reproduces the bench "
+                  f"at {default} iterations: "
+                  f"{'yes' if control[1:] == base[1:] else 'NO'} ({1e3 * control[1]:.3f} mm "
+                  f"against {1e3 * base[1]:.3f} mm)")
+            print(f"{'iterations':>10}  {'warm start':>10}  {'CPU s':>6}  {'max mm':>7}  "
+                  f"{'mean mm':>7}")
+            for n in args.iterations:
+                for label, world in (("no", None), ("yes", warm)):
+                    cpu, largest, mean = level(load, wrap, g, n, world)
+                    print(f"{n:>10}  {label:>10}  {cpu:6.2f}  {1e3 * largest:7.2f}  "
+                          f"{1e3 * mean:7.2f}", flush=True)
+
+
+if __name__ == "__main__":
+    main()
