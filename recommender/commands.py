@@ -345,6 +345,9 @@ def run_train(args: argparse.Namespace) -> int:
     check_output(args.out / "policy.zip", "--out")
     settings = TrainSettings(timesteps=args.timesteps, n_envs=args.envs, material=args.material,
                              target_g=args.target, seed=args.seed, max_minutes=args.minutes)
+    if settings.rollout_timesteps != settings.timesteps:
+        print(f"training {settings.rollout_timesteps} timesteps: PPO collects whole rollouts of "
+              f"{settings.n_steps} steps x {settings.n_envs} envs")
     try:
         path = train(settings, args.out)
     except KeyboardInterrupt as exc:

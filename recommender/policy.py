@@ -95,6 +95,13 @@ class TrainSettings:
     #: for an hour" keeps the last hour's learning, not only the last checkpoint's.
     max_minutes: float | None = None
 
+    @property
+    def rollout_timesteps(self) -> int:
+        """The timesteps PPO trains for: `timesteps` rounded up to whole rollouts (`n_steps`
+        per env), since SB3 collects a rollout whole before it checks the total."""
+        rollout = self.n_steps * self.n_envs
+        return -(-self.timesteps // rollout) * rollout
+
     def check(self) -> None:
         """Reject settings SB3 would fail on late (or silently misuse), before any process
         is started."""
@@ -210,7 +217,7 @@ def train(settings: TrainSettings, out_dir: Path) -> Path:
         callbacks: list[BaseCallback] = [checkpoint, log]
         if settings.max_minutes is not None:
             callbacks.append(TimeBudget(settings.max_minutes))
-        model.learn(settings.timesteps, callback=CallbackList(callbacks),
+        model.learn(settings.rollout_timesteps, callback=CallbackList(callbacks),
                     progress_bar=settings.progress_bar)
         path = out_dir / POLICY_FILE
         partial = out_dir / f".{POLICY_FILE}.partial.zip"

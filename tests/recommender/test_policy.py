@@ -76,6 +76,15 @@ def test_bad_settings_are_rejected_before_any_process_starts(tmp_path, field, va
     assert not (tmp_path / "out").exists()
 
 
+def test_training_runs_whole_rollouts():
+    """SB3 collects a rollout (n_steps per env) whole before it checks the total: 1 timestep
+    asked with 2 envs of 64 steps trains 128, and says so (`wrapbench train`)."""
+    assert TrainSettings(timesteps=1, n_envs=2, n_steps=64).rollout_timesteps == 128
+    assert TrainSettings(timesteps=128, n_envs=2, n_steps=64).rollout_timesteps == 128
+    assert TrainSettings(timesteps=129, n_envs=2, n_steps=64).rollout_timesteps == 256
+    assert TINY.rollout_timesteps == TINY.timesteps
+
+
 def test_train_writes_the_policy_checkpoints_and_one_log_row_per_episode(trained):
     path, out = trained
     assert path == out / "policy.zip" and path.is_file()
