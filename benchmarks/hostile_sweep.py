@@ -62,6 +62,11 @@ def _recording_made(folder: Path, _: str) -> str:
     return "" if (folder / "rec" / "profile.csv").exists() else "no recording written"
 
 
+def _cycle_limit_named(_: Path, out: str) -> str:
+    last = out.strip().splitlines()[-1] if out.strip() else ""
+    return "" if "cycle-time limit" in last else f"the answer does not name the limit: {last!r}"
+
+
 CASES = [
     # outputs found unusable before any work, inputs never overwritten
     Case("simulate --json into a folder", ["simulate", "L.toml", "--level", "0.2", "--json", "d"],
@@ -134,6 +139,9 @@ CASES = [
     Case("synth a tiny 64x64 video", ["synth", "L.toml", "--out", "rec", "--size", "64x64",
                                       "--fps", "5"], {"L.toml": LOAD}, status=0,
          check=_recording_made),
+    Case("recommend --max-cycle-s 1 (no program that fast)",
+         ["recommend", "L.toml", "--max-cycle-s", "1", "--budget", "3", "--samples", "1"],
+         {"L.toml": LOAD}, status=1, check=_cycle_limit_named),
     Case("a load name with escape codes", ["simulate", "L.toml", "--level", "0.2"],
          {"L.toml": LOAD.replace('name = "6x1.5 L PET bundles, 2 layers, columnar"',
                                  'name = "evil\\u001b[2J"')},
