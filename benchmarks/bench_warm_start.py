@@ -34,7 +34,7 @@ import pybullet as pb
 
 import wrapenv.bench
 from wrapenv.bench import SimSettings, run_level
-from wrapenv.bullet import BulletWorld, G
+from wrapenv.bullet import BulletWorld
 from wrapenv.load import LoadUnit
 from wrapenv.profile import PulseProfile
 from wrapenv.wrap import WrapFormat
@@ -79,18 +79,11 @@ def worlds_loaded_from(path: Path | None) -> Iterator[None]:
         return
 
     class Loaded(BulletWorld):
-        def __init__(self, timestep_s: float, solver_iterations: int,
-                     contact_erp: float | None = None) -> None:
-            super().__init__(timestep_s, solver_iterations, contact_erp)
+        def _set_parameters(self, solver_iterations: int, contact_erp: float | None) -> None:
             client = self._client  # the world's own pybullet client (benchmark only)
             client.loadBullet(str(path))
-            client.setTimeStep(timestep_s)
-            client.setPhysicsEngineParameter(numSolverIterations=solver_iterations,
-                                             deterministicOverlappingPairs=1,
-                                             solverResidualThreshold=PYBULLET_RESIDUAL_THRESHOLD)
-            if contact_erp is not None:
-                client.setPhysicsEngineParameter(contactERP=contact_erp)
-            client.setGravity(0, 0, -G)
+            client.setPhysicsEngineParameter(solverResidualThreshold=PYBULLET_RESIDUAL_THRESHOLD)
+            super()._set_parameters(solver_iterations, contact_erp)
 
     wrapenv.bench.BulletWorld = Loaded  # type: ignore[misc]
     try:

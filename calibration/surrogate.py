@@ -54,6 +54,8 @@ SHRINK = (0.25, 0.6)
 MIN_HALF_WIDTH = 0.03
 #: Share of the global design's points accepted as near the recording.
 ACCEPT = 0.25
+#: Degrees of freedom an emulator keeps for its scatter, beyond its coefficients.
+SCATTER_DOF = 2
 #: Gauss-Newton iterations and starts of the estimate on the emulator.
 ITERATIONS = 30
 STARTS = 4
@@ -106,7 +108,7 @@ class Emulator:
         unit = None
         for order in self.ORDERS:
             phi = _basis(z, order)
-            if len(z) < phi.shape[1] + 2:
+            if len(z) < phi.shape[1] + SCATTER_DOF:
                 break
             gram_inv = np.linalg.pinv(phi.T @ phi)
             coef = gram_inv @ phi.T @ r
@@ -200,8 +202,8 @@ def _covariance(em: Emulator, z: np.ndarray, shared: Sequence[np.ndarray] = ()) 
 
 def min_points(p: int) -> int:
     """The fewest physical replays a stage can fit p parameters to: a linear emulator's p + 1
-    coefficients, and two degrees of freedom left for its scatter."""
-    return p + 3
+    coefficients, and `SCATTER_DOF` left for its scatter."""
+    return p + 1 + SCATTER_DOF
 
 
 def latin_hypercube(n: int, p: int, rng: np.random.Generator) -> np.ndarray:

@@ -119,13 +119,7 @@ class BulletWorld:
         # Per-step calls go to pybullet with this client's id: the same client, without the
         # BulletClient wrapper's attribute lookup (halves the cost of a state read or a step).
         self._id = self._client._client
-        self._client.setTimeStep(timestep_s)
-        self._client.setPhysicsEngineParameter(
-            numSolverIterations=solver_iterations, deterministicOverlappingPairs=1
-        )
-        if contact_erp is not None:
-            self._client.setPhysicsEngineParameter(contactERP=contact_erp)
-        self._client.setGravity(0, 0, -G)
+        self._set_parameters(solver_iterations, contact_erp)
         self._ids: list[int] = []
         self._dynamic: list[int] = []
         self._friction: dict[int, float] = {}
@@ -134,6 +128,17 @@ class BulletWorld:
         self._steps = 0  # steps taken, so `state` knows when a finite difference is exact
         #: (bodies, steps taken, positions, quaternions) of the last `state` call
         self._last_state: tuple[tuple[int, ...], int, np.ndarray, np.ndarray] | None = None
+
+    def _set_parameters(self, solver_iterations: int, contact_erp: float | None) -> None:
+        """The world's time step, solve and gravity (benchmarks/bench_warm_start.py sets them
+        again after loading a saved world's solver mode)."""
+        self._client.setTimeStep(self.timestep_s)
+        self._client.setPhysicsEngineParameter(
+            numSolverIterations=solver_iterations, deterministicOverlappingPairs=1
+        )
+        if contact_erp is not None:
+            self._client.setPhysicsEngineParameter(contactERP=contact_erp)
+        self._client.setGravity(0, 0, -G)
 
     # -- building -------------------------------------------------------------------------
     def add_box(
