@@ -168,14 +168,6 @@ class Recording:
         """The side camera of this recording (`SideCamera.project` gives pixels)."""
         return SideCamera(width, height, self.px_per_m, self.origin_px)
 
-    def video_size(self) -> tuple[int, int]:
-        """(width, height) of the video's frames."""
-        cap = open_video(self.video)
-        try:
-            return (int(cap.get(cv2.CAP_PROP_FRAME_WIDTH)), int(cap.get(cv2.CAP_PROP_FRAME_HEIGHT)))
-        finally:
-            cap.release()
-
 
 
 def _find_video(folder: Path) -> Path:

@@ -140,10 +140,6 @@ class Problem:
         """The uncertain parameters drawn for one seed."""
         return self.uncertainty.draw(self.load, seed)
 
-    def sample_load(self, seed: int) -> LoadUnit:
-        """The load with friction and masses drawn within their uncertainty."""
-        return self.sample(seed).load(self.load)
-
     def objective(self, wrap: WrapFormat, mass_kg: float, margins: list[float],
                   passed: list[bool]) -> float:
         """Web relative to the machine's default program, a penalty for the margin shortfall,

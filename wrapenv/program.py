@@ -66,10 +66,6 @@ class Band:
         mean = self.layers + slope * ((a + b) / 2 - self.from_m)
         return mean * (b - a)
 
-    def overlap_m(self, z0: float, z1: float) -> float:
-        """Length of this band inside [z0, z1] (0 when they do not meet)."""
-        return max(0.0, min(self.to_m, z1) - max(self.from_m, z0))
-
     def clipped(self, top_m: float) -> Band | None:
         """The part of the band below `top_m` (None if nothing is left)."""
         if self.from_m >= top_m:

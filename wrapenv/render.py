@@ -346,21 +346,6 @@ class Renderer:
         self.close()
 
 
-def render_frame(layout: Layout, pallet_pos: np.ndarray, pallet_rot: np.ndarray,
-                 bundle_pos: np.ndarray, bundle_rot: np.ndarray, camera: SideCamera | None = None,
-                 wrap_net: WrapNet | None = None, sled_x_m: float = 0.0) -> np.ndarray:
-    """One frame, for reports; videos should keep one `Renderer` for all their frames."""
-    with Renderer(layout, camera) as renderer:
-        return renderer.frame(pallet_pos, pallet_rot, bundle_pos, bundle_rot, wrap_net, sled_x_m)
-
-
-def render_trace(trace: Trace, layout: Layout, camera: SideCamera | None = None,
-                 sample_index: int = -1, wrap_net: WrapNet | None = None) -> np.ndarray:
-    """The frame of one sample of a `Trace` (default: the last, the unit after the test)."""
-    with Renderer(layout, camera) as renderer:
-        return renderer.trace_frame(trace, sample_index, wrap_net)
-
-
 def fitting_camera(layout: Layout, width: int, height: int) -> SideCamera:
     """A side camera of this size whose scale fits the unit, with room for it to move."""
     origin = (width / 2, 0.85 * height)

@@ -14,7 +14,6 @@ material is written as a ``[material]`` table of its values instead (TOML cannot
 
 from __future__ import annotations
 
-from collections.abc import Iterable
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -229,9 +228,6 @@ class WrapFormat:
         kept = self.material.relaxation.retained(hours)
         return replace(self, bands=tuple(replace(b, tension_n=b.tension_n * kept)
                                          for b in self.bands))
-
-    def with_bands(self, bands: Iterable[Band]) -> WrapFormat:
-        return replace(self, bands=tuple(bands), program=None, passes=())
 
     # --- what the membrane sees ----------------------------------------------------------------
 

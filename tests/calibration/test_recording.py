@@ -14,11 +14,11 @@ from calibration.recording import Recording, SledProfile, Truth
 from wrapenv.config import InputError, read_toml
 
 
-def test_reads_a_synthetic_recording(recording_dir):
+def test_reads_a_synthetic_recording(recording_dir, frames_of):
     rec = Recording.read(recording_dir)
     assert rec.video.name == "video.avi" and rec.fps == 10.0
     assert rec.px_per_m > 0 and len(rec.origin_px) == 2
-    assert rec.video_size() == (800, 500)
+    assert frames_of(rec.video)[0].shape[:2] == (500, 800)
     assert rec.wrap is None and rec.template == recording_dir / "template.png"
     assert rec.markers is not None and rec.markers.dictionary == "DICT_4X4_50"
     assert [p.object for p in rec.markers.placements] == ["sled", "sled"]

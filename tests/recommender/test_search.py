@@ -60,8 +60,8 @@ def small_load() -> LoadUnit:
 def test_samples_stay_within_the_uncertainty_and_repeat_under_a_seed(small_load):
     problem = Problem.build(small_load, FAST)
     nominal = small_load.friction
-    samples = [problem.sample_load(seed) for seed in range(50)]
-    assert problem.sample_load(7) == problem.sample_load(7)
+    samples = [problem.sample(seed).load(small_load) for seed in range(50)]
+    assert problem.sample(7).load(small_load) == problem.sample(7).load(small_load)
     for s in samples:
         for name in ("sled_pallet", "pallet_bundle", "bundle_bundle"):
             pair = s.friction.pair(name)
@@ -76,8 +76,8 @@ def test_calibrated_std_widens_the_samples(small_load):
         "static": 0.3, "kinetic": 0.25, "static_std": 0.1, "kinetic_std": 0.08}}})
     wide = Problem.build(small_load, FAST, cal)
     narrow = Problem.build(small_load, FAST)
-    spread = [np.std([p.sample_load(s).friction.pallet_bundle.static for s in range(200)])
-              for p in (wide, narrow)]
+    spread = [np.std([p.sample(s).load(small_load).friction.pallet_bundle.static
+                      for s in range(200)]) for p in (wide, narrow)]
     assert spread[0] > 2 * spread[1]
 
 

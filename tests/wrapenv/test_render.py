@@ -18,8 +18,6 @@ from wrapenv.render import (
     SideCamera,
     WrapOverlay,
     quaternions,
-    render_frame,
-    render_trace,
 )
 from wrapenv.trace import Trace
 from wrapenv.wrap import WrapFormat
@@ -164,7 +162,7 @@ def test_one_torn_ring_leaves_a_gap_and_film_has_its_own_tint(layout):
     assert np.abs(mean[0] - mean[1]).max() > 5
 
 
-def test_render_frame_and_render_trace_agree(layout):
+def test_a_trace_frame_is_the_frame_of_its_sample(layout):
     pallet_pos, pallet_rot, bundle_pos, bundle_rot = rest(layout)
     net = WrapNet(wrap_format(), layout)
     n = len(layout.bundles)
@@ -176,8 +174,9 @@ def test_render_frame_and_render_trace_agree(layout):
         pallet_pos=np.stack([pallet_pos] * 2), pallet_rot=np.stack([pallet_rot] * 2),
         bundle_pos=np.stack([bundle_pos, moved]), bundle_rot=np.stack([bundle_rot] * 2),
     )
-    one = render_frame(layout, pallet_pos, pallet_rot, moved, bundle_rot, CAMERA, net)
-    np.testing.assert_array_equal(render_trace(trace, layout, CAMERA, 1, net), one)
+    with Renderer(layout, CAMERA) as renderer:
+        one = renderer.frame(pallet_pos, pallet_rot, moved, bundle_rot, net)
+        np.testing.assert_array_equal(renderer.trace_frame(trace, 1, net), one)
 
 
 def test_renderers_close_their_clients(layout):

@@ -247,14 +247,6 @@ def test_a_scaled_card_is_written_as_the_material_actually_used(wrap_data):
     assert back.material == scaled.material and back.material_key == "custom"
 
 
-def test_with_bands_replaces_the_bands_only(wrap_data):
-    wrap = WrapFormat.from_dict(wrap_data())
-    other = wrap.with_bands([Band(0.0, 0.2, 5, 100.0)])
-    assert other.bands == (Band(0.0, 0.2, 5, 100.0),)
-    assert (other.material, other.web_width_m, other.material_key) == (
-        wrap.material, wrap.web_width_m, wrap.material_key)
-
-
 # --- bad input: one line naming the file and the field -----------------------------------------
 
 BAD_WRAPS = {
