@@ -19,7 +19,7 @@ from matplotlib.colors import Normalize  # noqa: E402
 
 from wrapenv.bench import BenchRun  # noqa: E402
 from wrapenv.config import printable, write_atomic  # noqa: E402
-from wrapenv.eumos import ELASTIC, PERMANENT  # noqa: E402
+from wrapenv.eumos import ELASTIC, PERMANENT, LevelVerdict  # noqa: E402
 from wrapenv.load import Layout  # noqa: E402
 from wrapenv.render import Renderer, fitting_camera, torn_net  # noqa: E402
 from wrapenv.trace import Trace  # noqa: E402
@@ -27,36 +27,52 @@ from wrapenv.wrap import WrapFormat  # noqa: E402
 from wrapenv.wrap_geometry import CORNER_NAMES, corner_positions_m  # noqa: E402
 from wrapenv.wrap_report import Place, WrapReport  # noqa: E402
 
+#: Layers' colours: matplotlib's tab10 without its orange and red, which draw the limits.
+LAYER_COLOURS = tuple(plt.get_cmap("tab10")(i) for i in (0, 2, 4, 5, 6, 7, 8, 9))
+
 
 def plot_displacements(run: BenchRun, path: str | Path, title: str = "") -> bytes:
     """One panel per level: each bundle's displacement in the pallet frame against time, from
-    where it stood when the level began, with the elastic and permanent limits; after the first
-    level of a cumulative sequence the title adds the permanent displacement since the unit
-    was put on the sled (what the permanent limit judges)."""
+    where it stood when the level began, coloured by layer, the bundle that moved most named,
+    with the elastic and permanent limits; after the first level of a cumulative sequence the
+    title adds the permanent displacement since the unit was put on the sled (what the
+    permanent limit judges)."""
     n = len(run.traces)
-    fig, axes = plt.subplots(n, 1, figsize=(9, 2.8 * n + 0.6), squeeze=False, sharex=True)
-    h = run.verdict.load_height_m
+    fig, axes = plt.subplots(n, 1, figsize=(9, 2.8 * n + 0.6), squeeze=False, sharex=True,
+                             layout="constrained")
     for ax, trace, verdict in zip(axes[:, 0], run.traces, run.verdict.levels, strict=True):
-        disp_mm = trace.bundle_displacement_m() * 1000
-        for k, name in enumerate(trace.names):
-            ax.plot(trace.t_s, disp_mm[:, k], lw=0.8, label=name if k < 12 else None)
-        for c, colour in ((ELASTIC, "red"), (PERMANENT, "orange")):
-            ax.axhline(c.limit_m(h) * 1000, color=colour, ls="--",
-                       label=f"{c.label.split()[0].lower()} limit ({100 * c.limit:g} % of height)")
-        result = "PASS" if verdict.passed else ("INVALID" if not verdict.valid else "FAIL")
-        total_m = verdict.permanent_total_max_m
-        total = (f", permanent since put on the sled {1000 * total_m:.1f} mm"
-                 if trace.origin_m is not None and total_m is not None else "")
-        ax.set_title(f"{verdict.level_g:.2f} g: {result}{total}", fontsize=10)
-        ax.set_ylabel("displacement [mm]")
-        ax.set_ylim(0, max(ELASTIC.limit_m(h) * 1000 * 1.3, float(disp_mm.max()) * 1.05))
+        plot_level(ax, trace, verdict, run.verdict.load_height_m)
     axes[-1, 0].set_xlabel("time from pulse start [s]")
-    axes[0, 0].legend(fontsize=6, ncol=4, loc="upper right")
     if title:
         # a load's name is the user's: bounded, and never read as mathtext ("$" would be)
         fig.suptitle(printable(title, 120), fontsize=11, parse_math=False)
-    fig.tight_layout()
     return _save(fig, path)
+
+
+def plot_level(ax: Axes, trace: Trace, verdict: LevelVerdict, height_m: float) -> None:
+    """A level's panel: a unit has dozens of bundles, too many to tell apart by colour, so
+    the legend names the layers and the one bundle that moved most."""
+    disp_mm = trace.bundle_displacement_m() * 1000
+    layers = trace.layers if trace.layers is not None else np.ones(len(trace.names), int)
+    for layer in np.unique(layers):
+        colour = LAYER_COLOURS[(layer - 1) % len(LAYER_COLOURS)]
+        for j, k in enumerate(np.flatnonzero(layers == layer)):
+            ax.plot(trace.t_s, disp_mm[:, k], lw=0.7, color=colour,
+                    alpha=0.8, label=f"layer {layer}" if j == 0 else None)
+    most = int(np.argmax(disp_mm.max(axis=0)))
+    ax.plot(trace.t_s, disp_mm[:, most], lw=1.6, color="black",
+            label=f"{trace.names[most]}, moved most")
+    for c, line in ((ELASTIC, "red"), (PERMANENT, "orange")):
+        ax.axhline(c.limit_m(height_m) * 1000, color=line, ls="--",
+                   label=f"{c.label.split()[0].lower()} limit ({100 * c.limit:g} % of height)")
+    result = "PASS" if verdict.passed else ("INVALID" if not verdict.valid else "FAIL")
+    total_m = verdict.permanent_total_max_m
+    total = (f", permanent since put on the sled {1000 * total_m:.1f} mm"
+             if trace.origin_m is not None and total_m is not None else "")
+    ax.set_title(f"{verdict.level_g:.2f} g: {result}{total}", fontsize=10)
+    ax.set_ylabel("displacement [mm]")
+    ax.set_ylim(0, max(ELASTIC.limit_m(height_m) * 1000 * 1.3, float(disp_mm.max()) * 1.05))
+    ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))
 
 
 def plot_search(history: list, best, path: str | Path, margin_goal: float) -> bytes:

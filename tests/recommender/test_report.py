@@ -1,0 +1,44 @@
+"""The displacement plot (`simulate --plot`, the report's first figure): a unit has dozens of
+bundles, more than colours can tell apart, so each level's legend names the layers, the bundle
+that moved most and the two limits."""
+
+from __future__ import annotations
+
+import matplotlib.pyplot as plt
+import numpy as np
+
+from recommender.report import plot_level
+from wrapenv.eumos import evaluate
+from wrapenv.trace import Trace
+
+
+def three_bundles(moved_m: list[float]) -> Trace:
+    """Two bundles on the pallet and one on top, each moved along x by `moved_m` in 1 s."""
+    start = np.array([[-0.2, 0.0, 0.3], [0.2, 0.0, 0.3], [-0.2, 0.0, 0.6]])
+    end = start + np.array([[m, 0.0, 0.0] for m in moved_m])
+    return Trace(
+        level_g=0.3, load_height_m=0.8, names=("L1C1R1", "L1C2R1", "L2C1R1"),
+        bottom_z_m=np.array([0.15, 0.15, 0.45]), t_s=np.array([0.0, 1.0]),
+        sled_accel_mps2=np.zeros(2), pallet_pos=np.zeros((2, 3)),
+        pallet_rot=np.stack([np.eye(3)] * 2), bundle_pos=np.stack([start, end]),
+        bundle_rot=np.stack([np.stack([np.eye(3)] * 3)] * 2), layers=np.array([1, 1, 2]),
+    )
+
+
+def legend_of(trace: Trace) -> list[str]:
+    fig, ax = plt.subplots()
+    try:
+        plot_level(ax, trace, evaluate(trace), trace.load_height_m)
+        return [text.get_text() for text in ax.get_legend().get_texts()]
+    finally:
+        plt.close(fig)
+
+
+def test_the_legend_names_each_layer_once_and_the_bundle_that_moved_most():
+    assert legend_of(three_bundles([0.004, 0.030, 0.010])) == [
+        "layer 1", "layer 2", "L1C2R1, moved most",
+        "elastic limit (10 % of height)", "permanent limit (5 % of height)"]
+
+
+def test_the_bundle_that_moved_most_is_judged_by_its_largest_displacement():
+    assert "L2C1R1, moved most" in legend_of(three_bundles([0.004, 0.010, -0.050]))
