@@ -351,9 +351,13 @@ def _summary(result) -> str:
     scales = (("stiffness", "stiffness scale", cal.stiffness_scale, cal.stiffness_scale_std),
               ("tension", "tension scale", cal.tension_scale, cal.tension_scale_std),
               ("give", "load's give scale", cal.give_scale, cal.give_scale_std))
-    lines.append("wrap: " + ", ".join(
-        f"{label} {value:.2f} " + ("(known)" if name in cal.known else f"± {std:.2f}")
-        for name, label, value, std in scales))
+    if result.fitted_scales or cal.known:
+        lines.append("wrap: " + ", ".join(
+            f"{label} {value:.2f} (known)" if name in cal.known
+            else f"{label} {value:.2f} ± {std:.2f}" if name in result.fitted_scales
+            else f"{label} not fitted" for name, label, value, std in scales))
+    else:
+        lines.append("wrap: not fitted (the material card's and the load file's values)")
     lines += [f"advice: {name}: {text}" for name, text in result.advice.items()]
     spread = (f" (replays scatter {1e3 * result.spread_rms_m:.2f} mm about their mean)"
               if result.spread_rms_m else "")

@@ -95,6 +95,9 @@ class FitResult:
     stages: tuple[Stage, ...] = ()
     #: the acceptance test's verdict on the recording the final replays explain least
     verdict: acceptance.Unexplained = acceptance.Unexplained("", 0.0)
+    #: the wrap scales the fit estimated (`WRAP_PARAMS`); the others are not fitted: measured
+    #: (`Calibration.known`) or the material card's and load file's
+    fitted_scales: tuple[str, ...] = ()
 
 
 @dataclass
@@ -340,7 +343,8 @@ def _result(observations: Sequence[Observation], bare: Sequence[Observation],
     reason = _failure(rms, verdict, progress.simulations, found.invalid, settings)
     return FitResult(calibration, rms, progress.simulations, settings.method, progress.curve,
                      [runs[0] for runs in replays], not reason, spread_rms, replay_rms, reason,
-                     advice, tuple(found.stages), verdict)
+                     advice, tuple(found.stages), verdict,
+                     tuple(name for name in WRAP_PARAMS if (name, "") in found.stds))
 
 
 def _failure(rms: float, verdict: acceptance.Unexplained, simulations: int, invalid: int,

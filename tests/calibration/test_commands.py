@@ -115,6 +115,7 @@ def test_calibrate_writes_cal_json_that_simulate_accepts(slide_dir, tmp_path, ca
     assert main(["calibrate", str(rec), "--out", str(cal), "--budget", "30"]) == 0
     out = capsys.readouterr().out
     assert "pallet_bundle" in out and "accepted: the least explained recording" in out
+    assert "wrap: not fitted" in out  # bare recordings: no scale is claimed
     data = json.loads(cal.read_text())
     assert set(data) >= {"friction", "wrap", "residual_rms_m", "simulations", "method"}
     assert data["simulations"] <= 30 and data["method"] == "surrogate"

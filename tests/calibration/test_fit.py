@@ -183,6 +183,7 @@ def test_wrap_stiffness_fit_finds_the_hidden_scale(wrapped_slide):
     assert result.calibration.friction == {}  # not asked for: the load file's values stand
     assert result.simulations <= 50
     assert result.calibration.known == ()
+    assert result.fitted_scales == ("stiffness", "tension", "give")
 
 
 def test_known_wrap_scales_are_held_and_only_the_others_fitted(wrapped_slide):
@@ -195,5 +196,6 @@ def test_known_wrap_scales_are_held_and_only_the_others_fitted(wrapped_slide):
     assert (cal.tension_scale, cal.give_scale) == (1.0, 0.8)
     assert (cal.tension_scale_std, cal.give_scale_std) == (0.0, 0.0)
     assert cal.known == ("tension", "give")
+    assert result.fitted_scales == ("stiffness",)
     assert cal.stiffness_scale_std > 0
     assert set(result.advice) <= {"stiffness"}
