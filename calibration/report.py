@@ -13,14 +13,18 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
+from matplotlib import ticker  # noqa: E402
 
 from calibration import features  # noqa: E402
 from calibration.replay import Observation  # noqa: E402
 from wrapenv.config import write_atomic  # noqa: E402
 
+#: Bodies' colours: a 3-layer unit's visible row and its pallet are 13 bodies, more than
+#: matplotlib's 10 default colours tell apart; tab20's dark tones first, then its light ones.
+BODY_COLOURS = [plt.get_cmap("tab20")(i) for i in (*range(0, 20, 2), *range(1, 20, 2))]
+
 
 def _save(fig: plt.Figure, path: str | Path) -> None:
-    fig.tight_layout()
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=110)
     plt.close(fig)
@@ -29,11 +33,13 @@ def _save(fig: plt.Figure, path: str | Path) -> None:
 
 def plot_loss(curve: Sequence[tuple[int, float]], path: str | Path, title: str = "") -> None:
     """Residual RMS (the square root of the loss) of the best point so far."""
-    fig, ax = plt.subplots(figsize=(7, 3.6))
+    fig, ax = plt.subplots(figsize=(7, 3.6), layout="constrained")
     sims = [s for s, _ in curve]
     rms_mm = [1e3 * math.sqrt(loss) for _, loss in curve]
     ax.plot(sims, rms_mm, marker=".", lw=1)
     ax.set_yscale("log")
+    for axis in (ax.yaxis.set_major_formatter, ax.yaxis.set_minor_formatter):
+        axis(ticker.FormatStrFormatter("%g"))  # 0.6, not 6 x 10^-1
     ax.set_xlabel("simulations")
     ax.set_ylabel("residual RMS, best so far [mm]")
     ax.set_title(title, fontsize=10)
@@ -46,13 +52,14 @@ def plot_overlay(observations: Sequence[Observation],
     """One panel per recording: the tracked (dots) and one fitted replay's (lines) slip of every
     compared body across its contact, over the frames the bench can predict."""
     n = len(observations)
-    fig, axes = plt.subplots(n, 1, figsize=(9, 3.0 * n + 0.4), squeeze=False)
+    fig, axes = plt.subplots(n, 1, figsize=(9, 3.0 * n + 0.4), squeeze=False,
+                             layout="constrained")
     for ax, obs, sim in zip(axes[:, 0], observations, fitted, strict=True):
         tracked = features.slips(obs.states, obs.bodies)
         replayed = (features.slips({k: (t, sim[k]) for k, (t, _) in obs.states.items()},
                                    obs.bodies) if sim is not None else {})
         for k, (name, frames) in enumerate(sorted(obs.frames.items())):
-            colour = f"C{k % 10}"
+            colour = BODY_COLOURS[k % len(BODY_COLOURS)]
             t = obs.states[name][0][:frames]
             ax.plot(t, 1e3 * tracked[name][:frames], ".", ms=3, color=colour, label=name)
             if name in replayed:
@@ -60,6 +67,6 @@ def plot_overlay(observations: Sequence[Observation],
         ax.set_title(f"{Path(obs.source).name}: tracked (dots), one fitted replay (lines)",
                      fontsize=9)
         ax.set_ylabel("slip on its support [mm]")
-        ax.legend(fontsize=6, ncol=6)
+        ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))
     axes[-1, 0].set_xlabel("time [s]")
     _save(fig, path)
