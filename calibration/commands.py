@@ -188,7 +188,8 @@ def add_calibrate(sub: argparse._SubParsersAction) -> None:
                    help="most simulations of the fit (default 300)")
     p.add_argument("--workers", type=int, default=os.cpu_count() or 1,
                    help="parallel simulations (default: all cores)")
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--seed", type=int, default=0,
+                   help="seed of the fit's designs and replays (same seed, same CAL.json)")
     p.add_argument("--max-residual-mm", type=float, default=10.0, metavar="MM",
                    help="fail (nothing written) when more residual RMS than this is left "
                         "beyond the bench's own run-to-run scatter")

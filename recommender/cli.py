@@ -127,7 +127,8 @@ def _add_recommend_problem(rec: argparse.ArgumentParser) -> None:
     rec.add_argument("--ray-address", metavar="ADDRESS",
                      help="with --backend ray: join this cluster ('auto', 'ray://host:10001'); "
                           "default: start a local Ray instance of --workers CPUs")
-    rec.add_argument("--seed", type=int, default=0)
+    rec.add_argument("--seed", type=int, default=0,
+                     help="seed of the search and of the samples (same seed, same answer)")
     rec.add_argument("--orientation", choices=("long", "short", "both"), default="both",
                      help="pallet side(s) along the motion a program must pass (default both: "
                           "a load is only as safe as its weaker orientation)")
@@ -169,12 +170,16 @@ def _add_train(sub: argparse._SubParsersAction) -> None:
                                       "(wrapenv/WrapBenchRandom-v2)")
     tr.add_argument("--out", type=Path, required=True, metavar="DIR",
                     help="folder for policy.zip, checkpoints/ and log.csv")
-    tr.add_argument("--timesteps", type=int, default=2048)
+    tr.add_argument("--timesteps", type=int, default=2048,
+                    help="units tested, one program each (rounded up to whole rollouts; "
+                         "default 2048)")
     tr.add_argument("--envs", type=int, default=os.cpu_count() or 1,
                     help="parallel environments (default: all cores)")
-    tr.add_argument("--material", default="kraft")
-    tr.add_argument("--target", type=level_g, default=0.5, metavar="G")
-    tr.add_argument("--seed", type=int, default=0)
+    tr.add_argument("--material", default="kraft",
+                    help="the web the policy programs: kraft (default) or lldpe")
+    tr.add_argument("--target", type=level_g, default=0.5, metavar="G",
+                    help="the level its programs must pass (default 0.5 g)")
+    tr.add_argument("--seed", type=int, default=0, help="seed of the random units and of PPO")
     tr.add_argument("--minutes", type=float, default=None, metavar="M",
                     help="stop after M minutes of training and write the policy learned so far "
                          "(default: run all --timesteps)")
