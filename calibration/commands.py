@@ -98,7 +98,7 @@ def _frame_bar() -> Iterator[Callable[[int, int], None]]:
 
 
 def run_synth(args: argparse.Namespace) -> int:
-    from calibration.synth import synthesize
+    from calibration.synth import marker_warning, synthesize
 
     load = LoadUnit.from_toml(args.load)
     wrap = WrapFormat.from_toml(args.wrap, load.load_height_m) if args.wrap else None
@@ -121,6 +121,8 @@ def run_synth(args: argparse.Namespace) -> int:
     except ValueError as exc:  # an unphysical simulation: nothing to record
         sys.stderr.write(f"wrapbench synth: {exc}; no recording written\n")
         return 1
+    if warning := marker_warning(rec, args.size):
+        sys.stderr.write(f"wrapbench synth: warning: {warning}\n")
     frames = round(rec.profile.t_s[-1] * rec.fps) + 1
     print(f"wrote {printable(str(rec.folder))}: {rec.video.name} {args.size[0]}x{args.size[1]}, "
           f"{frames} frames at {rec.fps:g} fps, {rec.px_per_m:g} px/m, level {args.level:.2f} g"

@@ -46,6 +46,11 @@ from wrapenv.trace import Trace
 from wrapenv.wrap import WrapFormat
 
 MARKER_DICTIONARY = "DICT_4X4_50"
+#: The least side (px) at which ArUco finds synth's markers in most frames: on the 2-layer
+#: example in Kraft at 0.5 g, 15 px markers were found in 95-97 % of frames, 12 px in 69 %,
+#: 9-11 px in a sixth to a third (2026-11-25). Below it `synth` warns: `track` then loses the
+#: sled's scale check and, on a wrapped unit, the objects it follows only through markers.
+MIN_MARKER_PX = 15.0
 #: Sled markers this far beyond the pallet's ends (a 1.2 m pallet: x = -1.0 and +1.0 m).
 SLED_MARKER_REACH_M = 0.4
 #: Empty image border round the whole test, as a fraction of the image's width and height.
@@ -184,6 +189,23 @@ def _check_arguments(out_dir: Path, size: tuple[int, int], fps: float, jitter: f
         raise InputError("arguments", "marker_size_m",
                          f"must be in (0, {SLED_DECK_M * 0.75:g}] m to fit the sled's side"
                          f" (got {marker_size_m})")
+
+
+def marker_warning(rec: Recording, size: tuple[int, int]) -> str:
+    """Why the markers of this recording, made at `size` (px), are too small for `track` (""
+    if they are not), with the size at which they would not be (the camera's scale grows with
+    the image's)."""
+    if rec.markers is None or rec.markers.size_m is None:
+        return ""
+    side_px = rec.markers.size_m * rec.px_per_m
+    if side_px >= MIN_MARKER_PX:
+        return ""
+    width, height = size
+    grow = MIN_MARKER_PX / side_px
+    wanted = (16 * math.ceil(width * grow / 16), 16 * math.ceil(height * grow / 16))
+    return (f"the markers are {side_px:.1f} px ({rec.markers.size_m:g} m at {rec.px_per_m:g} "
+            f"px/m), under the {MIN_MARKER_PX:g} px at which track finds them in most frames; "
+            f"record at --size {wanted[0]}x{wanted[1]} or larger")
 
 
 def _jittered(friction: Friction, jitter: float, seed: int) -> Friction:

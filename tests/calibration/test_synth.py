@@ -10,6 +10,7 @@ import signal
 import subprocess
 import sys
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import cv2
@@ -17,7 +18,7 @@ import numpy as np
 import pytest
 
 from calibration.recording import Recording, Truth
-from calibration.synth import STAGING_SUFFIX, synthesize
+from calibration.synth import MIN_MARKER_PX, STAGING_SUFFIX, marker_warning, synthesize
 from wrapenv.config import InputError
 
 ROW1 = {"L1C1R1", "L1C2R1", "L2C1R1", "L2C2R1"}
@@ -200,3 +201,18 @@ def test_progress_is_reported_per_frame(tmp_path, small_load):
                      **TINY)
     frames = len(Truth.read(rec.folder).objects["sled"].t_s)
     assert calls == [(k, frames) for k in range(1, frames + 1)]
+
+
+def test_markers_big_enough_for_track_get_no_warning_and_small_ones_the_size_that_would_do(
+        recording_dir):
+    """The warning's size scales the image by the markers' shortfall: 7.5 px markers in a
+    320 x 200 image would be 15 px in 640 x 400."""
+    rec = Recording.read(recording_dir)
+    assert rec.markers is not None and rec.markers.size_m is not None
+    side_px = rec.markers.size_m * rec.px_per_m
+    assert side_px >= MIN_MARKER_PX  # the fixture's recording: tracked in every test
+    small = replace(rec, px_per_m=7.5 / rec.markers.size_m)
+    assert marker_warning(rec, (800, 500)) == ""
+    warning = marker_warning(small, (320, 200))
+    assert warning.startswith("the markers are 7.5 px")
+    assert warning.endswith("record at --size 640x400 or larger")
