@@ -48,8 +48,9 @@ from wrapenv.wrap import WrapFormat
 MARKER_DICTIONARY = "DICT_4X4_50"
 #: The least side (px) at which ArUco finds synth's markers in most frames: on the 2-layer
 #: example in Kraft at 0.5 g, 15 px markers were found in 95-97 % of frames, 12 px in 69 %,
-#: 9-11 px in a sixth to a third (2026-11-25). Below it `synth` warns: `track` then loses the
-#: sled's scale check and, on a wrapped unit, the objects it follows only through markers.
+#: 7.5-11 px in a ninth to a third (benchmarks/marker_size.py). Below it `synth` warns: `track`
+#: then loses the sled's scale check and, on a wrapped unit, the objects it follows only
+#: through markers.
 MIN_MARKER_PX = 15.0
 #: Sled markers this far beyond the pallet's ends (a 1.2 m pallet: x = -1.0 and +1.0 m).
 SLED_MARKER_REACH_M = 0.4
