@@ -201,12 +201,14 @@ def marker_warning(rec: Recording, size: tuple[int, int]) -> str:
     side_px = rec.markers.size_m * rec.px_per_m
     if side_px >= MIN_MARKER_PX:
         return ""
-    width, height = size
     grow = MIN_MARKER_PX / side_px
-    wanted = (16 * math.ceil(width * grow / 16), 16 * math.ceil(height * grow / 16))
+    wanted = [16 * math.ceil(side * grow / 16) for side in size]  # whole 16 px codec blocks
+    remedy = (f"record at --size {wanted[0]}x{wanted[1]} or larger"
+              if max(wanted) <= SIZE_RANGE_PX[1] else
+              f"no size up to {SIZE_RANGE_PX[1]} px makes them that large")
     return (f"the markers are {side_px:.1f} px ({rec.markers.size_m:g} m at {rec.px_per_m:g} "
             f"px/m), under the {MIN_MARKER_PX:g} px at which track finds them in most frames; "
-            f"record at --size {wanted[0]}x{wanted[1]} or larger")
+            f"{remedy}")
 
 
 def _jittered(friction: Friction, jitter: float, seed: int) -> Friction:

@@ -216,3 +216,5 @@ def test_markers_big_enough_for_track_get_no_warning_and_small_ones_the_size_tha
     warning = marker_warning(small, (320, 200))
     assert warning.startswith("the markers are 7.5 px")
     assert warning.endswith("record at --size 640x400 or larger")
+    assert marker_warning(small, (2400, 1500)).endswith("no size up to 4096 px makes them that "
+                                                         "large")
