@@ -26,8 +26,9 @@ import contextlib
 import struct
 import tempfile
 import time
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pybullet as pb
@@ -50,13 +51,13 @@ MARKER_ITERATIONS = 987654
 PYBULLET_RESIDUAL_THRESHOLD = 1e-7
 
 
-def world_file(folder: Path, warm: bool) -> Path:
-    """An empty world saved by pybullet, its solver mode with or without the warm-start flag."""
+def world_file(folder: Path, flags: int) -> Path:
+    """An empty world saved by pybullet, these flags added to its solver mode (0: as saved)."""
     client = pb.connect(pb.DIRECT)
     try:
         pb.setPhysicsEngineParameter(numSolverIterations=MARKER_ITERATIONS,
                                      physicsClientId=client)
-        path = folder / f"world-{'warm' if warm else 'plain'}.bullet"
+        path = folder / f"world-{flags}.bullet"
         pb.saveBullet(str(path), physicsClientId=client)
     finally:
         pb.disconnect(client)
@@ -66,14 +67,16 @@ def world_file(folder: Path, warm: bool) -> Path:
         raise RuntimeError(f"{path}: the solver info's iteration count is not found once")
     at = data.index(marker) + len(marker)  # m_solverMode follows m_numIterations
     (mode,) = struct.unpack_from("<i", data, at)
-    struct.pack_into("<i", data, at, mode | (SOLVER_USE_ARTICULATED_WARMSTARTING if warm else 0))
+    struct.pack_into("<i", data, at, mode | flags)
     path.write_bytes(bytes(data))
     return path
 
 
 @contextlib.contextmanager
-def worlds_loaded_from(path: Path | None) -> Iterator[None]:
-    """Every bench world built meanwhile loads `path` first (None: the bench as it is)."""
+def worlds_loaded_from(path: Path | None, rigid: bool = False) -> Iterator[None]:
+    """Every bench world built meanwhile loads `path` first (None: the bench as it is); `rigid`
+    makes its boxes maximal-coordinate (rigid) bodies, whose velocities are read from Bullet
+    (the bench's finite differences hold for reduced-coordinate bodies only)."""
     if path is None:
         yield
         return
@@ -83,7 +86,19 @@ def worlds_loaded_from(path: Path | None) -> Iterator[None]:
             client = self._client  # the world's own pybullet client (benchmark only)
             client.loadBullet(str(path))
             client.setPhysicsEngineParameter(solverResidualThreshold=PYBULLET_RESIDUAL_THRESHOLD)
+            if rigid:
+                create = client.createMultiBody
+
+                def create_rigid(*args: Any, **kwargs: Any) -> int:
+                    return create(*args, **(kwargs | {"useMaximalCoordinates": True}))
+
+                client.createMultiBody = create_rigid
             super()._set_parameters(solver_iterations, contact_erp)
+
+        def state(self, indices: Sequence[int]) -> tuple[np.ndarray, ...]:
+            if not rigid:
+                return super().state(indices)
+            return (*self.poses(indices), *self.velocities(indices))
 
     wrapenv.bench.BulletWorld = Loaded  # type: ignore[misc]
     try:
@@ -111,7 +126,8 @@ def main(argv: list[str] | None = None) -> None:
     args = parser.parse_args(argv)
     load = LoadUnit.from_toml(EXAMPLE)
     with tempfile.TemporaryDirectory() as folder:
-        plain, warm = world_file(Path(folder), False), world_file(Path(folder), True)
+        plain = world_file(Path(folder), 0)
+        warm = world_file(Path(folder), SOLVER_USE_ARTICULATED_WARMSTARTING)
         default = SimSettings().wrapped_solver_iterations
         for path, g in ((p, g) for p in WRAPS for g in args.levels):
             wrap = WrapFormat.from_toml(path, load.load_height_m)
