@@ -35,7 +35,7 @@ def found_per_frame(rec: Recording) -> list[int]:
     assert rec.markers is not None
     detector = MarkerDetector(rec.markers.dictionary)
     placed = {p.id for p in rec.markers.placements}
-    video, counts = cv2.VideoCapture(str(rec.video)), []
+    video, counts = cv2.VideoCapture(str(rec.video)), list[int]()
     try:
         while True:
             ok, frame = video.read()
