@@ -49,6 +49,9 @@ MAX_OVERLAP = 0.75
 #: The top wraps' web reaches this far above the load and folds over its edge [A]: enough to
 #: tie the top layer's corners without laying web into the air.
 TOP_OVERHANG_M = 0.05
+#: A program is given as an operator types it into a machine's panel: tensions in whole
+#: newtons, overlaps in whole percent, carriage heights in millimetres (decimal places kept).
+TENSION_DECIMALS, OVERLAP_DECIMALS, HEIGHT_DECIMALS = 0, 2, 3
 #: Tension range as a fraction of one layer's yield force over the web width. Machines set the
 #: tension at about half the limit because corners cause tension peaks (docs/materials.md, P4):
 #: Kraft 80-800 N, LLDPE 9-94 N on a 0.5 m web (measured here: Kraft at 90 % tore on the bench).
@@ -98,16 +101,18 @@ class ProgramSpace:
                          t1, t1, t1, t1])
 
     def program(self, values: np.ndarray) -> Program:
-        """The program of a vector of values (clipped to the ranges, wraps rounded)."""
+        """The program of a vector of values (clipped to the ranges, rounded to what a machine's
+        panel takes: whole wraps and newtons, whole percent of overlap, millimetres)."""
         v = np.clip(_finite(values), self.low, self.high)
         wraps = [int(round(float(x))) for x in v[list(INTEGER_INDICES)]]
-        reinforcement = (Reinforcement(round(float(v[4]), 4), wraps[2], round(float(v[8]), 1)),
+        tension = [round(float(x), TENSION_DECIMALS) for x in v[5:9]]
+        reinforcement = (Reinforcement(round(float(v[4]), HEIGHT_DECIMALS), wraps[2], tension[3]),
                          ) if wraps[2] else ()
         return Program(
-            bottom_wraps=wraps[0], bottom_tension_n=round(float(v[5]), 1),
-            up_overlap=round(float(v[3]), 4), middle_tension_n=round(float(v[6]), 1),
+            bottom_wraps=wraps[0], bottom_tension_n=tension[0],
+            up_overlap=round(float(v[3]), OVERLAP_DECIMALS), middle_tension_n=tension[1],
             top_wraps=wraps[1], top_overhang_m=TOP_OVERHANG_M,
-            top_tension_n=round(float(v[7]), 1), reinforcements=reinforcement,
+            top_tension_n=tension[2], reinforcements=reinforcement,
         )
 
     def wrap(self, values: np.ndarray) -> WrapFormat:

@@ -50,3 +50,18 @@ def test_tension_spans_5_to_50_percent_of_a_layer_s_yield_force(space):
 def test_a_vector_survives_program_and_back(space):
     x = np.array([3, 2, 1, 0.4, 0.2, 200.0, 300.0, 400.0, 500.0])
     assert np.allclose(space.values(space.program(x)), x)
+
+
+def test_a_program_is_given_as_an_operator_types_it(space):
+    """Whole newtons, whole percent of overlap, the reinforcement's height in millimetres: no
+    panel takes 447.73 N or a 37.46 % overlap."""
+    rng = np.random.default_rng(0)
+    for action in rng.uniform(-1, 1, (50, N_PARAMS)):
+        p = space.decode(action).program
+        assert p is not None
+        tensions = [p.bottom_tension_n, p.middle_tension_n, p.top_tension_n,
+                    *(r.tension_n for r in p.reinforcements)]
+        assert all(t == round(t) for t in tensions)
+        assert p.up_overlap * 100 == pytest.approx(round(p.up_overlap * 100), abs=1e-9)
+        assert all(r.from_m * 1000 == pytest.approx(round(r.from_m * 1000), abs=1e-9)
+                   for r in p.reinforcements)

@@ -279,7 +279,7 @@ def test_info_keys_and_verdict_json(tiny):
             "pallet_slip_m", "damage", "criteria", "bodies", "wrap"} <= set(level)
     assert {"area_m2", "mass_kg"} <= set(info["material_used"])
     assert info["format"]["material"] == "kraft" and info["format"]["bands"]
-    assert info["format"]["program"]["up_overlap"] == pytest.approx(0.375)
+    assert info["format"]["program"]["up_overlap"] == 0.38  # 0 .. 0.75 halfway, in whole %
     assert info["cycle_time_s"] > 0
     assert info["valid"] is True and isinstance(info["margin"], float)
 
