@@ -56,7 +56,8 @@ def test_truth_centres_are_on_their_bundles(recording_dir, frames_of):
     rec = Recording.read(recording_dir)
     truth = Truth.read(recording_dir)
     frames = frames_of(rec.video)
-    cam = rec.camera(frames[0].shape[1], frames[0].shape[0])
+    height, width = frames[0].shape[:2]
+    cam = rec.camera(width, height)
     template = cv2.cvtColor(cv2.imread(str(rec.template)), cv2.COLOR_BGR2GRAY)
     th, tw = template.shape
     speed = np.abs(np.gradient(truth.objects["sled"].x_m))
@@ -101,8 +102,9 @@ def test_sled_marker_moves_as_the_profile_says(recording_dir, frames_of):
     # 0.5 px at this scale (~2 mm at 240 px/m; the 2 mm of a 1920 px recording is ~0.7 px)
     assert moved_m == pytest.approx(expected, abs=0.5 / rec.px_per_m)
     placement = rec.markers.placements[0]
-    u, v = rec.camera(frames[0].shape[1], frames[0].shape[0]).project([[placement.offset_m[0], 0.0,
-                                                   -0.05 + placement.offset_m[1]]])[0]
+    height, width = frames[0].shape[:2]
+    u, v = rec.camera(width, height).project([[placement.offset_m[0], 0.0,
+                                              -0.05 + placement.offset_m[1]]])[0]
     centre = first[0].mean(axis=0)
     assert abs(centre[0] - u) <= 0.5 and abs(centre[1] - v) <= 0.5
 
