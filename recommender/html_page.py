@@ -17,7 +17,7 @@ from pathlib import Path
 from typing import Any
 
 from recommender.search import Trial
-from recommender.text import step_cells
+from recommender.text import sequence_text, step_cells
 from recommender.uncertainty import PassProbability
 from wrapenv.bench import BenchRun
 from wrapenv.config import printable
@@ -204,9 +204,8 @@ def _levels_section(t: OrientationRun) -> str:
             + ["Damage<br><small>limit none</small>", "Pallet slip", "Wrap (peak force)",
                "Result"])
     target = f", target {t.target_g:.2f} g" if t.target_g is not None else ""
-    sequence = ("one unit through the levels, each from where the last left it (permanent: "
-                "since it was put on the sled)" if v.sequence == "cumulative"
-                else "a fresh unit for every level")
+    sequence = sequence_text(v) + (" (permanent: since it was put on the sled)"
+                                   if v.sequence == "cumulative" and len(v.levels) > 1 else "")
     summary = (f"highest level passed: {_highest(t)}{target}; {sequence}"
                + ("" if v.valid else "; the simulation became unphysical (INVALID rows never "
                                      "pass)"))

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from wrapenv.bench import BenchRun
 from wrapenv.config import printable
-from wrapenv.eumos import EUMOS_CRITERIA, LevelVerdict
+from wrapenv.eumos import EUMOS_CRITERIA, LevelVerdict, Verdict
 from wrapenv.load import Layout, LoadUnit
 from wrapenv.program import Pass, Program
 from wrapenv.wrap import WrapFormat
@@ -34,6 +34,15 @@ def _row(v: LevelVerdict, height_m: float) -> str:
             f"  {_mm(v.pallet_slip_m)}  {note}{damage}")
 
 
+def sequence_text(verdict: Verdict) -> str:
+    """How the levels were run, in words: one level has no sequence to speak of."""
+    if len(verdict.levels) == 1:
+        return "one level, on the unit as stacked and wrapped"
+    if verdict.sequence == "cumulative":
+        return "one unit through the levels, each from where the last left it"
+    return "a fresh unit for every level"
+
+
 def verdict_table(load: LoadUnit, run: BenchRun, orientation: str | None) -> str:
     """The unit, the sequence, the criteria, one row per level run, the highest level passed.
     Figures in mm; "permanent" is this level's, then since the unit was put on the sled (what
@@ -43,12 +52,10 @@ def verdict_table(load: LoadUnit, run: BenchRun, orientation: str | None) -> str
     h = v.load_height_m
     criteria = v.levels[0].limits.criteria() if v.levels else EUMOS_CRITERIA
     limits = ", ".join(f"{c.label.lower()} {c.describe(h)}" for c in criteria)
-    sequence = ("one unit through the levels, each from where the last left it"
-                if v.sequence == "cumulative" else "a fresh unit for every level")
     lines = [
         f"{printable(load.name)}: {len(layout.bundles)} bundles, {load.stack.layers} layers "
         f"({load.stack.pattern}), load height {h:.3f} m, {load.mass_kg:.0f} kg",
-        f"sequence: {v.sequence} ({sequence})",
+        f"sequence: {v.sequence} ({sequence_text(v)})",
         f"limits: {limits}, no damage",
         "figures in mm (% of load height); permanent: during the level, then since the unit "
         "was put on the sled",

@@ -221,6 +221,13 @@ def test_bad_hours_or_layer_shift_limit_exits_2_naming_the_flag(argv, field, loa
     assert field in err and not out.exists()
 
 
+def test_a_single_level_is_not_described_as_a_sequence(load_file, capsys):
+    assert run(["simulate", str(load_file(base=TINY_LOAD)), "--level", "0.2"]) == 0
+    printed = capsys.readouterr().out
+    assert "one level, on the unit as stacked and wrapped" in printed
+    assert "through the levels" not in printed
+
+
 @pytest.mark.parametrize("fresh", [False, True], ids=["cumulative", "fresh"])
 def test_repeated_levels_run_one_unit_unless_fresh_and_report_the_sequence(fresh, load_file,
                                                                            tmp_path, capsys):
