@@ -380,8 +380,14 @@ def _validation_summary(check) -> str:
              "the end of the predictable frames, mm",
              "  object      recorded  predicted ± spread   error"]
     rows = [*check.objects.items(), *((f"layer {k}", c) for k, c in check.layers.items())]
-    for name, c in rows:
-        pct = f" ({c.error_pct:+.0f} %)" if c.error_pct is not None else ""
-        lines.append(f"  {name:10s}  {1e3 * c.recorded_m:8.1f}  {1e3 * c.predicted_m:8.1f} ± "
-                     f"{1e3 * c.spread_m:5.1f}  {1e3 * c.error_m:+7.1f}{pct}")
+    lines += [_validation_row(name, c) for name, c in rows]
+    if check.layers_on_pallet:
+        lines.append("  on the pallet (each bundle's slip plus its supports', as EUMOS measures):")
+        lines += [_validation_row(f"layer {k}", c) for k, c in check.layers_on_pallet.items()]
     return "\n".join(lines)
+
+
+def _validation_row(name: str, c) -> str:
+    pct = f" ({c.error_pct:+.0f} %)" if c.error_pct is not None else ""
+    return (f"  {name:10s}  {1e3 * c.recorded_m:8.1f}  {1e3 * c.predicted_m:8.1f} ± "
+            f"{1e3 * c.spread_m:5.1f}  {1e3 * c.error_m:+7.1f}{pct}")

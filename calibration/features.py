@@ -103,6 +103,25 @@ def slips(states: States, body_map: Mapping[str, Body]) -> dict[str, np.ndarray]
     return out
 
 
+def on_pallet(states: States, body_map: Mapping[str, Body]) -> dict[str, np.ndarray]:
+    """Each bundle's displacement on the pallet (metres, zero at its first frame): its slip,
+    clipped at its support's edge, plus what its supports moved on the pallet (their mean).
+    The distance EUMOS 40509 judges a load by, where a slip is what one friction pair decides:
+    the same slide of a top layer can be its own on a bottom layer that held, or part of one
+    on a bottom layer that slid first."""
+    slip = slips(states, body_map)
+    out: dict[str, np.ndarray] = {}
+    for name in sorted(body_map, key=lambda n: (n != "pallet", n)):   # supports first
+        body = body_map[name]
+        if not body.supports:
+            continue
+        t = states[name][0]
+        own = np.clip(slip[name], -body.length_m / 2, body.length_m / 2)
+        below = [np.interp(t, states[s][0], out[s]) for s, _ in body.supports if s in out]
+        out[name] = own + np.mean(below, axis=0) if below else own
+    return out
+
+
 def _off_and_turned(xza: np.ndarray, slip: np.ndarray, body: Body
                     ) -> tuple[np.ndarray, np.ndarray]:
     """Per frame: whether the body has slid past its support's edge or dropped, and whether

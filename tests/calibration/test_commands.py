@@ -314,6 +314,10 @@ def test_calibrate_validates_on_a_recording_it_was_not_fitted_to(slide_dir, slid
     assert layer["layer"] == 1 and layer == check["layers"]["1"] | {"layer": 1}
     assert layer["recorded_m"] == pytest.approx(
         (slide["recorded_m"] + check["objects"]["L1C2R1"]["recorded_m"]) / 2)
+    # bundles on the pallet: their slip is how far they moved on it
+    assert check["largest_layer_on_pallet"] == layer
+    assert set(check["layers_on_pallet"]) == {"1"}
+    assert "on the pallet" in out
     assert Calibration.from_json(cal).friction["pallet_bundle"].identified
 
 

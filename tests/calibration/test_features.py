@@ -58,6 +58,27 @@ def test_a_slip_is_the_motion_across_the_contact_only(body_map):
     assert np.max(np.abs(slip["pallet"])) == 0.0
 
 
+def test_on_the_pallet_a_bundle_moved_its_own_slip_plus_its_supports(body_map):
+    """The lower bundle slides 30 mm on the pallet and the upper one 50 mm more on it: the
+    upper one moved 80 mm on the pallet, whichever interface slid; the pallet itself sliding on
+    the sled (5 mm) moves nothing on the pallet. A replay whose upper bundle slides 1 m counts
+    L / 2 for its own slip, as the fit's features do."""
+    states = _still()
+    lower, upper = np.linspace(0.0, -0.03, len(T)), np.linspace(0.0, -0.08, len(T))
+    states["pallet"][1][:, 0] = np.linspace(0.0, -0.005, len(T))
+    for name in SEEN - {"pallet"}:            # every bundle rides on the pallet ...
+        states[name][1][:, 0] = states["pallet"][1][:, 0]
+    states["L1C1R1"][1][:, 0] = states["pallet"][1][:, 0] + lower   # ... but the first column
+    states["L2C1R1"][1][:, 0] = states["pallet"][1][:, 0] + upper
+    moved = features.on_pallet(states, body_map)
+    assert "pallet" not in moved
+    assert moved["L1C1R1"][-1] == pytest.approx(-0.03)
+    assert moved["L2C1R1"][-1] == pytest.approx(-0.08)
+    assert np.max(np.abs(moved["L2C2R1"])) < 1e-12
+    states["L2C1R1"][1][:, 0] = states["L1C1R1"][1][:, 0] - np.linspace(0.0, 1.0, len(T))
+    assert features.on_pallet(states, body_map)["L2C1R1"][-1] == pytest.approx(-0.03 - L / 2)
+
+
 def test_a_body_tipping_about_its_edge_does_not_slip_but_turns(body_map):
     """A top bundle rotating by a about its rear bottom edge: its centre moves by
     (L/2)(cos a - 1) - (H/2) sin a, its bottom centre by (L/2)(cos a - 1) only (second order),
