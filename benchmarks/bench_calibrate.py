@@ -61,7 +61,7 @@ from calibration.replay import Observation, observe, replay, resettled, residual
 from calibration.synth import synthesize
 from calibration.track import track
 from calibration.trajectories import Trajectories
-from calibration.validate import REPEATS, Check, Validation, validate
+from calibration.validate import Check, Validation, benches_to_replay, validate
 from wrapenv.bench import SimSettings
 from wrapenv.calibrated import CalibratedPair, Calibration
 from wrapenv.config import InputError
@@ -174,14 +174,17 @@ def report(name: str, method: str, result: FitResult, truth: Truth, wall: float,
                    if c.error_pct is not None else "too small a slide for a % error")
             lines.append(f"  validation {Path(check.source).name}: layer {layer} {what} "
                          f"{1e3 * c.recorded_m:.1f} mm, predicted {1e3 * c.predicted_m:.1f} ± "
-                         f"{1e3 * c.spread_m:.1f} mm ({pct})")
+                         f"{1e3 * c.spread_m:.1f} mm ({pct}); over the calibration's "
+                         f"uncertainty {1e3 * c.uncertain_m:.1f} ± "
+                         f"{1e3 * c.uncertain_spread_m:.1f} mm")
             cells.append(f"layer {layer} {what} {pct.removesuffix(' (beyond goal)')}")
     lines += [f"  advice: {k}: {v}" for k, v in result.advice.items()]
     lines += [f"  stage {k}: {s.added} new, {s.used} used; box {_unit(s.centre)} ± "
               f"{_unit(s.half_width)} -> {_unit(s.estimate)} ± {_unit(s.std)}"
               for k, s in enumerate(result.stages)]
-    sims = result.simulations + REPEATS * len(checks)
-    head = (f"{name} / {method}: {result.simulations} + {REPEATS * len(checks)} simulations, "
+    validating = len(benches_to_replay(result.calibration)) * len(checks)
+    sims = result.simulations + validating
+    head = (f"{name} / {method}: {result.simulations} + {validating} simulations, "
             f"{wall:.0f} s; residual {1e3 * result.residual_rms_m:.1f} mm (replays scatter "
             f"{1e3 * result.spread_rms_m:.1f} mm); converged {result.converged} {result.reason}")
     row = f"| {name} | {method} | {sims} | {wall:.0f} s | " + " ; ".join(cells) + " |"

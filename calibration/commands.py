@@ -377,8 +377,9 @@ def _summary(result) -> str:
 
 def _validation_summary(check) -> str:
     lines = [f"validation {check.source} ({check.replays} replays): slide on its support at "
-             "the end of the predictable frames, mm",
-             "  object      recorded  predicted ± spread   error"]
+             "the end of the predictable frames, mm; 'uncertain': replayed with the calibrated "
+             "values drawn within their standard deviations",
+             "  object      recorded  predicted ± spread   error       uncertain ± spread"]
     rows = [*check.objects.items(), *((f"layer {k}", c) for k, c in check.layers.items())]
     lines += [_validation_row(name, c) for name, c in rows]
     if check.layers_on_pallet:
@@ -390,4 +391,5 @@ def _validation_summary(check) -> str:
 def _validation_row(name: str, c) -> str:
     pct = f" ({c.error_pct:+.0f} %)" if c.error_pct is not None else ""
     return (f"  {name:10s}  {1e3 * c.recorded_m:8.1f}  {1e3 * c.predicted_m:8.1f} ± "
-            f"{1e3 * c.spread_m:5.1f}  {1e3 * c.error_m:+7.1f}{pct}")
+            f"{1e3 * c.spread_m:5.1f}  {1e3 * c.error_m:+7.1f}{pct:8s}  "
+            f"{1e3 * c.uncertain_m:8.1f} ± {1e3 * c.uncertain_spread_m:5.1f}")

@@ -4,7 +4,11 @@ bench and report, per body, how far the prediction is from what was recorded.
 A whole unit near its slip threshold does not repeat itself (`calibration.surrogate`), so one
 replay is one draw: each recording is replayed `REPEATS` times, the unit settling a little
 longer each time (`SETTLE_STEP_S`), as repeated bench tests never start from the same state.
-Per body the prediction is the replays' mean and their standard deviation its spread.
+Per body the prediction is the replays' mean and their standard deviation its spread. Where the
+calibration has standard deviations, as many replays again draw the calibrated values within
+them (`Calibration.draw`): the prediction over what the recordings did not pin, as `recommend`'s
+samples see it. Its mean is not the headline: through a nonlinear response (a slide clipped at
+an edge, a slip that starts or not) a wide spread also shifts the mean.
 Compared is each body's slip on its support at the end of the frames the bench can predict
 (`calibration.features`, clipped at the support's edge as the fit's features are), and per layer
 the mean of its bodies' (the pallet is layer 0): a layer's slide, which one bundle's chaos moves
@@ -46,6 +50,9 @@ class Check:
     recorded_m: float
     predicted_m: float
     spread_m: float
+    #: the prediction over the calibration's uncertainty (replays of drawn values): mean, spread
+    uncertain_m: float
+    uncertain_spread_m: float
 
     @property
     def error_m(self) -> float:
@@ -103,9 +110,11 @@ def _layer(name: str) -> int:
     return 0 if name == "pallet" else int(name[1:name.index("C")])
 
 
-def _check(recorded: float, predicted: Sequence[float]) -> Check:
+def _check(recorded: float, predicted: Sequence[float], drawn: Sequence[float]) -> Check:
     values = np.array(predicted) if len(predicted) else np.array([np.nan])
-    return Check(recorded, float(values.mean()), float(values.std()))
+    draws = np.array(drawn) if len(drawn) else np.array([np.nan])
+    return Check(recorded, float(values.mean()), float(values.std()), float(draws.mean()),
+                 float(draws.std()))
 
 
 def _final_slips(obs: Observation, states: features.States) -> dict[str, float]:
@@ -123,33 +132,56 @@ def _final_on_pallet(obs: Observation, states: features.States) -> dict[str, flo
     return {name: float(moved[name][obs.frames[name] - 1]) for name in moved}
 
 
-def _per_layer(recorded: Mapping[str, float], predicted: Sequence[Mapping[str, float]]
+Values = Mapping[str, float]
+
+
+def _per_body(recorded: Values, predicted: Sequence[Values], drawn: Sequence[Values]
+              ) -> dict[str, Check]:
+    return {name: _check(v, [p[name] for p in predicted], [d[name] for d in drawn])
+            for name, v in recorded.items()}
+
+
+def _per_layer(recorded: Values, predicted: Sequence[Values], drawn: Sequence[Values]
                ) -> dict[int, Check]:
     """Per layer, the mean of its bodies' values, recorded against predicted."""
     layers = {}
     for layer in sorted({_layer(n) for n in recorded}):
         names = [n for n in recorded if _layer(n) == layer]
-        layers[layer] = _check(float(np.mean([recorded[n] for n in names])),
-                               [float(np.mean([p[n] for n in names])) for p in predicted])
+
+        def mean(values: Values, names: list[str] = names) -> float:
+            return float(np.mean([values[n] for n in names]))
+
+        layers[layer] = _check(mean(recorded), [mean(p) for p in predicted],
+                               [mean(d) for d in drawn])
     return layers
+
+
+def benches_to_replay(calibration: Calibration, repeats: int = REPEATS) -> list[Calibration]:
+    """The calibration `repeats` times, then as many draws of it unless it has no spread."""
+    drawn = [calibration.draw(seed=k) for k in range(repeats)]
+    return [calibration] * repeats + (drawn if drawn != [calibration] * repeats else [])
 
 
 def validate(observations: Sequence[Observation], calibration: Calibration, pool: Executor,
              sim: SimSettings | None = None, repeats: int = REPEATS) -> list[Validation]:
-    """Replay every observation `repeats` times with the calibrated bench (module docstring)."""
+    """Replay every observation `repeats` times with the calibrated bench, and as many times
+    with its values drawn when it has standard deviations (module docstring)."""
     sim = sim or SimSettings()
-    runs = [[pool.submit(replay, obs, calibration.apply(obs.load).friction,
-                         calibration.wrap_scales(), resettled(sim, k))
-             for k in range(repeats)] for obs in observations]
+    benches = benches_to_replay(calibration, repeats)
+    runs = [[pool.submit(replay, obs, cal.apply(obs.load).friction, cal.wrap_scales(),
+                         resettled(sim, k % repeats))
+             for k, cal in enumerate(benches)] for obs in observations]
     out = []
     for obs, futures in zip(observations, runs, strict=True):
-        replayed = [{n: (t, s[n]) for n, (t, _) in obs.states.items()}
-                    for s in (f.result() for f in futures) if s is not None]
+        states = [{n: (t, s[n]) for n, (t, _) in obs.states.items()} if s is not None else None
+                  for s in (f.result() for f in futures)]
+        fitted = [s for s in states[:repeats] if s is not None]
+        drawn_runs = [s for s in states[repeats:] if s is not None]
+        uncertain = drawn_runs if len(benches) > repeats else fitted
+        slips = [[_final_slips(obs, s) for s in group] for group in (fitted, uncertain)]
+        moved = [[_final_on_pallet(obs, s) for s in group] for group in (fitted, uncertain)]
         recorded = _final_slips(obs, obs.states)
-        predicted = [_final_slips(obs, states) for states in replayed]
-        objects = {name: _check(v, [p[name] for p in predicted]) for name, v in recorded.items()}
-        on_pallet = _per_layer(_final_on_pallet(obs, obs.states),
-                               [_final_on_pallet(obs, states) for states in replayed])
-        out.append(Validation(obs.source, len(predicted), objects,
-                              _per_layer(recorded, predicted), on_pallet))
+        out.append(Validation(obs.source, len(fitted), _per_body(recorded, *slips),
+                              _per_layer(recorded, *slips),
+                              _per_layer(_final_on_pallet(obs, obs.states), *moved)))
     return out

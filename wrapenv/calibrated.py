@@ -5,6 +5,8 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 
+import numpy as np
+
 from wrapenv.config import InputError, Table, read_json
 from wrapenv.load import PAIRS, FrictionPair, LoadUnit
 
@@ -57,6 +59,30 @@ class Calibration:
                  if p.identified or p.static > load.friction.pair(k).static}
         load = load.with_friction(replace(load.friction, **pairs))
         return load.with_give(self.give_scale) if self.give_scale != 1.0 else load
+
+    def draw(self, seed: int) -> Calibration:
+        """One draw of the calibrated values within their standard deviations (normal and
+        independent; a kinetic coefficient kept at or below its static one, a scale above a
+        tenth of its value): predictions replayed with draws spread by what the fit could not
+        pin as well as by the bench's own scatter. A pair that was not identified keeps its
+        bound, a known scale its value (their standard deviations are 0)."""
+        rng = np.random.default_rng(seed)
+
+        def normal(value: float, std: float, floor: float) -> float:
+            return value if std == 0 else max(floor, float(rng.normal(value, std)))
+
+        pairs = {}
+        for name, p in self.friction.items():
+            static = normal(p.static, p.static_std, 0.05)
+            kinetic = min(static, normal(p.kinetic, p.kinetic_std, 0.04))
+            pairs[name] = replace(p, static=static, kinetic=kinetic) if p.identified else p
+        return replace(self, friction=pairs,
+                       stiffness_scale=normal(self.stiffness_scale, self.stiffness_scale_std,
+                                              0.1 * self.stiffness_scale),
+                       tension_scale=normal(self.tension_scale, self.tension_scale_std,
+                                            0.1 * self.tension_scale),
+                       give_scale=normal(self.give_scale, self.give_scale_std,
+                                         0.1 * self.give_scale))
 
     def to_dict(self) -> dict:
         """CAL.json's `friction` and `wrap` tables (what `from_dict` reads back)."""

@@ -232,3 +232,31 @@ def test_apply_scales_the_load_s_give_by_the_calibrated_factor():
     assert cal.give_scale_std == 0.1
     assert cal.apply(load()).bundle.corner_stiffness_n_per_m2 == pytest.approx(
         0.5 * load().bundle.corner_stiffness_n_per_m2)
+
+
+def test_a_draw_spreads_each_value_by_its_standard_deviation():
+    """Over many draws each fitted value keeps its mean and spreads by its standard deviation
+    (3-sigma tolerance of the sample's mean and std for n = 4000); kinetic never exceeds
+    static; a pair that was not identified keeps its bound."""
+    cal = dataclasses.replace(Calibration.from_dict(CAL), stiffness_scale_std=0.2,
+                              give_scale=0.8, give_scale_std=0.1)
+    draws = [cal.draw(seed) for seed in range(4000)]
+    n = len(draws)
+    for values, mean, std in [
+            ([d.friction["sled_pallet"].static for d in draws], 0.45, 0.02),
+            ([d.friction["pallet_bundle"].kinetic for d in draws], 0.44, 0.02),
+            ([d.stiffness_scale for d in draws], 1.1, 0.2),
+            ([d.give_scale for d in draws], 0.8, 0.1)]:
+        assert abs(sum(values) / n - mean) < 3 * std / n**0.5
+        sample_std = (sum((v - mean) ** 2 for v in values) / n) ** 0.5
+        assert abs(sample_std - std) < 3 * std / (2 * n) ** 0.5
+    assert all(p.kinetic <= p.static for d in draws for p in d.friction.values())
+    assert all(d.friction["bundle_bundle"] == cal.friction["bundle_bundle"] for d in draws)
+    assert {d.tension_scale for d in draws} == {0.9}          # no standard deviation given
+
+
+def test_a_draw_is_fixed_by_its_seed_and_a_calibration_without_spread_is_its_own_draw():
+    cal = Calibration.from_dict(CAL)
+    assert cal.draw(3) == cal.draw(3) != cal.draw(4)
+    exact = Calibration({"pallet_bundle": CalibratedPair(0.5, 0.4)}, stiffness_scale=1.3)
+    assert exact.draw(7) == exact

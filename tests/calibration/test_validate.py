@@ -1,0 +1,92 @@
+"""Proving a calibration on a recording it was not fitted to: replays with the calibrated values,
+and as many with them drawn within their standard deviations; per layer both the slip on its
+support and the displacement on the pallet are compared."""
+
+from __future__ import annotations
+
+from concurrent.futures import Future
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from calibration import features, validate
+from wrapenv.calibrated import CalibratedPair, Calibration
+from wrapenv.load import LoadUnit
+
+LOAD = {
+    "name": "validation test unit",
+    "pallet": {"length_m": 0.6, "width_m": 0.4, "height_m": 0.12, "mass_kg": 10.0},
+    "bundle": {"length_m": 0.28, "width_m": 0.19, "height_m": 0.33, "mass_kg": 9.3},
+    "stack": {"layers": 2, "pattern": "columnar"},
+}
+SEEN = ("pallet", "L1C1R1", "L2C1R1")
+T = np.arange(0.0, 1.0, 0.05)
+
+
+class Inline:
+    """An executor that runs each task at once."""
+
+    def submit(self, fn, *args):
+        future: Future = Future()
+        future.set_result(fn(*args))
+        return future
+
+
+def recording(bottom_m: float, top_m: float) -> SimpleNamespace:
+    """The bottom bundle slid `bottom_m` on the pallet, the top one `top_m` on it."""
+    load = LoadUnit.from_dict(LOAD)
+    paths = {"pallet": 0.0, "L1C1R1": bottom_m, "L2C1R1": bottom_m + top_m}
+    states = {n: (T, np.column_stack([np.linspace(0, x, len(T)), np.zeros((len(T), 2))]))
+              for n, x in paths.items()}
+    return SimpleNamespace(source="held-out", load=load, states=states,
+                           bodies=features.bodies(load.layout(), set(SEEN)),
+                           frames={n: len(T) for n in SEEN})
+
+
+def fake_replay(frictions: list[float]):
+    """A replay in which the bottom layer takes 20 mm of the top layer's 50 mm recorded slip,
+    or, with the bundles' static coefficient above 0.35, none of it; it notes that
+    coefficient."""
+    def replay(o, friction, scales, sim):
+        static = friction.pair("bundle_bundle").static
+        frictions.append(static)
+        return {n: recording(-0.05, -0.03 if static <= 0.35 else 0.0).states[n][1]
+                for n in o.states}
+    return replay
+
+
+def test_replays_with_the_calibration_then_with_draws_and_layers_judged_on_the_pallet(
+        monkeypatch):
+    """The bottom layer taking 20 mm of the top layer's slip mispredicts both slips but not
+    the top layer's 80 mm on the pallet. Drawn values above 0.35 (the replay's threshold) move
+    the uncertain prediction, not the headline."""
+    obs = recording(-0.03, -0.05)
+    frictions: list[float] = []
+    monkeypatch.setattr(validate, "replay", fake_replay(frictions))
+    cal = Calibration({"bundle_bundle": CalibratedPair(0.35, 0.30, static_std=0.02)})
+    (check,) = validate.validate([obs], cal, Inline(), repeats=8)
+    draws = [cal.draw(k).friction["bundle_bundle"].static for k in range(8)]
+    assert frictions == [0.35] * 8 + draws
+    assert check.replays == 8
+    assert check.layers[2].recorded_m == pytest.approx(-0.05)
+    assert check.layers[2].predicted_m == pytest.approx(-0.03)
+    assert check.largest_on_pallet[0] == 2
+    on_pallet = check.layers_on_pallet[2]
+    assert on_pallet.recorded_m == pytest.approx(-0.08)
+    assert on_pallet.predicted_m == pytest.approx(-0.08) and on_pallet.spread_m < 1e-12
+    assert set(check.to_dict()["layers_on_pallet"]) == {"1", "2"}
+    held = [d > 0.35 for d in draws]
+    assert 0 < sum(held) < 8
+    assert on_pallet.uncertain_m == pytest.approx(np.mean([-0.05 if h else -0.08 for h in held]))
+    assert on_pallet.uncertain_spread_m > 0.005
+
+
+def test_a_calibration_without_spread_is_replayed_once_per_repeat(monkeypatch):
+    frictions: list[float] = []
+    monkeypatch.setattr(validate, "replay", fake_replay(frictions))
+    cal = Calibration({"bundle_bundle": CalibratedPair(0.35, 0.30)})
+    (check,) = validate.validate([recording(-0.03, -0.05)], cal, Inline(), repeats=4)
+    assert frictions == [0.35] * 4
+    layer = check.layers_on_pallet[2]
+    assert (layer.uncertain_m, layer.uncertain_spread_m) == (layer.predicted_m, layer.spread_m)
