@@ -16,9 +16,10 @@ less than its own. The headline is the layer that slid most in the recording.
 
 Per layer also its displacement on the pallet (`features.on_pallet`), what the EUMOS verdict
 judges. Where a bottom layer is near its slip threshold, how a top layer's displacement splits
-between its own slip and the bottom layer's changes from run to run while the sum holds: the
-2-layer example at 0.55 g, replayed with its true values, spreads its bottom layer's slide by
-+- 36 mm and its top layer's by +- 18 mm (benchmarks/bench_calibrate.py --truth).
+between its own slip and the bottom layer's changes from run to run while the sum holds better:
+the 2-layer example at 0.55 g, replayed with its true values, spreads its bottom bundles' slides
+by up to +- 36 mm, its top layer's by +- 18 mm, and the top layer's displacement on the pallet by
++- 9 mm (benchmarks/bench_calibrate.py --truth).
 """
 
 from __future__ import annotations
