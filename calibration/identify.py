@@ -134,7 +134,8 @@ def advice_static(name: str, observations: Sequence[Observation], std: float) ->
 def advice_slipped_throughout(bound: Bound, static: float, std: float) -> str:
     """For a pair that slipped at every level (`slipped_throughout`)."""
     return (f"slipped at every level, already under {bound.demand_g:.2f} g: the recordings "
-            f"bound its static coefficient only from above (about {bound.demand_g:.2f}), so "
+            f"bound its static coefficient only from above (about {bound.demand_g:.2f}; more "
+            f"where the layers below rock and pass up more than the sled's level), so "
             f"the fitted {static:.3f} is not resolved (± {std:.3f} over kinetic to that bound); "
             f"test at {_level_below(bound.demand_g):.2f} g or lower, where it holds")
 
