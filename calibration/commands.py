@@ -16,12 +16,16 @@ import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from tqdm import tqdm
 
 from wrapenv.config import InputError, check_output, printable, write_atomic
 from wrapenv.load import Friction, LoadUnit
 from wrapenv.wrap import WrapFormat
+
+if TYPE_CHECKING:   # imported where used: the CLI starts without the fitting's modules
+    from calibration.validate import Check, Validation
 
 #: `synthesize`'s arguments, as its errors name them (source, field), and the flags that set
 #: them.
@@ -375,7 +379,7 @@ def _summary(result) -> str:
     return "\n".join(lines)
 
 
-def _validation_summary(check) -> str:
+def _validation_summary(check: Validation) -> str:
     lines = [f"validation {check.source} ({check.replays} replays): slide on its support at "
              "the end of the predictable frames, mm; 'uncertain': replayed with the calibrated "
              "values drawn within their standard deviations",
@@ -388,7 +392,7 @@ def _validation_summary(check) -> str:
     return "\n".join(lines)
 
 
-def _validation_row(name: str, c) -> str:
+def _validation_row(name: str, c: Check) -> str:
     pct = f" ({c.error_pct:+.0f} %)" if c.error_pct is not None else ""
     return (f"  {name:10s}  {1e3 * c.recorded_m:8.1f}  {1e3 * c.predicted_m:8.1f} ± "
             f"{1e3 * c.spread_m:5.1f}  {1e3 * c.error_m:+7.1f}{pct:8s}  "
