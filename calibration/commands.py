@@ -386,7 +386,7 @@ def _validation_summary(check: Validation) -> str:
              "  object      recorded  predicted ± spread   error       uncertain ± spread"]
     rows = [*check.objects.items(), *((f"layer {k}", c) for k, c in check.layers.items())]
     lines += [_validation_row(name, c) for name, c in rows]
-    if check.layers_on_pallet:
+    if any(layer > 1 for layer in check.layers_on_pallet):   # the first layer's is its slip
         lines.append("  on the pallet (each bundle's slip plus its supports', as EUMOS measures):")
         lines += [_validation_row(f"layer {k}", c) for k, c in check.layers_on_pallet.items()]
     return "\n".join(lines)

@@ -12,9 +12,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from calibration.commands import _validation_summary
 from calibration.recording import Truth
 from calibration.trajectories import ObjectPath, Trajectories
-from calibration.validate import REPEATS
+from calibration.validate import REPEATS, Check, Validation
 from recommender.cli import main
 from wrapenv.calibrated import Calibration
 from wrapenv.load import LoadUnit
@@ -317,8 +318,23 @@ def test_calibrate_validates_on_a_recording_it_was_not_fitted_to(slide_dir, slid
     # bundles on the pallet: their slip is how far they moved on it
     assert check["largest_layer_on_pallet"] == layer
     assert set(check["layers_on_pallet"]) == {"1"}
-    assert "on the pallet" in out
+    assert "on the pallet" not in out                     # one layer: the same as its slip
     assert Calibration.from_json(cal).friction["pallet_bundle"].identified
+
+
+def test_the_validation_summary_shows_upper_layers_on_the_pallet():
+    """A 2-layer take: the top layer slipped 50 mm on the bottom one, which slid 30 mm; the
+    summary gives both slips, then the top layer's 80 mm on the pallet, each with the
+    prediction over the calibration's uncertainty."""
+    slip = {1: Check(-0.03, -0.03, 0.001, -0.03, 0.002), 2: Check(-0.05, -0.04, 0.01, -0.05, 0.02)}
+    moved = {1: slip[1], 2: Check(-0.08, -0.07, 0.005, -0.08, 0.02)}
+    text = _validation_summary(Validation("take", 12, {}, slip, moved))
+    lines = text.splitlines()
+    at = lines.index("  on the pallet (each bundle's slip plus its supports', as EUMOS measures):")
+    assert [line.split()[:3] for line in lines[at + 1:]] == [["layer", "1", "-30.0"],
+                                                            ["layer", "2", "-80.0"]]
+    assert lines[-1].split()[-3:] == ["-80.0", "±", "20.0"]
+    assert "(+12 %)" in lines[-1]
 
 
 def test_calibrate_refuses_to_validate_on_a_fitted_recording(slide_dir, tmp_path, capsys):
