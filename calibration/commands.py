@@ -389,6 +389,13 @@ def _validation_summary(check: Validation) -> str:
     if any(layer > 1 for layer in check.layers_on_pallet):   # the first layer's is its slip
         lines.append("  on the pallet (each bundle's slip plus its supports', as EUMOS measures):")
         lines += [_validation_row(f"layer {k}", c) for k, c in check.layers_on_pallet.items()]
+    layer, c = check.verdict
+    moved = (f"layer {layer}, moved {1e3 * c.recorded_m:.1f} mm on the pallet" if layer else
+             f"the pallet, slid {1e3 * c.recorded_m:.1f} mm on the sled")
+    lines.append(f"  {moved}: {c.uncertain_spreads:.1f} spreads from the prediction over the "
+                 "calibration's uncertainty, "
+                 + ("explained" if c.explained else "NOT explained by it: the recording shows "
+                    "something the calibrated bench does not do"))
     return "\n".join(lines)
 
 

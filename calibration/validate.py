@@ -24,6 +24,7 @@ by up to +- 36 mm, its top layer's by +- 18 mm, and the top layer's displacement
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping, Sequence
 from concurrent.futures import Executor
 from dataclasses import asdict, dataclass
@@ -31,6 +32,7 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 from calibration import features
+from calibration.acceptance import NOISE_VAR_M2
 from calibration.replay import Observation, replay, resettled
 from wrapenv.bench import SimSettings
 from wrapenv.calibrated import Calibration
@@ -42,6 +44,9 @@ from wrapenv.calibrated import Calibration
 REPEATS = 12
 #: Relative errors of slides smaller than this are not reported (noise over noise).
 MIN_SLIDE_M = 0.01
+#: A recording further than this many spreads from the prediction over the calibration's
+#: uncertainty (the tracker's noise counted) is not explained by that uncertainty.
+EXPLAINED_SPREADS = 2.0
 
 
 @dataclass(frozen=True)
@@ -65,8 +70,23 @@ class Check:
             return None
         return 100.0 * self.error_m / abs(self.recorded_m)
 
+    @property
+    def uncertain_spreads(self) -> float:
+        """How many spreads of the prediction over the calibration's uncertainty (and of the
+        tracker's noise on the two positions a slip is the difference of) the recording lies
+        from it."""
+        spread = math.sqrt(self.uncertain_spread_m**2 + NOISE_VAR_M2)
+        return abs(self.uncertain_m - self.recorded_m) / spread
+
+    @property
+    def explained(self) -> bool:
+        """Whether the calibration's uncertainty explains the recording."""
+        return self.uncertain_spreads <= EXPLAINED_SPREADS
+
     def to_dict(self) -> dict:
-        return asdict(self) | {"error_m": self.error_m, "error_pct": self.error_pct}
+        return asdict(self) | {"error_m": self.error_m, "error_pct": self.error_pct,
+                               "uncertain_spreads": self.uncertain_spreads,
+                               "explained": self.explained}
 
 
 @dataclass(frozen=True)
@@ -88,6 +108,12 @@ class Validation:
         """The layer that moved most on the pallet in the recording, and its check (None when
         no bundle was compared)."""
         return _largest(self.layers_on_pallet) if self.layers_on_pallet else None
+
+    @property
+    def verdict(self) -> tuple[int, Check]:
+        """The check a calibration is judged by: the layer that moved most on the pallet (the
+        pallet's slip on the sled when no bundle was compared)."""
+        return self.largest_on_pallet or self.largest
 
     def to_dict(self) -> dict:
         layer, check = self.largest

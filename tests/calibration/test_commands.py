@@ -318,7 +318,9 @@ def test_calibrate_validates_on_a_recording_it_was_not_fitted_to(slide_dir, slid
     # bundles on the pallet: their slip is how far they moved on it
     assert check["largest_layer_on_pallet"] == layer
     assert set(check["layers_on_pallet"]) == {"1"}
-    assert "on the pallet" not in out                     # one layer: the same as its slip
+    assert "on the pallet (" not in out                   # one layer: the same as its slip
+    assert "spreads from the prediction over the calibration's uncertainty" in out
+    assert isinstance(check["largest_layer_on_pallet"]["explained"], bool)
     assert Calibration.from_json(cal).friction["pallet_bundle"].identified
 
 
@@ -331,10 +333,13 @@ def test_the_validation_summary_shows_upper_layers_on_the_pallet():
     text = _validation_summary(Validation("take", 12, {}, slip, moved))
     lines = text.splitlines()
     at = lines.index("  on the pallet (each bundle's slip plus its supports', as EUMOS measures):")
-    assert [line.split()[:3] for line in lines[at + 1:]] == [["layer", "1", "-30.0"],
-                                                            ["layer", "2", "-80.0"]]
-    assert lines[-1].split()[-3:] == ["-80.0", "±", "20.0"]
-    assert "(+12 %)" in lines[-1]
+    assert [line.split()[:3] for line in lines[at + 1:-1]] == [["layer", "1", "-30.0"],
+                                                              ["layer", "2", "-80.0"]]
+    assert lines[-2].split()[-3:] == ["-80.0", "±", "20.0"]
+    assert "(+12 %)" in lines[-2]
+    # recorded on the drawn prediction's mean: explained
+    assert lines[-1] == ("  layer 2, moved -80.0 mm on the pallet: 0.0 spreads from the "
+                         "prediction over the calibration's uncertainty, explained")
 
 
 def test_calibrate_refuses_to_validate_on_a_fitted_recording(slide_dir, tmp_path, capsys):

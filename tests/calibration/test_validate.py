@@ -90,3 +90,16 @@ def test_a_calibration_without_spread_is_replayed_once_per_repeat(monkeypatch):
     assert frictions == [0.35] * 4
     layer = check.layers_on_pallet[2]
     assert (layer.uncertain_m, layer.uncertain_spread_m) == (layer.predicted_m, layer.spread_m)
+
+
+@pytest.mark.parametrize("drawn_m, spread_m, spreads, explained", [
+    (-0.05, 0.02, 0.03 / (0.02**2 + 2 * 0.002**2) ** 0.5, True),    # 1.49 spreads
+    (-0.05, 0.01, 0.03 / (0.01**2 + 2 * 0.002**2) ** 0.5, False),   # 2.89
+    (-0.0795, 0.0, 0.0005 / (2 * 0.002**2) ** 0.5, True),           # the tracker's noise alone
+])
+def test_a_recording_is_explained_within_two_spreads_of_the_uncertain_prediction(
+        drawn_m, spread_m, spreads, explained):
+    check = validate.Check(-0.08, -0.07, 0.005, drawn_m, spread_m)
+    assert check.uncertain_spreads == pytest.approx(spreads)
+    assert check.explained is explained
+    assert check.to_dict()["explained"] is explained
