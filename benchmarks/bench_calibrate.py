@@ -176,7 +176,8 @@ def report(name: str, method: str, result: FitResult, truth: Truth, wall: float,
                          f"{1e3 * c.recorded_m:.1f} mm, predicted {1e3 * c.predicted_m:.1f} ± "
                          f"{1e3 * c.spread_m:.1f} mm ({pct}); over the calibration's "
                          f"uncertainty {1e3 * c.uncertain_m:.1f} ± "
-                         f"{1e3 * c.uncertain_spread_m:.1f} mm")
+                         f"{1e3 * c.uncertain_spread_m:.1f} mm ({c.uncertain_spreads:.1f} "
+                         f"spreads: {'explained' if c.explained else 'NOT explained'})")
             cells.append(f"layer {layer} {what} {pct.removesuffix(' (beyond goal)')}")
     lines += [f"  advice: {k}: {v}" for k, v in result.advice.items()]
     lines += [f"  stage {k}: {s.added} new, {s.used} used; box {_unit(s.centre)} ± "
