@@ -16,7 +16,7 @@ from dataclasses import asdict, dataclass, replace
 
 import numpy as np
 
-from wrapenv.calibrated import Calibration
+from wrapenv.calibrated import Calibration, draw_pair, draw_scale
 from wrapenv.load import PAIRS, FrictionPair, LoadUnit
 from wrapenv.wrap import WrapFormat
 
@@ -80,25 +80,16 @@ class Uncertainty:
         rng = np.random.default_rng(seed)
         pairs = {}
         for name in PAIRS:
-            nominal = load.friction.pair(name)
-            s_std, k_std = self.friction_std[name]
-            static = max(0.05, nominal.static + rng.normal(0, s_std))
-            kinetic = min(static, max(0.04, nominal.kinetic + rng.normal(0, k_std)))
-            pairs[name] = FrictionPair(static, kinetic)
+            pairs[name] = draw_pair(rng, load.friction.pair(name), *self.friction_std[name])
         return Sample(
             friction=pairs,
             mass_scale=float(rng.uniform(1 - MASS_SPREAD, 1 + MASS_SPREAD)),
-            stiffness_scale=_positive(rng, self.stiffness_scale, self.stiffness_scale_std),
-            tension_scale=_positive(rng, self.tension_scale, self.tension_scale_std),
-            relaxation_scale=_positive(rng, 1.0, RELAXATION_STD),
+            stiffness_scale=draw_scale(rng, self.stiffness_scale, self.stiffness_scale_std),
+            tension_scale=draw_scale(rng, self.tension_scale, self.tension_scale_std),
+            relaxation_scale=draw_scale(rng, 1.0, RELAXATION_STD),
             hours_since_wrapping=self.hours_since_wrapping,
-            give_scale=_positive(rng, 1.0, self.give_std),
+            give_scale=draw_scale(rng, 1.0, self.give_std),
         )
-
-
-def _positive(rng: np.random.Generator, mean: float, std: float) -> float:
-    """A normal draw kept above a tenth of the mean (a scale is never zero or negative)."""
-    return float(max(0.1 * mean, rng.normal(mean, std)))
 
 
 @dataclass(frozen=True)

@@ -67,22 +67,17 @@ class Calibration:
         pin as well as by the bench's own scatter. A pair that was not identified keeps its
         bound, a known scale its value (their standard deviations are 0)."""
         rng = np.random.default_rng(seed)
-
-        def normal(value: float, std: float, floor: float) -> float:
-            return value if std == 0 else max(floor, float(rng.normal(value, std)))
-
         pairs = {}
         for name, p in self.friction.items():
-            static = normal(p.static, p.static_std, 0.05)
-            kinetic = min(static, normal(p.kinetic, p.kinetic_std, 0.04))
-            pairs[name] = replace(p, static=static, kinetic=kinetic) if p.identified else p
+            if p.identified:
+                d = draw_pair(rng, FrictionPair(p.static, p.kinetic), p.static_std, p.kinetic_std)
+                p = replace(p, static=d.static, kinetic=d.kinetic)
+            pairs[name] = p
         return replace(self, friction=pairs,
-                       stiffness_scale=normal(self.stiffness_scale, self.stiffness_scale_std,
-                                              0.1 * self.stiffness_scale),
-                       tension_scale=normal(self.tension_scale, self.tension_scale_std,
-                                            0.1 * self.tension_scale),
-                       give_scale=normal(self.give_scale, self.give_scale_std,
-                                         0.1 * self.give_scale))
+                       stiffness_scale=draw_scale(rng, self.stiffness_scale,
+                                                  self.stiffness_scale_std),
+                       tension_scale=draw_scale(rng, self.tension_scale, self.tension_scale_std),
+                       give_scale=draw_scale(rng, self.give_scale, self.give_scale_std))
 
     def to_dict(self) -> dict:
         """CAL.json's `friction` and `wrap` tables (what `from_dict` reads back)."""
@@ -133,6 +128,30 @@ class Calibration:
         top.ignore(*DIAGNOSTICS)
         top.done()
         return cls(pairs, stiffness, tension, *stds, *give, known)
+
+
+#: Drawn coefficients are kept above these (a draw far in a tail is not a friction pair).
+MIN_DRAWN_STATIC, MIN_DRAWN_KINETIC = 0.05, 0.04
+
+
+def draw_pair(rng: np.random.Generator, pair: FrictionPair, static_std: float,
+              kinetic_std: float) -> FrictionPair:
+    """A friction pair drawn within standard deviations (normal; a coefficient is kept above
+    a floor and the kinetic one at or below the static one; a standard deviation of 0 draws
+    nothing)."""
+    static = _normal(rng, pair.static, static_std, MIN_DRAWN_STATIC)
+    return FrictionPair(static, min(static, _normal(rng, pair.kinetic, kinetic_std,
+                                                    MIN_DRAWN_KINETIC)))
+
+
+def draw_scale(rng: np.random.Generator, value: float, std: float) -> float:
+    """A scale drawn within a standard deviation, kept above a tenth of its value (a scale is
+    never zero or negative)."""
+    return _normal(rng, value, std, 0.1 * value)
+
+
+def _normal(rng: np.random.Generator, value: float, std: float, floor: float) -> float:
+    return value if std == 0 else max(floor, float(rng.normal(value, std)))
 
 
 #: The wrap scales by their names in CAL.json's `wrap.known` and `calibrate --known`.
