@@ -8,7 +8,6 @@ turns into one line and exit status 2.
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import os
 import sys
@@ -20,7 +19,7 @@ from typing import TYPE_CHECKING
 
 from tqdm import tqdm
 
-from wrapenv.config import InputError, check_output, printable, write_atomic
+from wrapenv.config import InputError, check_output, printable, write_result
 from wrapenv.load import Friction, LoadUnit
 from wrapenv.wrap import WrapFormat
 
@@ -337,7 +336,7 @@ def run_calibrate(args: argparse.Namespace) -> int:
     plot_loss(result.curve, f"{stem}-loss.png",
               f"{result.method}: {result.simulations} simulations")
     plot_overlay(observations, result.fitted, f"{stem}-overlay.png")
-    write_atomic(args.out, (json.dumps(out, indent=2) + "\n").encode())
+    write_result(args.out, out)
     print(_summary(result))
     for check in checks:
         print(_validation_summary(check))

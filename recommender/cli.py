@@ -20,6 +20,7 @@ from recommender import commands as bench_commands
 from recommender import simulate
 from recommender.parallel import BACKENDS
 from recommender.uncertainty import TRANSPORT_HOURS
+from wrapenv import __version__
 from wrapenv.config import InputError
 
 #: The bundled example (a link to examples/pet_2layer_columnar.toml, copied into wheels).
@@ -53,6 +54,7 @@ def _layer_shift_flag(parser: argparse.ArgumentParser) -> None:
 
 def build_parser() -> argparse.ArgumentParser:
     parser = _Parser(prog="wrapbench", description=__doc__.splitlines()[0])
+    parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
     sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
     _add_simulate(sub)
     rec = sub.add_parser("recommend", help="search the wrapping program with the least web that "

@@ -8,7 +8,6 @@ the domain's errors (which name domain fields) onto the flags a user typed.
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import os
 import sys
@@ -27,7 +26,7 @@ from recommender.html_report import (
 from recommender.search import Evaluation, Problem, SearchSettings, SearchState, Verification
 from recommender.text import program_text, verdict_table
 from wrapenv.calibrated import Calibration
-from wrapenv.config import InputError, check_output, printable, write_atomic
+from wrapenv.config import InputError, check_output, printable, write_atomic, write_result
 from wrapenv.eumos import EUMOS_LIMITS, Limits
 from wrapenv.load import Layout, LoadUnit
 from wrapenv.material import MATERIALS
@@ -310,7 +309,7 @@ def _write_outputs(args: argparse.Namespace, problem: Problem, best: Evaluation,
                "robust_samples": check.probability.samples, "search_margin": best.margin,
                "evaluations": evaluations, "candidates": candidates,
                "method": args.method, "target_g": problem.settings.target_g}
-        write_atomic(args.json, (json.dumps(out, indent=2) + "\n").encode())
+        write_result(args.json, out)
     if args.wrap_out:
         write_atomic(args.wrap_out, best.wrap.to_toml().encode())
 

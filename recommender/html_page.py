@@ -19,6 +19,7 @@ from typing import Any
 from recommender.search import Trial
 from recommender.text import sequence_text, step_cells
 from recommender.uncertainty import PassProbability
+from wrapenv import __version__
 from wrapenv.bench import BenchRun
 from wrapenv.config import printable
 from wrapenv.eumos import EUMOS_CRITERIA, NO_DAMAGE, Criterion, LevelVerdict, Verdict
@@ -290,8 +291,8 @@ def render(page: Page) -> str:
 <style>{CSS.read_text()}</style></head>
 <body><header><h1>{_t(page.heading)}</h1>
 <p class="name">{_t(page.load.name)}</p>
-<p class="note">EUMOS 40509 test on wrapbench's virtual ESTL acceleration bench: a simulation,
-not a physical test. Inputs:</p><ul>{inputs}</ul></header>
+<p class="note">EUMOS 40509 test on the virtual ESTL acceleration bench of wrapbench
+{_t(__version__)}: a simulation, not a physical test. Inputs:</p><ul>{inputs}</ul></header>
 {_verdict(page)}{robust}{_load_section(page.load, page.tested[0].layout)}
 {_wrap_section(page.wrap, page.tested[0].layout, page.hours_since_wrapping)}
 <section><h2>EUMOS 40509 levels</h2>{tested}</section>

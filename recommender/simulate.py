@@ -5,7 +5,6 @@ checked before any simulation."""
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from typing import Any
 
@@ -16,7 +15,7 @@ from recommender.html_report import check_report_folder, simulate_page, write_re
 from recommender.text import program_text, verdict_table
 from wrapenv.bench import run_levels
 from wrapenv.calibrated import Calibration
-from wrapenv.config import InputError, check_output, write_atomic
+from wrapenv.config import InputError, check_output, write_result
 from wrapenv.eumos import LevelVerdict
 from wrapenv.load import LoadUnit
 from wrapenv.profile import MeasuredProfile, PulseProfile, eumos_levels
@@ -79,7 +78,7 @@ def run_simulate(args: argparse.Namespace) -> int:
         if wrap is not None and laid is not None:
             out.update(wrap_json(wrap, laid, layout))
             out["hours_since_wrapping"] = args.hours_since_wrapping
-        write_atomic(args.json, (json.dumps(out, indent=2) + "\n").encode())
+        write_result(args.json, out)
     if args.plot:
         from recommender.report import plot_displacements
 

@@ -2,6 +2,10 @@
 
 import gymnasium as _gym
 
+#: The one place the version is written (pyproject.toml reads it): reports and JSON carry it, so
+#: a verdict can be traced to the bench that gave it.
+__version__ = "0.1.0"
+
 #: The Gymnasium ids this package registers (entry points are imported only by `gym.make`).
 ENV_IDS = {
     "wrapenv/WrapBench-v2": "wrapenv.envs:WrapBenchEnv",

@@ -12,9 +12,10 @@ from wrapenv.load import PAIRS, FrictionPair, LoadUnit
 
 #: CAL.json's keys beside `friction` and `wrap`: the fit's diagnostics (residual, the replays'
 #: own scatter, one replay's residual, simulations, method), advice on further tests, and the
-#: prediction errors on recordings that were not fitted (`calibrate --validate`).
+#: prediction errors on recordings that were not fitted (`calibrate --validate`), and the version
+#: of wrapbench that fitted it.
 DIAGNOSTICS = ("residual_rms_m", "spread_rms_m", "replay_rms_m", "simulations", "method",
-               "advice", "validation")
+               "advice", "validation", "wrapbench_version")
 
 
 @dataclass(frozen=True)

@@ -16,6 +16,8 @@ from collections.abc import Iterable
 from pathlib import Path
 from typing import Any
 
+from wrapenv import __version__
+
 
 class InputError(ValueError):
     """Bad user input; ``str()`` is a one-line message naming the file and the field."""
@@ -234,6 +236,13 @@ def printable(text: str, limit: int = 200) -> str:
     note = f" ... ({len(safe) - limit} more characters) ... "
     keep = max(limit - len(note), 2)
     return safe[:keep // 2] + note + safe[len(safe) - (keep - keep // 2):]
+
+
+def write_result(path: str | Path, data: dict[str, Any]) -> None:
+    """Write a command's JSON result (atomically), stamped with the version of the bench that
+    produced it: a verdict on file can be traced to the model that gave it."""
+    stamped = {"wrapbench_version": __version__, **data}
+    write_atomic(path, (json.dumps(stamped, indent=2) + "\n").encode())
 
 
 def write_atomic(path: str | Path, data: bytes) -> None:

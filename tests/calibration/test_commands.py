@@ -123,7 +123,8 @@ def test_calibrate_writes_cal_json_that_simulate_accepts(slide_dir, tmp_path, ca
     assert "pallet_bundle" in out and "accepted: the least explained recording" in out
     assert "wrap: not fitted" in out  # bare recordings: no scale is claimed
     data = json.loads(cal.read_text())
-    assert set(data) >= {"friction", "wrap", "residual_rms_m", "simulations", "method"}
+    assert set(data) >= {"friction", "wrap", "residual_rms_m", "simulations", "method",
+                         "wrapbench_version"}
     assert data["simulations"] <= 30 and data["method"] == "surrogate"
     assert data["friction"]["pallet_bundle"]["identified"] is True
     assert data["friction"]["sled_pallet"]["identified"] is False

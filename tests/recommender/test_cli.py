@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import subprocess
 import sys
+from importlib import metadata
 from pathlib import Path
 
 import numpy as np
@@ -274,6 +275,13 @@ def test_bad_input_as_a_separate_process_exits_2_without_traceback(load_file, tm
     assert written(tmp_path) == []
 
 
+def test_version_is_the_installed_distribution_s(capsys):
+    with pytest.raises(SystemExit) as stop:
+        main(["--version"])
+    assert stop.value.code == 0
+    assert capsys.readouterr().out.strip() == f"wrapbench {metadata.version('wrapbench')}"
+
+
 def test_usage_error_as_a_separate_process_exits_2_without_traceback(tmp_path):
     proc = subprocess.run(
         [sys.executable, "-m", "recommender.cli", "simulate", "--no-such-option"],
@@ -297,6 +305,7 @@ def test_passing_level_exits_0_and_writes_the_contract_json_and_a_png(load_file,
 
     verdict = json.loads(out_json.read_text())
     assert {"valid", "load_height_m", "levels", "highest_passed_g"} <= set(verdict)
+    assert verdict["wrapbench_version"] == metadata.version("wrapbench")
     assert verdict["valid"] is True
     assert verdict["load_height_m"] == pytest.approx(0.144 + 0.33)
     assert verdict["highest_passed_g"] == pytest.approx(0.2)

@@ -7,6 +7,7 @@ from __future__ import annotations
 import base64
 import re
 from html.parser import HTMLParser
+from importlib import metadata
 from typing import Any
 
 import cv2
@@ -136,6 +137,12 @@ def test_the_level_table_gives_each_eumos_criterion_its_figure_limit_and_verdict
     assert rows[1][:5] == ["0.40 g", "123.4 mm (15.3 %) fail", "35.0 mm (4.4 %) pass",
                            "39.0 mm pass", "L2C1R1 toppled fail"]
     assert rows[1][-1] == "FAIL"
+
+
+def test_the_page_says_it_is_a_simulation_and_by_which_version_of_the_bench():
+    text = " ".join(render(page()).split())
+    assert f"virtual ESTL acceleration bench of wrapbench {metadata.version('wrapbench')}" in text
+    assert "a simulation, not a physical test" in text
 
 
 def test_sections_name_the_load_the_program_as_entered_the_web_and_the_cycle():

@@ -359,7 +359,7 @@ def test_recommend_writes_the_contract_json_and_a_wrap_simulate_accepts(load_fil
     result = json.loads(out.read_text())
     assert {"format", "program", "material_used", "cycle_time_s", "verdict",
             "robust_pass_rate", "evaluations", "method", "pass_probability", "worst_sample",
-            "orientations", "hours_since_wrapping"} <= set(result)
+            "orientations", "hours_since_wrapping", "wrapbench_version"} <= set(result)
     assert set(result["orientations"]) == {"long", "short"}  # both sides by default
     assert result["hours_since_wrapping"] == 16.0
     p = result["pass_probability"]
