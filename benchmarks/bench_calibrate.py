@@ -10,6 +10,8 @@ than its material card; then tracked by `track`. Cases:
   is the level the advice names to bracket that onset, 0.40 g being held out), validated at 0.40 g
   (within the fitted levels, where the bottom layer's onset makes the top layer's slide chaotic)
   and at 0.55 g (above them: the next level a lab would run, every layer sliding);
+- columnar2-advised: columnar2 with one more take at 0.30 g, the level its advice names for
+  bundle-bundle (the top layer holds there), held out alike;
 - columnar3: examples/pet_3layer_columnar.toml at 0.28 g and 0.32 g (columns rock and their tops
   slide; at 0.32 g the front columns topple), validated at 0.30 g;
 - kraft, lldpe: columnar2's bare recordings for friction plus the unit wrapped in
@@ -96,6 +98,10 @@ class Take:
 CASES: dict[str, tuple[tuple[Take, ...], tuple[Take, ...]]] = {
     "columnar2": ((Take(C2, 0.35), Take(C2, 0.425), Take(C2, 0.45)),
                   (Take(C2, 0.40), Take(C2, 0.55))),
+    # columnar2 plus the take its advice names for bundle-bundle ("test at 0.30 g or lower,
+    # where it holds"): does bracketing that onset pin its static coefficient?
+    "columnar2-advised": ((Take(C2, 0.30), Take(C2, 0.35), Take(C2, 0.425), Take(C2, 0.45)),
+                          (Take(C2, 0.40), Take(C2, 0.55))),
     "columnar3": ((Take("examples/pet_3layer_columnar.toml", 0.28),
                    Take("examples/pet_3layer_columnar.toml", 0.32)),
                   (Take("examples/pet_3layer_columnar.toml", 0.30),)),
