@@ -10,8 +10,10 @@ import pytest
 from calibration.features import TRACK_NOISE_M
 from calibration.surrogate import (
     Emulator,
+    Stage,
     _accepted,
     _covariance,
+    _settled,
     _solve,
     latin_hypercube,
     min_points,
@@ -59,6 +61,20 @@ def test_linear_gaussian_estimate_and_its_standard_deviation():
     spread = estimates.std(axis=0)
     assert np.all(np.abs(estimates.mean(axis=0) - true) < 3 * spread / np.sqrt(200))
     assert np.allclose(np.mean(stds, axis=0), spread, rtol=0.2)
+
+
+def test_an_estimate_that_moved_in_its_last_stage_is_as_uncertain_as_the_move():
+    """The last local stage moved the first coordinate by 0.07 while its covariance says
+    ± 0.01: the variance becomes 0.07^2; the second moved 0.01 within its ± 0.02 and keeps it,
+    and so does their covariance. The move out of the global stage does not count."""
+    def stage(u):
+        return Stage(np.zeros(2), np.ones(2), 1, 1, np.array(u), np.zeros(2))
+    cov = np.array([[0.01**2, 0.5 * 0.01 * 0.02], [0.5 * 0.01 * 0.02, 0.02**2]])
+    stages = [stage([0.5, 0.5]), stage([0.60, 0.40]), stage([0.67, 0.41])]
+    settled = _settled(cov, stages)
+    assert settled[0, 0] == pytest.approx(0.07**2)
+    assert settled[1, 1] == cov[1, 1] and settled[0, 1] == cov[0, 1]
+    assert np.array_equal(_settled(cov, stages[1:]), cov)
 
 
 def test_a_tracker_error_shared_by_a_body_s_frames_is_in_the_standard_deviation():
