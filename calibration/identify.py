@@ -121,14 +121,23 @@ def _level_below(g: float) -> float:
     return math.floor((g - LEVEL_MARGIN_G) / LEVEL_STEP_G + 1e-9) * LEVEL_STEP_G
 
 
-def advice_static(name: str, observations: Sequence[Observation], std: float) -> str:
-    """For a pair that slipped whose static coefficient the recordings do not resolve."""
+def advice_static(name: str, observations: Sequence[Observation], std: float,
+                  unrefused: Sequence[float] = ()) -> str:
+    """For a pair that slipped whose static coefficient the recordings do not resolve;
+    `unrefused`: shifts of the fitted value the acceptance test allowed (`fit._probe`)."""
     first = min(o.peak_accel_g[0] for o in observations if name in o.slipped)
     low = max((o.peak_accel_g[0] for o in observations
                if name not in o.slipped and o.peak_accel_g[0] < first), default=None)
-    where = f"between {low:.2f} and {first:.2f} g" if low is not None else f"below {first:.2f} g"
-    return (f"static coefficient not resolved (± {std:.3f}): a level {where}, where it "
-            "starts to slip, would bracket it")
+    why = ""
+    if unrefused:
+        shifts = " or ".join(f"{d:+.3f}" for d in sorted(unrefused))
+        why = f"; the recordings do not refuse it shifted {shifts}"
+    if low is None:
+        return (f"static coefficient not resolved (± {std:.3f}{why}): a level below "
+                f"{first:.2f} g, where it starts to slip, would bracket it")
+    return (f"static coefficient not resolved (± {std:.3f}{why}): its onset lies between "
+            f"{low:.2f} and {first:.2f} g; a level between them may narrow it, unless the layers "
+            "below rock (then the slip above is set by their rocking)")
 
 
 def advice_slipped_throughout(bound: Bound, static: float, std: float) -> str:

@@ -9,7 +9,17 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from calibration.fit import FitSettings, _friction_params, fit, min_budget
+from calibration.fit import (
+    FitSettings,
+    _bracketed,
+    _Fitted,
+    _friction_params,
+    _probe,
+    _shifted,
+    fit,
+    min_budget,
+)
+from calibration.objective import Progress
 from calibration.recording import Recording, Truth
 from calibration.replay import SLIP_M, observe, replay, residuals, upright_slide_m
 from calibration.track import track
@@ -127,6 +137,66 @@ def test_the_least_budget_gives_every_stage_a_fittable_design():
              for g in (0.35, 0.45)]
     assert min_budget(takes, FitSettings(budget=300)) == 20
     assert min_budget(takes, FitSettings(method="cmaes", budget=12)) == 12
+
+
+def test_a_bracketed_onset_costs_the_probes_of_its_static_coefficient():
+    """Pallet-bundle held at 0.35 g and slipped at 0.45 g: its onset is bracketed, so the fit
+    keeps two probes of 6 replays of both takes (24) besides the final replays (12) and the
+    linear emulator's 7 points of each take (14): 50."""
+    takes = [SimpleNamespace(peak_accel_g=(g, 0.1), wrap=None, slipped=frozenset(s))
+             for g, s in ((0.35, {"bundle_bundle"}), (0.45, {"pallet_bundle", "bundle_bundle"}))]
+    slipped = frozenset({"pallet_bundle", "bundle_bundle"})
+    assert _bracketed(takes, slipped, FitSettings()) == ("pallet_bundle",)
+    assert _bracketed(takes, slipped, FitSettings(params="wrap")) == ()
+    assert min_budget(takes, FitSettings(budget=300)) == 50
+
+
+def test_a_probe_keeps_the_kinetic_coefficient_and_never_exceeds_the_static_one():
+    friction = Friction(pallet_bundle=FrictionPair(0.50, 0.42))
+    assert _shifted(friction, "pallet_bundle", +0.075).pallet_bundle == FrictionPair(
+        pytest.approx(0.575), 0.42)
+    assert _shifted(friction, "pallet_bundle", -0.1).pallet_bundle == FrictionPair(
+        pytest.approx(0.40), pytest.approx(0.40))
+    assert _shifted(friction, "pallet_bundle", +1.0).pallet_bundle.static == 1.2
+
+
+class _DonePool:
+    """Runs what is submitted at once (the probes' replays), counting it."""
+
+    def __init__(self) -> None:
+        self.submitted = 0
+
+    def submit(self, fn, *args):
+        from concurrent.futures import Future
+        self.submitted += 1
+        future: Future = Future()
+        future.set_result(fn(*args))
+        return future
+
+
+@pytest.mark.parametrize("fitted, std, widened, unrefused", [
+    (0.44, 0.015, 0.0375, [-0.075]),    # 0.07 above the truth: the lower probe is allowed
+    (0.37, 0.015, 0.015, []),           # at the truth: both probes refused, the claim stands
+    (0.44, 0.040, 0.040, []),           # already unresolved: not probed
+])
+def test_a_resolved_claim_must_survive_the_acceptance_test_a_probe_away(
+        monkeypatch, fitted, std, widened, unrefused):
+    """A stand-in bench whose acceptance test allows static coefficients within 0.05 of the
+    truth, 0.37 (the 2-layer unit's bundle-bundle pair is about that flat above its onset):
+    a coefficient claimed at +-0.015 but 0.07 off survives a probe 0.075 lower, so its
+    standard deviation becomes half that shift; one at the truth keeps its claim."""
+    from calibration import fit as fit_module
+    monkeypatch.setattr(fit_module, "replay", lambda obs, friction, scales, sim: friction)
+    monkeypatch.setattr(fit_module.acceptance, "worst", lambda obs, replays: SimpleNamespace(
+        rms_m=0.0 if abs(replays[0][0].bundle_bundle.static - 0.37) <= 0.05 else 0.05))
+    found = _Fitted(Friction(bundle_bundle=FrictionPair(fitted, 0.30)),
+                    stds={("static", "bundle_bundle"): std})
+    pool, progress = _DonePool(), Progress()
+    takes = [SimpleNamespace(slipped=frozenset())] * 2
+    _probe(takes, ("bundle_bundle",), found, FitSettings(), 6, pool, progress)
+    assert found.stds["static", "bundle_bundle"] == pytest.approx(widened)
+    assert found.unrefused.get("bundle_bundle", []) == pytest.approx(unrefused)
+    assert progress.simulations == pool.submitted == (0 if std > 0.025 else 2 * 2 * 6)
 
 
 def test_friction_fit_finds_the_hidden_values_from_tracked_paths(slide):

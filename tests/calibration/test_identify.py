@@ -93,6 +93,15 @@ def test_advice_on_an_unresolved_static_coefficient_brackets_the_first_slip():
     assert "below 0.40 g" in advice_static("bundle_bundle", obs[1:], 0.08)
 
 
+def test_advice_on_a_bracketed_coefficient_names_the_shifts_the_recordings_allow():
+    """Bracketed, yet the acceptance test did not refuse the value 0.075 lower (`fit._probe`):
+    the advice says so, since the onset alone would suggest it is pinned."""
+    obs = [_obs(0.30, set()), _obs(0.35, {"bundle_bundle"})]
+    text = advice_static("bundle_bundle", obs, 0.0375, unrefused=[-0.075])
+    assert "do not refuse it shifted -0.075" in text
+    assert "between 0.30 and 0.35 g" in text
+
+
 def test_a_single_layer_has_no_bundle_on_bundle_pair():
     assert pairs_present([_obs(0.4, set(), layers=1)]) == ("sled_pallet", "pallet_bundle")
     assert pairs_present([_obs(0.4, set())])[-1] == "bundle_bundle"
