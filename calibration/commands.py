@@ -190,7 +190,9 @@ def add_calibrate(sub: argparse._SubParsersAction) -> None:
                    help="friction, wrap (the web's stiffness and tension scales and the "
                         "load's give) or all (default)")
     p.add_argument("--budget", type=int, default=300, metavar="N",
-                   help="most simulations of the fit (default 300)")
+                   help="most simulations of the fit's search and final replays (default "
+                        "300); a static coefficient it would report resolved is probed on top, "
+                        "12 replays per bare recording")
     p.add_argument("--workers", type=int, default=os.cpu_count() or 1,
                    help="parallel simulations (default: all cores)")
     p.add_argument("--seed", type=int, default=0,
