@@ -53,8 +53,9 @@ RESOLVED_LOG2_SCALE_STD = math.log2(1.2)
 #: either side of its fitted value, the kinetic one kept (`_probe`); a shift the acceptance test
 #: does not refuse makes its standard deviation at least half the shift. The surrogate's local
 #: covariance cannot see that a threshold's response is steep on one side and flat on the
-#: other: the 2-layer unit with a 0.30 g take reported bundle-bundle's at +-0.019 and +-0.014
-#: while 0.070 and 0.067 off (issue 13).
+#: other: the 2-layer unit with a 0.30 g take reported bundle-bundle's at +-0.014 while 0.067
+#: off, which the probe 0.075 lower catches; at +-0.019 while 0.070 off it does not, since a
+#: probe keeps the other fitted values, themselves off (README, "Calibration", issue 13).
 PROBE_STATIC = 3 * RESOLVED_STATIC_STD
 #: The surrogate's fitted values are replayed this many times per recording (each settling a
 #: little longer, `replay.resettled`): their mean is the prediction, their scatter the part of
