@@ -142,8 +142,8 @@ def _friction_params(observations: Sequence[Observation], slipped: frozenset[str
             continue
         if method == "surrogate":
             level = max(o.peak_accel_g[0] for o in observations if name in o.slipped)
-            bracketed = any(name not in o.slipped for o in observations)
-            first = Param("static" if bracketed else "kinetic", name, STATIC_RANGE[0],
+            kind = "static" if _onset_bracketed(name, observations) else "kinetic"
+            first = Param(kind, name, STATIC_RANGE[0],
                           min(STATIC_RANGE[1], level + KINETIC_HEADROOM_G))
         else:
             first = Param("static", name, *STATIC_RANGE)
@@ -175,8 +175,7 @@ def fit(observations: Sequence[Observation], settings: FitSettings,
                 for o in observations]
         replays = [[f.result() for f in fs] for fs in runs]
         progress.spend(repeats * len(observations))
-        _probe(bare, _bracketed(bare, slipped, settings), found, settings, repeats, pool,
-               progress)
+        _probe(bare, _bracketed(bare, settings), found, settings, repeats, pool, progress)
     return _result(observations, bare, settings, slipped, found, replays, progress)
 
 
@@ -203,14 +202,18 @@ def _stages(observations: Sequence[Observation], settings: FitSettings
     return bare, slipped, stages
 
 
-def _bracketed(bare: Sequence[Observation], slipped: frozenset[str], settings: FitSettings
-               ) -> tuple[str, ...]:
-    """The fitted pairs whose onset the recordings bracket (slipped in one, held in another):
-    the ones whose static coefficient can be resolved, so `_probe` checks it."""
+def _onset_bracketed(name: str, observations: Sequence[Observation]) -> bool:
+    """Whether a pair slipped in one recording and held in another: its onset lies between."""
+    seen = [name in o.slipped for o in observations]
+    return any(seen) and not all(seen)
+
+
+def _bracketed(bare: Sequence[Observation], settings: FitSettings) -> tuple[str, ...]:
+    """The fitted pairs whose onset the recordings bracket: the ones whose static coefficient
+    can be resolved, so `_probe` checks it."""
     if settings.params == "wrap":
         return ()
-    return tuple(name for name in PAIRS
-                 if name in slipped and any(name not in o.slipped for o in bare))
+    return tuple(name for name in PAIRS if _onset_bracketed(name, bare))
 
 
 def _probe(bare: Sequence[Observation], probed: Sequence[str], found: _Fitted,

@@ -144,9 +144,8 @@ def test_only_a_pair_whose_onset_is_bracketed_can_claim_a_resolved_static_coeffi
     bundle-bundle slipped at both; a wrap-only fit reports no friction."""
     takes = [SimpleNamespace(slipped=frozenset(s))
              for s in ({"bundle_bundle"}, {"pallet_bundle", "bundle_bundle"})]
-    slipped = frozenset({"pallet_bundle", "bundle_bundle"})
-    assert _bracketed(takes, slipped, FitSettings()) == ("pallet_bundle",)
-    assert _bracketed(takes, slipped, FitSettings(params="wrap")) == ()
+    assert _bracketed(takes, FitSettings()) == ("pallet_bundle",)
+    assert _bracketed(takes, FitSettings(params="wrap")) == ()
 
 
 def test_a_probe_keeps_the_kinetic_coefficient_and_never_exceeds_the_static_one():
