@@ -282,9 +282,10 @@ def _settled(cov: np.ndarray, stages: Sequence[Stage]) -> np.ndarray:
     stage: the box was centred on the previous estimate, so a move of several standard
     deviations says the estimate has not settled to that precision (an emulator's bend smooths
     a threshold's kink, and each smaller box sees it elsewhere). The 2-layer unit with a 0.30 g
-    take moved bundle-bundle's static coefficient by 0.035 in its last stage and reported it at
-    +-0.008, 0.030 off (issue 13). The move from the global stage does not count: rejection
-    sampling's mean is coarse by design."""
+    take, seed 2 at 300 simulations, reported bundle-bundle's static coefficient at +-0.026
+    while 0.082 off; its last stage's move makes that +-0.050 (README, "Calibration", issue
+    13). The move from the global stage does not count: rejection sampling's mean is coarse by
+    design."""
     if len(stages) < 3:
         return cov
     move = stages[-1].estimate - stages[-2].estimate

@@ -5,6 +5,7 @@ Each is made once per session (a few seconds each); tests that change files work
 
 from __future__ import annotations
 
+from concurrent.futures import Future
 from pathlib import Path
 
 import cv2
@@ -25,6 +26,25 @@ SMALL_LOAD = {
 #: 800 x 500 at 0.2 g gives ~240 px/m: markers of 0.075 m are 18 px, big enough for ArUco.
 SIZE = (800, 500)
 SYNTH = {"level_g": 0.2, "size": SIZE, "fps": 10.0, "marker_size_m": 0.075}
+
+
+class InlinePool:
+    """An executor that runs each task at once, counting them (a fit's or a validation's
+    replays, without worker processes)."""
+
+    def __init__(self) -> None:
+        self.submitted = 0
+
+    def submit(self, fn, *args):
+        self.submitted += 1
+        future: Future = Future()
+        future.set_result(fn(*args))
+        return future
+
+
+@pytest.fixture
+def inline_pool() -> InlinePool:
+    return InlinePool()
 
 
 @pytest.fixture(scope="session")

@@ -157,27 +157,13 @@ def test_a_probe_keeps_the_kinetic_coefficient_and_never_exceeds_the_static_one(
     assert _shifted(friction, "pallet_bundle", +1.0).pallet_bundle.static == 1.2
 
 
-class _DonePool:
-    """Runs what is submitted at once (the probes' replays), counting it."""
-
-    def __init__(self) -> None:
-        self.submitted = 0
-
-    def submit(self, fn, *args):
-        from concurrent.futures import Future
-        self.submitted += 1
-        future: Future = Future()
-        future.set_result(fn(*args))
-        return future
-
-
 @pytest.mark.parametrize("fitted, std, widened, unrefused", [
     (0.44, 0.015, 0.0375, [-0.075]),    # 0.07 above the truth: the lower probe is allowed
     (0.37, 0.015, 0.015, []),           # at the truth: both probes refused, the claim stands
     (0.44, 0.040, 0.040, []),           # already unresolved: not probed
 ])
 def test_a_resolved_claim_must_survive_the_acceptance_test_a_probe_away(
-        monkeypatch, fitted, std, widened, unrefused):
+        monkeypatch, inline_pool, fitted, std, widened, unrefused):
     """A stand-in bench whose acceptance test allows static coefficients within 0.05 of the
     truth, 0.37 (the 2-layer unit's bundle-bundle pair is about that flat above its onset):
     a coefficient claimed at +-0.015 but 0.07 off survives a probe 0.075 lower, so its
@@ -188,7 +174,7 @@ def test_a_resolved_claim_must_survive_the_acceptance_test_a_probe_away(
         rms_m=0.0 if abs(replays[0][0].bundle_bundle.static - 0.37) <= 0.05 else 0.05))
     found = _Fitted(Friction(bundle_bundle=FrictionPair(fitted, 0.30)),
                     stds={("static", "bundle_bundle"): std})
-    pool, progress = _DonePool(), Progress()
+    pool, progress = inline_pool, Progress()
     takes = [SimpleNamespace(slipped=frozenset())] * 2
     _probe(takes, ("bundle_bundle",), found, FitSettings(), 6, pool, progress)
     assert found.stds["static", "bundle_bundle"] == pytest.approx(widened)

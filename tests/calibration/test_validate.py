@@ -4,7 +4,6 @@ support and the displacement on the pallet are compared."""
 
 from __future__ import annotations
 
-from concurrent.futures import Future
 from types import SimpleNamespace
 
 import numpy as np
@@ -22,15 +21,6 @@ LOAD = {
 }
 SEEN = ("pallet", "L1C1R1", "L2C1R1")
 T = np.arange(0.0, 1.0, 0.05)
-
-
-class Inline:
-    """An executor that runs each task at once."""
-
-    def submit(self, fn, *args):
-        future: Future = Future()
-        future.set_result(fn(*args))
-        return future
 
 
 def recording(bottom_m: float, top_m: float) -> SimpleNamespace:
@@ -57,7 +47,7 @@ def fake_replay(frictions: list[float]):
 
 
 def test_replays_with_the_calibration_then_with_draws_and_layers_judged_on_the_pallet(
-        monkeypatch):
+        monkeypatch, inline_pool):
     """The bottom layer taking 20 mm of the top layer's slip mispredicts both slips but not
     the top layer's 80 mm on the pallet. Drawn values above 0.35 (the replay's threshold) move
     the uncertain prediction, not the headline."""
@@ -65,7 +55,7 @@ def test_replays_with_the_calibration_then_with_draws_and_layers_judged_on_the_p
     frictions: list[float] = []
     monkeypatch.setattr(validate, "replay", fake_replay(frictions))
     cal = Calibration({"bundle_bundle": CalibratedPair(0.35, 0.30, static_std=0.02)})
-    (check,) = validate.validate([obs], cal, Inline(), repeats=8)
+    (check,) = validate.validate([obs], cal, inline_pool, repeats=8)
     draws = [cal.draw(k).friction["bundle_bundle"].static for k in range(8)]
     assert frictions == [0.35] * 8 + draws
     assert check.replays == 8
@@ -82,11 +72,11 @@ def test_replays_with_the_calibration_then_with_draws_and_layers_judged_on_the_p
     assert on_pallet.uncertain_spread_m > 0.005
 
 
-def test_a_calibration_without_spread_is_replayed_once_per_repeat(monkeypatch):
+def test_a_calibration_without_spread_is_replayed_once_per_repeat(monkeypatch, inline_pool):
     frictions: list[float] = []
     monkeypatch.setattr(validate, "replay", fake_replay(frictions))
     cal = Calibration({"bundle_bundle": CalibratedPair(0.35, 0.30)})
-    (check,) = validate.validate([recording(-0.03, -0.05)], cal, Inline(), repeats=4)
+    (check,) = validate.validate([recording(-0.03, -0.05)], cal, inline_pool, repeats=4)
     assert frictions == [0.35] * 4
     layer = check.layers_on_pallet[2]
     assert (layer.uncertain_m, layer.uncertain_spread_m) == (layer.predicted_m, layer.spread_m)
