@@ -64,7 +64,8 @@ STARTS = 4
 @dataclass(frozen=True)
 class Stage:
     """One design: its box (centre and half-widths, unit box), the points it added and used,
-    and the estimate with its standard deviations."""
+    the estimate with its standard deviations, and a local stage's emulator (scaled
+    coordinates: the box is [-1, 1])."""
 
     centre: np.ndarray
     half_width: np.ndarray
@@ -72,6 +73,7 @@ class Stage:
     used: int
     estimate: np.ndarray
     std: np.ndarray
+    emulator: Emulator | None = None
 
 
 @dataclass(frozen=True)
@@ -140,6 +142,27 @@ class Emulator:
         return float(phi @ self.gram_inv @ phi)
 
 
+def profile(fit: SurrogateFit, index: int, value: float) -> np.ndarray | None:
+    """The estimate with coordinate `index` held at `value` (unit box) and the others moved to
+    where the emulator expects the recordings best explained: the best the other parameters can
+    do for that value (a profile), so a claim can be checked against the recordings without the
+    others' errors counting against it. The emulator is the last whose box holds the value: a
+    smaller box's, extrapolated, bent the 2-layer unit's profile the wrong way (README,
+    "Calibration"). None where no local stage's box holds it."""
+    for stage in reversed(fit.stages):
+        if stage.emulator is None:
+            continue
+        mid, scale = stage.centre, stage.half_width
+        held = (value - mid[index]) / scale[index]
+        if abs(held) > 1.0:
+            continue
+        others = np.clip(np.delete((fit.u - mid) / scale, index), -1.0, 1.0)
+        bound = np.ones(len(others))
+        y = _solve(stage.emulator, -bound, bound, [others], (index, held))
+        return mid + scale * np.insert(y, index, held)
+    return None
+
+
 def _central_differences(f: Callable[[np.ndarray], np.ndarray], z: np.ndarray,
                          step: float = 1e-4) -> np.ndarray:
     """Jacobian (len(f(z)), len(z)) of f at z."""
@@ -156,20 +179,24 @@ def _expected(em: Emulator, z: np.ndarray) -> np.ndarray:
     return np.append(em.predict(z) / em.sigma, math.sqrt(len(em.sigma) * em.leverage(z)))
 
 
-def _solve(em: Emulator, lo: np.ndarray, hi: np.ndarray, starts: Sequence[np.ndarray]
-           ) -> np.ndarray:
+def _solve(em: Emulator, lo: np.ndarray, hi: np.ndarray, starts: Sequence[np.ndarray],
+           held: tuple[int, float] | None = None) -> np.ndarray:
     """The point of [lo, hi] (scaled coordinates) minimising the expected weighted residual
-    (`_expected`)."""
+    (`_expected`); with `held` (index, value) that coordinate is held at the value, and the
+    point, bounds and starts are the other coordinates'."""
+    def expected(x: np.ndarray) -> np.ndarray:
+        return _expected(em, x if held is None else np.insert(x, held[0], held[1]))
+
     best, best_cost = starts[0], math.inf
     for z in starts:
         z, lam = np.clip(z, lo, hi), 1e-3
-        f = _expected(em, z)
+        f = expected(z)
         for _ in range(ITERATIONS):
-            j = _central_differences(lambda x: _expected(em, x), z)
+            j = _central_differences(expected, z)
             a, g = j.T @ j, j.T @ f
             step = -np.linalg.solve(a + lam * np.diag(np.diag(a) + 1e-12), g)
             trial = np.clip(z + step, lo, hi)
-            ft = _expected(em, trial)
+            ft = expected(trial)
             if ft @ ft < f @ f:
                 z, f, lam = trial, ft, lam / 3
                 if np.max(np.abs(step)) < 1e-6:
@@ -268,7 +295,8 @@ def surrogate(evaluate: Evaluate, p: int, points: int, seed: int,
             cov = _covariance(em, z_hat) * np.outer(scale, scale)
             u_hat = mid + scale * z_hat
             std = np.sqrt(np.clip(np.diag(cov), 0.0, None))
-        stages.append(Stage(mid, scale, n, len(inside), u_hat, std))
+        stages.append(Stage(mid, scale, n, len(inside), u_hat, std,
+                            None if k == 0 and len(sizes) > 1 else em))
         centre = u_hat
         half = np.clip(BOX_SIGMAS * std, SHRINK[0] * scale, SHRINK[1] * scale)
         half = np.maximum(half, MIN_HALF_WIDTH)

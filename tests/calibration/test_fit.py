@@ -15,13 +15,15 @@ from calibration.fit import (
     _Fitted,
     _friction_params,
     _probe,
+    _probed,
     _shifted,
     fit,
     min_budget,
 )
-from calibration.objective import Progress
+from calibration.objective import Model, Param, Progress
 from calibration.recording import Recording, Truth
 from calibration.replay import SLIP_M, observe, replay, residuals, upright_slide_m
+from calibration.surrogate import Emulator, Stage, SurrogateFit
 from calibration.track import track
 from calibration.trajectories import ObjectPath, Trajectories
 from wrapenv.load import Friction, FrictionPair
@@ -155,6 +157,36 @@ def test_a_probe_keeps_the_kinetic_coefficient_and_never_exceeds_the_static_one(
     assert _shifted(friction, "pallet_bundle", -0.1).pallet_bundle == FrictionPair(
         pytest.approx(0.40), pytest.approx(0.40))
     assert _shifted(friction, "pallet_bundle", +1.0).pallet_bundle.static == 1.2
+
+
+def test_a_probe_refits_the_other_values_to_the_shifted_one():
+    """Recordings that pin only the sum of the two static coefficients (0.80) and each pair's
+    kinetic / static ratio (0.8), emulated over the friction stage's box: bundle-bundle's
+    probe 0.075 lower comes with pallet-bundle's 0.075 higher, the ratios kept; with no
+    emulator (the descents) the other values are kept."""
+    params = (Param("static", "pallet_bundle", 0.05, 0.55), Param("ratio", "pallet_bundle",
+                                                                  0.5, 1.0),
+              Param("static", "bundle_bundle", 0.05, 0.55), Param("ratio", "bundle_bundle",
+                                                                  0.5, 1.0))
+    model = Model(params, Friction())
+    rng = np.random.default_rng(4)
+    lo, hi = np.array([0.5, 0.4, 0.5, 0.4]), np.array([0.9, 0.8, 0.9, 0.8])
+    u = lo + (hi - lo) * rng.random((60, 4))
+    static = 0.05 + 0.5 * u[:, [0, 2]]
+    r = np.stack([static.sum(axis=1) - 0.80, u[:, 1] - 0.6, u[:, 3] - 0.6], axis=1)
+    mid, scale = (lo + hi) / 2, (hi - lo) / 2
+    estimate = np.array([0.7, 0.6, 0.7, 0.6])
+    stage = Stage(mid, scale, 60, 60, estimate, np.zeros(4), Emulator((u - mid) / scale, r))
+    fit_ = SurrogateFit(estimate, np.eye(4), (stage,), 0)
+    friction = model.decode(estimate)[0]
+    found = _Fitted(friction, friction_fit=(model, fit_))
+    probed = _probed(found, "bundle_bundle", -0.075)
+    assert probed.bundle_bundle.static == pytest.approx(0.325)
+    assert probed.pallet_bundle.static == pytest.approx(0.475, abs=0.005)
+    assert probed.pallet_bundle.kinetic / probed.pallet_bundle.static == pytest.approx(
+        0.8, abs=0.01)
+    kept = _probed(_Fitted(friction), "bundle_bundle", -0.075)
+    assert kept == _shifted(friction, "bundle_bundle", -0.075)
 
 
 @pytest.mark.parametrize("fitted, std, widened, unrefused", [
