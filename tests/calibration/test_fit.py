@@ -15,7 +15,7 @@ from calibration.fit import (
     _Fitted,
     _friction_params,
     _probe,
-    _probed,
+    _profiled,
     _shifted,
     fit,
     min_budget,
@@ -159,11 +159,10 @@ def test_a_probe_keeps_the_kinetic_coefficient_and_never_exceeds_the_static_one(
     assert _shifted(friction, "pallet_bundle", +1.0).pallet_bundle.static == 1.2
 
 
-def test_a_probe_refits_the_other_values_to_the_shifted_one():
-    """Recordings that pin only the sum of the two static coefficients (0.80) and each pair's
-    kinetic / static ratio (0.8), emulated over the friction stage's box: bundle-bundle's
-    probe 0.075 lower comes with pallet-bundle's 0.075 higher, the ratios kept; with no
-    emulator (the descents) the other values are kept."""
+def _sum_pinned() -> _Fitted:
+    """A friction fit whose recordings pin only the sum of the two static coefficients (0.80)
+    and each pair's kinetic / static ratio (0.8), emulated over the friction stage's box, and
+    fitted at 0.40 each."""
     params = (Param("static", "pallet_bundle", 0.05, 0.55), Param("ratio", "pallet_bundle",
                                                                   0.5, 1.0),
               Param("static", "bundle_bundle", 0.05, 0.55), Param("ratio", "bundle_bundle",
@@ -177,16 +176,39 @@ def test_a_probe_refits_the_other_values_to_the_shifted_one():
     mid, scale = (lo + hi) / 2, (hi - lo) / 2
     estimate = np.array([0.7, 0.6, 0.7, 0.6])
     stage = Stage(mid, scale, 60, 60, estimate, np.zeros(4), Emulator((u - mid) / scale, r))
-    fit_ = SurrogateFit(estimate, np.eye(4), (stage,), 0)
     friction = model.decode(estimate)[0]
-    found = _Fitted(friction, friction_fit=(model, fit_))
-    probed = _probed(found, "bundle_bundle", -0.075)
-    assert probed.bundle_bundle.static == pytest.approx(0.325)
-    assert probed.pallet_bundle.static == pytest.approx(0.475, abs=0.005)
-    assert probed.pallet_bundle.kinetic / probed.pallet_bundle.static == pytest.approx(
+    return _Fitted(friction, stds={("static", "bundle_bundle"): 0.015},
+                   friction_fit=(model, SurrogateFit(estimate, np.eye(4), (stage,), 0)))
+
+
+def test_a_profile_refits_the_other_values_to_the_shifted_one():
+    """Bundle-bundle's static coefficient 0.075 lower comes with pallet-bundle's 0.075 higher,
+    the ratios kept; with no emulator (the descents) there is no profile."""
+    profiled = _profiled(_sum_pinned(), "bundle_bundle", -0.075)
+    assert profiled is not None
+    assert profiled.bundle_bundle.static == pytest.approx(0.325)
+    assert profiled.pallet_bundle.static == pytest.approx(0.475, abs=0.005)
+    assert profiled.pallet_bundle.kinetic / profiled.pallet_bundle.static == pytest.approx(
         0.8, abs=0.01)
-    kept = _probed(_Fitted(friction), "bundle_bundle", -0.075)
-    assert kept == _shifted(friction, "bundle_bundle", -0.075)
+    assert _profiled(_Fitted(_sum_pinned().friction), "bundle_bundle", -0.075) is None
+
+
+def test_a_shift_the_others_can_make_up_for_is_allowed(monkeypatch, inline_pool):
+    """A stand-in bench whose acceptance test allows any values whose static coefficients sum
+    to 0.80 (within 0.01): either probe of bundle-bundle is refused with pallet-bundle kept and
+    allowed with it refitted, so the claim (+-0.015) becomes +-0.0375, after two rounds of
+    replays."""
+    from calibration import fit as fit_module
+    monkeypatch.setattr(fit_module, "replay", lambda obs, friction, scales, sim: friction)
+    monkeypatch.setattr(fit_module.acceptance, "worst", lambda obs, replays: SimpleNamespace(
+        rms_m=0.0 if abs(replays[0][0].pallet_bundle.static
+                         + replays[0][0].bundle_bundle.static - 0.80) <= 0.01 else 0.05))
+    found, pool, progress = _sum_pinned(), inline_pool, Progress()
+    takes = [SimpleNamespace(slipped=frozenset())] * 2
+    _probe(takes, ("bundle_bundle",), found, FitSettings(), 6, pool, progress)
+    assert found.stds["static", "bundle_bundle"] == pytest.approx(0.0375)
+    assert found.unrefused["bundle_bundle"] == pytest.approx([-0.075, 0.075])
+    assert progress.simulations == pool.submitted == 2 * (2 * 2 * 6)
 
 
 @pytest.mark.parametrize("fitted, std, widened, unrefused", [
