@@ -192,7 +192,8 @@ def add_calibrate(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--budget", type=int, default=300, metavar="N",
                    help="most simulations of the fit's search and final replays (default "
                         "300); a static coefficient it would report resolved is probed on top, "
-                        "12 replays per bare recording")
+                        "12 replays per bare recording, up to 24 when the other values are "
+                        "refitted")
     p.add_argument("--workers", type=int, default=os.cpu_count() or 1,
                    help="parallel simulations (default: all cores)")
     p.add_argument("--seed", type=int, default=0,
