@@ -272,9 +272,9 @@ def _profiled(found: _Fitted, name: str, delta: float) -> Friction | None:
     """One pair's static coefficient moved by delta and the other fitted values where the
     friction stage's emulator expects them best for it (a profile, `surrogate.profile`); None
     without an emulator (the descents), or beyond the pair's prior or every local box. Kept,
-    values that are off themselves can refuse a shift the recordings allow: seed 1 above, whose
-    probe 0.075 lower (0.005 from the truth) left 14.5 mm unexplained with the others kept, 7.5
-    mm with them refitted."""
+    values that are off themselves can refuse a shift the recordings allow: the 2-layer unit
+    with a 0.30 g take, seed 1 at 600 simulations, whose bundle-bundle probe 0.075 lower (0.005
+    from the truth) left 14.5 mm unexplained with the others kept, 7.5 mm with them refitted."""
     if found.friction_fit is None:
         return None
     model, result = found.friction_fit
