@@ -71,7 +71,7 @@ class FitSettings:
     params: str = "friction"
     #: most simulations of the search and the final replays; a static coefficient the fit
     #: would report resolved costs its probes on top (`_probe`: 2 x the final replays of each
-    #: bare recording)
+    #: bare recording, up to twice that when the other values are refitted)
     budget: int = 300
     workers: int = max(1, os.cpu_count() or 1)
     seed: int = 0
@@ -278,7 +278,7 @@ def _profiled(found: _Fitted, name: str, delta: float) -> Friction | None:
     if found.friction_fit is None:
         return None
     model, result = found.friction_fit
-    index = {(p.kind, p.pair): i for i, p in enumerate(model.params)}.get(("static", name))
+    index = model.index().get(("static", name))
     if index is None:
         return None
     param, static = model.params[index], found.friction.pair(name).static + delta
@@ -378,7 +378,7 @@ def _value_stds(model: Model, u: np.ndarray, cov: np.ndarray) -> dict[tuple[str,
     capped = np.minimum(std, UNIFORM_STD)
     cov = corr * np.outer(capped, capped)
     friction, scales = model.decode(u)
-    index = {(p.kind, p.pair): i for i, p in enumerate(model.params)}
+    index = model.index()
     out = {}
     for i, p in enumerate(model.params):
         grads: dict[str, np.ndarray] = {}

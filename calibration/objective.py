@@ -52,6 +52,10 @@ class Model:
     base: Friction                  # values of the pairs not fitted
     scales: Mapping[str, float] = field(default_factory=dict)   # scales not fitted
 
+    def index(self) -> dict[tuple[str, str], int]:
+        """Each parameter's coordinate in the box, by (kind, pair)."""
+        return {(p.kind, p.pair): i for i, p in enumerate(self.params)}
+
     def decode(self, u: np.ndarray) -> tuple[Friction, dict[str, float]]:
         values = {(p.kind, p.pair): p.value(x) for p, x in zip(self.params, u, strict=True)}
         pairs = {}
