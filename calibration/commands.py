@@ -54,7 +54,9 @@ def add_synth(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--wrap", type=Path, metavar="WRAP.toml", help="wrap the unit in this format")
     p.add_argument("--level", type=level_g, default=0.4, metavar="G",
                    help="test level in g (default 0.4)")
-    p.add_argument("--seed", type=int, default=0, help="textures, noise and friction jitter")
+    p.add_argument("--seed", type=int, default=0,
+                   help="textures, noise and the friction jitter's draw (takes of one unit at "
+                        "several levels share it)")
     p.add_argument("--size", type=_size, default=(1920, 1200), metavar="WxH",
                    help="image size in pixels (default 1920x1200)")
     p.add_argument("--fps", type=float, default=20.0, help="frames per second (default 20)")
