@@ -19,7 +19,6 @@ from __future__ import annotations
 
 import argparse
 import contextlib
-import time
 from collections.abc import Iterator
 from typing import Any
 
@@ -27,8 +26,8 @@ import numpy as np
 import pybullet as pb
 
 import wrapenv.bench
-from benchmarks.bench_warm_start import EXAMPLE, WRAPS
-from wrapenv.bench import SimSettings, run_level
+from benchmarks.bench_warm_start import EXAMPLE, WRAPS, timed_level
+from wrapenv.bench import SimSettings
 from wrapenv.bullet import BulletWorld
 from wrapenv.load import LoadUnit
 from wrapenv.profile import PulseProfile
@@ -81,10 +80,7 @@ def level(load: LoadUnit, wrap: WrapFormat, level_g: float, iterations: int,
     """CPU s, the bundles' largest displacement along the motion (m), and whether it rested."""
     settings = SimSettings(wrapped_solver_iterations=iterations)
     with engine_parameters(parameters):
-        t0 = time.process_time()
-        trace = run_level(load.layout(), PulseProfile(level_g), settings, wrap=wrap)
-        cpu = time.process_time() - t0
-    dx = trace.bundle_pos[-1, :, 0] - trace.bundle_pos[0, :, 0]
+        cpu, trace, dx = timed_level(load, wrap, level_g, settings)
     waited_out_s = PulseProfile(level_g).duration_s + settings.max_rest_wait_s
     rested = trace.valid and float(trace.t_s[-1]) < waited_out_s - settings.timestep_s
     return cpu, float(np.max(np.abs(dx))), rested

@@ -38,6 +38,7 @@ from wrapenv.bench import SimSettings, run_level
 from wrapenv.bullet import BulletWorld
 from wrapenv.load import LoadUnit
 from wrapenv.profile import PulseProfile
+from wrapenv.trace import Trace
 from wrapenv.wrap import WrapFormat
 
 EXAMPLE = "examples/pet_3layer_columnar.toml"
@@ -107,15 +108,22 @@ def worlds_loaded_from(path: Path | None, rigid: bool = False) -> Iterator[None]
         wrapenv.bench.BulletWorld = BulletWorld  # type: ignore[misc]
 
 
+def timed_level(load: LoadUnit, wrap: WrapFormat, level_g: float,
+                settings: SimSettings) -> tuple[float, Trace, np.ndarray]:
+    """CPU s of one level of a fresh unit, its trace, and each bundle's displacement (m) along
+    the motion at its end."""
+    t0 = time.process_time()
+    trace = run_level(load.layout(), PulseProfile(level_g), settings, wrap=wrap)
+    cpu = time.process_time() - t0
+    return cpu, trace, trace.bundle_pos[-1, :, 0] - trace.bundle_pos[0, :, 0]
+
+
 def level(load: LoadUnit, wrap: WrapFormat, level_g: float, iterations: int,
           world: Path | None) -> tuple[float, float, float]:
     """CPU s, largest and mean displacement (m) along the motion of the bundles."""
-    settings = SimSettings(wrapped_solver_iterations=iterations)
     with worlds_loaded_from(world):
-        t0 = time.process_time()
-        trace = run_level(load.layout(), PulseProfile(level_g), settings, wrap=wrap)
-        cpu = time.process_time() - t0
-    dx = trace.bundle_pos[-1, :, 0] - trace.bundle_pos[0, :, 0]
+        cpu, _, dx = timed_level(load, wrap, level_g,
+                                 SimSettings(wrapped_solver_iterations=iterations))
     return cpu, float(np.max(np.abs(dx))), float(np.mean(dx))
 
 
