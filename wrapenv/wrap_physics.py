@@ -389,7 +389,6 @@ class WrapNet:
             torn_at_m=tuple(sorted({round(float(z), 4) for z in torn})),
             peak_utilisation=max((p.utilisation for p in places), default=0.0),
             plastic_strain_max=float(plastic.max()) if len(plastic) else 0.0,
-            ring_tension_n=tuple(float(t) for t in r.last),
             opened_at_m=tuple(round(float(z), 4) for z in r.height_m[r.opened]),
             places=places,
         )

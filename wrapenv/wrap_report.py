@@ -62,7 +62,6 @@ class WrapReport:
     torn_at_m: tuple[float, ...]     # heights of the elements that tore (empty: intact)
     peak_utilisation: float          # highest utilisation of any place
     plastic_strain_max: float        # largest permanent stretch left in an element
-    ring_tension_n: tuple[float, ...]  # tension of each ring at the end of the run
     #: Heights of the rings whose seam let go (empty: the tail held).
     opened_at_m: tuple[float, ...] = ()
     #: Every place of the envelope (the tension map's data), bottom up.

@@ -77,7 +77,6 @@ class RigidMotion:
     du: float
     dv: float
     dtheta: float
-    residual_px: float
 
 
 class RigidFlow:
@@ -118,7 +117,4 @@ class RigidFlow:
         ba = float((w * (fu * dv - fv * du)).sum())
         a = np.array([[sw, 0.0, sv], [0.0, sw, -su], [sv, -su, srr]])
         tu, tv, rot = np.linalg.solve(a, [bu, bv, ba])
-        ru = fu - (tu + rot * dv)
-        rv = fv - (tv - rot * du)
-        residual = float(np.sqrt((w * (ru * ru + rv * rv)).sum() / sw))
-        return RigidMotion(float(tu), float(tv), float(rot), residual)
+        return RigidMotion(float(tu), float(tv), float(rot))
