@@ -19,7 +19,7 @@ from typing import TYPE_CHECKING
 
 from tqdm import tqdm
 
-from wrapenv.config import InputError, check_output, printable, write_result
+from wrapenv.config import InputError, check_output, printable, result_json, write_together
 from wrapenv.load import Friction, LoadUnit
 from wrapenv.wrap import WrapFormat
 
@@ -45,6 +45,18 @@ def level_g(text: str) -> float:
     return value
 
 
+def seed(text: str) -> int:
+    """argparse's type for a seed: a whole number >= 0 (numpy's generators take no other, and
+    pycma reads 0 as "seed from the clock")."""
+    try:
+        value = int(text)
+    except ValueError:
+        value = -1
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"expected a whole number >= 0 (got {text!r})")
+    return value
+
+
 def add_synth(sub: argparse._SubParsersAction) -> None:
     """The synth subcommand."""
     p = sub.add_parser("synth", help="make a synthetic bench recording with ground truth")
@@ -54,7 +66,7 @@ def add_synth(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--wrap", type=Path, metavar="WRAP.toml", help="wrap the unit in this format")
     p.add_argument("--level", type=level_g, default=0.4, metavar="G",
                    help="test level in g (default 0.4)")
-    p.add_argument("--seed", type=int, default=0,
+    p.add_argument("--seed", type=seed, default=0,
                    help="textures, noise and the friction jitter's draw (takes of one unit at "
                         "several levels share it)")
     p.add_argument("--size", type=_size, default=(1920, 1200), metavar="WxH",
@@ -198,7 +210,7 @@ def add_calibrate(sub: argparse._SubParsersAction) -> None:
                         "refitted")
     p.add_argument("--workers", type=int, default=os.cpu_count() or 1,
                    help="parallel simulations (default: all cores)")
-    p.add_argument("--seed", type=int, default=0,
+    p.add_argument("--seed", type=seed, default=0,
                    help="seed of the fit's designs and replays (same seed, same CAL.json)")
     p.add_argument("--max-residual-mm", type=float, default=10.0, metavar="MM",
                    help="fail (nothing written) when more residual RMS than this is left "
@@ -296,18 +308,33 @@ def _check_calibrate_args(args: argparse.Namespace) -> None:
             raise InputError("arguments", "--validate",
                              f"{d} is also fitted; validate on recordings the fit did not see")
     known_scales(args.known)
-    check_output(args.out, "--out")
+
+
+def _outputs(out: Path) -> dict[str, Path]:
+    """CAL.json and the two figures written beside it."""
+    stem = out.with_suffix("")
+    return {"json": out, "loss": Path(f"{stem}-loss.png"), "overlay": Path(f"{stem}-overlay.png")}
+
+
+def _check_outputs(out: Path, recordings: list) -> None:
+    """Every output writable and none of them a file the run reads (checked once the
+    recordings are read, before they are tracked)."""
+    inputs = [p for rec in recordings
+              for p in (*rec.inputs(), rec.folder / "trajectories.csv")]
+    for path in _outputs(out).values():
+        check_output(path, "--out", inputs=inputs)
 
 
 def run_calibrate(args: argparse.Namespace) -> int:
     from concurrent.futures import ProcessPoolExecutor
 
     from calibration.fit import FitSettings, fit, min_budget
-    from calibration.report import plot_loss, plot_overlay
-    from calibration.validate import validate
+    from calibration.report import loss_png, overlay_png
+    from calibration.validate import Unpredictable, validate
 
     _check_calibrate_args(args)
     fitted, held = _recordings(args)
+    _check_outputs(args.out, fitted + held)
     if args.params == "wrap" and all(rec.wrap is None for rec in fitted):
         raise InputError("arguments", "--params",
                          "wrap: none of the recordings is of a wrapped unit (no wrap.toml)")
@@ -330,23 +357,28 @@ def run_calibrate(args: argparse.Namespace) -> int:
         sys.stderr.write(f"wrapbench calibrate: the fit did not converge: {result.reason}; "
                          "nothing written\n")
         return 1
-    with ProcessPoolExecutor(max_workers=args.workers) as pool:
-        checks = validate(held_out, result.calibration, pool)
+    try:
+        with ProcessPoolExecutor(max_workers=args.workers) as pool:
+            checks = validate(held_out, result.calibration, pool)
+    except Unpredictable as exc:
+        sys.stderr.write(f"wrapbench calibrate: --validate: {exc}; nothing written\n")
+        return 1
     out = result.calibration.to_dict() | {
         "residual_rms_m": result.residual_rms_m, "spread_rms_m": result.spread_rms_m,
         "replay_rms_m": result.replay_rms_m, "simulations": result.simulations,
         "method": result.method, "advice": result.advice,
         "validation": [c.to_dict() for c in checks]}
-    stem = args.out.with_suffix("")
-    plot_loss(result.curve, f"{stem}-loss.png",
-              f"{result.method}: {result.simulations} simulations")
-    plot_overlay(observations, result.fitted, f"{stem}-overlay.png")
-    write_result(args.out, out)
+    paths = _outputs(args.out)
+    write_together({
+        paths["json"]: result_json(out),
+        paths["loss"]: loss_png(result.curve, f"{result.method}: {result.simulations} "
+                                "simulations"),
+        paths["overlay"]: overlay_png(observations, result.fitted)})
     print(_summary(result))
     for check in checks:
         print(_validation_summary(check))
     print(f"{result.simulations} simulations in {wall:.0f} s ({result.method}); wrote "
-          f"{args.out}, {stem}-loss.png, {stem}-overlay.png")
+          f"{', '.join(str(p) for p in paths.values())}")
     return 0
 
 

@@ -17,21 +17,20 @@ from matplotlib import ticker  # noqa: E402
 
 from calibration import features  # noqa: E402
 from calibration.replay import Observation  # noqa: E402
-from wrapenv.config import write_atomic  # noqa: E402
 
 #: Bodies' colours: a 3-layer unit's visible row and its pallet are 13 bodies, more than
 #: matplotlib's 10 default colours tell apart; tab20's dark tones first, then its light ones.
 BODY_COLOURS = [plt.get_cmap("tab20")(i) for i in (*range(0, 20, 2), *range(1, 20, 2))]
 
 
-def _save(fig: plt.Figure, path: str | Path) -> None:
+def _png(fig: plt.Figure) -> bytes:
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=110)
     plt.close(fig)
-    write_atomic(path, buf.getvalue())
+    return buf.getvalue()
 
 
-def plot_loss(curve: Sequence[tuple[int, float]], path: str | Path, title: str = "") -> None:
+def loss_png(curve: Sequence[tuple[int, float]], title: str = "") -> bytes:
     """Residual RMS (the square root of the loss) of the best point so far."""
     fig, ax = plt.subplots(figsize=(7, 3.6), layout="constrained")
     sims = [s for s, _ in curve]
@@ -44,11 +43,11 @@ def plot_loss(curve: Sequence[tuple[int, float]], path: str | Path, title: str =
     ax.set_ylabel("residual RMS, best so far [mm]")
     ax.set_title(title, fontsize=10)
     ax.grid(alpha=0.3)
-    _save(fig, path)
+    return _png(fig)
 
 
-def plot_overlay(observations: Sequence[Observation],
-                 fitted: Sequence[dict[str, np.ndarray] | None], path: str | Path) -> None:
+def overlay_png(observations: Sequence[Observation],
+                fitted: Sequence[dict[str, np.ndarray] | None]) -> bytes:
     """One panel per recording: the tracked (dots) and one fitted replay's (lines) slip of every
     compared body across its contact, over the frames the bench can predict."""
     n = len(observations)
@@ -69,4 +68,4 @@ def plot_overlay(observations: Sequence[Observation],
         ax.set_ylabel("slip on its support [mm]")
         ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))
     axes[-1, 0].set_xlabel("time [s]")
-    _save(fig, path)
+    return _png(fig)

@@ -60,6 +60,9 @@ MARGIN_FRACTION = 0.04
 #: but nothing in it can be tracked) to a DCI 4K camera's width; beyond, a frame's float buffers
 #: (0.2 GB each at 4096 x 4096) run to gigabytes.
 SIZE_RANGE_PX = (64, 4096)
+#: Lowest frame rate (fps): the video's container (MJPG in AVI, `filming.write_video`) stores
+#: none lower; a bench's pulse, a few tenths of a second, is then already between two frames.
+MIN_FPS = 1.0
 #: Highest frame rate (fps): a high-speed camera's [A] (the source paper filmed at 20 fps);
 #: a test's few seconds are then thousands of frames, already an hour to render.
 MAX_FPS = 1000.0
@@ -179,8 +182,9 @@ def _check_arguments(out_dir: Path, size: tuple[int, int], fps: float, jitter: f
     if not (len(size) == 2 and all(isinstance(v, int) and low <= v <= high for v in size)):
         raise InputError("arguments", "size", f"must be two whole numbers >= {low} and "
                          f"<= {high} (got {size})")
-    if not (math.isfinite(fps) and 0 < fps <= MAX_FPS):
-        raise InputError("arguments", "fps", f"must be > 0 and <= {MAX_FPS:g} (got {fps})")
+    if not (math.isfinite(fps) and MIN_FPS <= fps <= MAX_FPS):
+        raise InputError("arguments", "fps",
+                         f"must be >= {MIN_FPS:g} and <= {MAX_FPS:g} (got {fps})")
     if not (math.isfinite(jitter) and 0 <= jitter < 1):
         raise InputError("arguments", "friction_jitter", f"must be in [0, 1) (got {jitter})")
     if not (math.isfinite(pre_roll_s) and 0 <= pre_roll_s <= MAX_PRE_ROLL_S):

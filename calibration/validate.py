@@ -49,6 +49,11 @@ MIN_SLIDE_M = 0.01
 EXPLAINED_SPREADS = 2.0
 
 
+class Unpredictable(ValueError):
+    """A held-out recording the calibrated bench cannot replay: a blown-up simulation is no
+    prediction."""
+
+
 @dataclass(frozen=True)
 class Check:
     """A recorded slide against its prediction (metres)."""
@@ -138,8 +143,7 @@ def _layer(name: str) -> int:
 
 
 def _check(recorded: float, predicted: Sequence[float], drawn: Sequence[float]) -> Check:
-    values = np.array(predicted) if len(predicted) else np.array([np.nan])
-    draws = np.array(drawn) if len(drawn) else np.array([np.nan])
+    values, draws = np.array(predicted), np.array(drawn)
     return Check(recorded, float(values.mean()), float(values.std()), float(draws.mean()),
                  float(draws.std()))
 
@@ -203,8 +207,11 @@ def validate(observations: Sequence[Observation], calibration: Calibration, pool
         states = [{n: (t, s[n]) for n, (t, _) in obs.states.items()} if s is not None else None
                   for s in (f.result() for f in futures)]
         fitted = [s for s in states[:repeats] if s is not None]
-        drawn_runs = [s for s in states[repeats:] if s is not None]
-        uncertain = drawn_runs if len(benches) > repeats else fitted
+        if not fitted:
+            raise Unpredictable(f"every replay of {obs.source} with the calibrated values "
+                                "blew up (unphysical)")
+        # no spread, or every draw blew up: the prediction is the calibrated values' own
+        uncertain = [s for s in states[repeats:] if s is not None] or fitted
         slips = [[_final_slips(obs, s) for s in group] for group in (fitted, uncertain)]
         moved = [[_final_on_pallet(obs, s) for s in group] for group in (fitted, uncertain)]
         recorded = _final_slips(obs, obs.states)

@@ -15,7 +15,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from calibration import commands
-from calibration.commands import level_g
+from calibration.commands import level_g, seed
 from recommender import commands as bench_commands
 from recommender import simulate
 from recommender.parallel import BACKENDS
@@ -129,7 +129,7 @@ def _add_recommend_problem(rec: argparse.ArgumentParser) -> None:
     rec.add_argument("--ray-address", metavar="ADDRESS",
                      help="with --backend ray: join this cluster ('auto', 'ray://host:10001'); "
                           "default: start a local Ray instance of --workers CPUs")
-    rec.add_argument("--seed", type=int, default=0,
+    rec.add_argument("--seed", type=seed, default=0,
                      help="seed of the search and of the samples (same seed, same answer)")
     rec.add_argument("--orientation", choices=("long", "short", "both"), default="both",
                      help="pallet side(s) along the motion a program must pass (default both: "
@@ -181,7 +181,7 @@ def _add_train(sub: argparse._SubParsersAction) -> None:
                     help="the web the policy programs: kraft (default) or lldpe")
     tr.add_argument("--target", type=level_g, default=0.5, metavar="G",
                     help="the level its programs must pass (default 0.5 g)")
-    tr.add_argument("--seed", type=int, default=0, help="seed of the random units and of PPO")
+    tr.add_argument("--seed", type=seed, default=0, help="seed of the random units and of PPO")
     tr.add_argument("--minutes", type=float, default=None, metavar="M",
                     help="stop after M minutes of training and write the policy learned so far "
                          "(default: run all --timesteps)")

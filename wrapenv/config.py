@@ -241,21 +241,37 @@ def printable(text: str, limit: int = 200) -> str:
 def write_result(path: str | Path, data: dict[str, Any]) -> None:
     """Write a command's JSON result (atomically), stamped with the version of the bench that
     produced it: a verdict on file can be traced to the model that gave it."""
+    write_atomic(path, result_json(data))
+
+
+def result_json(data: dict[str, Any]) -> bytes:
+    """A command's JSON result as `write_result` writes it. Strict JSON: a NaN or infinity
+    (no JSON reader need accept one) is a bug here, not a value to write."""
     stamped = {"wrapbench_version": __version__, **data}
-    write_atomic(path, (json.dumps(stamped, indent=2) + "\n").encode())
+    return (json.dumps(stamped, indent=2, allow_nan=False) + "\n").encode()
 
 
 def write_atomic(path: str | Path, data: bytes) -> None:
     """Write a file so readers see the old content or the whole new one, never a part."""
-    path = Path(path)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    write_together({Path(path): data})
+
+
+def write_together(files: dict[Path, bytes]) -> None:
+    """Write several files so that either all of them are written or none: each is staged in
+    its folder first and put in place once every one is staged."""
+    staged: dict[Path, str] = {}
     try:
         umask = os.umask(0)
         os.umask(umask)
-        os.chmod(tmp, 0o666 & ~umask)  # mkstemp makes it private; outputs are ordinary files
-        with os.fdopen(fd, "wb") as fh:
-            fh.write(data)
-        os.replace(tmp, path)
+        for path, data in files.items():
+            fd, staged[path] = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.",
+                                                suffix=".tmp")
+            os.chmod(staged[path], 0o666 & ~umask)  # mkstemp makes it private
+            with os.fdopen(fd, "wb") as fh:
+                fh.write(data)
+        for path, tmp in staged.items():
+            os.replace(tmp, path)
     except BaseException:
-        Path(tmp).unlink(missing_ok=True)
+        for tmp in staged.values():
+            Path(tmp).unlink(missing_ok=True)
         raise

@@ -71,6 +71,7 @@ def test_track_writes_into_the_recording_by_default(recording_dir, tmp_path, cap
     (["--size", "10x10"], ["--size", ">= 64"]),
     (["--size", "100000x100000"], ["--size", "<= 4096"]),
     (["--fps", "0"], ["--fps"]),
+    (["--fps", "0.5"], ["--fps", ">= 1"]),   # the video's container stores none lower
     (["--fps", "100000"], ["--fps", "<= 1000"]),
     (["--friction-jitter", "1.5"], ["--friction-jitter"]),
     (["--stiffness-scale", "nan"], ["--stiffness-scale"]),
@@ -214,6 +215,25 @@ def test_calibrate_rejects_bad_arguments(args, needle, slide_dir, tmp_path, caps
     _one_line_error(capsys, needle)
 
 
+@pytest.mark.parametrize("name", ["video.avi", "profile.csv", "load.toml", "trajectories.csv"])
+def test_calibrate_refuses_to_write_over_a_file_it_reads(name, slide_dir, tmp_path, capsys):
+    rec = tmp_path / "rec"
+    shutil.copytree(slide_dir, rec)
+    (rec / "trajectories.csv").write_text("t_s,object,x_m,z_m,angle_rad\n")
+    before = (rec / name).read_bytes()
+    assert main(["calibrate", str(rec), "--out", str(rec / name)]) == 2
+    _one_line_error(capsys, "--out", "is an input")
+    assert (rec / name).read_bytes() == before
+
+
+def test_calibrate_checks_its_figures_paths_before_fitting(slide_dir, tmp_path, capsys):
+    """CAL.json and its two figures are written together or not at all."""
+    (tmp_path / "cal-overlay.png").mkdir()
+    assert main(["calibrate", str(slide_dir), "--out", str(tmp_path / "cal.json")]) == 2
+    _one_line_error(capsys, "cal-overlay.png", "is a folder")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["cal-overlay.png"]
+
+
 @pytest.mark.parametrize("tracker", ["dasiamrpn", "nano", "vit"])
 def test_track_with_an_unavailable_tracker_is_refused(tracker, recording_dir, tmp_path, capsys):
     """OpenCV's network trackers need ONNX models this install lacks: refused before any work,
@@ -265,6 +285,19 @@ def test_synth_level_that_is_not_a_number_is_named_readably(value, load_path, tm
     line = _one_line_error(capsys, "--level", "a level in g", repr(value))
     assert "_g" not in line
     assert not (tmp_path / "rec").exists()
+
+
+@pytest.mark.parametrize("command", ["synth", "calibrate"])
+def test_a_negative_seed_is_refused(command, load_path, slide_dir, tmp_path, capsys):
+    """numpy's generators take no negative seed, and pycma reads 0 (a fit's seed + 1) as the
+    clock: neither would give the same output twice."""
+    where = {"synth": [str(load_path), "--out", str(tmp_path / "rec")],
+             "calibrate": [str(slide_dir), "--out", str(tmp_path / "c.json")]}[command]
+    with pytest.raises(SystemExit) as exit_:
+        main([command, *where, "--seed", "-1"])
+    assert exit_.value.code == 2
+    _one_line_error(capsys, "--seed", ">= 0")
+    assert not (tmp_path / "rec").exists() and not (tmp_path / "c.json").exists()
 
 
 def test_a_tiny_recording_is_made_but_not_tracked_as_if_it_were_fine(tmp_path, capsys):

@@ -82,6 +82,31 @@ def test_a_calibration_without_spread_is_replayed_once_per_repeat(monkeypatch, i
     assert (layer.uncertain_m, layer.uncertain_spread_m) == (layer.predicted_m, layer.spread_m)
 
 
+def test_a_recording_no_replay_of_which_stays_physical_is_not_predicted(monkeypatch,
+                                                                         inline_pool):
+    """A blown-up simulation is no prediction (nor a NaN in CAL.json)."""
+    monkeypatch.setattr(validate, "replay", lambda *args: None)
+    cal = Calibration({"bundle_bundle": CalibratedPair(0.35, 0.30, static_std=0.02)})
+    with pytest.raises(validate.Unpredictable, match="every replay of held-out"):
+        validate.validate([recording(-0.03, -0.05)], cal, inline_pool, repeats=4)
+
+
+def test_where_every_draw_blows_up_the_calibrated_values_predict_alone(monkeypatch,
+                                                                        inline_pool):
+    frictions: list[float] = []
+    physical = fake_replay(frictions)
+
+    def replay(o, friction, scales, sim):
+        return physical(o, friction, scales, sim) if len(frictions) < 4 else None
+
+    monkeypatch.setattr(validate, "replay", replay)
+    cal = Calibration({"bundle_bundle": CalibratedPair(0.35, 0.30, static_std=0.02)})
+    (check,) = validate.validate([recording(-0.03, -0.05)], cal, inline_pool, repeats=4)
+    layer = check.layers_on_pallet[2]
+    assert (layer.uncertain_m, layer.uncertain_spread_m) == (layer.predicted_m, layer.spread_m)
+    assert layer.predicted_m == pytest.approx(-0.08)
+
+
 @pytest.mark.parametrize("drawn_m, spread_m, spreads, explained", [
     (-0.05, 0.02, 0.03 / (0.02**2 + 2 * 0.002**2) ** 0.5, True),    # 1.49 spreads
     (-0.05, 0.01, 0.03 / (0.01**2 + 2 * 0.002**2) ** 0.5, False),   # 2.89

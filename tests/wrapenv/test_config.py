@@ -8,7 +8,15 @@ from pathlib import Path
 
 import pytest
 
-from wrapenv.config import InputError, check_output, check_output_folder, printable, read_json
+from wrapenv.config import (
+    InputError,
+    check_output,
+    check_output_folder,
+    printable,
+    read_json,
+    result_json,
+    write_together,
+)
 
 ROOT = os.geteuid() == 0
 
@@ -94,3 +102,26 @@ def test_a_json_key_given_twice_is_an_error_naming_it(tmp_path, assert_input_err
     with pytest.raises(InputError) as info:
         read_json(path)
     assert_input_error(info.value, str(path), "stiffness_scale")
+
+
+def test_files_written_together_are_all_written_or_none(tmp_path):
+    first, second = tmp_path / "cal.json", tmp_path / "gone" / "cal-loss.png"
+    with pytest.raises(OSError):
+        write_together({first: b"{}", second: b"png"})
+    assert list(tmp_path.iterdir()) == []           # nothing, not even a staged file
+    write_together({first: b"{}", tmp_path / "cal-loss.png": b"png"})
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["cal-loss.png", "cal.json"]
+    assert oct(first.stat().st_mode & 0o777) == oct(0o666 & ~_umask())
+
+
+def _umask() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
+
+
+def test_a_result_with_a_nan_is_a_bug_not_a_file():
+    """No JSON reader need accept NaN: a result that holds one is refused before writing."""
+    assert result_json({"x": 1.0}).endswith(b"\n")
+    with pytest.raises(ValueError):
+        result_json({"x": float("nan")})
