@@ -13,7 +13,8 @@ So the test is per body, then per recording:
   replays' own run-to-run spread (the recording is one more draw, the mean of n replays keeps
   1/n of it) and the tracker's noise on the two positions a slip is the difference of;
 - in each recording the least explained body in every `EXCUSED_PER_BODIES` is excused (a rare
-  mode), and the rest give the recording's unexplained RMS over its bodies, each counted once;
+  mode) and counts as explained (zero): the recording's unexplained RMS is over all its bodies,
+  each counted once, so the limit means the same however many were excused;
 - unless the single replay nearest the recording leaves less (beyond the tracker's noise),
   judged alike: a mode of the whole unit (the bottom layer slides or holds at its threshold)
   that few replays visit moves several bodies at once, and one replay in it suffices;
@@ -65,8 +66,9 @@ def body_unexplained(r: np.ndarray) -> float:
 
 def judge(unexplained_m2: dict[str, float], source: str = "") -> Unexplained:
     """A recording's verdict from its bodies' unexplained mean squares: the worst
-    `1 / EXCUSED_PER_BODIES` of the bodies excused, each other body counted once, however long
-    its window (one that slides off early has few frames, and shows the friction most)."""
+    `1 / EXCUSED_PER_BODIES` of the bodies excused (counted as explained), every body counted
+    once, however long its window (one that slides off early has few frames, and shows the
+    friction most)."""
     order = sorted(unexplained_m2, key=lambda b: unexplained_m2[b], reverse=True)
     excused = tuple(order[:len(order) // EXCUSED_PER_BODIES])
     kept = sum(ms for b, ms in unexplained_m2.items() if b not in excused)

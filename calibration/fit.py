@@ -121,7 +121,9 @@ class _Fitted:
     #: per probed pair the shifts of its static coefficient the acceptance test allowed
     unrefused: dict[str, list[float]] = field(default_factory=dict)
     stages: list[Stage] = field(default_factory=list)
-    invalid: int = 0
+    #: the stages' replays, and those of them that became unphysical
+    replays: int = 0
+    unphysical: int = 0
     #: the surrogate's friction stage: its box's coordinates and its fit (for `_profiled`)
     friction_fit: tuple[Model, SurrogateFit] | None = None
 
@@ -358,11 +360,12 @@ def _run_stage(objective: Objective, settings: FitSettings, limit: int, progress
         if not any(p.is_scale for p in model.params):
             found.friction_fit = (model, result)
         found.stages.extend(result.stages)
-        found.invalid += result.invalid
     else:
         stage_progress = Progress(progress.simulations, progress.curve, progress.listener)
         u, cov = descend(objective, u0, settings.method, limit, settings.seed, stage_progress)
         progress.simulations = stage_progress.simulations
+    found.replays += objective.replays
+    found.unphysical += objective.unphysical
     found.friction, found.scales = model.decode(u)
     found.stds |= _value_stds(model, u, cov)
 
@@ -451,18 +454,18 @@ def _result(observations: Sequence[Observation], bare: Sequence[Observation],
                and found.stds[name, ""] / (found.scales[name] * math.log(2))
                > RESOLVED_LOG2_SCALE_STD}
     verdict = acceptance.worst(observations, replays)
-    reason = _failure(rms, verdict, progress.simulations, found.invalid, settings)
+    reason = _failure(rms, verdict, progress.simulations, found, settings)
     return FitResult(calibration, rms, progress.simulations, settings.method, progress.curve,
                      [runs[0] for runs in replays], not reason, spread_rms, replay_rms, reason,
                      advice, tuple(found.stages), verdict,
                      tuple(name for name in WRAP_PARAMS if (name, "") in found.stds))
 
 
-def _failure(rms: float, verdict: acceptance.Unexplained, simulations: int, invalid: int,
+def _failure(rms: float, verdict: acceptance.Unexplained, simulations: int, found: _Fitted,
              settings: FitSettings) -> str:
-    """Why the fit is not to be trusted ("" when it is): a replay that became unphysical, a
-    recording the replays leave unexplained (`calibration.acceptance`), or too many invalid
-    simulations."""
+    """Why the fit is not to be trusted ("" when it is): a replay of the fitted values that
+    became unphysical, a recording the replays leave unexplained (`calibration.acceptance`), or
+    a search most of whose replays became unphysical."""
     if not math.isfinite(rms) or not math.isfinite(verdict.rms_m):
         return "the fitted values' replay became unphysical"
     if verdict.rms_m > settings.max_residual_m:
@@ -472,8 +475,8 @@ def _failure(rms: float, verdict: acceptance.Unexplained, simulations: int, inva
                 f"{1e3 * settings.max_residual_m:g} mm by the replays' scatter{excused}; "
                 f"residual RMS of all recordings {1e3 * rms:.1f} mm after {simulations} "
                 "simulations")
-    if invalid > simulations // 2:
-        return f"{invalid} of {simulations} replays became unphysical"
+    if found.unphysical > found.replays // 2:
+        return f"{found.unphysical} of the search's {found.replays} replays became unphysical"
     return ""
 
 

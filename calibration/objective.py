@@ -121,13 +121,18 @@ class Objective:
     def __init__(self, observations: Sequence[Observation], model: Model, pool: Executor,
                  sim: SimSettings) -> None:
         self.observations, self.model, self.pool, self.sim = observations, model, pool, sim
+        #: replays simulated, and those of them that became unphysical
+        self.replays = self.unphysical = 0
 
     def residuals(self, us: Sequence[np.ndarray]) -> list[np.ndarray | None]:
+        """Per point its residuals over every recording (None: a replay became unphysical)."""
         futures = [[self.pool.submit(_replay_task, obs, *self.model.decode(u), self.sim)
                     for obs in self.observations] for u in us]
         out: list[np.ndarray | None] = []
         for fs in futures:
             parts = [r for r in (f.result() for f in fs) if r is not None]
+            self.replays += len(fs)
+            self.unphysical += len(fs) - len(parts)
             out.append(np.concatenate(parts) if len(parts) == len(fs) else None)
         return out
 

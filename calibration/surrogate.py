@@ -81,7 +81,7 @@ class SurrogateFit:
     u: np.ndarray               # the estimate (unit box)
     cov: np.ndarray             # its covariance (unit box)
     stages: tuple[Stage, ...]
-    invalid: int                # replays that became unphysical
+    invalid: int                # design points with a replay that became unphysical
 
 
 def _basis(z: np.ndarray, order: str) -> np.ndarray:

@@ -12,7 +12,7 @@ import pytest
 
 from calibration import acceptance
 from calibration.acceptance import NOISE_VAR_M2, body_unexplained, judge
-from calibration.fit import FitSettings, _failure
+from calibration.fit import FitSettings, _failure, _Fitted
 from calibration.recording import Recording, Truth
 from calibration.replay import observe, replay, resettled
 from calibration.track import track
@@ -88,10 +88,22 @@ def test_small_units_excuse_no_body():
 
 def test_a_refusal_names_the_recording_and_the_excused_body():
     verdict = acceptance.Unexplained("rec-0.45g", 0.0237, ("L2C2R1",))
-    reason = _failure(0.05, verdict, 300, 0, FitSettings())
+    reason = _failure(0.05, verdict, 300, _Fitted(Friction()), FitSettings())
     assert reason.startswith("rec-0.45g is left 23.7 mm unexplained > 10 mm")
     assert "L2C2R1" in reason
-    assert _failure(0.05, dataclasses.replace(verdict, rms_m=0.009), 300, 0, FitSettings()) == ""
+    explained = dataclasses.replace(verdict, rms_m=0.009)
+    assert _failure(0.05, explained, 300, _Fitted(Friction()), FitSettings()) == ""
+
+
+def test_a_search_most_of_whose_replays_blew_up_is_refused():
+    """Counted in replays: with two recordings a design point is two replays, one of which
+    may blow up alone."""
+    explained = acceptance.Unexplained("rec", 0.001)
+    half = _Fitted(Friction(), replays=200, unphysical=100)
+    most = _Fitted(Friction(), replays=200, unphysical=101)
+    assert _failure(0.005, explained, 240, half, FitSettings()) == ""
+    assert _failure(0.005, explained, 240, most, FitSettings()) == (
+        "101 of the search's 200 replays became unphysical")
 
 
 @pytest.fixture(scope="module")
