@@ -4,11 +4,11 @@ A pair that never slipped cannot be fitted: the most the recordings say is a low
 static coefficient, the largest acceleration (in g) it had to transmit. In a stack that bound
 is capped: a pair above one that slipped was only asked as much as the slipping pair's kinetic
 friction passes up, so raising the level does not load it further. The advice names the test
-that would: a higher level where the level is the limit; where a slipping pair shields it, a
-unit without that pair (one layer for pallet-bundle under slipping bundles, a stopped pallet
-for a pallet that slid); where columns toppled, a lower unit (a toppling column passes no more
-shear down); or, for the sled-pallet pair of a stopped pallet (only ever loaded by the
-braking), a test without the stopper.
+that would: a higher level where the level is the limit; where a slipping pair below shields
+it, a unit in which that pair holds (`SHIELD_REMOVED`: a stopped pallet for a pallet that slid,
+an anti-slip sheet under a bottom layer that slid); where columns toppled, a lower unit (a
+toppling column passes no more shear down); or, for the sled-pallet pair of a stopped pallet
+(only ever loaded by the braking), a test without the stopper.
 """
 
 from __future__ import annotations
@@ -54,14 +54,16 @@ def pair_bounds(observations: Sequence[Observation], fitted: Friction,
 
 
 def _demand(name: str, obs: Observation, fitted: Friction, slipped: frozenset[str]) -> Bound:
-    """The largest acceleration one recording asked a pair to transmit (see `pair_bounds`)."""
+    """The largest acceleration one recording asked a pair to transmit (see `pair_bounds`):
+    capped by a pair below (one of `slipped`) only where that pair slipped in this
+    recording."""
     back, forward = obs.peak_accel_g
     stopped = name == "sled_pallet" and obs.load.pallet_stopper
     demand, why = (forward, "braking") if stopped else (max(back, forward), "level")
     if why == "level" and name != "sled_pallet" and obs.toppled:
         why = "toppling"
     for below in PAIRS[:PAIRS.index(name)]:
-        if below in slipped and fitted.pair(below).kinetic < demand:
+        if below in slipped & obs.slipped and fitted.pair(below).kinetic < demand:
             demand, why = fitted.pair(below).kinetic, below
     return Bound(demand, why)
 
@@ -91,6 +93,13 @@ def held_stuck(nominal: Friction, bounds: dict[str, Bound], slipped: frozenset[s
     return replace(nominal, **pairs)
 
 
+#: A unit in which the slipping pair below (the key) holds, so the pair above is loaded.
+SHIELD_REMOVED = {
+    "sled_pallet": "the unit with the pallet stopper",
+    "pallet_bundle": "the unit with its bottom layer held on the pallet (an anti-slip sheet "
+                     "under it)"}
+
+
 def _level_above(g: float) -> float:
     return math.ceil((g + LEVEL_MARGIN_G) / LEVEL_STEP_G - 1e-9) * LEVEL_STEP_G
 
@@ -108,8 +117,7 @@ def advice_unslipped(name: str, bound: Bound) -> str:
                 f"toppled first, and a higher level topples them sooner; test {unit} at "
                 f"{_level_above(bound.demand_g):.2f} g or more")
     if bound.limited_by != "level":
-        unit = ("a one-layer unit (bundles on the pallet only)" if name == "pallet_bundle"
-                else "the unit with the pallet stopper")
+        unit = SHIELD_REMOVED[bound.limited_by]
         return (f"never slipped: {bound.limited_by} slipped first and passed up at most "
                 f"{bound.demand_g:.2f} g; a higher level does not load it more; test "
                 f"{unit} at {_level_above(bound.demand_g):.2f} g or more")

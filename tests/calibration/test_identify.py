@@ -76,13 +76,27 @@ def test_pairs_held_stuck_in_the_replay_sit_above_their_demand():
     assert held.bundle_bundle == FRICTION.bundle_bundle      # slipped: fitted, not held
 
 
-@pytest.mark.parametrize("bound, needles", [
-    (Bound(0.1125, "braking"), ["without the pallet stopper", "0.20 g"]),
-    (Bound(0.45, "level"), ["never slipped up to 0.45 g", "test at 0.50 g"]),
-    (Bound(0.30, "bundle_bundle"), ["bundle_bundle slipped first", "one-layer unit", "0.35 g"]),
+def test_a_pair_above_one_that_slipped_in_another_take_carried_this_takes_level():
+    """The bottom layer slid at 0.45 g, not at 0.35 g. The 0.45 g take passed up at most the
+    bottom layer's kinetic friction; the 0.35 g take, where it held, passed up all 0.35 g."""
+    obs = [_obs(0.35, set()), _obs(0.45, {"pallet_bundle"})]
+    bounds = pair_bounds(obs, FRICTION, frozenset({"pallet_bundle"}))
+    assert bounds["bundle_bundle"] == Bound(0.42, "pallet_bundle")
+    low_kinetic = Friction(FRICTION.sled_pallet, FrictionPair(0.34, 0.33), FRICTION.bundle_bundle)
+    bounds = pair_bounds(obs, low_kinetic, frozenset({"pallet_bundle"}))
+    assert bounds["bundle_bundle"] == Bound(0.35, "level")   # not 0.33: it held at 0.35 g
+
+
+@pytest.mark.parametrize("name, bound, needles", [
+    ("pallet_bundle", Bound(0.1125, "braking"), ["without the pallet stopper", "0.20 g"]),
+    ("pallet_bundle", Bound(0.45, "level"), ["never slipped up to 0.45 g", "test at 0.50 g"]),
+    ("pallet_bundle", Bound(0.30, "sled_pallet"),
+     ["sled_pallet slipped first", "with the pallet stopper", "0.35 g"]),
+    ("bundle_bundle", Bound(0.30, "pallet_bundle"),
+     ["pallet_bundle slipped first", "anti-slip sheet", "0.35 g"]),
 ])
-def test_advice_names_the_test_that_would_make_a_pair_slip(bound, needles):
-    text = advice_unslipped("pallet_bundle", bound)
+def test_advice_names_the_test_that_would_make_a_pair_slip(name, bound, needles):
+    text = advice_unslipped(name, bound)
     for needle in needles:
         assert needle in text, text
 
