@@ -13,7 +13,6 @@ v = v0 - px_per_m z with (u0, v0) = `origin_px`.
 
 from __future__ import annotations
 
-import csv
 import json
 import math
 from dataclasses import dataclass
@@ -25,7 +24,7 @@ import numpy as np
 
 from calibration.camera_setup import SETUP, MarkerSpec, Setup, check_markers, exact
 from calibration.vision.video import open_video
-from wrapenv.config import InputError, read_json, read_toml, write_atomic
+from wrapenv.config import InputError, read_csv, read_json, read_toml, write_atomic
 from wrapenv.load import LoadUnit
 from wrapenv.render import SideCamera
 from wrapenv.wrap import WrapFormat
@@ -90,20 +89,13 @@ class SledProfile:
 def _read_csv(path: Path) -> dict[str, np.ndarray]:
     """The profile's known columns as arrays; t_s and accel_mps2 required, all finite."""
     src = str(path)
-    try:
-        with path.open(newline="", encoding="utf-8-sig") as fh:  # Excel starts with a BOM
-            rows = [r for r in csv.reader(fh) if r]
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InputError(src, "", f"cannot read file ({exc})") from None
-    if not rows:
-        raise InputError(src, "", "empty file")
-    header = [h.strip() for h in rows[0]]
+    header, rows = read_csv(path)
     for col in PROFILE_COLUMNS[:2]:
         if col not in header:
             raise InputError(src, col, "missing column (header must name t_s,accel_mps2)")
     present = [c for c in PROFILE_COLUMNS if c in header]
     values = []
-    for line, row in enumerate(rows[1:], start=2):
+    for line, row in rows:
         try:
             values.append([float(row[header.index(c)]) for c in present])
         except (ValueError, IndexError):

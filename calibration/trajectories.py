@@ -7,7 +7,6 @@ user file: a bad row names the file, the line and the column.
 
 from __future__ import annotations
 
-import csv
 import io
 import math
 from collections.abc import Mapping
@@ -17,7 +16,7 @@ from typing import Protocol
 
 import numpy as np
 
-from wrapenv.config import InputError, write_atomic
+from wrapenv.config import InputError, read_csv, write_atomic
 
 HEADER = ("t_s", "object", "x_m", "z_m", "angle_rad")
 
@@ -67,18 +66,11 @@ class Trajectories:
     def from_csv(cls, path: str | Path) -> Trajectories:
         """Read and validate a trajectories CSV; any defect raises `InputError` naming the line."""
         path = Path(path)
-        try:
-            text = path.read_text()
-        except (OSError, UnicodeDecodeError) as exc:
-            raise InputError(str(path), "", f"cannot read file ({exc})") from None
-        reader = csv.reader(io.StringIO(text))
-        header = next(reader, None)
-        if header is None or tuple(h.strip() for h in header) != HEADER:
+        header, rows = read_csv(path)
+        if tuple(header) != HEADER:
             raise InputError(str(path), "header", f"must be {','.join(HEADER)} (got {header})")
         columns: dict[str, list[tuple[float, float, float, float]]] = {}
-        for line, row in enumerate(reader, start=2):
-            if not row:
-                continue
+        for line, row in rows:
             if len(row) != len(HEADER):
                 raise InputError(str(path), f"line {line}", f"expected 5 columns, got {len(row)}")
             name = row[1].strip()

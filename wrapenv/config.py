@@ -7,6 +7,7 @@ file and the field: ``load.toml: bundle.mass_kg: must be > 0 (got -1.0)``.
 
 from __future__ import annotations
 
+import csv
 import json
 import math
 import os
@@ -38,6 +39,29 @@ def read_toml(path: str | Path) -> dict[str, Any]:
         raise InputError(str(path), "", f"cannot read file ({exc.strerror or exc})") from None
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
         raise InputError(str(path), "", f"malformed TOML ({exc})") from None
+
+
+def read_csv(path: str | Path) -> tuple[list[str], list[tuple[int, list[str]]]]:
+    """A CSV file's header (its cells stripped) and its other rows, each with the number of the
+    line it ends on (blank rows skipped), turning I/O and syntax errors into `InputError`. A
+    byte-order mark (Excel writes one) is not part of the first column's name."""
+    path = Path(path)
+    rows: list[tuple[int, list[str]]] = []
+    try:
+        with path.open(newline="", encoding="utf-8-sig") as fh:
+            reader = csv.reader(fh)
+            try:
+                rows += ((reader.line_num, row) for row in reader if row)
+            except csv.Error as exc:
+                raise InputError(str(path), f"line {reader.line_num}",
+                                 f"malformed CSV ({exc})") from None
+    except OSError as exc:
+        raise InputError(str(path), "", f"cannot read file ({exc.strerror or exc})") from None
+    except UnicodeDecodeError:
+        raise InputError(str(path), "", "cannot read file (not UTF-8 text)") from None
+    if not rows:
+        raise InputError(str(path), "", "empty file")
+    return [h.strip() for h in rows[0][1]], rows[1:]
 
 
 def read_json(path: str | Path) -> dict[str, Any]:

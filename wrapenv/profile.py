@@ -9,14 +9,13 @@ adds no deformation of its own.
 
 from __future__ import annotations
 
-import csv
 import math
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from wrapenv.config import InputError
+from wrapenv.config import InputError, read_csv
 
 G = 9.81
 #: The ESTL bench produces 0 to 10 m/s² (paper, section 2): the highest level it can run is 1.0 g.
@@ -113,24 +112,14 @@ class MeasuredProfile:
 
     @classmethod
     def from_csv(cls, path: str | Path) -> MeasuredProfile:
-        path = Path(path)
         src = str(path)
-        try:
-            with path.open(newline="", encoding="utf-8-sig") as fh:  # Excel starts with a BOM
-                rows = list(csv.reader(fh))
-        except (OSError, UnicodeDecodeError) as exc:
-            raise InputError(src, "", f"cannot read file ({exc})") from None
-        if not rows:
-            raise InputError(src, "", "empty file")
-        header = [h.strip() for h in rows[0]]
+        header, rows = read_csv(path)
         for col in ("t_s", "accel_mps2"):
             if col not in header:
                 raise InputError(src, col, "missing column (header must name t_s,accel_mps2)")
         it, ia = header.index("t_s"), header.index("accel_mps2")
         t, a = [], []
-        for line, row in enumerate(rows[1:], start=2):
-            if not row:
-                continue
+        for line, row in rows:
             try:
                 t.append(float(row[it]))
                 a.append(float(row[ia]))

@@ -13,6 +13,7 @@ from wrapenv.config import (
     check_output,
     check_output_folder,
     printable,
+    read_csv,
     read_json,
     result_json,
     write_together,
@@ -125,3 +126,30 @@ def test_a_result_with_a_nan_is_a_bug_not_a_file():
     assert result_json({"x": 1.0}).endswith(b"\n")
     with pytest.raises(ValueError):
         result_json({"x": float("nan")})
+
+
+def test_csv_rows_carry_the_line_they_end_on(tmp_path):
+    path = tmp_path / "p.csv"
+    path.write_text("\ufefft_s,accel_mps2\n\n\n0,0\n0.1,abc\n")
+    header, rows = read_csv(path)
+    assert header == ["t_s", "accel_mps2"]
+    assert rows == [(4, ["0", "0"]), (5, ["0.1", "abc"])]
+
+
+@pytest.mark.parametrize("text, needles", [
+    ("", ["empty file"]),
+    ("a,b\n" + "x" * 200_000 + ",1\n", ["line 2", "malformed CSV", "field larger"]),
+    (b"t_s\n\xff\xfe".decode("latin-1"), ["not UTF-8 text"]),
+])
+def test_a_csv_that_cannot_be_read_names_the_file_and_line(text, needles, tmp_path):
+    path = tmp_path / "p.csv"
+    path.write_bytes(text.encode("latin-1") if "\xff" in text else text.encode())
+    with pytest.raises(InputError) as err:
+        read_csv(path)
+    assert str(err.value).startswith(str(path))
+    assert all(n in str(err.value) for n in needles), err.value
+
+
+def test_a_missing_csv_is_named_like_any_missing_input(tmp_path):
+    with pytest.raises(InputError, match=r"cannot read file \(No such file or directory\)$"):
+        read_csv(tmp_path / "nope.csv")
