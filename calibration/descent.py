@@ -33,17 +33,30 @@ UNIFORM_STD = 1 / math.sqrt(12)
 SPREAD_ITERATES = 8
 
 
+def popsize(n: int) -> int:
+    """pycma's default population for n parameters."""
+    return 4 + int(3 * math.log(n))
+
+
+def least_points(method: str, n: int) -> int:
+    """The fewest points with which `descend` searches at all: cmaes its start and one
+    generation, momentum one gradient step; then the best point's replay and the curvature's
+    2n probes."""
+    search = 1 + popsize(n) if method == "cmaes" else n + 1
+    return search + 2 * n + 1
+
+
 def cmaes(objective: Objective, u0: np.ndarray, budget: int, seed: int,
           progress: Progress) -> np.ndarray:
     """pycma ask/tell until the budget (in simulations) or pycma's own stop; returns the final
     search distribution's standard deviations (what the search has not yet narrowed down)."""
     n = len(u0)
-    popsize = 4 + int(3 * math.log(n))
-    es = cma.CMAEvolutionStrategy(u0, 0.15, {"bounds": [0.0, 1.0], "popsize": popsize,
+    popsize_n = popsize(n)
+    es = cma.CMAEvolutionStrategy(u0, 0.15, {"bounds": [0.0, 1.0], "popsize": popsize_n,
                                              "seed": seed + 1, "verbose": -9, "tolx": 2e-3})
     progress.record([u0], objective.losses([u0]), objective.sims_per_point)
     while not es.stop():
-        if progress.simulations + popsize * objective.sims_per_point > budget:
+        if progress.simulations + popsize_n * objective.sims_per_point > budget:
             break
         us = es.ask()
         losses = objective.losses(us)

@@ -26,7 +26,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from calibration import acceptance, identify
-from calibration.descent import UNIFORM_STD, descend
+from calibration.descent import UNIFORM_STD, descend, least_points
 from calibration.objective import Model, Objective, Param, Progress
 from calibration.replay import Observation, replay, resettled, residuals
 from calibration.surrogate import Stage, SurrogateFit, min_points, profile, surrogate
@@ -306,11 +306,8 @@ def _stage_limit(budget: int, spent: int, stages: Stages) -> int:
 
 
 def min_budget(observations: Sequence[Observation], settings: FitSettings) -> int:
-    """The least budget with which the surrogate can fit every stage (`surrogate.min_points`
-    replays of each of its recordings, after the final replays); `settings.budget` for the
-    descents, which spend what they are given."""
-    if settings.method != "surrogate":
-        return settings.budget
+    """The least budget with which every stage searches at all (`surrogate.min_points` or
+    `descent.least_points` replays of each of its recordings, after the final replays)."""
     _, _, stages = _stages(observations, settings)
 
     def enough(budget: int) -> bool:
@@ -318,7 +315,9 @@ def min_budget(observations: Sequence[Observation], settings: FitSettings) -> in
         left, spent = budget - repeats * len(observations), 0
         for k, (params, indices) in enumerate(stages):
             points = (_stage_limit(left, spent, stages[k:]) - spent) // len(indices)
-            if points < min_points(len(params)):
+            least = (min_points(len(params)) if settings.method == "surrogate"
+                     else least_points(settings.method, len(params)))
+            if points < least:
                 return False
             spent += points * len(indices)
         return True

@@ -133,12 +133,15 @@ def test_the_least_budget_gives_every_stage_a_fittable_design():
     """Two bare takes in which both bundle pairs slipped: 4 parameters (each pair's fitted
     coefficient and ratio), whose linear emulator needs 4 + 3 = 7 replays of each take. At 20
     simulations: 3 final replays of each take (6), 14 left, 7 points of 2 takes: enough; at 19,
-    6 points are not. The descents spend what they are given."""
+    6 points are not. CMA-ES needs its start, one generation of 4 + int(3 ln 4) = 8, the best
+    point again and 2 x 4 curvature probes, 18 points: 36 replays and 1 final replay of each
+    take, 38; momentum one step of 4 + 1 points, then 9: 30."""
     takes = [SimpleNamespace(peak_accel_g=(g, 0.1), wrap=None,
                              slipped=frozenset({"pallet_bundle", "bundle_bundle"}))
              for g in (0.35, 0.45)]
     assert min_budget(takes, FitSettings(budget=300)) == 20
-    assert min_budget(takes, FitSettings(method="cmaes", budget=12)) == 12
+    assert min_budget(takes, FitSettings(method="cmaes", budget=12)) == 38
+    assert min_budget(takes, FitSettings(method="momentum", budget=12)) == 30
 
 
 def test_only_a_pair_whose_onset_is_bracketed_can_claim_a_resolved_static_coefficient():
