@@ -342,6 +342,7 @@ def _run_stage(objective: Objective, settings: FitSettings, limit: int, progress
     """One stage's parameters by the asked method; updates `found`."""
     model = objective.model
     u0 = model.encode(model.base, model.scales)
+    progress.new_stage()
     if settings.method == "surrogate":
         spp = objective.sims_per_point
 
@@ -360,9 +361,7 @@ def _run_stage(objective: Objective, settings: FitSettings, limit: int, progress
             found.friction_fit = (model, result)
         found.stages.extend(result.stages)
     else:
-        stage_progress = Progress(progress.simulations, progress.curve, progress.listener)
-        u, cov = descend(objective, u0, settings.method, limit, settings.seed, stage_progress)
-        progress.simulations = stage_progress.simulations
+        u, cov = descend(objective, u0, settings.method, limit, settings.seed, progress)
     found.replays += objective.replays
     found.unphysical += objective.unphysical
     found.friction, found.scales = model.decode(u)

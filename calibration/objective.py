@@ -103,6 +103,11 @@ class Progress:
                 self.best_u, self.best_loss = np.array(u), loss
         self.curve.append((self.simulations, self.best_loss))
 
+    def new_stage(self) -> None:
+        """A stage fits other parameters (and recordings): its losses are not compared with
+        the last stage's best."""
+        self.best_u, self.best_loss = None, math.inf
+
     def spend(self, sims: int) -> None:
         self.simulations += sims
         if self.listener is not None:

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 
 import calibration.objective as objective
-from calibration.objective import Model, Objective, Param
+from calibration.objective import Model, Objective, Param, Progress
 from wrapenv.bench import SimSettings
 from wrapenv.load import Friction
 
@@ -26,3 +26,15 @@ def test_a_point_is_unphysical_if_one_of_its_replays_is_and_each_replay_counts(m
     assert out[0] is not None and np.allclose(out[0], [0.35, 0.35])
     assert out[1] is None and out[2] is None
     assert (obj.replays, obj.unphysical) == (6, 2)
+
+
+def test_the_loss_curve_starts_again_with_each_stage():
+    """The wrap stage's losses (wrapped takes) are not compared with the friction stage's best
+    (bare takes): CAL-loss.png would show the wrap stage flat."""
+    progress = Progress()
+    progress.record([np.zeros(2)], [0.1], 2)
+    progress.record([np.ones(2)], [0.3], 2)
+    progress.new_stage()
+    progress.record([np.zeros(1)], [0.5], 3)
+    progress.record([np.ones(1)], [0.4], 3)
+    assert progress.curve == [(2, 0.1), (4, 0.1), (7, 0.5), (10, 0.4)]
