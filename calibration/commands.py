@@ -26,6 +26,8 @@ from wrapenv.wrap import WrapFormat
 if TYPE_CHECKING:   # imported where used: the CLI starts without the fitting's modules
     from calibration.validate import Check, Validation
 
+#: Longest message printed whole (it may quote a recording's folder, which `printable` makes safe).
+MESSAGE_CHARS = 2000
 #: `synthesize`'s arguments, as its errors name them (source, field), and the flags that set
 #: them.
 SYNTH_FLAGS = {("arguments", "size"): "--size", ("arguments", "fps"): "--fps",
@@ -258,13 +260,14 @@ def _observations(recordings: list, retrack: bool) -> list:
         csv = rec.folder / "trajectories.csv"
         if csv.exists() and not retrack:
             tracked = Trajectories.from_csv(csv)
-            print(f"{rec.folder}: trajectories from {csv.name}")
+            print(f"{printable(str(rec.folder))}: trajectories from {csv.name}")
         else:
             result = track(rec)
             for warning in result.warnings:
-                sys.stderr.write(f"wrapbench calibrate: warning: {rec.folder}: {warning}\n")
+                sys.stderr.write(f"wrapbench calibrate: warning: {printable(str(rec.folder))}: "
+                                 f"{warning}\n")
             tracked = result.trajectories
-            print(f"{rec.folder}: tracked {len(tracked.objects)} objects")
+            print(f"{printable(str(rec.folder))}: tracked {len(tracked.objects)} objects")
         observations.append(observe(rec, tracked))
     return observations
 
@@ -354,14 +357,16 @@ def run_calibrate(args: argparse.Namespace) -> int:
     if not result.converged:
         # what the refused fit found, and the advice: which test would pin what it missed
         print("the refused fit (not written):\n" + _summary(result))
-        sys.stderr.write(f"wrapbench calibrate: the fit did not converge: {result.reason}; "
+        sys.stderr.write("wrapbench calibrate: the fit did not converge: "
+                         f"{printable(result.reason, MESSAGE_CHARS)}; "
                          "nothing written\n")
         return 1
     try:
         with ProcessPoolExecutor(max_workers=args.workers) as pool:
             checks = validate(held_out, result.calibration, pool)
     except Unpredictable as exc:
-        sys.stderr.write(f"wrapbench calibrate: --validate: {exc}; nothing written\n")
+        sys.stderr.write(f"wrapbench calibrate: --validate: {printable(str(exc), MESSAGE_CHARS)}; "
+                         "nothing written\n")
         return 1
     out = result.calibration.to_dict() | {
         "residual_rms_m": result.residual_rms_m, "spread_rms_m": result.spread_rms_m,
@@ -378,7 +383,7 @@ def run_calibrate(args: argparse.Namespace) -> int:
     for check in checks:
         print(_validation_summary(check))
     print(f"{result.simulations} simulations in {wall:.0f} s ({result.method}); wrote "
-          f"{', '.join(str(p) for p in paths.values())}")
+          f"{', '.join(printable(str(p)) for p in paths.values())}")
     return 0
 
 
@@ -410,13 +415,14 @@ def _summary(result) -> str:
     if v.source:
         excused = f", {' '.join(v.excused)} excused" if v.excused else ""
         lines.append(f"{'accepted' if result.converged else 'refused'}: the least explained "
-                     f"recording, {v.source}, {1e3 * v.rms_m:.2f} mm unexplained by "
+                     f"recording, {printable(v.source)}, {1e3 * v.rms_m:.2f} mm unexplained by "
                      f"{v.by}{excused}")
     return "\n".join(lines)
 
 
 def _validation_summary(check: Validation) -> str:
-    lines = [f"validation {check.source} ({check.replays} replays): slide on its support at "
+    lines = [f"validation {printable(check.source)} ({check.replays} replays): slide on its "
+             "support at "
              "the end of the predictable frames, mm; 'uncertain': replayed with the calibrated "
              "values drawn within their standard deviations",
              "  object      recorded  predicted ± spread   error       uncertain ± spread"]

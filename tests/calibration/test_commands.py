@@ -320,6 +320,17 @@ def test_printed_paths_cannot_drive_the_terminal(recording_dir, tmp_path, capsys
     assert main(["track", str(rec)]) == 0
     out = capsys.readouterr().out
     assert "\x1b" not in out and "rec\\x1b[2J" in out
+
+
+def test_calibrate_prints_folder_names_escaped(slide_dir, tmp_path, capsys):
+    rec = tmp_path / "rec\x1b[2J"
+    shutil.copytree(slide_dir, rec)
+    assert main(["calibrate", str(rec), "--out", str(tmp_path / "cal.json"),
+                 "--budget", "30"]) == 0
+    printed = capsys.readouterr()
+    assert "\x1b" not in printed.out + printed.err and "rec\\x1b[2J" in printed.out
+
+
 @pytest.fixture(scope="module")
 def slide_at_05(slide_dir, tmp_path_factory) -> Path:
     """The sliding unit at 0.5 g with the same hidden friction (same seed and jitter)."""
