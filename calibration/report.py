@@ -17,6 +17,7 @@ from matplotlib import ticker  # noqa: E402
 
 from calibration import features  # noqa: E402
 from calibration.replay import Observation  # noqa: E402
+from wrapenv.config import printable  # noqa: E402
 
 #: Bodies' colours: a 3-layer unit's visible row and its pallet are 13 bodies, more than
 #: matplotlib's 10 default colours tell apart; tab20's dark tones first, then its light ones.
@@ -63,7 +64,8 @@ def overlay_png(observations: Sequence[Observation],
             ax.plot(t, 1e3 * tracked[name][:frames], ".", ms=3, color=colour, label=name)
             if name in replayed:
                 ax.plot(t, 1e3 * replayed[name][:frames], "-", lw=1, color=colour)
-        ax.set_title(f"{Path(obs.source).name}: tracked (dots), one fitted replay (lines)",
+        ax.set_title(f"{printable(Path(obs.source).name)}: tracked (dots), one fitted replay "
+                     "(lines)",
                      fontsize=9)
         ax.set_ylabel("slip on its support [mm]")
         ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))
