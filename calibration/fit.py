@@ -482,15 +482,17 @@ def _calibration(found: _Fitted, slipped: frozenset[str], bounds: dict[str, iden
                  throughout: dict[str, identify.Bound], present: tuple[str, ...],
                  known: tuple[str, ...]) -> Calibration:
     """The fitted values as CAL.json reports them: a pair that never slipped at its bound,
-    unidentified; one that slipped at every level (`throughout`) with the static coefficient's
-    standard deviation `static_std_above` allows at least; the known wrap scales as given."""
+    unidentified (not at all if nothing loaded it: a profile without braking never loads a
+    stopped pallet's sled contact); one that slipped at every level (`throughout`) with the
+    static coefficient's standard deviation `static_std_above` allows at least; the known wrap
+    scales as given."""
     pairs = {}
     for name in present:
         pair = found.friction.pair(name)
         if name not in slipped:
-            bound = bounds[name].demand_g
-            pairs[name] = CalibratedPair(bound, bound * pair.kinetic / pair.static,
-                                         identified=False)
+            if (bound := bounds[name].demand_g) > 0:
+                pairs[name] = CalibratedPair(bound, bound * pair.kinetic / pair.static,
+                                             identified=False)
             continue
         std = found.stds["static", name]
         if name in throughout:

@@ -12,6 +12,7 @@ import pytest
 from calibration.fit import (
     FitSettings,
     _bracketed,
+    _calibration,
     _Fitted,
     _friction_params,
     _probe,
@@ -20,12 +21,14 @@ from calibration.fit import (
     fit,
     min_budget,
 )
+from calibration.identify import Bound
 from calibration.objective import Model, Param, Progress
 from calibration.recording import Recording, Truth
 from calibration.replay import SLIP_M, observe, replay, residuals, upright_slide_m
 from calibration.surrogate import Emulator, Stage, SurrogateFit
 from calibration.track import track
 from calibration.trajectories import ObjectPath, Trajectories
+from wrapenv.calibrated import Calibration
 from wrapenv.load import Friction, FrictionPair
 
 
@@ -309,3 +312,16 @@ def test_known_wrap_scales_are_held_and_only_the_others_fitted(wrapped_slide):
     assert result.fitted_scales == ("stiffness",)
     assert cal.stiffness_scale_std > 0
     assert set(result.advice) <= {"stiffness"}
+
+
+def test_a_pair_nothing_loaded_is_not_reported():
+    """A stopped pallet's sled contact is loaded only by the braking; a profile without braking
+    bounds it by 0 g, a coefficient no reader takes (CAL.json's are > 0): it is left out, as
+    pairs the unit does not have are."""
+    found = _Fitted(Friction())
+    bounds = {"sled_pallet": Bound(0.0, "braking"), "pallet_bundle": Bound(0.45, "level")}
+    cal = _calibration(found, frozenset(), bounds, {}, ("sled_pallet", "pallet_bundle"), ())
+    assert set(cal.friction) == {"pallet_bundle"}
+    assert cal.friction["pallet_bundle"].static == 0.45
+    assert not cal.friction["pallet_bundle"].identified
+    Calibration.from_dict(cal.to_dict())     # what it writes, it reads
