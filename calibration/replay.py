@@ -42,6 +42,9 @@ SLIP_M = 0.005
 UPRIGHT_RAD = np.radians(5.0)
 #: Fewer tracked frames than this cannot constrain a fit.
 MIN_FRAMES = 10
+#: The sled has stopped once its acceleration stays below this share of the pulse's peak: a
+#: bench's braking is a quarter of it, an accelerometer's noise at rest a few per cent [A].
+STOPPED_SHARE = 0.05
 #: Replays meant to show the bench's run-to-run scatter let the unit settle this much longer
 #: each (repeated bench tests never start from quite the same state).
 SETTLE_STEP_S = 0.05
@@ -101,12 +104,19 @@ def observe(recording: Recording, tracked: Trajectories) -> Observation:
     sled = tracked.objects.get("sled")
     states = {name: (p.t_s, _relative(p, sled, recording)) for name, p in objects.items()}
     a = recording.profile.accel_mps2
-    stop_s = float(recording.profile.t_s[np.flatnonzero(a)[-1]]) if np.any(a) else 0.0
-    frames = features.windows(states, body_map, stop_s)
+    frames = features.windows(states, body_map, stop_s(recording.profile.t_s, a))
     profile = MeasuredProfile(recording.profile.t_s, a, src)
     return Observation(src, recording.load, recording.wrap, profile, states, body_map, frames,
                        features.vector(states, body_map, frames), _slipped(states, body_map),
                        (float(max(a.max(), 0.0)) / G, float(max(-a.min(), 0.0)) / G))
+
+
+def stop_s(t_s: np.ndarray, accel_mps2: np.ndarray) -> float:
+    """When the sled stopped: its last acceleration above `STOPPED_SHARE` of the peak (a
+    measured profile is never exactly 0 again; a synthetic one is, after its braking)."""
+    moving = np.flatnonzero(np.abs(accel_mps2) > STOPPED_SHARE * np.max(np.abs(accel_mps2),
+                                                                        initial=0.0))
+    return float(t_s[moving[-1]]) if len(moving) else 0.0
 
 
 def _sled_x(t: np.ndarray, sled: ObjectPath | None, recording: Recording) -> np.ndarray:
