@@ -389,7 +389,8 @@ def run_calibrate(args: argparse.Namespace) -> int:
 
 def _summary(result) -> str:
     cal = result.calibration
-    lines = ["pair            static         kinetic        identified"]
+    lines = (["pair            static         kinetic        identified"] if cal.friction
+             else ["friction: not fitted (the load file's values)"])
     for name, p in cal.friction.items():
         if p.identified:
             lines.append(f"{name:14s}  {p.static:.3f} ± {p.static_std:.3f}  "

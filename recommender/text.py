@@ -37,7 +37,8 @@ def _row(v: LevelVerdict, height_m: float) -> str:
 def sequence_text(verdict: Verdict) -> str:
     """How the levels were run, in words: one level has no sequence to speak of."""
     if len(verdict.levels) == 1:
-        return "one level, on the unit as stacked and wrapped"
+        wrapped = verdict.levels[0].wrap is not None
+        return "one level, on the unit as stacked" + (" and wrapped" if wrapped else "")
     if verdict.sequence == "cumulative":
         return "one unit through the levels, each from where the last left it"
     return "a fresh unit for every level"

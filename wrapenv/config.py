@@ -280,17 +280,23 @@ def write_atomic(path: str | Path, data: bytes) -> None:
     write_together({Path(path): data})
 
 
+def make_ordinary(path: str | Path) -> None:
+    """Give a file made by `tempfile.mkstemp` (private to its owner) the permissions of any
+    file the user creates (the umask's)."""
+    umask = os.umask(0)
+    os.umask(umask)
+    os.chmod(path, 0o666 & ~umask)
+
+
 def write_together(files: dict[Path, bytes]) -> None:
     """Write several files so that either all of them are written or none: each is staged in
     its folder first and put in place once every one is staged."""
     staged: dict[Path, str] = {}
     try:
-        umask = os.umask(0)
-        os.umask(umask)
         for path, data in files.items():
             fd, staged[path] = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.",
                                                 suffix=".tmp")
-            os.chmod(staged[path], 0o666 & ~umask)  # mkstemp makes it private
+            make_ordinary(staged[path])
             with os.fdopen(fd, "wb") as fh:
                 fh.write(data)
         for path, tmp in staged.items():

@@ -171,7 +171,8 @@ class WrapFormat:
         if open_:
             out.append(f"the web does not close round the load from {open_[0]:.2f} to "
                        f"{open_[-1] + OPEN_STEP_M:.2f} m (less than one layer: part of a spiral "
-                       "turn, which the bench averages round the load); add a top wrap or overlap")
+                       "turn, which the bench averages round the load); raise the spiral's "
+                       "overlap, or add a reinforcement wrap there")
         return tuple(out)
 
     def _material_entry(self) -> str | dict[str, Any]:
@@ -315,10 +316,13 @@ def _whole(x: float) -> float | int:
 def _material(top: Table) -> tuple[str, Material]:
     if isinstance(top.data.get("material"), dict):
         return "custom", custom_material(top.table("material"))
-    key = top.choice("material", (*MATERIALS, "custom"))
+    key = top.string("material")
     if key == "custom":
         raise top.error("material", "a custom material is written as a [material] table"
                         " of its values, in place of material = \"custom\"")
+    if key not in MATERIALS:
+        raise top.error("material", f"must be one of {', '.join(map(repr, MATERIALS))}, or a "
+                        f"[material] table of a custom material's values (got {key!r})")
     return key, MATERIALS[key]
 
 

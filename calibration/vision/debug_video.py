@@ -13,7 +13,7 @@ import numpy as np
 
 from calibration.vision.objects import TrackedObject
 from calibration.vision.tracking import Pose
-from wrapenv.config import InputError
+from wrapenv.config import InputError, make_ordinary
 
 YELLOW, RED, WHITE = (0, 255, 255), (0, 0, 255), (255, 255, 255)
 
@@ -26,6 +26,7 @@ class DebugVideo:
         self.path = path
         fd, name = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=path.suffix)
         os.close(fd)
+        make_ordinary(name)
         self.partial = Path(name)
         self.writer = cv2.VideoWriter(name, cv2.VideoWriter.fourcc(*"mp4v"), fps, size)
         if not self.writer.isOpened():

@@ -8,11 +8,13 @@ import dataclasses
 import json
 import shutil
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
 
-from calibration.commands import _validation_summary
+from calibration.acceptance import Unexplained
+from calibration.commands import _summary, _validation_summary
 from calibration.recording import Truth
 from calibration.trajectories import ObjectPath, Trajectories
 from calibration.validate import REPEATS, Check, Validation
@@ -402,3 +404,14 @@ def test_calibrate_refuses_to_validate_on_another_load(slide_dir, recording_dir,
                  "--validate", str(recording_dir)]) == 2
     _one_line_error(capsys, "load.toml", "different load unit")
     assert not cal.exists()
+
+
+def test_a_wrap_only_fit_prints_no_empty_friction_table():
+    """`--params wrap` fits no pair: the summary says so instead of a table header alone."""
+    result = SimpleNamespace(
+        calibration=Calibration({}, stiffness_scale=1.4, stiffness_scale_std=0.2),
+        fitted_scales=("stiffness",), advice={}, residual_rms_m=0.002, spread_rms_m=0.0,
+        replay_rms_m=0.003, verdict=Unexplained("rec", 0.001), converged=True)
+    lines = _summary(result).splitlines()
+    assert lines[0] == "friction: not fitted (the load file's values)"
+    assert lines[1].startswith("wrap: stiffness scale 1.40 ± 0.20")

@@ -225,7 +225,7 @@ def test_bad_hours_or_layer_shift_limit_exits_2_naming_the_flag(argv, field, loa
 def test_a_single_level_is_not_described_as_a_sequence(load_file, capsys):
     assert run(["simulate", str(load_file(base=TINY_LOAD)), "--level", "0.2"]) == 0
     printed = capsys.readouterr().out
-    assert "one level, on the unit as stacked and wrapped" in printed
+    assert "(one level, on the unit as stacked)" in printed    # unwrapped: not "and wrapped"
     assert "through the levels" not in printed
 
 

@@ -112,6 +112,17 @@ def test_contract_layout_of_custom_with_a_material_table_is_malformed_toml(
     assert_input_error(info.value, str(path), "")
 
 
+@pytest.mark.parametrize("material, needles", [
+    ("paper", ["must be one of 'kraft', 'lldpe', or a [material] table", "'paper'"]),
+    ("custom", ["written as a [material] table"]),
+])
+def test_an_unknown_material_names_the_cards_and_the_custom_table(material, needles,
+                                                                   wrap_data):
+    with pytest.raises(InputError) as info:
+        WrapFormat.from_dict(wrap_data({"material": material}))
+    assert all(n in str(info.value) for n in needles), info.value
+
+
 # --- layers and pretension by height -------------------------------------------------------
 
 OVERLAPPING = fmt(Band(0.0, 1.0, 2, 100.0), Band(0.5, 1.5, 1, 50.0))

@@ -7,6 +7,7 @@ px_per_m: the tracker works in pixels, so its error in metres grows as pixels ge
 
 from __future__ import annotations
 
+import os
 import re
 import shutil
 from dataclasses import replace
@@ -53,7 +54,11 @@ def test_two_layer_unwrapped(two_layer: Recording, tmp_path: Path) -> None:
     _check_accuracy(two_layer, result.trajectories)
     # at 640x400 the sled's 6 cm markers are 7 px wide, too small for ArUco: that is all
     assert [w for w in result.warnings if not w.startswith("sled markers not found")] == []
-    assert (tmp_path / "debug.mp4").stat().st_size > 0
+    video = (tmp_path / "debug.mp4").stat()
+    assert video.st_size > 0
+    umask = os.umask(0)
+    os.umask(umask)
+    assert video.st_mode & 0o777 == 0o666 & ~umask    # an ordinary file, like the CSV
     out = tmp_path / "trajectories.csv"
     result.trajectories.to_csv(out)
     assert set(Trajectories.from_csv(out).objects) == names
