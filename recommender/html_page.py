@@ -17,7 +17,7 @@ from pathlib import Path
 from typing import Any
 
 from recommender.search import Trial
-from recommender.text import sequence_text, step_cells
+from recommender.text import level_result, sequence_text, step_cells
 from recommender.uncertainty import PassProbability
 from wrapenv import __version__
 from wrapenv.bench import BenchRun
@@ -173,8 +173,8 @@ def _check(ok: bool) -> str:
     return f'<span class="{"ok" if ok else "bad"}">{"pass" if ok else "fail"}</span>'
 
 
-def _level_row(level: LevelVerdict, criteria: tuple[Criterion, ...], height_m: float
-               ) -> list[str]:
+def _level_row(verdict: Verdict, level: LevelVerdict, criteria: tuple[Criterion, ...],
+               height_m: float) -> list[str]:
     cells = [f"{level.level_g:.2f} g"]
     for c in criteria:
         ok = level.criteria.get(c.key, False) and level.valid
@@ -186,9 +186,9 @@ def _level_row(level: LevelVerdict, criteria: tuple[Criterion, ...], height_m: f
     cells.append("—" if w is None else (
         f"{100 * w.peak_utilisation:.0f} % of strength"
         + (f", torn at {', '.join(f'{z:.2f}' for z in w.torn_at_m)} m" if w.torn else "")))
-    result = "PASS" if level.passed else ("INVALID" if not level.valid else "FAIL")
+    result = level_result(verdict, level)
     reason = f" ({_t(level.invalid_reason)})" if level.invalid_reason else ""
-    cells.append(f'<b class="{"ok" if level.passed else "bad"}">{result}</b>{reason}')
+    cells.append(f'<b class="{"ok" if result == "PASS" else "bad"}">{result}</b>{reason}')
     return cells
 
 
@@ -211,7 +211,7 @@ def _levels_section(t: OrientationRun) -> str:
                + ("" if v.valid else "; the simulation became unphysical (INVALID rows never "
                                      "pass)"))
     return (f'<section class="levels"><h3>{_t(_side(t))}</h3>'
-            + _table(head, [_level_row(level, criteria, h) for level in v.levels], "levels")
+            + _table(head, [_level_row(v, level, criteria, h) for level in v.levels], "levels")
             + f"<p>{summary}</p></section>\n")
 
 

@@ -19,8 +19,16 @@ def _pct(x: float | None, height_m: float) -> str:
     return "      " if x is None else f"({100 * x / height_m:4.1f} %)"
 
 
-def _row(v: LevelVerdict, height_m: float) -> str:
-    result = "PASS" if v.passed else ("INVALID" if not v.valid else "FAIL")
+def level_result(verdict: Verdict, v: LevelVerdict) -> str:
+    """PASS, FAIL or INVALID; a level that met its criteria in a run that later blew up is
+    VOID: it is not reported as passed."""
+    if verdict.reported_passed(v):
+        return "PASS"
+    return "INVALID" if not v.valid else ("FAIL" if not v.passed else "VOID")
+
+
+def _row(verdict: Verdict, v: LevelVerdict, height_m: float) -> str:
+    result = level_result(verdict, v)
     failed = [k for k, ok in v.criteria.items() if not ok]
     note = v.invalid_reason or (", ".join(failed) if failed else "")
     damage = f"; {len(v.damage)} damaged: {', '.join(v.damage[:4])}" if v.damage else ""
@@ -63,7 +71,7 @@ def verdict_table(load: LoadUnit, run: BenchRun, orientation: str | None) -> str
         f"{'level    result':17}{'elastic max':>15}  {'permanent':>6} {'total':>15}  "
         f"{'low20cm':>6}  {'layer shift':>15}  {'pallet slip':>6}",
     ]
-    lines += [_row(level, h) for level in v.levels]
+    lines += [_row(v, level, h) for level in v.levels]
     torn = [f"{level.level_g:.2f} g" for level in v.levels if level.wrap and level.wrap.torn]
     if torn:
         lines.append(f"wrap torn at: {', '.join(torn)}")

@@ -194,17 +194,24 @@ class Verdict:
         """How far inside the criteria the worst level stayed (see `level_margin`)."""
         return min((level_margin(v, self.load_height_m) for v in self.levels), default=-1.0)
 
+    def reported_passed(self, level: LevelVerdict) -> bool:
+        """Whether `level` is reported as passed: no level of a run that became unphysical is
+        (CONTRACTS.md), though one before the blow-up met its criteria."""
+        return self.valid and level.passed
+
     @property
     def highest_passed_g(self) -> float | None:
-        passed = [level.level_g for level in self.levels if level.passed]
+        passed = [level.level_g for level in self.levels if self.reported_passed(level)]
         return max(passed) if passed else None
 
     def to_json(self) -> dict:
+        levels = [level.to_json() | {"passed": self.reported_passed(level)}
+                  for level in self.levels]
         return {
             "sequence": self.sequence,
             "valid": self.valid,
             "load_height_m": round(self.load_height_m, 6),
-            "levels": [level.to_json() for level in self.levels],
+            "levels": levels,
             "highest_passed_g": self.highest_passed_g,
         }
 

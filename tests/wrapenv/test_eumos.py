@@ -114,6 +114,19 @@ def test_an_invalid_run_never_passes_even_without_displacement():
     assert not Verdict(HEIGHT_M, (level,)).passed
 
 
+def test_no_level_of_a_run_that_blew_up_is_reported_as_passed():
+    """CONTRACTS.md: `valid` false, then no level may be reported as passed, not even one
+    that met its criteria before the blow-up."""
+    before = evaluate(moved_to(0.001))
+    blown = evaluate(trace([[0.0], [0.0]], [0.5], valid=False))
+    assert before.passed
+    verdict = Verdict(HEIGHT_M, (before, blown))
+    data = verdict.to_json()
+    assert data["valid"] is False and data["highest_passed_g"] is None
+    assert [level["passed"] for level in data["levels"]] == [False, False]
+    assert Verdict(HEIGHT_M, (before,)).to_json()["levels"][0]["passed"] is True
+
+
 def test_permanent_since_the_unit_was_put_on_is_what_the_criterion_judges():
     # the unit stood 3 cm further back when it was first put on the sled: this level moved the
     # bundle 3 cm (passes alone), 6 cm since it was put on (over 5 %)
