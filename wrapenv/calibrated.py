@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 
 from wrapenv.config import InputError, Table, read_json
-from wrapenv.load import PAIRS, FrictionPair, LoadUnit
+from wrapenv.load import PAIRS, Friction, FrictionPair, LoadUnit
 
 #: CAL.json's keys beside `friction` and `wrap`: the fit's diagnostics (residual, the replays'
 #: own scatter, one replay's residual, simulations, method), advice on further tests, and the
@@ -50,15 +50,22 @@ class Calibration:
                 "give": self.give_scale}
 
     def apply(self, load: LoadUnit) -> LoadUnit:
-        """The load with its friction replaced by the calibrated pairs and its give scaled. A
-        pair the recordings never saw slip keeps the load file's values unless its static
-        coefficient is below the bound the recordings support: that bound is what the pair
-        held, not what it is (a stopped pallet's sled contact is asked only the braking's
-        ~0.1 g, and a bench that took it for the pallet's friction let the pallet slide
-        forward when the sled braked)."""
+        """The load with its friction replaced by the calibrated pairs (`friction_over`) and
+        its give scaled (`scale_give`)."""
+        return self.scale_give(load.with_friction(self.friction_over(load.friction)))
+
+    def friction_over(self, base: Friction) -> Friction:
+        """`base` with the calibrated pairs in place. A pair the recordings never saw slip
+        keeps the base value unless its static coefficient is below the bound the recordings
+        support: that bound is what the pair held, not what it is (a stopped pallet's sled
+        contact is asked only the braking's ~0.1 g, and a bench that took it for the pallet's
+        friction let the pallet slide forward when the sled braked)."""
         pairs = {k: FrictionPair(p.static, p.kinetic) for k, p in self.friction.items()
-                 if p.identified or p.static > load.friction.pair(k).static}
-        load = load.with_friction(replace(load.friction, **pairs))
+                 if p.identified or p.static > base.pair(k).static}
+        return replace(base, **pairs)
+
+    def scale_give(self, load: LoadUnit) -> LoadUnit:
+        """The load with its bundles' edges as compliant as the calibration found."""
         return load.with_give(self.give_scale) if self.give_scale != 1.0 else load
 
     def draw(self, seed: int) -> Calibration:

@@ -20,10 +20,11 @@ from stable_baselines3.common.env_checker import check_env as sb3_check_env
 
 import wrapenv
 from wrapenv.bench import SimSettings
+from wrapenv.calibrated import CalibratedPair, Calibration
 from wrapenv.config import InputError
 from wrapenv.design import N_PARAMS
 from wrapenv.envs import OBS_NAMES, WrapBenchEnv, WrapBenchRandomEnv
-from wrapenv.load import LoadUnit
+from wrapenv.load import Friction, FrictionPair, LoadUnit
 
 ENV_ID = "wrapenv/WrapBench-v2"
 RANDOM_ID = "wrapenv/WrapBenchRandom-v2"
@@ -150,6 +151,14 @@ def test_bad_kwargs_raise_at_construction(tiny, kwargs):
         make(tiny, **kwargs)
     assert isinstance(err.value, InputError)
     assert "\n" not in str(err.value)
+
+
+@pytest.mark.parametrize("levels", ["target", "eumos"])
+def test_a_target_below_the_usual_start_starts_there(tiny, levels):
+    """start_g is the standard's 0.2 g unless the target is lower: a 0.15 g target is valid."""
+    env = make(tiny, target_g=0.15, levels=levels)
+    assert env.unwrapped._sequence == [0.15]
+    env.close()
 
 
 def test_unknown_material_message_names_the_choices(tiny):
@@ -320,6 +329,21 @@ def test_random_env_units_follow_the_seed():
             assert f.kinetic == pytest.approx(0.8 * f.static, abs=1e-3)
     with pytest.raises(TypeError):
         WrapBenchRandomEnv(load="x.toml")
+    env.close()
+
+
+def test_random_units_take_a_calibration_as_the_fixed_env_does():
+    """A pair that never slipped is only bounded (0.10 g held is no friction of 0.10), and the
+    calibrated give scales the units' edges: as `Calibration.apply` takes them."""
+    cal = Calibration({"sled_pallet": CalibratedPair(0.10, 0.08, identified=False),
+                       "pallet_bundle": CalibratedPair(0.62, 0.52)}, give_scale=0.5)
+    env = WrapBenchRandomEnv(levels="target", calibration=cal)
+    assert env.base_friction.sled_pallet == Friction().sled_pallet
+    assert env.base_friction.pallet_bundle == FrictionPair(0.62, 0.52)
+    drawn = env.sample_unit(np.random.default_rng(1))
+    plain = WrapBenchRandomEnv(levels="target").sample_unit(np.random.default_rng(1))
+    assert drawn.bundle.corner_stiffness_n_per_m2 == pytest.approx(
+        0.5 * plain.bundle.corner_stiffness_n_per_m2)
     env.close()
 
 

@@ -10,7 +10,7 @@ import numpy as np
 
 from wrapenv.calibrated import Calibration
 from wrapenv.config import InputError
-from wrapenv.load import PAIRS, Friction, FrictionPair, LoadUnit
+from wrapenv.load import PAIRS, Friction, LoadUnit
 
 RANDOM_LAYERS = (1, 3)
 RANDOM_BUNDLE_LENGTH_M = (0.2, 0.4)
@@ -24,12 +24,10 @@ RANDOM_MAX_TRIES = 100
 
 
 def base_friction(calibration: Calibration | None) -> Friction:
-    """The friction random units spread about: the defaults, or the calibrated pairs."""
-    base = Friction()
-    if calibration is None:
-        return base
-    pairs = {k: FrictionPair(p.static, p.kinetic) for k, p in calibration.friction.items()}
-    return Friction(**{**{k: base.pair(k) for k in PAIRS}, **pairs})
+    """The friction random units spread about: the defaults, with the calibrated pairs in
+    place as the bench takes them (`Calibration.friction_over`: a pair that never slipped is
+    only bounded)."""
+    return Friction() if calibration is None else calibration.friction_over(Friction())
 
 
 def sample_unit(rng: np.random.Generator, base_friction: Friction) -> LoadUnit:

@@ -110,8 +110,9 @@ class WrapBenchEnv(gym.Env):
 
     `reward_verdict` is in [1, 1.5] for a pass (m >= 0) and in [-2, -1] for a failure (m <= 0);
     the cap at 0.5 stops rewarding margin beyond half the limits, so among safe programs the
-    cheaper wins. `ratio` stays below 2 (the heaviest program of the space lays about 1.8 x
-    the default's web), so with `material_weight <= 1` every pass scores above every failure.
+    cheaper wins. With `material_weight <= 1` a pass scores above every failure whose program
+    lays at most 2 x the default's web less; the heaviest programs of the space lay 2.45-2.67 x
+    it (1-3 layers), so they alone can score below a light program's failure.
     A simulation that blew up (`info["valid"] is False`) is rewarded as a failure with m = -1.
     The two terms are returned in `info["reward_terms"]` (keys "verdict" and "material").
 
@@ -142,7 +143,7 @@ class WrapBenchEnv(gym.Env):
     | `calibration`     | None                              | CAL.json path, `Calibration` or None |
     | `material`        | "kraft"                           | "kraft" or "lldpe"                   |
     | `target_g`        | 0.5                               | target level, g (bench max 1.019)    |
-    | `start_g`         | 0.2                               | first level of the EUMOS sequence    |
+    | `start_g`         | None: 0.2 g (the target if lower) | first level of the EUMOS sequence    |
     | `levels`          | "eumos"                           | "eumos": start_g, +0.1 g ... target, |
     |                   |                                   | stop at the first failure (the       |
     |                   |                                   | spec); "target": the target only     |
@@ -184,7 +185,7 @@ class WrapBenchEnv(gym.Env):
         calibration: str | Path | Calibration | None = None,
         material: str = "kraft",
         target_g: float = 0.5,
-        start_g: float = 0.2,
+        start_g: float | None = None,
         levels: str = "eumos",
         material_weight: float = 1.0,
         render_mode: str | None = None,
@@ -200,7 +201,8 @@ class WrapBenchEnv(gym.Env):
             raise InputError("arguments", "material",
                              f"must be one of {', '.join(map(repr, MATERIALS))} (got {material!r})")
         self.material = material
-        self.target_g, self.start_g = _level("target_g", target_g), _level("start_g", start_g)
+        self.target_g = _level("target_g", target_g)
+        self.start_g = None if start_g is None else _level("start_g", start_g)
         try:
             self._sequence = eumos_levels(self.target_g, self.start_g)
         except InputError as exc:  # the sequence names the argument it rejects
@@ -351,10 +353,10 @@ class WrapBenchRandomEnv(WrapBenchEnv):
     0.15-0.3 m, height 0.2-0.35 m (rounded to mm), mass 4-14 kg (rounded to 0.1 kg); pattern
     columnar or interlocked (a draw that `LoadUnit` rejects, e.g. an interlocked layer that
     would overhang or rest on nothing, is drawn again); static friction of each pair within
-    +-15 % of its default value (or of the calibrated one when a calibration is given), kinetic
-    = 0.8 x static. The pallet stands against the sled's stopper, as on an EUMOS bench (a free
-    pallet slides from ~0.45 g on and spares the load the rest of the pulse). The same seed
-    gives the same sequence of units.
+    +-15 % of its default value (or of the calibrated one when a calibration is given, taken as
+    `Calibration.apply` takes it, with its give), kinetic = 0.8 x static. The pallet stands
+    against the sled's stopper, as on an EUMOS bench (a free pallet slides from ~0.45 g on and
+    spares the load the rest of the pulse). The same seed gives the same sequence of units.
 
     ## Arguments
     As `WrapBenchEnv`, without `load`. The material is fixed per env instance.
@@ -377,8 +379,10 @@ class WrapBenchRandomEnv(WrapBenchEnv):
         self._set_unit(self.sample_unit(self.np_random))
 
     def sample_unit(self, rng: np.random.Generator) -> LoadUnit:
-        """A load unit drawn from the distribution of the class docstring."""
-        return random_units.sample_unit(rng, self.base_friction)
+        """A load unit drawn from the distribution of the class docstring (with a calibration's
+        give, as `WrapBenchEnv` takes it)."""
+        unit = random_units.sample_unit(rng, self.base_friction)
+        return self.calibration.scale_give(unit) if self.calibration is not None else unit
 
 
 def reward_terms(verdict: Verdict, material_ratio: float,
