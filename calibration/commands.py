@@ -47,15 +47,21 @@ def level_g(text: str) -> float:
     return value
 
 
+#: The largest seed: pycma (given seed + 1, since it reads 0 as "seed from the clock") takes
+#: 32-bit seeds only.
+MAX_SEED = 2**32 - 2
+
+
 def seed(text: str) -> int:
-    """argparse's type for a seed: a whole number >= 0 (numpy's generators take no other, and
-    pycma reads 0 as "seed from the clock")."""
+    """argparse's type for a seed: a whole number from 0 to `MAX_SEED` (numpy's generators take
+    no negative one)."""
     try:
         value = int(text)
     except ValueError:
         value = -1
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"expected a whole number >= 0 (got {text!r})")
+    if not 0 <= value <= MAX_SEED:
+        raise argparse.ArgumentTypeError(f"expected a whole number from 0 to {MAX_SEED} "
+                                         f"(got {text!r})")
     return value
 
 

@@ -11,6 +11,7 @@ refuses a file of another search.
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
 from typing import Any
 
@@ -40,17 +41,43 @@ def load(path: Path | None, identity: dict[str, Any]) -> list[dict[str, Any]]:
     if data.get("format") != CHECKPOINT_FORMAT:
         raise InputError(str(path), "format", f"not a wrapbench search checkpoint of this "
                                               f"version ({CHECKPOINT_FORMAT})")
+    problem = data.get("problem")
+    if not isinstance(problem, dict):
+        raise InputError(str(path), "problem", "must be an object")
     for key, value in identity.items():
-        if data.get("problem", {}).get(key) != value:
+        if problem.get(key) != value:
             raise InputError(str(path), f"problem.{key}", "the checkpoint is of another "
-                             "search (load, material, target, seed or fidelity differ)")
+                             "search (load, material, target, seed, calibration or fidelity "
+                             "differ)")
     generations = data.get("generations")
     if not isinstance(generations, list) or not all(
             isinstance(g, dict) and all(isinstance(g.get(k), list) for k in GENERATION_KEYS)
             for g in generations):
         raise InputError(str(path), "generations", f"must be a list of objects with the lists "
                                                    f"{', '.join(GENERATION_KEYS)}")
+    for k, g in enumerate(generations):
+        _check_values(g, f"generations[{k}]", str(path))
     return generations
+
+
+def _check_values(generation: dict[str, Any], where: str, source: str) -> None:
+    """What the search tells CMA-ES must be what it wrote: finite numbers and real booleans (a
+    NaN margin would rank first, and "false" is a true string)."""
+    def finite(v: Any) -> bool:
+        return isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)
+
+    checks = {"x": lambda row: isinstance(row, list) and all(map(finite, row)),
+              "objective": finite,
+              "margins": lambda row: isinstance(row, list) and all(map(finite, row)),
+              "passed": lambda row: isinstance(row, list)
+              and all(isinstance(p, bool) for p in row),
+              "fidelity": lambda v: isinstance(v, str)}
+    for key, ok in checks.items():
+        if not all(ok(v) for v in generation[key]):
+            raise InputError(source, f"{where}.{key}", "holds a value the search never writes "
+                                                       "(not finite, or of the wrong type)")
+    if not isinstance(generation.get("simulations"), int) or generation["simulations"] < 0:
+        raise InputError(source, f"{where}.simulations", "must be a whole number >= 0")
 
 
 __all__ = ["CHECKPOINT_FORMAT", "load", "save"]

@@ -26,7 +26,7 @@ from recommender.html_report import (
 from recommender.search import Evaluation, Problem, SearchSettings, SearchState, Verification
 from recommender.text import program_text, verdict_table
 from wrapenv.calibrated import Calibration
-from wrapenv.config import InputError, check_output, printable, write_atomic, write_result
+from wrapenv.config import InputError, check_output, printable, result_json, write_together
 from wrapenv.eumos import EUMOS_LIMITS, Limits
 from wrapenv.load import Layout, LoadUnit
 from wrapenv.material import MATERIALS
@@ -152,6 +152,19 @@ def _checkpoint(args: argparse.Namespace) -> Path | None:
     return None
 
 
+def _check_flags(args: argparse.Namespace) -> None:
+    """A flag that does nothing in the chosen mode is refused: the user meant something."""
+    unused = [("--ray-address", args.ray_address is not None and args.backend != "ray",
+               "needs --backend ray"),
+              ("--policy", args.policy is not None and args.method != "ppo",
+               "needs --method ppo (a search proposes its own program)"),
+              ("--resume", args.resume and args.method == "ppo",
+               "resumes a search; --method ppo does not search")]
+    for flag, wasted, why in unused:
+        if wasted:
+            raise InputError("arguments", flag, why)
+
+
 def _check_outputs(args: argparse.Namespace) -> Path | None:
     inputs = [p for p in (args.load, args.calibration, args.policy) if p]
     check_output(args.json, "--json", inputs=inputs)
@@ -171,6 +184,7 @@ def run_recommend(args: argparse.Namespace) -> int:
     load = LoadUnit.from_toml(args.load)
     calibration = Calibration.from_json(args.calibration) if args.calibration else None
     settings = _settings(args)
+    _check_flags(args)
     checkpoint = _check_outputs(args)
     problem = Problem.build(load, settings, calibration)
     samples = max(8, args.samples)
@@ -179,10 +193,11 @@ def run_recommend(args: argparse.Namespace) -> int:
         best, check = _propose_with_policy(args, problem, samples)
         _print_recommendation(problem, best, check)
         print(f"policy proposal verified in {time.perf_counter() - t0:.0f} s")
-        _write_outputs(args, problem, best, check, 1)
-        if args.report:
-            _write_report(args, problem, check, best, None)
-        return 0 if check.passed else 1
+        if not check.passed:   # as a search that finds no pass: nothing to enter, nothing written
+            print("the policy's proposal fails: nothing written; search with --method cmaes")
+            return 1
+        _write_outputs(args, problem, best, check, 1, state=None)
+        return 0
     search = RobustSearch(problem, checkpoint)
     state = search.resume() if args.resume else search.start()
     t0 = time.perf_counter()
@@ -194,26 +209,37 @@ def run_recommend(args: argparse.Namespace) -> int:
             exc.add_note(f"interrupted, nothing written; the search so far is kept in "
                          f"{checkpoint} (--resume continues it)")
         raise
-    if checkpoint is not None:
-        checkpoint.unlink(missing_ok=True)
     if chosen is None:
         print(_nothing_passed(state.history, settings, args.samples))
+        _forget(checkpoint)
         return 1
     best, check = chosen
     _print_recommendation(problem, best, check)
     simulations = state.simulations
     print(f"searched {len(state.history)} candidates ({simulations} simulations) in "
           f"{time.perf_counter() - t0:.0f} s ({args.workers} workers, {args.backend})")
-    _write_outputs(args, problem, best, check, simulations, candidates=len(state.history))
-    if args.report:
-        _write_report(args, problem, check, best, state)
+    try:
+        _write_outputs(args, problem, best, check, simulations, state=state)
+    except KeyboardInterrupt as exc:
+        if checkpoint is not None:
+            exc.add_note(f"interrupted: --json and --wrap-out not written; the search is "
+                         f"kept in {checkpoint} (--resume continues it)")
+        raise
+    _forget(checkpoint)
     return 0
+
+
+def _forget(checkpoint: Path | None) -> None:
+    """A search that answered needs no checkpoint (removed once the answer is written)."""
+    if checkpoint is not None:
+        checkpoint.unlink(missing_ok=True)
 
 
 def _nothing_passed(history: list[Evaluation], settings: SearchSettings, samples: int) -> str:
     """Why no program is recommended: every candidate failed, or was over the cycle-time
-    limit and never simulated (`Evaluation.passed` empty)."""
-    slow = [e for e in history if not e.passed]
+    limit and never simulated (nor were candidates heavier than a pass that later failed its
+    verification: they are not slow)."""
+    slow = [e for e in history if e.cycle_s > settings.max_cycle_s]
     if history and len(slow) == len(history):
         return (f"no program within the cycle-time limit of {settings.max_cycle_s:g} s: all "
                 f"{len(history)} candidates take longer (the fastest "
@@ -277,8 +303,9 @@ def _propose_with_policy(args: argparse.Namespace, problem: Problem,
 def _print_recommendation(problem: Problem, best: Evaluation, check: Verification) -> None:
     s, p = problem.settings, check.probability
     low, high = p.interval
-    print(f"recommended wrapping program for {printable(problem.load.name)}: passes "
-          f"{_targets_text(s)}, "
+    head = "recommended wrapping program" if check.passed else "the policy's proposal"
+    print(f"{head} for {printable(problem.load.name)}: "
+          f"{'passes' if check.passed else 'fails'} {_targets_text(s)}, "
           f"{s.hours_since_wrapping:g} h after wrapping, in {p.passed} of {p.samples} samples "
           f"of what the bench does not know (pass probability {p.estimate:.0%}, 95 % interval "
           f"{low:.0%}-{high:.0%}; search margin {best.margin:.2f})")
@@ -294,7 +321,13 @@ def _print_recommendation(problem: Problem, best: Evaluation, check: Verificatio
 
 
 def _write_outputs(args: argparse.Namespace, problem: Problem, best: Evaluation,
-                   check: Verification, evaluations: int, candidates: int | None = None) -> None:
+                   check: Verification, evaluations: int, state: SearchState | None) -> None:
+    """The report first (the slowest to make; nothing of it shows until it is whole), then
+    --json and --wrap-out together: an interrupt leaves the report at most."""
+    if args.report:
+        _write_report(args, problem, check, best, state)
+    candidates = None if state is None else len(state.history)
+    files = {}
     if args.json:
         weakest = check.runs[check.weakest]
         out = {**wrap_json(problem.simulated(best.wrap), best.wrap, problem.layout),
@@ -309,9 +342,10 @@ def _write_outputs(args: argparse.Namespace, problem: Problem, best: Evaluation,
                "robust_samples": check.probability.samples, "search_margin": best.margin,
                "evaluations": evaluations, "candidates": candidates,
                "method": args.method, "target_g": problem.settings.target_g}
-        write_result(args.json, out)
+        files[Path(args.json)] = result_json(out)
     if args.wrap_out:
-        write_atomic(args.wrap_out, best.wrap.to_toml().encode())
+        files[Path(args.wrap_out)] = best.wrap.to_toml().encode()
+    write_together(files)
 
 
 def _write_report(args: argparse.Namespace, problem: Problem, check: Verification,

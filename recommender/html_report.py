@@ -32,9 +32,15 @@ def _inputs(inputs: Mapping[str, Path | None]) -> tuple[tuple[str, str], ...]:
 def _displacement(run: BenchRun, stage: Path, title: str, which: str) -> Figure:
     from recommender.report import plot_displacements
 
-    return Figure("Displacement against time", plot_displacements(
-        run, stage / "displacement.png", title=title), f"every bundle in the pallet's frame, "
-        f"one panel per level, the EUMOS limits dashed; {which}")
+    png = _staged(stage / "displacement.png", plot_displacements(run, title=title))
+    return Figure("Displacement against time", png, f"every bundle in the pallet's frame, "
+                  f"one panel per level, the EUMOS limits dashed; {which}")
+
+
+def _staged(path: Path, png: bytes) -> bytes:
+    """A figure written into the report's staging folder (moved in whole at the end)."""
+    path.write_bytes(png)
+    return png
 
 
 def _tension_map(run: BenchRun, layout: Layout, stage: Path, title: str) -> Figure:
@@ -43,7 +49,7 @@ def _tension_map(run: BenchRun, layout: Layout, stage: Path, title: str) -> Figu
 
     if not any(trace.wrap is not None for trace in run.traces):
         return Figure("Tension map", None, "the unit was tested unwrapped")
-    png = plot_tension_map(run, layout, stage / "tension_map.png", title=title)
+    png = _staged(stage / "tension_map.png", plot_tension_map(run, layout, title=title))
     return Figure("Tension map", png, "the envelope unrolled, each place coloured by its peak "
                                       "force over what it bears, torn and opened places marked")
 
@@ -84,8 +90,8 @@ def recommend_page(stage: Path, problem: Problem, check: Verification, best: Eva
     which = f"the {weakest} side along the motion, the weaker"
     search = (Figure("Search", None, "a trained policy proposed the program: there was no "
                      "search") if state is None else
-              Figure("Search", plot_search(state.history, best, stage / "search.png",
-                                           s.margin_goal),
+              Figure("Search", _staged(stage / "search.png",
+                                       plot_search(state.history, best, s.margin_goal)),
                      "every candidate's web against its worst sample's EUMOS margin"))
     figures = (_displacement(run, stage, load.name, which),
                _tension_map(run, layout, stage, load.name), search)

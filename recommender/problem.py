@@ -28,10 +28,11 @@ from wrapenv.wrap import WrapFormat
 #: Objective penalty per unit of margin shortfall (below the margin goal): a tenth of margin is
 #: worth the web of one machine-default program.
 PENALTY_PER_MARGIN = 10.0
-#: Objective of a program slower than the cycle-time limit (plus its relative excess): worse
-#: than any simulated candidate (whose margin is at worst -1 of every level), so the search
-#: moves back under the limit.
-SLOW_PENALTY = 2 * PENALTY_PER_MARGIN + 10.0
+#: Objective of a program slower than the cycle-time limit (times 1 + its relative excess):
+#: worse than any simulated candidate, so the search moves back under the limit. A margin has
+#: no lower bound (a unit that topples moves metres against a limit of centimetres: -8 was
+#: seen), so this is far above any objective a margin gives; CMA-ES ranks, so its size is free.
+SLOW_PENALTY = 1e6
 #: Objective per unit of mean tension (as a fraction of the searched range): a tie-breaker,
 #: among programs of equal web the gentler one is kinder to the web at the load's corners.
 TENSION_PRICE = 0.05

@@ -18,7 +18,7 @@ from matplotlib.axes import Axes  # noqa: E402
 from matplotlib.colors import Normalize  # noqa: E402
 
 from wrapenv.bench import BenchRun  # noqa: E402
-from wrapenv.config import printable, write_atomic  # noqa: E402
+from wrapenv.config import printable  # noqa: E402
 from wrapenv.eumos import ELASTIC, PERMANENT, LevelVerdict  # noqa: E402
 from wrapenv.load import Layout  # noqa: E402
 from wrapenv.render import Renderer, fitting_camera, torn_net  # noqa: E402
@@ -31,7 +31,7 @@ from wrapenv.wrap_report import Place, WrapReport  # noqa: E402
 LAYER_COLOURS = tuple(plt.get_cmap("tab10")(i) for i in (0, 2, 4, 5, 6, 7, 8, 9))
 
 
-def plot_displacements(run: BenchRun, path: str | Path, title: str = "") -> bytes:
+def plot_displacements(run: BenchRun, title: str = "") -> bytes:
     """One panel per level: each bundle's displacement in the pallet frame against time, from
     where it stood when the level began, coloured by layer, the bundle that moved most named,
     with the elastic and permanent limits; after the first level of a cumulative sequence the
@@ -46,7 +46,7 @@ def plot_displacements(run: BenchRun, path: str | Path, title: str = "") -> byte
     if title:
         # a load's name is the user's: bounded, and never read as mathtext ("$" would be)
         fig.suptitle(printable(title, 120), fontsize=11, parse_math=False)
-    return _save(fig, path)
+    return _png(fig)
 
 
 def plot_level(ax: Axes, trace: Trace, verdict: LevelVerdict, height_m: float) -> None:
@@ -75,7 +75,7 @@ def plot_level(ax: Axes, trace: Trace, verdict: LevelVerdict, height_m: float) -
     ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))
 
 
-def plot_search(history: list, best, path: str | Path, margin_goal: float) -> bytes:
+def plot_search(history: list, best, margin_goal: float) -> bytes:
     """Every simulated candidate of a search: material against its worst sample's margin,
     robust passes in green, the recommendation circled: where the search found the cheap side
     of safe."""
@@ -101,15 +101,14 @@ def plot_search(history: list, best, path: str | Path, margin_goal: float) -> by
         if skipped else ""), fontsize=10)
     ax.legend(fontsize=7)
     fig.tight_layout()
-    return _save(fig, path)
+    return _png(fig)
 
 
-def _save(fig: plt.Figure, path: str | Path) -> bytes:
-    """Write a figure as PNG (atomically) and return the PNG."""
+def _png(fig: plt.Figure) -> bytes:
+    """A figure as PNG (the caller writes it, with the run's other outputs)."""
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=110)
     plt.close(fig)
-    write_atomic(path, buf.getvalue())
     return buf.getvalue()
 
 
@@ -120,7 +119,7 @@ def _save(fig: plt.Figure, path: str | Path) -> bytes:
 CODECS = {".mp4": ("mp4v", ".mp4"), ".webm": ("VP80", ".mkv")}
 
 
-def plot_tension_map(run: BenchRun, layout: Layout, path: str | Path, title: str = "") -> bytes:
+def plot_tension_map(run: BenchRun, layout: Layout, title: str = "") -> bytes:
     """The envelope unrolled, one panel per wrapped level: position round the load (from its
     -x-y corner, counter-clockwise seen from above) against height, every place coloured by its
     peak utilisation (face diagonals as patches, corner verticals as bars, rings as lines with
@@ -145,7 +144,7 @@ def plot_tension_map(run: BenchRun, layout: Layout, path: str | Path, title: str
                  label="peak force / what the place bears", fraction=0.04)
     if title:
         fig.suptitle(printable(title, 120), fontsize=11, parse_math=False)
-    return _save(fig, path)
+    return _png(fig)
 
 
 def _map_places(ax: Axes, report: WrapReport, cmap, norm: Normalize) -> None:

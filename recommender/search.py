@@ -224,7 +224,8 @@ class RobustSearch:
         return {"load": json.loads(json.dumps(p.load.to_dict())), **p.settings.identity(),
                 "stiffness_scale": [u.stiffness_scale, u.stiffness_scale_std],
                 "tension_scale": [u.tension_scale, u.tension_scale_std],
-                "friction_std": {k: list(v) for k, v in u.friction_std.items()}}
+                "friction_std": {k: list(v) for k, v in u.friction_std.items()},
+                "give_std": u.give_std}
 
     def _replay(self, state: SearchState, generation: dict[str, Any]) -> None:
         """A checkpointed generation told again: its programs rebuilt, nothing simulated."""
@@ -383,8 +384,12 @@ class Verification:
         return min(self.runs, key=lambda o: self.runs[o].verdict.margin)
 
 
-def verify(problem: Problem, wrap: WrapFormat, samples: int, seed: int = 12345,
-           workers: int = 1) -> Verification:
+#: The verification's samples are drawn from this seed plus the search's (`--seed`): the
+#: default search keeps the samples it always had, another seed draws others.
+VERIFY_SEED = 12345
+
+
+def verify(problem: Problem, wrap: WrapFormat, samples: int, workers: int = 1) -> Verification:
     """The EUMOS sequence in every orientation on the nominal load (one unit through the levels,
     as a lab runs it, unless `fresh` is set), and the pass rate at the targets over `samples`
     fresh samples of the uncertain parameters. The samples stop a level
@@ -399,7 +404,7 @@ def verify(problem: Problem, wrap: WrapFormat, samples: int, seed: int = 12345,
                                             stop_at_failure=True, wrap=problem.simulated(wrap),
                                             fresh=s.fresh, limits=s.limits)
                    for orientation, target in s.targets}
-        futures = [_submit_sample(pool, problem, wrap, seed + k, decided)
+        futures = [_submit_sample(pool, problem, wrap, VERIFY_SEED + s.seed + k, decided)
                    for k in range(samples)]
         trials = [weakest([f.result() for f in sample], True) for sample in futures]
         runs = {orientation: future.result() for orientation, future in nominal.items()}

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+from pathlib import Path
 from typing import Any
 
 from tqdm import tqdm
@@ -15,7 +16,7 @@ from recommender.html_report import check_report_folder, simulate_page, write_re
 from recommender.text import program_text, verdict_table
 from wrapenv.bench import run_levels
 from wrapenv.calibrated import Calibration
-from wrapenv.config import InputError, check_output, write_result
+from wrapenv.config import InputError, check_output, result_json, write_together
 from wrapenv.eumos import LevelVerdict
 from wrapenv.load import LoadUnit
 from wrapenv.profile import MeasuredProfile, PulseProfile, eumos_levels
@@ -73,25 +74,27 @@ def run_simulate(args: argparse.Namespace) -> int:
     print(verdict_table(load, run, args.orientation))
     if laid is not None:
         print(program_text(laid, layout))
+    if args.report:   # first: the slowest to make, and nothing of it shows until it is whole
+        given = {"load unit": args.load, "wrap": args.wrap, "calibration": args.calibration,
+                 "sled profile": args.profile}
+        write_report(args.report, lambda stage: simulate_page(
+            stage, load, run, laid, wrap, args.orientation, args.hours_since_wrapping, given))
+    files = {}
     if args.json:
         out = run.verdict.to_json()
         if wrap is not None and laid is not None:
             out.update(wrap_json(wrap, laid, layout))
             out["hours_since_wrapping"] = args.hours_since_wrapping
-        write_result(args.json, out)
+        files[Path(args.json)] = result_json(out)
     if args.plot:
         from recommender.report import plot_displacements
 
-        plot_displacements(run, args.plot, title=load.name)
-    if args.report:
-        given = {"load unit": args.load, "wrap": args.wrap, "calibration": args.calibration,
-                 "sled profile": args.profile}
-        write_report(args.report, lambda stage: simulate_page(
-            stage, load, run, laid, wrap, args.orientation, args.hours_since_wrapping, given))
+        files[Path(args.plot)] = plot_displacements(run, title=load.name)
     if args.tension_map:
         from recommender.report import plot_tension_map
 
-        plot_tension_map(run, layout, args.tension_map, title=load.name)
+        files[Path(args.tension_map)] = plot_tension_map(run, layout, title=load.name)
+    write_together(files)
     return 0 if run.verdict.passed else 1
 
 

@@ -290,15 +290,17 @@ def test_synth_level_that_is_not_a_number_is_named_readably(value, load_path, tm
 
 
 @pytest.mark.parametrize("command", ["synth", "calibrate"])
-def test_a_negative_seed_is_refused(command, load_path, slide_dir, tmp_path, capsys):
-    """numpy's generators take no negative seed, and pycma reads 0 (a fit's seed + 1) as the
-    clock: neither would give the same output twice."""
+@pytest.mark.parametrize("value", ["-1", "4294967295"])
+def test_a_seed_outside_what_the_generators_take_is_refused(command, value, load_path,
+                                                            slide_dir, tmp_path, capsys):
+    """numpy's generators take no negative seed; pycma, given seed + 1 (it reads 0 as the
+    clock), none of 2^32 or more."""
     where = {"synth": [str(load_path), "--out", str(tmp_path / "rec")],
              "calibrate": [str(slide_dir), "--out", str(tmp_path / "c.json")]}[command]
     with pytest.raises(SystemExit) as exit_:
-        main([command, *where, "--seed", "-1"])
+        main([command, *where, "--seed", value])
     assert exit_.value.code == 2
-    _one_line_error(capsys, "--seed", ">= 0")
+    _one_line_error(capsys, "--seed", "from 0 to 4294967294")
     assert not (tmp_path / "rec").exists() and not (tmp_path / "c.json").exists()
 
 

@@ -453,3 +453,16 @@ def test_paper_asked_to_rope_exits_2_naming_the_field(load_file, tmp_path, capsy
                 "--json", str(tmp_path / "out.json")])
     assert code == 2 and ": program.roping: " in one_line(capsys.readouterr().err)
     assert not (tmp_path / "out.json").exists()
+
+
+def test_nothing_passed_counts_only_slow_candidates_as_over_the_limit():
+    """Candidates heavier than a pass are not simulated either; they are not slow."""
+    from types import SimpleNamespace
+
+    from recommender.commands import _nothing_passed
+
+    settings = SimpleNamespace(max_cycle_s=40.0, targets=(("long", 0.5),))
+    history = [SimpleNamespace(cycle_s=c, passed=p)
+               for c, p in ((35.0, (False,)), (38.0, ()), (45.0, ()))]
+    text = _nothing_passed(history, settings, 3)   # type: ignore[arg-type]
+    assert text.endswith("after 3 candidates x 3 samples, 1 of them over the cycle-time limit")

@@ -34,6 +34,7 @@ from recommender.search import (
 from recommender.uncertainty import MASS_SPREAD
 from wrapenv.calibrated import Calibration
 from wrapenv.config import InputError
+from wrapenv.design import N_PARAMS
 from wrapenv.eumos import LAYER_SHIFT, Limits
 from wrapenv.load import LoadUnit
 from wrapenv.wrap import WrapFormat
@@ -176,6 +177,17 @@ def test_programs_over_the_cycle_limit_are_not_simulated_and_score_worst(small_l
     assert min(e.objective for e in over) > max(e.objective for e in under)
     best = state.best(slow.margin_goal)
     assert best is None or best.cycle_s <= 38.0
+
+
+def test_a_slow_program_scores_below_any_simulated_failure(small_load):
+    """A unit that topples fails far beyond its limits (margins of -8 were seen): a program
+    over the cycle-time limit must still score worse, whatever the price on cycle time."""
+    slow = SearchSettings(**{**FAST.__dict__, "max_cycle_s": 30.0, "cycle_weight": 1.0})
+    problem = Problem.build(small_load, slow)
+    wrap = problem.wrap(np.full(N_PARAMS, 0.5))
+    mass = wrap.material_used_on(problem.layout).mass_kg
+    toppled = problem.objective(wrap, mass, [-8.0], [False])
+    assert wrap.cycle_time_s > 30.0 and problem.too_slow(wrap) > toppled
 
 
 def test_recommend_says_when_no_program_is_within_the_cycle_time_limit(tmp_path, capsys):
@@ -340,6 +352,38 @@ def test_resume_refuses_a_file_that_is_no_checkpoint(small_load, tmp_path):
         RobustSearch(Problem.build(small_load, FAST), ckpt).resume()
 
 
+def test_resume_refuses_values_the_search_never_writes(small_load, tmp_path):
+    """A NaN margin would rank first and the string "false" is true: a checkpoint edited into
+    either is refused, naming the field, as one whose problem is no object."""
+    ckpt = tmp_path / "search.json"
+    one = SearchSettings(**{**FAST.__dict__, "max_candidates": 4})
+    RobustSearch(Problem.build(small_load, one), ckpt).run(
+        RobustSearch(Problem.build(small_load, one), ckpt).start())
+    saved = json.loads(ckpt.read_text())
+    nan_margin = json.loads(ckpt.read_text())
+    nan_margin["generations"][0]["margins"][0][0] = float("nan")
+    string_pass = json.loads(ckpt.read_text())
+    string_pass["generations"][0]["passed"][0][0] = "false"
+    for data, field in ((nan_margin, "generations[0].margins"),
+                        (string_pass, "generations[0].passed"),
+                        ({**saved, "problem": []}, "problem")):
+        ckpt.write_text(json.dumps(data))
+        with pytest.raises(InputError) as info:
+            RobustSearch(Problem.build(small_load, FAST), ckpt).resume()
+        assert info.value.field == field, info.value
+
+
+def test_resume_refuses_a_checkpoint_of_another_calibration_s_give(small_load, tmp_path):
+    """The give's spread draws the samples as the friction's does."""
+    ckpt = tmp_path / "search.json"
+    one = SearchSettings(**{**FAST.__dict__, "max_candidates": 4})
+    narrow = Problem.build(small_load, one, Calibration({}, give_scale_std=0.05))
+    RobustSearch(narrow, ckpt).run(RobustSearch(narrow, ckpt).start())
+    wide = Problem.build(small_load, one, Calibration({}, give_scale_std=0.6))
+    with pytest.raises(InputError, match="problem.give_std"):
+        RobustSearch(wide, ckpt).resume()
+
+
 def test_resume_without_a_checkpoint_is_a_clear_error(small_load, tmp_path):
     search = RobustSearch(Problem.build(small_load, FAST), tmp_path / "none.ckpt")
     with pytest.raises(InputError, match="no checkpoint"):
@@ -409,14 +453,21 @@ def test_ppo_method_answers_from_a_policy_and_verifies_it(load_file, tmp_path, c
     out = tmp_path / "ppo.json"
     code = main(["recommend", str(load), "--method", "ppo", "--policy", str(tmp_path / "p.zip"),
                  "--samples", "2", "--workers", "2", "--json", str(out)])
-    assert "recommended wrap" in capsys.readouterr().out
+    printed = capsys.readouterr().out
+    if code == 1:   # an untrained policy's proposal may fail: then, as a search, nothing written
+        assert "the policy's proposal for" in printed and ": fails " in printed
+        assert "nothing written" in printed and not out.exists()
+        return
+    assert code == 0 and "recommended wrapping program for" in printed
     result = json.loads(out.read_text())
-    assert result["method"] == "ppo"
-    assert code == (0 if result["verdict"]["levels"][-1]["passed"] else 1)
+    assert result["method"] == "ppo" and result["verdict"]["levels"][-1]["passed"]
 
 
 @pytest.mark.parametrize("argv, field", [
     (["recommend", "--method", "ppo"], "--policy"),
+    (["recommend", "--ray-address", "ray://x:1"], "--ray-address"),      # process backend
+    (["recommend", "--policy", "OUT"], "--policy"),                        # a search
+    (["recommend", "--method", "ppo", "--policy", "OUT", "--resume"], "--resume"),
     (["train", "--out", "OUT", "--timesteps", "0"], "--timesteps"),
     (["train", "--out", "OUT", "--material", "cotton"], "--material"),
     (["train", "--out", "OUT", "--target", "2.0"], "--target"),
