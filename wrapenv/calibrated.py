@@ -125,8 +125,9 @@ class Calibration:
             pairs[name] = pair
         fr.done()
         wrap = top.table("wrap")
-        stiffness = wrap.number("stiffness_scale", 1.0, positive=True)
-        tension = wrap.number("tension_scale", 1.0, positive=True)
+        low, high = SCALE_RANGE
+        stiffness = wrap.number("stiffness_scale", 1.0, minimum=low, maximum=high)
+        tension = wrap.number("tension_scale", 1.0, minimum=low, maximum=high)
         stds = (wrap.number("stiffness_scale_std", 0.0, minimum=0.0),
                 wrap.number("tension_scale_std", 0.0, minimum=0.0))
         give = _give(wrap)
@@ -166,14 +167,15 @@ def _normal(rng: np.random.Generator, value: float, std: float, floor: float) ->
 WRAP_SCALE_NAMES = ("stiffness", "tension", "give")
 
 
-#: The give may be fitted anywhere within these factors of the load file's (the bundle's
-#: accepted corner stiffness spans about 500 x; a factor beyond this is a fit gone astray).
-GIVE_SCALE_RANGE = (0.05, 20.0)
+#: A wrap scale (stiffness, tension, give) lies within these factors of the card's, WRAP.toml's
+#: or the load file's value (the bundle's accepted corner stiffness spans about 500 x; the fit
+#: searches 1/4 to 4 x): a factor beyond this is a fit gone astray or a typo.
+SCALE_RANGE = (0.05, 20.0)
 
 
 def _give(wrap: Table) -> tuple[float, float]:
     """CAL.json's optional `wrap.give_scale` and `wrap.give_scale_std` (defaults 1 and 0)."""
-    low, high = GIVE_SCALE_RANGE
+    low, high = SCALE_RANGE
     return (wrap.number("give_scale", 1.0, minimum=low, maximum=high),
             wrap.number("give_scale_std", 0.0, minimum=0.0))
 

@@ -64,7 +64,11 @@ def _check_limits(unit: LoadUnit, source: str) -> None:
                              f" takes (got {getattr(b, key)})")
     height = unit.load_height_m
     if height > MAX_LOAD_HEIGHT_M:
-        raise InputError(source, "stack.layers",
+        # the field to change: the layers, unless one layer alone is too tall
+        field = "stack.layers" if unit.stack.layers > 1 else (
+            "pallet.height_m" if unit.pallet.height_m > unit.bundle.height_m
+            else "bundle.height_m")
+        raise InputError(source, field,
                          f"{unit.stack.layers} layers make the unit {height:.2f} m tall, above"
                          f" the {MAX_LOAD_HEIGHT_M} m a road trailer takes inside (European"
                          f" trailers: 2.55-3.00 m)")

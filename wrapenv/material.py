@@ -192,6 +192,9 @@ def custom_material(t: Table) -> Material:
         raise t.error("break_strain", f"must be above yield_strain ({strains['yield_strain']})"
                       f" (got {strains['break_strain']})")
     hardening = t.number("hardening_ratio", 0.1, minimum=0.0)
+    if hardening >= 1.0:   # hardening as stiff as the elastic slope: the web never yields
+        raise t.error("hardening_ratio", f"must be < 1, a slope below the elastic one "
+                      f"(got {hardening})")
     cd_ratio = t.number("cd_ratio", 0.5, positive=True, maximum=1.0)
     kind = t.choice("kind", MATERIAL_KINDS, "film")
     relaxation = _relaxation(t.table("relaxation")) if t.has("relaxation") else NO_RELAXATION

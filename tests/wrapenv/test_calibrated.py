@@ -150,6 +150,7 @@ BAD_CALS = {
     "typo in pair": (edited(friction__sled_pallet__kinetik=0.3), "friction.sled_pallet.kinetik"),
     "pair not an object": (edited(friction__sled_pallet=0.4), "friction.sled_pallet"),
     "zero stiffness scale": (edited(wrap__stiffness_scale=0.0), "wrap.stiffness_scale"),
+    "tension scaled past any fit": (edited(wrap__tension_scale=100.0), "wrap.tension_scale"),
     "typo in wrap": (edited(wrap__stiffnes_scale=1.0), "wrap.stiffnes_scale"),
     "give scaled to nothing": (edited(wrap__give_scale=0.0), "wrap.give_scale"),
     "give scaled past any fit": (edited(wrap__give_scale=50.0), "wrap.give_scale"),

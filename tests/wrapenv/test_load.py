@@ -497,6 +497,17 @@ def test_a_unit_too_tall_for_a_trailer_names_the_limit_and_its_source(load_file)
         LoadUnit.from_toml(load_file({"stack.layers": 9}))
 
 
+@pytest.mark.parametrize("edits, field", [
+    ({"stack.layers": 1, "pallet.height_m": 2.95}, "pallet.height_m"),
+    ({"stack.layers": 1, "bundle.height_m": 2.9}, "bundle.height_m"),
+])
+def test_one_layer_too_tall_names_the_height_to_change_not_the_layers(load_file, edits,
+                                                                       field):
+    with pytest.raises(InputError) as err:
+        LoadUnit.from_toml(load_file(edits))
+    assert err.value.field == field
+
+
 def test_a_unit_heavier_than_a_pallet_carries_names_the_limit_and_its_source(load_file):
     # 2 layers of 16 bundles: 32 x 47 kg = 1504 kg
     with pytest.raises(InputError, match=r"32 bundles of 47\.0 kg weigh 1504 kg, above the 1500 kg"

@@ -99,3 +99,11 @@ def test_a_card_s_look_is_its_kind_s_so_a_custom_paper_is_drawn_as_paper(wrap_da
     assert WrapFormat.from_dict(wrap_data(film)).material.look == LOOKS["film"]
     # paper hides the labels under it in a recording, film shows them
     assert LOOKS["paper"].recorded_alpha > 0.5 > LOOKS["film"].recorded_alpha
+
+
+def test_a_custom_web_that_hardens_as_steeply_as_it_stretches_is_refused(wrap_data):
+    """A hardening slope of 1 x the elastic one or more would never yield (the element clamps
+    the plastic modulus to ~1e17) while its break force assumes it does."""
+    table = {**CUSTOM, "hardening_ratio": 2.0}
+    with pytest.raises(InputError, match="hardening_ratio: must be < 1"):
+        WrapFormat.from_dict(wrap_data({"material": table, **LOW_TENSION}))
