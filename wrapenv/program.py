@@ -124,14 +124,14 @@ class Program:
         out = [Pass("bottom", b0, b0, float(self.bottom_wraps), self.bottom_tension_n, rope)]
         here = b0
         for r in sorted(self.reinforcements, key=lambda r: r.from_m):
-            out.append(_travel("spiral up", here, r.from_m, up, self.middle_tension_n))
+            out.append(_travel(here, r.from_m, up, self.middle_tension_n))
             out.append(Pass("reinforcement", r.from_m, r.from_m, float(r.wraps), r.tension_n))
             here = r.from_m
-        out.append(_travel("spiral up", here, top, up, self.middle_tension_n))
+        out.append(_travel(here, top, up, self.middle_tension_n))
         out.append(Pass("top", top, top, float(self.top_wraps), self.top_tension_n))
         if self.down_overlap is not None:
             down = w * (1.0 - self.down_overlap)
-            out.append(_travel("spiral down", top, b0, down, self.middle_tension_n))
+            out.append(_travel(top, b0, down, self.middle_tension_n))
         return tuple(p for p in out if p.turns > _FLAT)
 
 
@@ -180,9 +180,10 @@ class Pass:
         return tuple(pieces)
 
 
-def _travel(zone: str, start_m: float, end_m: float, rise_m: float,
-            tension_n: float) -> Pass:
-    """A spiral from one carriage height to another, rising `rise_m` per revolution."""
+def _travel(start_m: float, end_m: float, rise_m: float, tension_n: float) -> Pass:
+    """A spiral from one carriage height to another, moving `rise_m` per revolution, up or
+    down as the heights lie (a reinforcement may lie above the top wraps' height)."""
+    zone = "spiral up" if end_m >= start_m else "spiral down"
     return Pass(zone, start_m, end_m, abs(end_m - start_m) / rise_m, tension_n)
 
 

@@ -30,13 +30,28 @@ def machine_from_table(t: Table) -> Machine:
     return machine
 
 
+#: A height may lie this far beyond where it fits (rounding of heights in files) before it is
+#: rejected.
+FIT_TOLERANCE_M = 1e-3
+
+
 def check_program_fits(program: Program, load_height_m: float, web_width_m: float,
                        source: str) -> None:
-    """Heights a program names must lie on the load."""
+    """Heights a program names must lie on the load, and the bottom wraps no higher than the
+    top ones (whose web's upper edge is `top_overhang_m` above the load): a reinforcement may
+    lie anywhere on the load, the carriage travelling to it (CONTRACTS.md's example parks one
+    above the top wraps' carriage height)."""
     h = load_height_m
-    if program.bottom_from_m >= h:
-        raise InputError(source, "program.bottom_from_m", f"{program.bottom_from_m} m is not "
-                         f"below the top of the load ({h:.3f} m)")
+    b0 = program.bottom_from_m
+    if b0 >= h:
+        raise InputError(source, "program.bottom_from_m", f"{b0} m is not below the top of the "
+                         f"load ({h:.3f} m)")
+    top = max(0.0, h + program.top_overhang_m - web_width_m)
+    if b0 > top + FIT_TOLERANCE_M:
+        raise InputError(source, "program.bottom_from_m",
+                         f"{b0} m is above where the top wraps are laid ({top:.3f} m, a "
+                         f"{web_width_m} m web on a {h:.3f} m load): the carriage rises from "
+                         "the bottom wraps to the top ones")
     for i, r in enumerate(program.reinforcements):
         if r.from_m >= h:
             raise InputError(source, f"program.reinforcement[{i}].from_m",

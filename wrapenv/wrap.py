@@ -42,6 +42,7 @@ from wrapenv.program import (
     pass_area_m2,
 )
 from wrapenv.program_table import (
+    FIT_TOLERANCE_M,
     check_program_fits,
     machine_from_table,
     program_from_table,
@@ -53,8 +54,6 @@ __all__ = ["DEFAULT_TENSION_N", "MATERIALS", "Band", "Material", "MaterialUsed",
 
 #: Largest web width accepted; machine webs are 0.5 m, wide paper rolls about 1 m.
 MAX_WEB_WIDTH_M = 2.0
-#: A band may end this far above the load (rounding of heights in files) before it is rejected.
-FIT_TOLERANCE_M = 1e-3
 #: The warning for a paper program with no bottom wrap: the clamp lets the web's head go after
 #: the first revolution and paper does not cling, so a travelling first revolution leaves the
 #: head free. The bench does not model a free head: it judges the web as if held.

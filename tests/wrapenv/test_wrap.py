@@ -184,8 +184,10 @@ def test_a_program_is_read_as_the_contract_writes_it(program_data):
     assert (p.up_overlap, p.middle_tension_n, p.down_overlap, p.rpm) == (0.5, 250.0, 0.3, 12.0)
     assert (p.top_wraps, p.top_overhang_m, p.top_tension_n) == (2, 0.05, 300.0)
     assert [(r.from_m, r.wraps, r.tension_n) for r in p.reinforcements] == [(0.4, 2, 300.0)]
+    # the reinforcement's web (0.40 m) lies above the top wraps' (0.804 + 0.05 - 0.5 = 0.354 m):
+    # the carriage goes down to them
     assert [q.zone for q in wrap.passes] == [
-        "bottom", "spiral up", "reinforcement", "spiral up", "top", "spiral down"]
+        "bottom", "spiral up", "reinforcement", "spiral down", "top", "spiral down"]
     assert wrap.bands and max(b.to_m for b in wrap.bands) == pytest.approx(0.804)
 
 
@@ -432,3 +434,13 @@ def test_film_may_be_roped_and_pre_stretched(wrap_file):
                      program=True)
     program = WrapFormat.from_toml(path, load_height_m=0.804).program
     assert program is not None and program.roping and program.prestretch == 3.0
+
+
+def test_bottom_wraps_above_the_top_ones_are_refused(program_data):
+    """On a 0.804 m load a 0.5 m web's top wraps run from 0.354 m: bottom wraps from 0.7 m would
+    hang 0.4 m of web above the load and the spiral would run down to the 'top'."""
+    data = program_data()
+    data["program"]["bottom_from_m"] = 0.7
+    with pytest.raises(InputError, match=r"program.bottom_from_m: 0.7 m is above where the top "
+                                         r"wraps are laid \(0.354 m"):
+        WrapFormat.from_dict(data, "wrap.toml", load_height_m=0.804)
