@@ -108,8 +108,9 @@ def corner_positions_m(layout: Layout) -> tuple[float, ...]:
 
 
 def _outline_points(members, z: float) -> tuple[list, list[int]]:
-    """Vertical edges of the layer's bundles that lie on the layer's outline, at height z,
-    counter-clockwise from the -x-y corner, and which of them are the outline's corners."""
+    """Vertical edges of the layer's bundles that lie on the layer's outline (its convex hull,
+    where the web runs), at height z, counter-clockwise from the -x-y corner, and which of them
+    are the outline's corners."""
     edges = []
     for k, b in members:
         for sx, sy in _CORNER_SIGNS:
@@ -119,9 +120,8 @@ def _outline_points(members, z: float) -> tuple[list, list[int]]:
     xs = [w[0] for _, _, w in edges]
     ys = [w[1] for _, _, w in edges]
     lo, hi = (min(xs), min(ys)), (max(xs), max(ys))
-    tol = OUTLINE_TOLERANCE_M
-    outer = [e for e in edges if min(abs(e[2][0] - lo[0]), abs(e[2][0] - hi[0]),
-                                     abs(e[2][1] - lo[1]), abs(e[2][1] - hi[1])) <= tol]
+    hull = _convex_hull([w for _, _, w in edges])
+    outer = [e for e in edges if _distance_to_polygon(e[2], hull) <= OUTLINE_TOLERANCE_M]
     cx, cy = (lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2
     start = math.atan2(lo[1] - cy, lo[0] - cx) - 1e-9
     outer.sort(key=lambda e: (math.atan2(e[2][1] - cy, e[2][0] - cx) - start) % (2 * math.pi))
@@ -130,6 +130,31 @@ def _outline_points(members, z: float) -> tuple[list, list[int]]:
         target = (lo[0] if sx < 0 else hi[0], lo[1] if sy < 0 else hi[1])
         corners.append(min(range(len(outer)), key=lambda i: math.dist(outer[i][2], target)))
     return outer, corners
+
+
+def _convex_hull(points: list[tuple[float, float]]) -> np.ndarray:
+    """The convex hull's vertices, counter-clockwise (Andrew's monotone chain)."""
+    pts = sorted(set(points))
+
+    def half(seq: list[tuple[float, float]]) -> list[tuple[float, float]]:
+        out: list[tuple[float, float]] = []
+        for p in seq:
+            while len(out) >= 2 and ((out[-1][0] - out[-2][0]) * (p[1] - out[-2][1])
+                                     - (out[-1][1] - out[-2][1]) * (p[0] - out[-2][0])) <= 0:
+                out.pop()
+            out.append(p)
+        return out[:-1]
+
+    return np.array(half(pts) + half(pts[::-1]))
+
+
+def _distance_to_polygon(p: tuple[float, float], polygon: np.ndarray) -> float:
+    """Distance from p to the nearest side of a closed polygon."""
+    a, b = polygon, np.roll(polygon, -1, axis=0)
+    ab, ap = b - a, np.asarray(p) - a
+    t = np.clip(np.einsum("ij,ij->i", ap, ab) / np.maximum(np.einsum("ij,ij->i", ab, ab),
+                                                            1e-18), 0.0, 1.0)
+    return float(np.min(np.linalg.norm(ap - t[:, None] * ab, axis=1)))
 
 
 def _make_ring(wrap: WrapFormat, z: float, share: tuple[float, float], pts: list,
