@@ -19,7 +19,14 @@ from typing import TYPE_CHECKING
 
 from tqdm import tqdm
 
-from wrapenv.config import InputError, check_output, printable, result_json, write_together
+from wrapenv.config import (
+    InputError,
+    check_distinct,
+    check_output,
+    printable,
+    result_json,
+    write_together,
+)
 from wrapenv.load import Friction, LoadUnit
 from wrapenv.wrap import WrapFormat
 
@@ -169,8 +176,7 @@ def run_track(args: argparse.Namespace) -> int:
     out = args.out if args.out is not None else rec.folder / "trajectories.csv"
     check_output(out, "--out", inputs=rec.inputs())
     check_output(args.debug_video, "--debug-video", inputs=rec.inputs())
-    if args.debug_video is not None and _same_place(args.debug_video, out):
-        raise InputError(str(out), "--debug-video", "is also --out")
+    check_distinct({"--out": out, "--debug-video": args.debug_video})
     t0 = time.perf_counter()
     with _frame_bar() as progress:
         result = track(rec, tracker=args.tracker, debug_video=args.debug_video,
@@ -189,11 +195,6 @@ def run_track(args: argparse.Namespace) -> int:
         for name, e in errors.items():
             print(f"{name:>44s}  {1e3 * e.rms_m:6.2f}  {1e3 * e.max_m:6.2f}")
     return 0
-
-
-def _same_place(a: Path, b: Path) -> bool:
-    """Two output paths naming one file (neither need exist yet)."""
-    return a.resolve() == b.resolve() or (a.exists() and b.exists() and os.path.samefile(a, b))
 
 
 def add_calibrate(sub: argparse._SubParsersAction) -> None:

@@ -26,7 +26,14 @@ from recommender.html_report import (
 from recommender.search import Evaluation, Problem, SearchSettings, SearchState, Verification
 from recommender.text import program_text, verdict_table
 from wrapenv.calibrated import Calibration
-from wrapenv.config import InputError, check_output, printable, result_json, write_together
+from wrapenv.config import (
+    InputError,
+    check_distinct,
+    check_output,
+    printable,
+    result_json,
+    write_together,
+)
 from wrapenv.eumos import EUMOS_LIMITS, Limits
 from wrapenv.load import Layout, LoadUnit
 from wrapenv.material import MATERIALS
@@ -171,6 +178,8 @@ def _check_outputs(args: argparse.Namespace) -> Path | None:
     check_output(args.wrap_out, "--wrap-out", inputs=inputs)
     checkpoint = _checkpoint(args)
     check_output(checkpoint, "--checkpoint", inputs=inputs)
+    check_distinct({"--json": args.json, "--wrap-out": args.wrap_out,
+                    "--checkpoint": checkpoint})
     if args.report is not None:
         check_report_folder(args.report, inputs)
     if args.resume and (checkpoint is None or not checkpoint.exists()):

@@ -16,7 +16,7 @@ from recommender.html_report import check_report_folder, simulate_page, write_re
 from recommender.text import program_text, verdict_table
 from wrapenv.bench import run_levels
 from wrapenv.calibrated import Calibration
-from wrapenv.config import InputError, check_output, result_json, write_together
+from wrapenv.config import InputError, check_distinct, check_output, result_json, write_together
 from wrapenv.eumos import LevelVerdict
 from wrapenv.load import LoadUnit
 from wrapenv.profile import MeasuredProfile, PulseProfile, eumos_levels
@@ -58,6 +58,7 @@ def run_simulate(args: argparse.Namespace) -> int:
     if args.report is not None:
         check_report_folder(args.report, inputs)
     check_output(args.tension_map, "--tension-map", inputs=inputs)
+    check_distinct({"--json": args.json, "--plot": args.plot, "--tension-map": args.tension_map})
     if args.tension_map and wrap is None:
         raise InputError("arguments", "--tension-map", "needs --wrap (an unwrapped unit has "
                                                        "no envelope to map)")

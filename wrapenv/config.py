@@ -224,6 +224,17 @@ def check_output(path: Path | None, flag: str, *, inputs: Iterable[str | Path] =
     _check_writable(folder, str(path), flag)
 
 
+def check_distinct(outputs: dict[str, Path | None]) -> None:
+    """No two outputs (flag -> path; None: not asked) name one file: the later write would
+    replace the earlier one."""
+    given = [(flag, Path(path)) for flag, path in outputs.items() if path is not None]
+    for i, (flag, path) in enumerate(given):
+        for earlier, other in given[:i]:
+            if path.resolve() == other.resolve() or (
+                    path.exists() and other.exists() and os.path.samefile(path, other)):
+                raise InputError(str(path), flag, f"is also {earlier}")
+
+
 def check_output_folder(path: Path, flag: str) -> None:
     """An output folder (created whole at the end) must be new or empty, and creatable: the
     nearest folder above it that exists must take new entries. Nothing is created."""

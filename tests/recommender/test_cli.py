@@ -466,3 +466,15 @@ def test_nothing_passed_counts_only_slow_candidates_as_over_the_limit():
                for c, p in ((35.0, (False,)), (38.0, ()), (45.0, ()))]
     text = _nothing_passed(history, settings, 3)   # type: ignore[arg-type]
     assert text.endswith("after 3 candidates x 3 samples, 1 of them over the cycle-time limit")
+
+
+@pytest.mark.parametrize("command, flags", [
+    ("simulate", ["--level", "0.2", "--json", "X", "--plot", "X"]),
+    ("recommend", ["--json", "X", "--wrap-out", "X"]),
+])
+def test_two_outputs_on_one_file_are_refused_before_any_simulation(command, flags, load_file,
+                                                                  tmp_path, capsys):
+    same = str(tmp_path / "same")
+    assert run([command, str(load_file()), *[same if f == "X" else f for f in flags]]) == 2
+    err = one_line(capsys.readouterr().err)
+    assert "is also --json" in err and not (tmp_path / "same").exists()
