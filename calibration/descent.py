@@ -33,8 +33,8 @@ UNIFORM_STD = 1 / math.sqrt(12)
 SPREAD_ITERATES = 8
 
 
-def popsize(n: int) -> int:
-    """pycma's default population for n parameters."""
+def population(n: int) -> int:
+    """pycma's default population size for n parameters."""
     return 4 + int(3 * math.log(n))
 
 
@@ -42,7 +42,7 @@ def least_points(method: str, n: int) -> int:
     """The fewest points with which `descend` searches at all: cmaes its start and one
     generation, momentum one gradient step; then the best point's replay and the curvature's
     2n probes."""
-    search = 1 + popsize(n) if method == "cmaes" else n + 1
+    search = 1 + population(n) if method == "cmaes" else n + 1
     return search + 2 * n + 1
 
 
@@ -51,12 +51,12 @@ def cmaes(objective: Objective, u0: np.ndarray, budget: int, seed: int,
     """pycma ask/tell until the budget (in simulations) or pycma's own stop; returns the final
     search distribution's standard deviations (what the search has not yet narrowed down)."""
     n = len(u0)
-    popsize_n = popsize(n)
-    es = cma.CMAEvolutionStrategy(u0, 0.15, {"bounds": [0.0, 1.0], "popsize": popsize_n,
+    popsize = population(n)
+    es = cma.CMAEvolutionStrategy(u0, 0.15, {"bounds": [0.0, 1.0], "popsize": popsize,
                                              "seed": seed + 1, "verbose": -9, "tolx": 2e-3})
     progress.record([u0], objective.losses([u0]), objective.sims_per_point)
     while not es.stop():
-        if progress.simulations + popsize_n * objective.sims_per_point > budget:
+        if progress.simulations + popsize * objective.sims_per_point > budget:
             break
         us = es.ask()
         losses = objective.losses(us)

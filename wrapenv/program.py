@@ -115,10 +115,15 @@ class Program:
     prestretch: float | None = None
     reinforcements: tuple[Reinforcement, ...] = ()
 
+    def top_from_m(self, web_width_m: float, load_height_m: float) -> float:
+        """Where the top wraps are laid (the web's lower edge): its upper edge
+        `top_overhang_m` above the load."""
+        return max(0.0, load_height_m + self.top_overhang_m - web_width_m)
+
     def passes(self, web_width_m: float, load_height_m: float) -> tuple[Pass, ...]:
         """What the carriage does, in the order the machine runs the program."""
         w, b0 = web_width_m, self.bottom_from_m
-        top = max(0.0, load_height_m + self.top_overhang_m - w)
+        top = self.top_from_m(w, load_height_m)
         up = w * (1.0 - self.up_overlap)
         rope = ROPE_HEIGHT_M if self.roping else None
         out = [Pass("bottom", b0, b0, float(self.bottom_wraps), self.bottom_tension_n, rope)]

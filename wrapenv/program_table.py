@@ -46,7 +46,7 @@ def check_program_fits(program: Program, load_height_m: float, web_width_m: floa
     if b0 >= h:
         raise InputError(source, "program.bottom_from_m", f"{b0} m is not below the top of the "
                          f"load ({h:.3f} m)")
-    top = max(0.0, h + program.top_overhang_m - web_width_m)
+    top = program.top_from_m(web_width_m, h)
     if b0 > top + FIT_TOLERANCE_M:
         raise InputError(source, "program.bottom_from_m",
                          f"{b0} m is above where the top wraps are laid ({top:.3f} m, a "
