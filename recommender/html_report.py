@@ -16,7 +16,13 @@ from pathlib import Path
 from recommender.html_page import VIDEO_FILES, Figure, OrientationRun, Page, Robustness, render
 from recommender.search import Evaluation, Problem, SearchState, Verification
 from wrapenv.bench import BenchRun
-from wrapenv.config import InputError, check_output, check_output_folder, write_atomic
+from wrapenv.config import (
+    InputError,
+    check_output,
+    check_output_folder,
+    write_atomic,
+    write_together,
+)
 from wrapenv.load import Layout, LoadUnit
 from wrapenv.wrap import WrapFormat
 
@@ -117,17 +123,18 @@ def check_report_folder(folder: Path, inputs: Iterable[str | Path], flag: str = 
 
 def write_report(folder: Path, make: Callable[[Path], Page]) -> Path:
     """`make(stage)` writes the figures and the video into a staging folder and returns the
-    page; then each file is written into `folder` atomically, the page last. The stage is a
-    temporary folder of the system's, so an interrupted report leaves nothing in `folder` (nor
-    the folder if it made it), and a killed one leaves its stage where temporary files go."""
+    page; then the files are written into `folder` together (`write_together`), the page last.
+    The stage is a temporary folder of the system's, so an interrupted report leaves nothing
+    in `folder` (nor the folder if it made it), and a report that was there stays whole; a
+    killed one leaves its stage where temporary files go."""
     folder = Path(folder)
     created = not folder.exists()
     stage = Path(tempfile.mkdtemp(prefix="wrapbench-report-"))
     try:
         write_atomic(stage / PAGE, render(make(stage)).encode())
         folder.mkdir(parents=True, exist_ok=True)
-        for path in sorted(stage.iterdir(), key=lambda p: p.name == PAGE):
-            write_atomic(folder / path.name, path.read_bytes())
+        write_together({folder / path.name: path.read_bytes()
+                        for path in sorted(stage.iterdir(), key=lambda p: p.name == PAGE)})
     except BaseException:
         if created:
             shutil.rmtree(folder, ignore_errors=True)

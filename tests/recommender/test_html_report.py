@@ -62,6 +62,33 @@ def test_an_interrupted_report_leaves_nothing(tmp_path):
     assert list((tmp_path / "old").iterdir()) == []
 
 
+def test_a_report_interrupted_while_put_in_place_leaves_the_old_one_whole(tmp_path,
+                                                                          monkeypatch):
+    """The new figures never land beside the old page: the files go in together."""
+    folder = tmp_path / "old"
+    folder.mkdir()
+    for name, text in ((PAGE, "old page"), ("displacement.png", "old figure")):
+        (folder / name).write_text(text)
+    reads = Path.read_bytes
+
+    def read_bytes(path: Path) -> bytes:
+        if path.name == PAGE and path.parent != folder:
+            raise KeyboardInterrupt   # the stage's page, read after its figures
+        return reads(path)
+
+    def make(stage: Path) -> Page:
+        (stage / "displacement.png").write_bytes(b"new figure")
+        return None  # type: ignore[return-value]
+
+    monkeypatch.setattr("recommender.html_report.render", lambda page: "new page")
+    monkeypatch.setattr(Path, "read_bytes", read_bytes)
+    with pytest.raises(KeyboardInterrupt):
+        write_report(folder, make)
+    monkeypatch.undo()
+    assert {p.name: p.read_text() for p in folder.iterdir()} == {
+        PAGE: "old page", "displacement.png": "old figure"}
+
+
 def test_simulate_refuses_a_report_folder_that_is_a_file_before_simulating(tmp_path, capsys,
                                                                           load_file):
     load = load_file()
