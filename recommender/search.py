@@ -352,17 +352,22 @@ class RobustSearch:
                                   "fidelity": [e.fidelity for e in evaluations]})
         self._simulations = 0
         after = state.best(s.margin_goal)
-        state.stale_generations = stale_generations(before, after, state.stale_generations)
+        state.stale_generations = stale_generations(before, after, state.stale_generations,
+                                                    s.margin_goal)
 
 
-def stale_generations(before: Evaluation | None, after: Evaluation | None, stale: int) -> int:
-    """Generations in a row without a lighter robust pass, counted from the first pass: a
+def stale_generations(before: Evaluation | None, after: Evaluation | None, stale: int,
+                      margin_goal: float) -> int:
+    """Generations in a row without a better robust pass, counted from the first pass: a
     search with none yet goes on to its budget (3-layer LLDPE searches stopped after
-    `patience` generations with nothing passing)."""
+    `patience` generations with nothing passing). Better is lighter, or the first to meet the
+    margin goal (which ranks first however heavy: counted stale, a search could end on it
+    before looking for a lighter one that meets the goal too)."""
     if after is None:
         return 0
-    improved = before is None or after.mass_kg < before.mass_kg - 1e-9
-    return 0 if improved else stale + 1
+    if before is None or (after.margin < margin_goal) != (before.margin < margin_goal):
+        return 0
+    return 0 if after.mass_kg < before.mass_kg - 1e-9 else stale + 1
 
 
 @dataclass(frozen=True)

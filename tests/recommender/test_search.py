@@ -572,9 +572,14 @@ def test_verification_runs_one_unit_like_a_lab_and_judges_the_asked_layer_shift(
 
 def test_patience_counts_from_the_first_pass():
     """A search with no pass yet is never stale (it goes on to its budget); once it has one,
-    every generation without a lighter pass counts, and a lighter one resets the count."""
-    heavy, light = (SimpleNamespace(mass_kg=m) for m in (0.5, 0.3))
-    assert stale_generations(None, None, 5) == 0
-    assert stale_generations(None, heavy, 0) == 0          # the first pass
-    assert stale_generations(heavy, heavy, 1) == 2         # no lighter pass
-    assert stale_generations(heavy, light, 2) == 0         # a lighter pass
+    every generation without a lighter pass counts, and a lighter one resets the count, as
+    does the first pass that meets the margin goal, however heavy."""
+    heavy, light = (SimpleNamespace(mass_kg=m, margin=0.3) for m in (0.5, 0.3))
+    goal = 0.2
+    assert stale_generations(None, None, 5, goal) == 0
+    assert stale_generations(None, heavy, 0, goal) == 0          # the first pass
+    assert stale_generations(heavy, heavy, 1, goal) == 2         # no lighter pass
+    assert stale_generations(heavy, light, 2, goal) == 0         # a lighter pass
+    short = SimpleNamespace(mass_kg=0.3, margin=0.1)             # lighter, short of the goal
+    assert stale_generations(short, heavy, 2, goal) == 0         # the goal met, at last
+    assert stale_generations(short, short, 2, goal) == 3
