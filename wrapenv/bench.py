@@ -57,8 +57,10 @@ class SimSettings:
     settle_s: float = 0.3
     #: The run ends once no body has moved (relative to the sled) faster than this on average,
     #: i.e. by more than rest_speed_mps x rest_hold_s (0.5 mm), for `rest_hold_s` after the
-    #: sled stopped, or `max_rest_wait_s` after it stopped at the latest. A 0.1 s hold ends
-    #: runs within 0.6 mm of a 0.2 s one (10 wrapped and unwrapped cases, every step simulated).
+    #: sled stopped, or `max_rest_wait_s` after it stopped at the latest (then the trace says
+    #: so, `Trace.not_at_rest`, and the level fails: where the unit would rest is not known).
+    #: A 0.1 s hold ends runs within 0.6 mm of a 0.2 s one (10 wrapped and unwrapped cases,
+    #: every step simulated).
     rest_speed_mps: float = 0.005
     rest_hold_s: float = 0.1
     max_rest_wait_s: float = 3.0
@@ -184,9 +186,9 @@ def run_levels(
 ) -> BenchRun:
     """Run test levels (in g, or explicit profiles) as a lab does: one unit, each level
     starting from the state the last one left (`fresh`: a freshly stacked and wrapped unit per
-    level). A cumulative sequence ends after a level that did not end at rest (invalid, or
-    stopped once decided): there is no state to go on from. `on_level` hears each level's
-    verdict as it is decided (progress for people)."""
+    level). A cumulative sequence ends after a level that did not end at rest (invalid, stopped
+    once decided, or still moving at the longest wait): there is no state to go on from.
+    `on_level` hears each level's verdict as it is decided (progress for people)."""
     layout = load.layout(orientation)  # type: ignore[arg-type]
     verdicts: list[LevelVerdict] = []
     traces: list[Trace] = []
@@ -203,7 +205,8 @@ def run_levels(
                 on_level(verdict)
             if stop_at_failure and not verdict.passed:
                 break
-            if unit is not None and (not trace.valid or trace.stopped_early):
+            if unit is not None and (not trace.valid or trace.stopped_early
+                                     or trace.not_at_rest):
                 break
     sequence = "fresh" if fresh else "cumulative"
     return BenchRun(Verdict(layout.load_height_m, tuple(verdicts), sequence), tuple(traces))
@@ -258,6 +261,7 @@ class _Run:
         self.samples: list[tuple[float, float, np.ndarray, np.ndarray]] = []
         self.invalid = ""
         self.stopped_early = ""
+        self.not_at_rest = ""
         self.reference: np.ndarray | None = None  # bundle centres in the pallet frame at t = 0
         self.origin_m = origin_m  # ... when the unit was first put on the sled (None: t = 0)
         self.bottom_z = np.array([b.centre_m[2] - b.size_m[2] / 2 for b in layout.bundles])
@@ -287,12 +291,14 @@ class _Run:
         displacement past its limit (the elastic figure is the maximum over the run)."""
         if self.wrap is not None and (self.wrap.rings.torn.any() or self.wrap.panels.torn.any()):
             return WRAP_TORN
-        fell = np.flatnonzero(fallen(pos[BUNDLES, 2], self.bottom_z))
-        if len(fell):
-            return f"{self.layout.bundles[fell[0]].name} fallen"
         rel = in_pallet_frame(pos[PALLET], rot[PALLET], pos[BUNDLES])
         if self.reference is None:
             self.reference = rel
+        tilt = np.arccos(np.clip(rot[BUNDLES, 2, 2], -1.0, 1.0))
+        dropped = self.reference[:, 2] - rel[:, 2]
+        fell = np.flatnonzero(fallen(pos[BUNDLES, 2], self.bottom_z, dropped, tilt))
+        if len(fell):
+            return f"{self.layout.bundles[fell[0]].name} fallen"
         elastic = np.linalg.norm((rel - self.reference)[:, :2], axis=1).max()
         limit = ELASTIC.limit_m(self.layout.load_height_m)
         if elastic > limit:
@@ -366,8 +372,12 @@ class _Run:
         s, dt = self.s, self.s.timestep_s
         held = step * dt - self.rest.observe(step, pos, rot) * dt >= s.rest_hold_s
         if step >= self.stop_step:
-            waited_out = step * dt >= self.profile.duration_s + s.max_rest_wait_s
-            return None if held or waited_out else step
+            if held:
+                return None
+            if step * dt < self.profile.duration_s + s.max_rest_wait_s:
+                return step
+            self.not_at_rest = f"still moving {s.max_rest_wait_s:g} s after the sled stopped"
+            return None
         if not (held and s.skip_still):
             return step
         last = self.rest.unchanged_until(step, rot, self.stop_step)
@@ -394,6 +404,7 @@ class _Run:
             valid=not self.invalid,
             invalid_reason=self.invalid,
             stopped_early=self.stopped_early,
+            not_at_rest=self.not_at_rest,
             wrap=self.wrap.report() if self.wrap is not None else None,
             layers=np.array([b.layer for b in self.layout.bundles]),
             origin_m=self.origin_m,

@@ -35,6 +35,9 @@ class Trace:
     #: Why the run stopped before rest, its verdict already decided failed ("": it ran to rest).
     #: The figures of such a trace are those at the stop, not the permanent ones.
     stopped_early: str = ""
+    #: Why the run ended with a body still moving ("": it ended at rest or stopped early): the
+    #: last poses are not where the unit would rest, so its permanent figures are not known.
+    not_at_rest: str = ""
     #: (n,) the layer of each bundle (1 at the bottom); None: all in one layer.
     layers: np.ndarray | None = None
     #: (n, 3) bundle centres in the pallet's frame when the unit was first put on the sled
@@ -79,6 +82,11 @@ class Trace:
     def pallet_slip_m(self) -> float:
         """Permanent horizontal displacement of the pallet on the sled."""
         return float(np.linalg.norm(self.pallet_pos[-1, :2] - self.pallet_pos[0, :2]))
+
+    def dropped_m(self) -> np.ndarray:
+        """(n,) how far each bundle centre ends below where it stood when the unit was first
+        put on the sled, in the pallet's frame."""
+        return self.origin()[:, 2] - self._end_in_pallet()[:, 2]
 
     def tilt_rad(self) -> np.ndarray:
         """(n,) final tilt of each bundle: angle between its vertical axis and the world's."""

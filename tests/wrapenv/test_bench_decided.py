@@ -10,7 +10,7 @@ from dataclasses import replace
 import pytest
 
 from wrapenv.bench import SimSettings, run_level
-from wrapenv.eumos import WRAP_TORN, evaluate
+from wrapenv.eumos import FALL_DROP_M, WRAP_TORN, evaluate
 from wrapenv.load import FrictionPair, LoadUnit
 from wrapenv.profile import PulseProfile
 from wrapenv.wrap import WrapFormat
@@ -67,5 +67,6 @@ def test_a_passing_level_runs_to_rest_exactly_as_without_the_option():
     full = run_level(load.layout(), PulseProfile(0.3), SimSettings(), wrap)
     assert early.stopped_early == ""
     assert evaluate(early).passed
+    assert early.dropped_m().max() < FALL_DROP_M / 10  # squeezed, on its supports: not fallen
     assert evaluate(early).to_json() == evaluate(full).to_json()
     assert "stopped_early" not in evaluate(full).to_json()

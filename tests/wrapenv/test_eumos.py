@@ -6,6 +6,7 @@ its optional criterion."""
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -13,6 +14,7 @@ import pytest
 from wrapenv.eumos import (
     ELASTIC,
     EUMOS_CRITERIA,
+    FALL_DROP_M,
     LAYER_SHIFT,
     LOW_ZONE,
     PERMANENT,
@@ -106,12 +108,40 @@ def test_a_toppled_bundle_is_damage_and_fails_however_little_it_moved():
     assert upright_enough.passed
 
 
+def lowered(by_m: float, tilt_rad: float = 0.0) -> Trace:
+    """One bundle standing on 0.5 m that ends `by_m` lower (still above that height for any
+    `by_m` < `HALF_M`), tilted by `tilt_rad`."""
+    t = trace([[0.0], [0.0]], [0.5], final_tilt_rad=tilt_rad)
+    pos = t.bundle_pos.copy()
+    pos[-1, 0, 2] -= by_m
+    return replace(t, bundle_pos=pos)
+
+
+def test_an_upright_bundle_lower_than_it_was_stacked_has_fallen_off_its_support():
+    """A bottom bundle taller than the pallet slides off it onto the sled's deck upright: its
+    centre stays above the pallet's top, yet it left its support."""
+    assert evaluate(lowered(0.05)).damage == ("L1C1R1 fallen",)
+    assert evaluate(lowered(FALL_DROP_M + 0.001)).damage == ("L1C1R1 fallen",)
+    assert evaluate(lowered(0.005)).passed               # the solver's overlap: on its support
+    assert evaluate(lowered(0.05, math.radians(30))).damage == ("L1C1R1 toppled",)
+
+
 def test_an_invalid_run_never_passes_even_without_displacement():
     level = evaluate(trace([[0.0], [0.0]], [0.5], valid=False))
     assert all(level.criteria.values())          # every figure is inside its limit ...
     assert not level.passed and not level.valid  # ... and still no pass
     assert level_margin(level, HEIGHT_M) == -1.0
     assert not Verdict(HEIGHT_M, (level,)).passed
+
+
+def test_a_unit_still_moving_at_the_end_fails_whatever_its_figures():
+    """Where it would rest is not known, so neither is its permanent displacement."""
+    moving = evaluate(replace(moved_to(0.001), not_at_rest="still moving 3 s after the sled "
+                                                          "stopped"))
+    assert all(moving.criteria.values()) and not moving.passed
+    assert level_margin(moving, HEIGHT_M) <= -1.0
+    assert moving.to_json()["not_at_rest"] == "still moving 3 s after the sled stopped"
+    assert "not_at_rest" not in evaluate(moved_to(0.001)).to_json()
 
 
 def test_no_level_of_a_run_that_blew_up_is_reported_as_passed():
