@@ -149,7 +149,7 @@ class LevelVerdict:
     #: its figures are then those at the stop.
     stopped_early: str = ""
     #: Why the level ended with a body still moving (`Trace.not_at_rest`): its permanent
-    #: figures are those at the end, not where the unit would rest, so it fails.
+    #: figures are those at the end, which may not be where the unit would rest.
     not_at_rest: str = ""
     #: Permanent displacement since the unit was first put on the sled (the criteria's figure;
     #: `permanent_max_m` is this level's own). None: not measured (the level's own is used).
@@ -228,13 +228,12 @@ class Verdict:
 
 def level_margin(level: LevelVerdict, load_height_m: float) -> float:
     """The smallest of 1 - figure/limit over the figure criteria that judged the level: 0 on
-    a limit, 0.5 at half of it, < 0 beyond. Damage, an invalid run or a unit still moving at
-    the end is -1 at best."""
+    a limit, 0.5 at half of it, < 0 beyond. Damage or an invalid run is -1 at best."""
     figures = [(c, c.value(level)) for c in level.limits.criteria()]
     if not level.valid or any(f is None for _, f in figures):
         return -1.0
     margin = 1.0 - max(f / c.limit_m(load_height_m) for c, f in figures)  # type: ignore[operator]
-    return min(margin, -1.0) if level.damage or level.not_at_rest else margin
+    return min(margin, -1.0) if level.damage else margin
 
 
 def evaluate(trace: Trace, extra_damage: tuple[str, ...] = (),
@@ -284,14 +283,13 @@ def evaluate(trace: Trace, extra_damage: tuple[str, ...] = (),
 
 def _judged(level: LevelVerdict, load_height_m: float) -> LevelVerdict:
     """The level with each criterion's result (a figure that is not finite fails) and the
-    verdict: passed only if the run stayed valid, ended at rest and every criterion holds."""
+    verdict: passed only if the run stayed valid and every criterion holds."""
     criteria = {}
     for c in level.limits.criteria():
         figure = c.value(level)
         criteria[c.key] = figure is not None and c.holds(figure, load_height_m)
     criteria[NO_DAMAGE] = not level.damage
-    passed = level.valid and not level.not_at_rest and all(criteria.values())
-    return replace(level, criteria=criteria, passed=passed)
+    return replace(level, criteria=criteria, passed=level.valid and all(criteria.values()))
 
 
 def fallen(bundle_z_m: np.ndarray, bottom_z_m: np.ndarray, dropped_m: np.ndarray,

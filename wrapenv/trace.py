@@ -35,8 +35,8 @@ class Trace:
     #: Why the run stopped before rest, its verdict already decided failed ("": it ran to rest).
     #: The figures of such a trace are those at the stop, not the permanent ones.
     stopped_early: str = ""
-    #: Why the run ended with a body still moving ("": it ended at rest or stopped early): the
-    #: last poses are not where the unit would rest, so its permanent figures are not known.
+    #: Why the run ended with a body still moving ("": it ended at rest or stopped early): its
+    #: permanent figures are those of its last poses, which may not be where it would rest.
     not_at_rest: str = ""
     #: (n,) the layer of each bundle (1 at the bottom); None: all in one layer.
     layers: np.ndarray | None = None

@@ -121,12 +121,11 @@ def test_stack_at_rest_on_still_sled_drifts_less_than_1_mm_in_10_s():
     assert pallet < 1e-3
 
 
-def test_a_run_waits_for_a_slide_that_outlasts_the_sled_and_fails_if_it_does_not_end():
+def test_a_run_waits_for_a_slide_that_outlasts_the_sled_and_says_so_if_it_does_not_end():
     """The sled pulls at a = 0.6 g for T = 0.3 s, then coasts: the bundle (mu_k = 0.4) lags at
     dv = (a - mu_k g) T = 0.59 m/s when the sled's pulse ends, and slides on for
     dv / (mu_k g) = 0.15 s, dv² / (2 mu_k g) = 44 mm more. A run waits for that rest; one told
-    to wait 0.1 s at most ends with the bundle still moving, which is no permanent state:
-    the level fails, and says why."""
+    to wait 0.1 s at most ends with the bundle still moving, and its verdict says so."""
     a, mu_k, dwell = 0.6 * G, 0.4, 0.3
     profile = MeasuredProfile(np.array([0.0, dwell, dwell + 1e-6]), np.array([a, a, 0.0]))
     load = single_box(static=0.5, kinetic=mu_k)
@@ -139,5 +138,4 @@ def test_a_run_waits_for_a_slide_that_outlasts_the_sled_and_fails_if_it_does_not
     cut = run_level(load.layout(), profile, SimSettings(max_rest_wait_s=0.1))
     assert cut.not_at_rest == "still moving 0.1 s after the sled stopped"
     assert -permanent_x(cut) < expected - 0.005
-    verdict = evaluate(cut)
-    assert not verdict.passed and verdict.to_json()["not_at_rest"] == cut.not_at_rest
+    assert evaluate(cut).to_json()["not_at_rest"] == cut.not_at_rest
