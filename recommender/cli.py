@@ -117,9 +117,9 @@ def _add_recommend_problem(rec: argparse.ArgumentParser) -> None:
     rec.add_argument("--samples", type=int, default=3, metavar="K",
                      help="robust samples of the uncertain parameters per candidate "
                           "(default 3)")
-    rec.add_argument("--margin", type=float, default=0.2,
+    rec.add_argument("--margin", type=float,
                      help="wanted EUMOS margin of the worst sample (default 0.2)")
-    rec.add_argument("--budget", type=int, default=48, metavar="N",
+    rec.add_argument("--budget", type=int, metavar="N",
                      help="most candidate programs to try (default 48)")
     rec.add_argument("--workers", type=int, default=os.cpu_count() or 1,
                      help="parallel simulations (default: all cores)")
@@ -151,7 +151,7 @@ def _add_recommend_run(rec: argparse.ArgumentParser) -> None:
     """The price of cycle time, the checkpoint and the outputs."""
     rec.add_argument("--max-cycle-s", type=_number, default=math.inf, metavar="S",
                      help="only programs the machine runs within S seconds per pallet")
-    rec.add_argument("--cycle-weight", type=_number, default=0.0, metavar="W",
+    rec.add_argument("--cycle-weight", type=_number, metavar="W",
                      help="price of cycle time: W machine-default programs' web per second "
                           "(default 0: web only)")
     rec.add_argument("--checkpoint", type=Path, metavar="FILE",

@@ -103,8 +103,17 @@ def _targets(args: argparse.Namespace) -> tuple[tuple[str, float], ...]:
                  for side in sides)
 
 
+#: A search's own flags (None: not given), and their values when not given.
+SEARCH_FLAGS = {"--margin": ("margin", SearchSettings.margin_goal),
+                "--budget": ("budget", SearchSettings.max_candidates),
+                "--cycle-weight": ("cycle_weight", SearchSettings.cycle_weight)}
+
+
 def _settings(args: argparse.Namespace) -> SearchSettings:
-    for flag, value, low in (("--samples", args.samples, 1), ("--budget", args.budget, 2),
+    margin, budget, cycle_weight = (default if getattr(args, name) is None
+                                    else getattr(args, name)
+                                    for name, default in SEARCH_FLAGS.values())
+    for flag, value, low in (("--samples", args.samples, 1), ("--budget", budget, 2),
                              ("--workers", args.workers, 1)):
         if value < low:
             raise InputError("arguments", flag, f"must be >= {low} (got {value})")
@@ -112,20 +121,19 @@ def _settings(args: argparse.Namespace) -> SearchSettings:
     if args.workers > most:
         raise InputError("arguments", "--workers", f"must be <= {most} on the {args.backend} "
                          f"backend (got {args.workers}): a simulation keeps a core busy")
-    if not (0 <= args.margin < 1):
-        raise InputError("arguments", "--margin", f"must be in [0, 1) (got {args.margin})")
+    if not (0 <= margin < 1):
+        raise InputError("arguments", "--margin", f"must be in [0, 1) (got {margin})")
     if not args.max_cycle_s > 0:
         raise InputError("arguments", "--max-cycle-s", f"must be > 0 (got {args.max_cycle_s})")
-    if not args.cycle_weight >= 0:
-        raise InputError("arguments", "--cycle-weight",
-                         f"must be >= 0 (got {args.cycle_weight})")
+    if not cycle_weight >= 0:
+        raise InputError("arguments", "--cycle-weight", f"must be >= 0 (got {cycle_weight})")
     check_hours(args.hours_since_wrapping)
     _material(args.material)
     return SearchSettings(targets=_targets(args), material=args.material, samples=args.samples,
-                          margin_goal=args.margin, max_candidates=args.budget, seed=args.seed,
-                          workers=args.workers, popsize=min(8, args.budget),
+                          margin_goal=margin, max_candidates=budget, seed=args.seed,
+                          workers=args.workers, popsize=min(8, budget),
                           backend=args.backend, ray_address=args.ray_address,
-                          max_cycle_s=args.max_cycle_s, cycle_weight=args.cycle_weight,
+                          max_cycle_s=args.max_cycle_s, cycle_weight=cycle_weight,
                           hours_since_wrapping=args.hours_since_wrapping,
                           limits=criteria_limits(args), fresh=args.fresh)
 
@@ -166,7 +174,12 @@ def _check_flags(args: argparse.Namespace) -> None:
               ("--policy", args.policy is not None and args.method != "ppo",
                "needs --method ppo (a search proposes its own program)"),
               ("--resume", args.resume and args.method == "ppo",
-               "resumes a search; --method ppo does not search")]
+               "resumes a search; --method ppo does not search"),
+              ("--checkpoint", args.checkpoint is not None and args.method == "ppo",
+               "keeps a search's state; --method ppo does not search")]
+    unused += [(flag, getattr(args, name) is not None and args.method == "ppo",
+                "steers a search; --method ppo does not search")
+               for flag, (name, _) in SEARCH_FLAGS.items()]
     for flag, wasted, why in unused:
         if wasted:
             raise InputError("arguments", flag, why)
@@ -200,10 +213,12 @@ def run_recommend(args: argparse.Namespace) -> int:
     if args.method == "ppo":
         t0 = time.perf_counter()
         best, check = _propose_with_policy(args, problem, samples)
-        _print_recommendation(problem, best, check)
+        refused = _refused_proposal(problem, best, check)
+        _print_recommendation(problem, best, check, recommended=not refused)
         print(f"policy proposal verified in {time.perf_counter() - t0:.0f} s")
-        if not check.passed:   # as a search that finds no pass: nothing to enter, nothing written
-            print("the policy's proposal fails: nothing written; search with --method cmaes")
+        if refused:   # as a search that finds no pass: nothing to enter, nothing written
+            print(f"the policy's proposal {refused}: nothing written; search with --method "
+                  f"cmaes")
             return 1
         _write_outputs(args, problem, best, check, 1, state=None)
         return 0
@@ -309,10 +324,27 @@ def _propose_with_policy(args: argparse.Namespace, problem: Problem,
     return best, check
 
 
-def _print_recommendation(problem: Problem, best: Evaluation, check: Verification) -> None:
+def _refused_proposal(problem: Problem, best: Evaluation, check: Verification) -> str:
+    """Why a policy's proposal is not recommended ("": it is). A search recommends only a
+    program within the cycle-time limit that passed every one of its samples, then the nominal
+    sequence; a proposal has no search behind it, so it must pass the nominal sequence and
+    every sample of its verification."""
+    limit = problem.settings.max_cycle_s
+    if best.cycle_s > limit:
+        return f"takes {best.cycle_s:.0f} s, over the cycle-time limit of {limit:g} s"
+    if not check.passed:
+        return "fails"
+    if check.probability.passed < check.probability.samples:
+        return (f"passes only {check.probability.passed} of {check.probability.samples} "
+                f"samples")
+    return ""
+
+
+def _print_recommendation(problem: Problem, best: Evaluation, check: Verification,
+                          recommended: bool = True) -> None:
     s, p = problem.settings, check.probability
     low, high = p.interval
-    head = "recommended wrapping program" if check.passed else "the policy's proposal"
+    head = "recommended wrapping program" if recommended else "the policy's proposal"
     print(f"{head} for {printable(problem.load.name)}: "
           f"{'passes' if check.passed else 'fails'} {_targets_text(s)}, "
           f"{s.hours_since_wrapping:g} h after wrapping, in {p.passed} of {p.samples} samples "

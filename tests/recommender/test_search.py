@@ -11,6 +11,7 @@ from concurrent.futures import ThreadPoolExecutor
 from dataclasses import replace
 from pathlib import Path
 from types import SimpleNamespace
+from typing import Any
 
 import numpy as np
 import pytest
@@ -439,28 +440,65 @@ def test_bad_recommend_arguments_exit_2_with_one_line(argv, field, load_file, tm
     assert not (tmp_path / "out.json").exists()
 
 
-def test_ppo_method_answers_from_a_policy_and_verifies_it(load_file, tmp_path, capsys):
+def fixed_policy(load: Path, action: float, path: Path) -> Path:
+    """A policy.zip whose every proposal is the action `action` in each parameter: an
+    untrained PPO model whose action head is only its bias."""
     import gymnasium as gym
+    import torch
     from stable_baselines3 import PPO
 
     from recommender.policy import TrainSettings, policy_meta, stamp
 
-    load = load_file(base=SMALL)
     env = gym.make("wrapenv/WrapBench-v2", load=str(load))
-    PPO("MlpPolicy", env, n_steps=64, batch_size=32, device="cpu", seed=0).save(tmp_path / "p")
-    stamp(tmp_path / "p.zip", policy_meta(TrainSettings()))
+    model = PPO("MlpPolicy", env, n_steps=64, batch_size=32, device="cpu", seed=0)
+    with torch.no_grad():
+        model.policy.action_net.weight.zero_()
+        model.policy.action_net.bias.fill_(action)
+    model.save(path.with_suffix(""))
+    stamp(path, policy_meta(TrainSettings()))
     env.close()
+    return path
+
+
+def test_ppo_method_answers_from_a_policy_and_verifies_it(load_file, tmp_path, capsys):
+    """The heaviest program the policy can propose passes the small unit in every sample: it
+    is recommended, as a search's answer would be, and written."""
+    load = load_file(base=SMALL)
+    policy = fixed_policy(load, 1.0, tmp_path / "heavy.zip")
     out = tmp_path / "ppo.json"
-    code = main(["recommend", str(load), "--method", "ppo", "--policy", str(tmp_path / "p.zip"),
+    code = main(["recommend", str(load), "--method", "ppo", "--policy", str(policy),
                  "--samples", "2", "--workers", "2", "--json", str(out)])
     printed = capsys.readouterr().out
-    if code == 1:   # an untrained policy's proposal may fail: then, as a search, nothing written
-        assert "the policy's proposal for" in printed and ": fails " in printed
-        assert "nothing written" in printed and not out.exists()
-        return
     assert code == 0 and "recommended wrapping program for" in printed
     result = json.loads(out.read_text())
     assert result["method"] == "ppo" and result["verdict"]["levels"][-1]["passed"]
+    assert result["robust_pass_rate"] == 1.0
+    # the same proposal over a cycle-time limit is not recommended, as a search would not
+    code = main(["recommend", str(load), "--method", "ppo", "--policy", str(policy),
+                 "--samples", "2", "--workers", "2", "--max-cycle-s", "10",
+                 "--json", str(tmp_path / "slow.json")])
+    printed = capsys.readouterr().out
+    assert code == 1 and "over the cycle-time limit of 10 s: nothing written" in printed
+    assert "recommended" not in printed and not (tmp_path / "slow.json").exists()
+
+
+def test_a_proposal_is_recommended_only_if_it_passes_every_sample():
+    """A search recommends only programs that passed all their samples; a proposal, which no
+    search stands behind, must pass every sample of its verification."""
+    from recommender.commands import _refused_proposal
+    from recommender.uncertainty import PassProbability
+
+    problem = SimpleNamespace(settings=SearchSettings(max_cycle_s=100.0))
+    best = SimpleNamespace(cycle_s=60.0)
+
+    def check(nominal: bool, passed: int) -> Any:
+        return SimpleNamespace(passed=nominal, probability=PassProbability(passed, 8))
+
+    assert _refused_proposal(problem, best, check(True, 8)) == ""
+    assert _refused_proposal(problem, best, check(True, 3)) == "passes only 3 of 8 samples"
+    assert _refused_proposal(problem, best, check(False, 8)) == "fails"
+    slow = SimpleNamespace(cycle_s=120.0)
+    assert "over the cycle-time limit" in _refused_proposal(problem, slow, check(True, 8))
 
 
 @pytest.mark.parametrize("argv, field", [
@@ -468,6 +506,11 @@ def test_ppo_method_answers_from_a_policy_and_verifies_it(load_file, tmp_path, c
     (["recommend", "--ray-address", "ray://x:1"], "--ray-address"),      # process backend
     (["recommend", "--policy", "OUT"], "--policy"),                        # a search
     (["recommend", "--method", "ppo", "--policy", "OUT", "--resume"], "--resume"),
+    (["recommend", "--method", "ppo", "--policy", "OUT", "--checkpoint", "C"], "--checkpoint"),
+    (["recommend", "--method", "ppo", "--policy", "OUT", "--margin", "0.3"], "--margin"),
+    (["recommend", "--method", "ppo", "--policy", "OUT", "--budget", "8"], "--budget"),
+    (["recommend", "--method", "ppo", "--policy", "OUT", "--cycle-weight", "1"],
+     "--cycle-weight"),
     (["train", "--out", "OUT", "--timesteps", "0"], "--timesteps"),
     (["train", "--out", "OUT", "--material", "cotton"], "--material"),
     (["train", "--out", "OUT", "--target", "2.0"], "--target"),
