@@ -103,16 +103,17 @@ def _targets(args: argparse.Namespace) -> tuple[tuple[str, float], ...]:
                  for side in sides)
 
 
-#: A search's own flags (None: not given), and their values when not given.
-SEARCH_FLAGS = {"--margin": ("margin", SearchSettings.margin_goal),
-                "--budget": ("budget", SearchSettings.max_candidates),
-                "--cycle-weight": ("cycle_weight", SearchSettings.cycle_weight)}
+#: The flags that only steer a search, and their arguments (None: not given, the search's
+#: default).
+SEARCH_FLAGS = {"--margin": "margin", "--budget": "budget", "--cycle-weight": "cycle_weight"}
 
 
 def _settings(args: argparse.Namespace) -> SearchSettings:
-    margin, budget, cycle_weight = (default if getattr(args, name) is None
-                                    else getattr(args, name)
-                                    for name, default in SEARCH_FLAGS.values())
+    given = {name: getattr(args, name) for name in SEARCH_FLAGS.values()}
+    margin = SearchSettings.margin_goal if given["margin"] is None else given["margin"]
+    budget: int = SearchSettings.max_candidates if given["budget"] is None else given["budget"]
+    cycle_weight = (SearchSettings.cycle_weight if given["cycle_weight"] is None
+                    else given["cycle_weight"])
     for flag, value, low in (("--samples", args.samples, 1), ("--budget", budget, 2),
                              ("--workers", args.workers, 1)):
         if value < low:
@@ -179,7 +180,7 @@ def _check_flags(args: argparse.Namespace) -> None:
                "keeps a search's state; --method ppo does not search")]
     unused += [(flag, getattr(args, name) is not None and args.method == "ppo",
                 "steers a search; --method ppo does not search")
-               for flag, (name, _) in SEARCH_FLAGS.items()]
+               for flag, name in SEARCH_FLAGS.items()]
     for flag, wasted, why in unused:
         if wasted:
             raise InputError("arguments", flag, why)
