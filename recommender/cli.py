@@ -22,9 +22,7 @@ from recommender.parallel import BACKENDS
 from recommender.uncertainty import TRANSPORT_HOURS
 from wrapenv import __version__
 from wrapenv.config import InputError
-
-#: The bundled example (a link to examples/pet_2layer_columnar.toml, copied into wheels).
-EXAMPLE_LOAD = Path(__file__).resolve().parent / "data" / "example_load.toml"
+from wrapenv.load import EXAMPLE_LOAD
 
 
 class _Parser(argparse.ArgumentParser):

@@ -142,6 +142,11 @@ class Layout:
         return out
 
 
+#: The bundled example, the unit the environments and `recommend` take when given none: a
+#: link to examples/pet_2layer_columnar.toml inside the package, copied into wheels.
+EXAMPLE_LOAD = Path(__file__).resolve().parent / "data" / "example_load.toml"
+
+
 @dataclass(frozen=True)
 class LoadUnit:
     name: str

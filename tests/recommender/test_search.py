@@ -528,10 +528,10 @@ def test_the_bundled_example_is_package_data_and_the_readme_example():
     """`recommend` without LOAD reads a file inside the package, so a wheel install finds it;
     it is the repository's examples/pet_2layer_columnar.toml."""
     root = Path(__file__).resolve().parents[2]
-    assert EXAMPLE_LOAD.parent == root / "recommender" / "data"
+    assert EXAMPLE_LOAD.parent == root / "wrapenv" / "data"
     assert EXAMPLE_LOAD.read_bytes() == (root / "examples/pet_2layer_columnar.toml").read_bytes()
     pyproject = tomllib.loads((root / "pyproject.toml").read_text())
-    assert "data/*.toml" in pyproject["tool"]["setuptools"]["package-data"]["recommender"]
+    assert "data/*.toml" in pyproject["tool"]["setuptools"]["package-data"]["wrapenv"]
 
 
 #: One tall, thin bundle on high friction: it tips rather than slides, about 0.12 / 0.40 = 0.3 g

@@ -25,7 +25,7 @@ from wrapenv.design import N_PARAMS, ProgramSpace
 from wrapenv.envs import random_units
 from wrapenv.envs.observation import OBS_FEATURES, OBS_NAMES, observe
 from wrapenv.eumos import Verdict
-from wrapenv.load import Layout, LoadUnit
+from wrapenv.load import EXAMPLE_LOAD, Layout, LoadUnit
 from wrapenv.material import MATERIALS
 from wrapenv.profile import eumos_levels
 from wrapenv.render import Renderer, fitting_camera, rest_state, torn_net
@@ -33,9 +33,6 @@ from wrapenv.scene import BUNDLES, PALLET
 from wrapenv.trace import Trace
 from wrapenv.wrap import WrapFormat
 
-#: The bundled example the env tests formats on when no load is given (a source checkout's
-#: examples/ folder, next to the package; recommender/cli.py's EXAMPLE_LOAD).
-DEFAULT_LOAD = Path(__file__).resolve().parents[2] / "examples" / "pet_2layer_columnar.toml"
 LEVEL_MODES: tuple[str, ...] = ("eumos", "target")
 
 #: Rendered frames: a small side camera (the recordings' camera model, wrapenv.render).
@@ -404,7 +401,7 @@ def _level(name: str, value: Any) -> float:
 
 def _load_unit(load: str | Path | LoadUnit | None) -> LoadUnit:
     if load is None:
-        return LoadUnit.from_toml(DEFAULT_LOAD)
+        return LoadUnit.from_toml(EXAMPLE_LOAD)
     if isinstance(load, LoadUnit):
         return load
     if isinstance(load, str | Path):
