@@ -288,9 +288,28 @@ def read_meta(path: Path) -> dict[str, Any]:
                                               f"({exc})") from None
     if not isinstance(meta, dict) or not isinstance(data, dict):
         raise InputError(str(path), "policy", "not a policy written by `wrapbench train`")
+    _check_sizes(path, data)
     meta["_pickled"] = sorted(k for k, v in data.items()
                               if isinstance(v, dict) and ":serialized:" in v)
     return meta
+
+
+#: Most rollout steps a policy file may ask SB3 to allocate a buffer for on loading
+#: (n_steps x n_envs; `wrapbench train` writes 64 x its envs).
+MAX_ROLLOUT_STEPS = 1 << 20
+
+
+def _check_sizes(path: Path, data: dict[str, Any]) -> None:
+    """The sizes SB3 allocates from on loading: whole numbers, and not absurd (a file asking
+    for 10^15 rollout steps would exhaust the memory instead of failing)."""
+    sizes = {key: data.get(key) for key in ("n_steps", "n_envs", "batch_size")}
+    for key, value in sizes.items():
+        if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+            raise InputError(str(path), f"data.{key}", f"must be a whole number >= 1 (got "
+                                                      f"{value!r})")
+    if sizes["n_steps"] * sizes["n_envs"] > MAX_ROLLOUT_STEPS:  # type: ignore[operator]
+        raise InputError(str(path), "data.n_steps", f"n_steps x n_envs must be at most "
+                                                    f"{MAX_ROLLOUT_STEPS}")
 
 
 def load_policy(policy_path: Path, material: str | None = None) -> PPO:
@@ -313,9 +332,12 @@ def load_policy(policy_path: Path, material: str | None = None) -> PPO:
         raise InputError(str(path), "policy", f"holds pickled entries {sorted(unknown)}, which "
                                               "are not loaded")
     try:
-        return PPO.load(path, device="cpu", custom_objects=trusted)
-    except (OSError, ValueError, KeyError, RuntimeError) as exc:
+        model = PPO.load(path, device="cpu", custom_objects=trusted)
+    except (OSError, ValueError, KeyError, RuntimeError, TypeError, AttributeError) as exc:
         raise InputError(str(path), "policy", f"cannot be loaded ({exc})") from None
+    if not all(bool(p.isfinite().all()) for p in model.policy.parameters()):
+        raise InputError(str(path), "policy", "has weights that are not finite numbers")
+    return model
 
 
 def _policy(policy: PPO | Path | str, material: str) -> PPO:

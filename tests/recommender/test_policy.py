@@ -32,6 +32,7 @@ from recommender.policy import (
     load_policy,
     pass_rate,
     propose,
+    stamp,
     train,
 )
 from wrapenv.bench import SimSettings
@@ -223,6 +224,39 @@ def test_a_policy_is_loaded_without_unpickling_what_the_file_holds(trained, tmp_
     not_a_zip.write_bytes(b"PK not really")
     with pytest.raises(InputError, match="not a policy"):
         load_policy(not_a_zip)
+
+
+@pytest.mark.parametrize("entry, value, field", [
+    ("n_steps", "abc", "data.n_steps"),
+    ("n_steps", 10**15, "data.n_steps"),        # a buffer of 10^15 steps: refused, not allocated
+    ("n_envs", 0, "data.n_envs"),
+    ("policy_kwargs", "x", "policy"),
+])
+def test_a_malformed_policy_is_refused_in_one_line(trained, tmp_path, assert_input_error,
+                                                   entry, value, field):
+    path, _ = trained
+    with zipfile.ZipFile(path) as archive:
+        data = json.loads(archive.read("data"))
+    bad = _rewritten(path, tmp_path / "bad.zip", data={**data, entry: value})
+    with pytest.raises(InputError) as info:
+        load_policy(bad)
+    assert_input_error(info.value, str(bad), field)
+
+
+def test_a_policy_with_weights_that_are_not_numbers_is_refused(trained, tmp_path,
+                                                               assert_input_error):
+    import torch
+
+    path, _ = trained
+    model = load_policy(path)
+    with torch.no_grad():
+        next(model.policy.parameters()).fill_(float("nan"))
+    model.save(tmp_path / "nan")
+    with zipfile.ZipFile(path) as archive:
+        stamp(tmp_path / "nan.zip", json.loads(archive.read(POLICY_META)))
+    with pytest.raises(InputError) as info:
+        load_policy(tmp_path / "nan.zip")
+    assert_input_error(info.value, str(tmp_path / "nan.zip"), "policy")
 
 
 def test_held_out_loads_are_reproducible_random_units_unseen_in_training():
