@@ -407,6 +407,10 @@ def run_train(args: argparse.Namespace) -> int:
     for flag, value in (("--timesteps", args.timesteps), ("--envs", args.envs)):
         if value < 1:
             raise InputError("arguments", flag, f"must be >= 1 (got {value})")
+    most = MAX_WORKERS_PER_CORE * (os.cpu_count() or 1)
+    if args.envs > most:
+        raise InputError("arguments", "--envs", f"must be <= {most} (got {args.envs}): each "
+                                                "env is a process simulating on a core")
     if args.minutes is not None and not (math.isfinite(args.minutes) and args.minutes > 0):
         raise InputError("arguments", "--minutes", f"must be > 0 (got {args.minutes})")
     _material(args.material)
@@ -418,6 +422,11 @@ def run_train(args: argparse.Namespace) -> int:
     except OSError as exc:
         raise InputError(str(args.out), "--out", f"cannot be created ({exc.strerror})") from None
     check_output(args.out / "policy.zip", "--out")
+    earlier = [name for name in ("policy.zip", "log.csv", CHECKPOINT_DIR)
+               if (args.out / name).exists()]
+    if earlier:
+        raise InputError(str(args.out), "--out", f"holds an earlier training run "
+                                                 f"({', '.join(earlier)}): give a new folder")
     settings = TrainSettings(timesteps=args.timesteps, n_envs=args.envs, material=args.material,
                              target_g=args.target, seed=args.seed, max_minutes=args.minutes)
     if settings.rollout_timesteps != settings.timesteps:

@@ -90,9 +90,10 @@ class TrainSettings:
     batch_size: int = 64
     learning_rate: float = 3e-4
     progress_bar: bool = True
-    #: Wall-clock budget in minutes (None: none): training ends after the vector step that
-    #: passes it, and the policy learned so far is written like a finished run's, so "train
-    #: for an hour" keeps the last hour's learning, not only the last checkpoint's.
+    #: Wall-clock budget in minutes (None: none): training ends after learning from the
+    #: rollout that passes it (`TimeBudget`), and the policy learned so far is written like a
+    #: finished run's, so "train for an hour" keeps the last hour's learning, not only the last
+    #: checkpoint's.
     max_minutes: float | None = None
 
     @property
@@ -167,19 +168,26 @@ class EpisodeLog(BaseCallback):
 
 
 class TimeBudget(BaseCallback):
-    """Ends training (SB3 stops when a callback returns False) once `minutes` have passed
-    since training started, at the end of a vector step."""
+    """Ends training once `minutes` have passed since it started, at the end of the rollout
+    in which they did: PPO learns from that rollout, then the next one's first vector step
+    returns False (SB3 stops when a callback does). Stopped inside a rollout, PPO would drop
+    up to a rollout of episodes unlearned (128 at the defaults, over a minute), and a budget
+    that ended in the first one would write the untrained policy."""
 
     def __init__(self, minutes: float) -> None:
         super().__init__()
         self.seconds = 60.0 * minutes
         self._deadline = math.inf
+        self._spent = False
 
     def _on_training_start(self) -> None:
         self._deadline = time.monotonic() + self.seconds
 
+    def _on_rollout_end(self) -> None:
+        self._spent = time.monotonic() >= self._deadline
+
     def _on_step(self) -> bool:
-        return time.monotonic() < self._deadline
+        return not self._spent
 
 
 def train(settings: TrainSettings, out_dir: Path) -> Path:

@@ -516,12 +516,26 @@ def test_a_proposal_is_recommended_only_if_it_passes_every_sample():
     (["train", "--out", "OUT", "--target", "2.0"], "--target"),
     (["train", "--out", "OUT", "--minutes", "nan"], "--minutes"),
     (["train", "--out", "OUT", "--minutes", "0"], "--minutes"),
+    (["train", "--out", "OUT", "--envs", "100000"], "--envs"),
 ])
 def test_bad_policy_arguments_exit_2_with_one_line(argv, field, tmp_path, capsys):
     argv = [str(tmp_path / "out") if a == "OUT" else a for a in argv]
     code = main(argv)
     err = capsys.readouterr().err.strip()
     assert code == 2 and "\n" not in err and field in err
+
+
+@pytest.mark.parametrize("earlier", ["policy.zip", "log.csv", "checkpoints"])
+def test_train_refuses_a_folder_holding_an_earlier_run(earlier, tmp_path, capsys):
+    """Its log would be overwritten beside the old policy, and an interrupt would name the old
+    run's checkpoint as this one's."""
+    out = tmp_path / "run"
+    out.mkdir()
+    (out / earlier).mkdir() if earlier == "checkpoints" else (out / earlier).write_text("x")
+    code = main(["train", "--out", str(out), "--timesteps", "1"])
+    err = capsys.readouterr().err.strip()
+    assert code == 2 and "\n" not in err and "earlier training run" in err
+    assert sorted(p.name for p in out.iterdir()) == [earlier]
 
 
 def test_the_bundled_example_is_package_data_and_the_readme_example():
