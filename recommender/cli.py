@@ -180,6 +180,9 @@ def _add_train(sub: argparse._SubParsersAction) -> None:
     tr.add_argument("--target", type=level_g, default=0.5, metavar="G",
                     help="the level its programs must pass (default 0.5 g)")
     tr.add_argument("--seed", type=seed, default=0, help="seed of the random units and of PPO")
+    tr.add_argument("--calibration", type=Path,
+                    help="CAL.json: random units spread about its friction, and the policy "
+                         "observes its uncertainty (for `recommend --method ppo --calibration`)")
     tr.add_argument("--minutes", type=float, default=None, metavar="M",
                     help="stop after M minutes of training and write the policy learned so far "
                          "(default: run all --timesteps)")

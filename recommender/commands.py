@@ -308,7 +308,7 @@ def _verified(problem: Problem, state: SearchState, samples: int,
 def _propose_with_policy(args: argparse.Namespace, problem: Problem,
                          samples: int) -> tuple[Evaluation, Verification]:
     """A trained policy's program for this unit, answered at once, then verified."""
-    from recommender.policy import propose
+    from recommender.policy import propose, read_meta
     from recommender.search import verify
 
     if args.policy is None or not args.policy.is_file():
@@ -316,6 +316,11 @@ def _propose_with_policy(args: argparse.Namespace, problem: Problem,
         raise InputError(where, "--policy", "a policy.zip from `wrapbench train` is needed "
                                             "with --method ppo")
     calibration = Calibration.from_json(args.calibration) if args.calibration else None
+    if read_meta(args.policy).get("calibrated", False) != (calibration is not None):
+        warn("recommend", ("the policy was trained " + ("without a calibration, and --calibration "
+                           "is given" if calibration else "with a calibration, and none is given")
+                           + ": it observes this unit's uncertainty unlike in training; its "
+                           "proposal is verified as given",))
     wrap = propose(args.policy, LoadUnit.from_toml(args.load), args.material,
                    problem.settings.target_g, calibration)
     check = verify(problem, wrap, samples, workers=args.workers)
@@ -415,6 +420,7 @@ def run_train(args: argparse.Namespace) -> int:
         raise InputError("arguments", "--minutes", f"must be > 0 (got {args.minutes})")
     _material(args.material)
     _target(args.target)
+    calibration = Calibration.from_json(args.calibration) if args.calibration else None
     if args.out.exists() and not args.out.is_dir():
         raise InputError(str(args.out), "--out", "exists and is not a folder")
     try:
@@ -428,7 +434,8 @@ def run_train(args: argparse.Namespace) -> int:
         raise InputError(str(args.out), "--out", f"holds an earlier training run "
                                                  f"({', '.join(earlier)}): give a new folder")
     settings = TrainSettings(timesteps=args.timesteps, n_envs=args.envs, material=args.material,
-                             target_g=args.target, seed=args.seed, max_minutes=args.minutes)
+                             target_g=args.target, seed=args.seed, max_minutes=args.minutes,
+                             calibration=calibration)
     if settings.rollout_timesteps != settings.timesteps:
         print(f"training {settings.rollout_timesteps} timesteps: PPO collects whole rollouts of "
               f"{settings.n_steps} steps x {settings.n_envs} envs")

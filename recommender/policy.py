@@ -78,6 +78,9 @@ class TrainSettings:
     material: str = "kraft"
     target_g: float = 0.5
     levels: str = "target"         # env levels mode: "target" is 3-4x faster than "eumos"
+    #: The calibration the random units spread about, whose uncertainty the policy observes
+    #: (features 19-24, 0 without one): a policy proposes for what it was trained on.
+    calibration: Calibration | None = None
     #: The bench's settings in the training envs (why a reward bears them: its docstring). As
     #: it stops once decided, a failure still scores in [-2, -1] below every pass, -2 when
     #: damaged, but a level stopped once its elastic displacement passes the limit scores about
@@ -207,7 +210,8 @@ def train(settings: TrainSettings, out_dir: Path) -> Path:
     vec_env = make_vec_env(
         MAKE_ID, n_envs=settings.n_envs, seed=settings.seed,
         env_kwargs={"material": settings.material, "target_g": settings.target_g,
-                    "levels": settings.levels, "settings": settings.sim},
+                    "levels": settings.levels, "settings": settings.sim,
+                    "calibration": settings.calibration},
         vec_env_cls=SubprocVecEnv if settings.n_envs > 1 else DummyVecEnv,
     )
     log = EpisodeLog(out_dir / LOG_FILE)
@@ -242,7 +246,8 @@ def train(settings: TrainSettings, out_dir: Path) -> Path:
 def policy_meta(settings: TrainSettings) -> dict[str, Any]:
     """What a policy was trained on, as `POLICY_META` records it."""
     return {"env_id": ENV_ID, "material": settings.material, "target_g": settings.target_g,
-            "observation": list(OBS_NAMES), "action": list(NAMES)}
+            "observation": list(OBS_NAMES), "action": list(NAMES),
+            "calibrated": settings.calibration is not None}
 
 
 def stamp(path: Path, meta: dict[str, Any]) -> None:

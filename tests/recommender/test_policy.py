@@ -31,14 +31,16 @@ from recommender.policy import (
     held_out_loads,
     load_policy,
     pass_rate,
+    policy_meta,
     propose,
     stamp,
     train,
 )
 from wrapenv.bench import SimSettings
+from wrapenv.calibrated import Calibration
 from wrapenv.config import InputError
 from wrapenv.design import MAX_REINFORCEMENT_WRAPS, MAX_WRAPS, N_PARAMS, ProgramSpace
-from wrapenv.envs import WrapBenchRandomEnv
+from wrapenv.envs import OBS_NAMES, WrapBenchRandomEnv
 from wrapenv.load import LoadUnit
 from wrapenv.wrap import WrapFormat
 
@@ -129,6 +131,23 @@ def test_a_time_budget_ends_training_early_and_still_writes_the_policy(tmp_path)
     assert load_policy(path)._n_updates > 0   # learned from its one rollout: not untrained
     with (tmp_path / "log.csv").open() as f:
         assert [int(r["timesteps"]) for r in csv.DictReader(f)] == list(range(1, 10))
+
+
+def test_a_policy_trained_on_a_calibration_observes_its_uncertainty_and_says_so(tmp_path):
+    """Its random units spread about the calibrated friction and show its standard deviations
+    (observation features 19-24), which a policy trained without one only ever saw as 0."""
+    cal = Calibration.from_dict({"friction": {"pallet_bundle": {
+        "static": 0.3, "kinetic": 0.25, "static_std": 0.04, "kinetic_std": 0.03}}})
+    settings = TrainSettings(timesteps=2, n_envs=1, n_steps=2, batch_size=2, checkpoint_every=2,
+                             progress_bar=False, calibration=cal)
+    path = train(settings, tmp_path)
+    with zipfile.ZipFile(path) as archive:
+        assert json.loads(archive.read(POLICY_META))["calibrated"] is True
+    assert policy_meta(TrainSettings())["calibrated"] is False
+    env = WrapBenchRandomEnv(levels="target", calibration=cal)
+    obs, _ = env.reset(seed=0)
+    env.close()
+    assert obs[OBS_NAMES.index("friction_pallet_bundle_static_std")] > 0
 
 
 def test_train_with_two_subprocess_envs(tmp_path):

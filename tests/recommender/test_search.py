@@ -482,6 +482,19 @@ def test_ppo_method_answers_from_a_policy_and_verifies_it(load_file, tmp_path, c
     assert "recommended" not in printed and not (tmp_path / "slow.json").exists()
 
 
+def test_a_policy_used_with_a_calibration_it_was_not_trained_on_is_warned_about(
+        load_file, tmp_path, capsys):
+    load = load_file(base=SMALL)
+    policy = fixed_policy(load, 1.0, tmp_path / "heavy.zip")
+    cal = tmp_path / "cal.json"
+    cal.write_text(json.dumps({"friction": {"pallet_bundle": {
+        "static": 0.5, "kinetic": 0.4, "static_std": 0.02, "kinetic_std": 0.02}}}))
+    main(["recommend", str(load), "--method", "ppo", "--policy", str(policy), "--samples", "1",
+          "--workers", "2", "--orientation", "long", "--calibration", str(cal)])
+    err = capsys.readouterr().err
+    assert "warning: the policy was trained without a calibration" in err
+
+
 def test_a_proposal_is_recommended_only_if_it_passes_every_sample():
     """A search recommends only programs that passed all their samples; a proposal, which no
     search stands behind, must pass every sample of its verification."""
