@@ -151,9 +151,10 @@ class ProgramSpace:
 
 
 def _finite(vector: np.ndarray) -> np.ndarray:
-    v = np.asarray(vector, dtype=float).reshape(-1)
+    v = np.asarray(vector, dtype=float)
     if v.shape != (N_PARAMS,):
-        raise ValueError(f"a program vector has {N_PARAMS} values, got {v.shape[0]}")
+        raise ValueError(f"a program vector has {N_PARAMS} values in one row, got shape "
+                         f"{v.shape}")
     if not np.all(np.isfinite(v)):
         raise ValueError(f"a program vector must be finite, got {v.tolist()}")
     return v

@@ -213,6 +213,8 @@ def test_out_of_range_actions_are_clipped_and_nan_raises(tiny):
         env.step(bad)
     with pytest.raises(ValueError, match="9 values"):
         env.step(np.zeros(5, np.float32))
+    with pytest.raises(ValueError, match="9 values"):
+        env.step(np.zeros((3, 3), np.float32))   # nine values, but not one program
 
 
 def test_cheaper_passing_program_scores_higher(tiny):
