@@ -158,6 +158,7 @@ class _Run:
     def __init__(self, recording: Recording, tracker: str, video: VideoReader) -> None:
         self.rec, self.kind, self.video = recording, tracker, video
         self.warnings: list[str] = []
+        self.out_of_view: list[int] = []
         self.pixmap = PixelMap(recording.px_per_m, *recording.origin_px)
         self.layout = recording.load.layout()
         self.sled_x = recording.profile.position_m(np.arange(video.stated) / recording.fps)
@@ -170,14 +171,29 @@ class _Run:
                          if spec and recording.wrap is not None else set())
         self.roi_extent = unit_extent_m(self.layout, _sled_marker_reach(spec))
 
-    def frame(self, index: int, bgr: np.ndarray) -> Frame:
-        """Grayscale of the frame's region of interest (the whole frame for OpenCV's trackers)."""
-        if self.full_frame:
-            return Frame(cv2.cvtColor(bgr, cv2.COLOR_BGR2GRAY))
+    def frame(self, index: int, bgr: np.ndarray) -> Frame | None:
+        """Grayscale of the frame's region of interest (the whole frame for OpenCV's trackers);
+        None when that region lies wholly outside the image: the unit is out of view."""
         box = predict_roi(self.pixmap, self.roi_extent, self.sled_at(index), self.video.size,
                           ROI_MARGIN_M)
+        if box.empty:
+            return None
+        if self.full_frame:
+            return Frame(cv2.cvtColor(bgr, cv2.COLOR_BGR2GRAY))
         crop = bgr[box.y0:box.y1, box.x0:box.x1]
         return Frame(cv2.cvtColor(crop, cv2.COLOR_BGR2GRAY), box.x0, box.y0)
+
+    def first_frame(self, bgr: np.ndarray) -> Frame:
+        """Frame 0's region of interest; the unit must be in view there, or setup.toml's
+        camera (or the profile's start) is wrong and nothing could be named."""
+        first = self.frame(0, bgr)
+        if first is None:
+            width, height = self.video.size
+            raise InputError(str(self.rec.folder / "setup.toml"), "camera.origin_px",
+                             f"{list(self.rec.origin_px)} puts the unit (sled at "
+                             f"x = {self.sled_x[0]:g} m by profile.csv) outside the "
+                             f"{width}x{height} image in frame 0")
+        return first
 
     def sled_at(self, index: int) -> float:
         """The sled's x in frame `index` according to the profile."""
@@ -191,7 +207,7 @@ class _Run:
         if bgr is None:
             raise InputError(str(self.rec.video), "", "no whole frame decodes" if
                              self.video.truncated else "the first frame does not decode")
-        first = self.frame(0, bgr)
+        first = self.first_frame(bgr)
         found = self.detector.detect(first) if self.detector is not None else {}
         objects = self._objects(first, found)
         trackers = self._trackers(first, [o for o in objects if o.name not in self.carriers])
@@ -210,17 +226,26 @@ class _Run:
                 progress(1, self.video.stated)
             index = 0
             for index, bgr in enumerate(frames, start=1):
-                frame = self.frame(index, bgr)
-                sled_u = self.pixmap.px_per_m * (self.sled_at(index) - self.sled_x[0])
-                results = multi.step(frame, sled_u)
-                if markers is not None:
-                    markers.step(index, frame, sled_u, results)
-                now = poses.record(index, results)
+                now = self._step(index, bgr, multi, markers, poses)
                 if debug is not None:
                     debug.draw(bgr, index, objects, now)
                 if progress:
                     progress(index + 1, self.video.stated)
         return self._result(objects, poses, markers, index + 1)
+
+    def _step(self, index: int, bgr: np.ndarray, multi: MultiTracker,
+              markers: MarkerTracks | None, poses: _Poses) -> dict[str, Pose]:
+        """Move every object into frame `index`; the poses found (none while the unit is out
+        of view: every object is then lost, the frame noted for one warning)."""
+        frame = self.frame(index, bgr)
+        if frame is None:
+            self.out_of_view.append(index)
+            return {}
+        sled_u = self.pixmap.px_per_m * (self.sled_at(index) - self.sled_x[0])
+        results = multi.step(frame, sled_u)
+        if markers is not None:
+            markers.step(index, frame, sled_u, results)
+        return poses.record(index, results)
 
     def _result(self, objects: list[TrackedObject], poses: _Poses,
                 markers: MarkerTracks | None, frames: int) -> TrackResult:
@@ -229,6 +254,10 @@ class _Run:
                                  f"{self.video.stated} frames, only {self.video.decoded} decode "
                                  "(a truncated file?) and the last may be cut short: dropped; "
                                  f"tracked frames 0-{frames - 1}")
+        if self.out_of_view:
+            self.warnings.append(f"unit out of view in frames {frame_ranges(self.out_of_view)}"
+                                 ": its predicted region is outside the image (profile.csv's "
+                                 "pos_m or setup.toml's camera); no object tracked there")
         self.warnings += poses.warnings()
         paths = poses.paths(self.pixmap, self.rec.fps)
         if markers is not None:

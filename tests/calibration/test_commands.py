@@ -6,6 +6,7 @@ from __future__ import annotations
 import csv
 import dataclasses
 import json
+import re
 import shutil
 from pathlib import Path
 from types import SimpleNamespace
@@ -110,6 +111,18 @@ def test_track_of_a_corrupt_video_writes_nothing(recording_dir, tmp_path, capsys
     assert main(["track", str(rec), "--out", str(out)]) == 2
     _one_line_error(capsys, "video.avi")
     assert not out.exists() and not (rec / "trajectories.csv").exists()
+
+
+def test_track_of_a_unit_outside_the_image_is_one_line_naming_the_origin(recording_dir,
+                                                                         tmp_path, capsys):
+    rec = tmp_path / "rec"
+    shutil.copytree(recording_dir, rec)
+    setup = rec / "setup.toml"
+    setup.write_text(re.sub(r"origin_px = \[.*\]", "origin_px = [5000.0, 317.0]",
+                            setup.read_text()))
+    assert main(["track", str(rec)]) == 2
+    _one_line_error(capsys, str(setup), "camera.origin_px", "outside the 800x500 image")
+    assert not (rec / "trajectories.csv").exists()
 
 
 def test_track_into_a_missing_folder_is_refused_before_tracking(recording_dir, tmp_path, capsys):

@@ -153,6 +153,37 @@ def _copy(rec: Recording, tmp_path: Path) -> Path:
     return folder
 
 
+@pytest.mark.parametrize("origin", ["[5000.0, 317.0]", "[-5000.0, -317.0]"])
+def test_unit_outside_the_image_in_frame_0_names_the_camera_origin(
+        origin: str, recording_dir: Path, tmp_path: Path, assert_input_error) -> None:
+    """Nothing can be named where the camera shows none of the unit: bad input, not the
+    traceback of an empty crop."""
+    folder = tmp_path / "away"
+    shutil.copytree(recording_dir, folder)
+    setup = folder / "setup.toml"
+    setup.write_text(re.sub(r"origin_px = \[.*\]", f"origin_px = {origin}", setup.read_text()))
+    with pytest.raises(InputError) as err:
+        track(Recording.read(folder))
+    assert_input_error(err.value, str(setup), "camera.origin_px")
+
+
+def test_unit_leaving_the_view_is_lost_there_with_one_warning(recording_dir: Path,
+                                                              tmp_path: Path) -> None:
+    """A profile that carries the sled 100 m away from 2 s on: every object is left out of
+    the frames the unit is out of view in, and one warning names them."""
+    folder = tmp_path / "leaves"
+    shutil.copytree(recording_dir, folder)
+    p = Recording.read(folder).profile
+    away = SledProfile(p.t_s, p.accel_mps2, p.vel_mps, p.pos_m + 100.0 * (p.t_s > 1.95))
+    (folder / "profile.csv").write_bytes(away.to_csv())
+    frames = len(Truth.read(folder).objects["sled"].t_s)
+    result = track(Recording.read(folder))
+    assert [w.split(":")[0] for w in result.warnings] == [
+        f"unit out of view in frames 20-{frames - 1}"], result.warnings
+    for name, path in result.trajectories.objects.items():
+        assert path.t_s[-1] == pytest.approx(1.9), name
+
+
 def test_corrupt_video_is_an_input_error(two_layer: Recording, tmp_path: Path) -> None:
     folder = _copy(two_layer, tmp_path)
     rec = Recording.read(folder)
