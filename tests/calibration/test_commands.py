@@ -75,6 +75,7 @@ def test_track_writes_into_the_recording_by_default(recording_dir, tmp_path, cap
     (["--size", "100000x100000"], ["--size", "<= 4096"]),
     (["--fps", "0"], ["--fps"]),
     (["--fps", "0.5"], ["--fps", ">= 1"]),   # the video's container stores none lower
+    (["--fps", "29.97"], ["--fps", "whole number"]),   # ... and whole rates only
     (["--fps", "100000"], ["--fps", "<= 1000"]),
     (["--friction-jitter", "1.5"], ["--friction-jitter"]),
     (["--stiffness-scale", "nan"], ["--stiffness-scale"]),
