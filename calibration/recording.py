@@ -238,6 +238,8 @@ class Truth:
 
 
 def _track(item: Any, src: str, where: str) -> ObjectTrack:
+    """One object's track: equally long arrays of finite numbers, at least one sample, times
+    strictly increasing (the error against truth interpolates in them)."""
     if not isinstance(item, dict):
         raise InputError(src, where, "must be an object with t_s, x_m, z_m, angle_rad")
     arrays = []
@@ -254,6 +256,11 @@ def _track(item: Any, src: str, where: str) -> ObjectTrack:
             raise InputError(src, f"{where}.{key}", f"has {len(values)} values, t_s"
                              f" {len(item['t_s'])}")
         arrays.append(values)
+    t_s = arrays[0]
+    if len(t_s) == 0:
+        raise InputError(src, f"{where}.t_s", "needs at least one sample")
+    if np.any(np.diff(t_s) <= 0):
+        raise InputError(src, f"{where}.t_s", "must increase strictly")
     return ObjectTrack(*arrays)
 
 

@@ -126,6 +126,39 @@ def test_track_of_a_unit_outside_the_image_is_one_line_naming_the_origin(recordi
     assert not (rec / "trajectories.csv").exists()
 
 
+def _truth_objects(change):
+    def edit(path: Path) -> None:
+        data = json.loads(path.read_text())
+        change(data["objects"])
+        path.write_text(json.dumps(data))
+    return edit
+
+
+def _truth_folder(path: Path) -> None:
+    path.unlink()
+    path.mkdir()
+
+
+@pytest.mark.parametrize("edit, field", [
+    (lambda path: path.write_text('{"objects": '), ""),
+    (_truth_folder, ""),
+    (_truth_objects(lambda o: o.update(pallet={k: [] for k in o["pallet"]})),
+     "objects.pallet.t_s"),
+    (_truth_objects(lambda o: o["sled"]["t_s"].reverse()), "objects.sled.t_s"),
+], ids=["malformed", "a folder", "empty arrays", "decreasing t_s"])
+def test_track_with_a_bad_truth_json_writes_nothing(edit, field, recording_dir, tmp_path,
+                                                   capsys):
+    """truth.json is checked before tracking: it used to fail after the CSV was written and
+    "wrote ..." printed, or (empty arrays) with a traceback, or (times out of order) not at
+    all."""
+    rec = tmp_path / "rec"
+    shutil.copytree(recording_dir, rec)
+    edit(rec / "truth.json")
+    assert main(["track", str(rec)]) == 2
+    _one_line_error(capsys, f"{rec / 'truth.json'}: {field}")
+    assert not (rec / "trajectories.csv").exists()
+
+
 def test_track_into_a_missing_folder_is_refused_before_tracking(recording_dir, tmp_path, capsys):
     assert main(["track", str(recording_dir), "--out", str(tmp_path / "no" / "t.csv")]) == 2
     _one_line_error(capsys, "--out", "does not exist")

@@ -3,6 +3,7 @@ one `InputError` naming file and field for each way a folder can be wrong."""
 
 from __future__ import annotations
 
+import json
 import shutil
 from collections.abc import Callable
 from pathlib import Path
@@ -175,6 +176,30 @@ def test_bad_truth_is_one_input_error(change, field, copy_of, assert_input_error
     with pytest.raises(InputError) as err:
         Truth.read(folder)
     assert_input_error(err.value, str(path), field)
+
+
+def _empty_pallet(objects: dict) -> None:
+    objects["pallet"] = {key: [] for key in objects["pallet"]}
+
+
+def _pallet_backwards(objects: dict) -> None:
+    objects["pallet"]["t_s"].reverse()
+
+
+@pytest.mark.parametrize("change, message", [(_empty_pallet, "at least one sample"),
+                                             (_pallet_backwards, "increase strictly")],
+                         ids=["empty", "backwards"])
+def test_truth_tracks_need_samples_in_time_order(change, message, copy_of, assert_input_error):
+    """The error against truth interpolates in each track: an empty one was an IndexError,
+    times out of order gave a wrong error silently."""
+    folder = copy_of()
+    path = folder / "truth.json"
+    data = json.loads(path.read_text())
+    change(data["objects"])
+    path.write_text(json.dumps(data))
+    with pytest.raises(InputError, match=message) as err:
+        Truth.read(folder)
+    assert_input_error(err.value, str(path), "objects.pallet.t_s")
 
 
 def test_profile_in_milliseconds_is_refused(copy_of, assert_input_error):
