@@ -32,7 +32,7 @@ from calibration.trajectories import ObjectPath, Trajectories
 from calibration.vision.checks import frame_ranges, swap_warnings
 from calibration.vision.debug_video import DebugVideo
 from calibration.vision.marker_tracks import MarkerTracks
-from calibration.vision.markers import MarkerDetector
+from calibration.vision.markers import MarkerDetector, side_px, size_warning
 from calibration.vision.objects import (
     TrackedObject,
     View,
@@ -209,6 +209,7 @@ class _Run:
                              self.video.truncated else "the first frame does not decode")
         first = self.first_frame(bgr)
         found = self.detector.detect(first) if self.detector is not None else {}
+        self._check_marker_size(found)
         objects = self._objects(first, found)
         trackers = self._trackers(first, [o for o in objects if o.name not in self.carriers])
         if not trackers and not self.carriers:
@@ -280,6 +281,16 @@ class _Run:
                        if self.rec.template else None)
             objects += bundles(self.view, matches, self.warnings)
         return objects
+
+    def _check_marker_size(self, found: dict[int, np.ndarray]) -> None:
+        """markers.size_m against the sides of the placed markers ArUco finds in frame 0."""
+        spec = self.rec.markers
+        if self.detector is None or spec is None:
+            return
+        placed = {p.id for p in spec.placements}
+        sides = [side_px(corners) for i, corners in found.items() if i in placed]
+        if warning := size_warning(spec.size_m, self.pixmap.px_per_m, sides):
+            self.warnings.append(warning)
 
     def _trackers(self, first: Frame, objects: list[TrackedObject]) -> dict[str, Tracker]:
         trackers = {}

@@ -94,16 +94,23 @@ def test_wrapped_small_follows_marker_patches(wrapped_dir: Path) -> None:
     assert result.warnings == []
 
 
+NO_SIZE_WARNING = ("setup.toml gives no markers.size_m: the markers' sides cannot cross-check "
+                   "the scale (camera.px_per_m)")
+
+
 @pytest.mark.parametrize("marker_size", [True, False], ids=["size_m", "no size_m"])
 def test_scale_check_on_the_sled_markers(marker_size: bool, recording_dir: Path,
                                          tmp_path: Path) -> None:
     """The distance between the sled's markers agrees with setup.toml's scale; 3 % off warns.
-    The distance comes from their placements: markers.size_m is not needed."""
+    The distance comes from their placements: markers.size_m is not needed (without it a
+    warning says the markers' sides cannot check the scale too)."""
     folder = tmp_path / "scaled"
     shutil.copytree(recording_dir, folder)
     if not marker_size:
         _drop_marker_size(folder)
-    assert not any("px/m" in w for w in track(Recording.read(folder)).warnings)
+    warnings = track(Recording.read(folder)).warnings
+    assert not any("px/m" in w for w in warnings)
+    assert (NO_SIZE_WARNING in warnings) is not marker_size
     setup = folder / "setup.toml"
     setup.write_text(re.sub(r"px_per_m = ([0-9.]+)",
                             lambda m: f"px_per_m = {1.03 * float(m.group(1))!r}",
@@ -121,7 +128,8 @@ def _drop_marker_size(folder: Path) -> None:
 
 def test_wrapped_unit_without_marker_size(wrapped_dir: Path, tmp_path: Path) -> None:
     """Without setup.toml's markers.size_m the markers still name and locate every object:
-    their boxes are sized from the corners ArUco finds, as accurately as from the size."""
+    their boxes are sized from the corners ArUco finds, as accurately as from the size. The
+    sides they cannot check the scale by are a warning (CONTRACTS.md)."""
     folder = tmp_path / "no-size"
     shutil.copytree(wrapped_dir, folder)
     _drop_marker_size(folder)
@@ -131,7 +139,23 @@ def test_wrapped_unit_without_marker_size(wrapped_dir: Path, tmp_path: Path) -> 
     assert set(result.trajectories.objects) == {"sled", "pallet", "L1C1R1", "L1C2R1", "L2C1R1",
                                                 "L2C2R1"}
     _check_accuracy(rec, result.trajectories)
-    assert result.warnings == []
+    assert result.warnings == [NO_SIZE_WARNING]
+
+
+def test_marker_size_off_the_scale_is_said_with_both_sides(recording_dir: Path,
+                                                          tmp_path: Path) -> None:
+    """markers.size_m of 0.05 m where 0.075 m markers were printed: their sides in the image
+    disagree with size_m x px_per_m by a third, over the 20 % a side's blur cannot explain."""
+    folder = tmp_path / "small-size"
+    shutil.copytree(recording_dir, folder)
+    setup = folder / "setup.toml"
+    setup.write_text(setup.read_text().replace("size_m = 0.075", "size_m = 0.05"))
+    rec = Recording.read(folder)
+    (warning,) = track(rec).warnings
+    expected = f"is {0.05 * rec.px_per_m:.1f} px, but ArUco measures the markers' sides "
+    assert expected in warning, warning
+    measured = re.search(r"sides ([0-9.]+) px in frame 0", warning)
+    assert measured and float(measured[1]) == pytest.approx(0.075 * rec.px_per_m, rel=0.05)
 
 
 def test_scale_left_unchecked_is_said(recording_dir: Path, tmp_path: Path) -> None:
