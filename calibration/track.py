@@ -280,6 +280,10 @@ class _Run:
             matches = (match_template(self.view, first, self.rec.template)
                        if self.rec.template else None)
             objects += bundles(self.view, matches, self.warnings)
+        elif not self.carriers & {b.name for b in self.layout.bundles}:
+            self.warnings.append("the layers of a wrapped unit are followed only through "
+                                 "markers, and setup.toml places none on its bundles: no "
+                                 "layer is tracked")
         return objects
 
     def _check_marker_size(self, found: dict[int, np.ndarray]) -> None:

@@ -158,6 +158,23 @@ def test_marker_size_off_the_scale_is_said_with_both_sides(recording_dir: Path,
     assert measured and float(measured[1]) == pytest.approx(0.075 * rec.px_per_m, rel=0.05)
 
 
+def test_wrapped_unit_without_markers_on_its_bundles_says_no_layer_is_tracked(
+        wrapped_dir: Path, tmp_path: Path) -> None:
+    """The web hides the bundles: with markers on the sled and the pallet only, the run
+    follows those two and says why no layer is among them (it used to say nothing)."""
+    folder = tmp_path / "no-load-markers"
+    shutil.copytree(wrapped_dir, folder)
+    setup = folder / "setup.toml"
+    head, *blocks = setup.read_text().split("[[markers.placement]]")
+    kept = [b for b in blocks if 'object = "sled"' in b or 'object = "pallet"' in b]
+    setup.write_text("[[markers.placement]]".join([head, *kept]))
+    result = track(Recording.read(folder))
+    assert set(result.trajectories.objects) == {"sled", "pallet"}
+    assert result.warnings == ["the layers of a wrapped unit are followed only through "
+                               "markers, and setup.toml places none on its bundles: no layer "
+                               "is tracked"]
+
+
 def test_scale_left_unchecked_is_said(recording_dir: Path, tmp_path: Path) -> None:
     """With one sled marker declared there is no distance to check the scale by: a warning,
     where the check used to be skipped silently."""
