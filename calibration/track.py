@@ -36,6 +36,7 @@ from calibration.vision.markers import MarkerDetector, side_px, size_warning
 from calibration.vision.objects import (
     TrackedObject,
     View,
+    box_size,
     bundles,
     match_template,
     sled_and_pallet,
@@ -113,6 +114,12 @@ def _debug(path: Path | None, fps: float, size: tuple[int, int]
     """The debug video, whole when the block ends normally and absent when it raises; nothing
     when none was asked for."""
     return DebugVideo(path, fps, size) if path is not None else nullcontext()
+
+
+def _with_carried(now: dict[str, Pose], markers: MarkerTracks | None,
+                  index: int) -> dict[str, Pose]:
+    """This frame's poses of the patch-tracked objects and of those carrying markers."""
+    return now if markers is None else now | markers.poses_px(index)
 
 
 class _Poses:
@@ -216,20 +223,21 @@ class _Run:
             raise InputError(str(self.rec.video), "", "no object can be followed from frame 0 "
                              f"({self.warnings[-1] if self.warnings else 'none found'})")
         poses = _Poses({o.name: Pose(*o.centre_px) for o in objects if o.name in trackers})
+        drawn = objects + self._carried(objects)
         with closing(MultiTracker(trackers, poses.latest())) as multi, \
                 _debug(debug_video, self.rec.fps, self.video.size) as debug:
             markers = self._marker_tracks(multi)
             if markers is not None:
                 markers.start(first, found, 0.0)
             if debug is not None:
-                debug.draw(bgr, 0, objects, poses.latest())
+                debug.draw(bgr, 0, drawn, _with_carried(poses.latest(), markers, 0))
             if progress:
                 progress(1, self.video.stated)
             index = 0
             for index, bgr in enumerate(frames, start=1):
                 now = self._step(index, bgr, multi, markers, poses)
                 if debug is not None:
-                    debug.draw(bgr, index, objects, now)
+                    debug.draw(bgr, index, drawn, _with_carried(now, markers, index))
                 if progress:
                     progress(index + 1, self.video.stated)
         return self._result(objects, poses, markers, index + 1)
@@ -295,6 +303,18 @@ class _Run:
         sides = [side_px(corners) for i, corners in found.items() if i in placed]
         if warning := size_warning(spec.size_m, self.pixmap.px_per_m, sides):
             self.warnings.append(warning)
+
+    def _carried(self, objects: list[TrackedObject]) -> list[TrackedObject]:
+        """The bundles followed through their markers (not among `objects`), with their
+        outlines' boxes at rest, for the debug video."""
+        s, named = self.pixmap.px_per_m, {o.name for o in objects}
+        out = []
+        for b in self.layout.bundles:
+            if b.name in self.carriers and b.name not in named:
+                u, v = self.pixmap.to_px(b.centre_m[0] + self.view.sled_x0_m, b.centre_m[2])
+                out.append(TrackedObject(b.name, (float(u), float(v)),
+                                         box_size(s * b.size_m[0], s * b.size_m[2])))
+        return out
 
     def _trackers(self, first: Frame, objects: list[TrackedObject]) -> dict[str, Tracker]:
         trackers = {}

@@ -21,6 +21,8 @@ from calibration.recording import Recording, SledProfile, Truth
 from calibration.synth import synthesize
 from calibration.track import track
 from calibration.trajectories import Trajectories, error_vs_truth
+from calibration.vision.debug_video import DebugVideo
+from calibration.vision.roi import PixelMap
 from wrapenv.config import InputError
 from wrapenv.load import LoadUnit
 from wrapenv.wrap import WrapFormat
@@ -96,6 +98,27 @@ def test_wrapped_small_follows_marker_patches(wrapped_dir: Path) -> None:
 
 NO_SIZE_WARNING = ("setup.toml gives no markers.size_m: the markers' sides cannot cross-check "
                    "the scale (camera.px_per_m)")
+
+
+def test_debug_video_of_a_wrapped_unit_draws_every_object_where_tracked(
+        wrapped_dir: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Each frame shows every object of that frame's CSV rows at its tracked centre: the
+    objects followed through markers (pallet and bundles) used to be left out."""
+    drawn: dict[int, dict[str, tuple[float, float]]] = {}
+
+    def draw(self, bgr, index, objects, poses) -> None:
+        drawn[index] = {o.name: (poses[o.name].u, poses[o.name].v)
+                        for o in objects if o.name in poses}
+
+    monkeypatch.setattr(DebugVideo, "draw", draw)
+    rec = Recording.read(wrapped_dir)
+    result = track(rec, debug_video=tmp_path / "debug.mp4")
+    pixmap = PixelMap(rec.px_per_m, *rec.origin_px)
+    for name, path in result.trajectories.objects.items():
+        for t, x, z in zip(path.t_s, path.x_m, path.z_m, strict=True):
+            centre = drawn[round(t * rec.fps)][name]
+            assert centre == pytest.approx(pixmap.to_px(x, z), abs=1e-3), (name, t)
+    assert {len(names) for names in drawn.values()} == {6}
 
 
 @pytest.mark.parametrize("marker_size", [True, False], ids=["size_m", "no size_m"])
