@@ -38,6 +38,18 @@ def test_profile_integrates_velocity_and_position_when_absent(tmp_path):
     assert profile.position_m(1.5) == pytest.approx(2.25, abs=1e-4)
 
 
+def test_profile_position_comes_from_its_velocity_when_only_pos_m_is_absent(tmp_path):
+    """A measured velocity is the better source of position than the acceleration: the sled
+    here coasts at 1 m/s (vel_mps) while the accelerometer reads 0, so it travels t metres;
+    it used to be integrated from the acceleration and stand still."""
+    t = np.linspace(0.0, 2.0, 401)
+    path = tmp_path / "profile.csv"
+    path.write_text("t_s,accel_mps2,vel_mps\n" + "".join(f"{float(v)!r},0.0,1.0\n" for v in t))
+    profile = SledProfile.read(path)
+    np.testing.assert_array_equal(profile.vel_mps, np.ones_like(t))
+    np.testing.assert_allclose(profile.pos_m, t, atol=1e-12)
+
+
 def test_profile_round_trips_through_csv(tmp_path):
     t = np.array([0.0, 0.1, 0.25])
     profile = SledProfile(t, np.array([1.0, 2.0, 0.5]), np.array([0.0, 0.15, 0.34]),
