@@ -166,12 +166,7 @@ def run_track(args: argparse.Namespace) -> int:
     from calibration.recording import TRUTH, Recording, Truth
     from calibration.track import track
     from calibration.trajectories import error_vs_truth
-    from calibration.vision.tracking import check_tracker
 
-    try:
-        check_tracker(args.tracker)
-    except ValueError as exc:
-        raise InputError("arguments", "--tracker", str(exc)) from None
     rec = Recording.read(args.recording)
     out = args.out if args.out is not None else rec.folder / "trajectories.csv"
     check_output(out, "--out", inputs=rec.inputs())

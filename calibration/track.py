@@ -72,7 +72,7 @@ def track(recording: Recording, *, tracker: str = DEFAULT_TRACKER,
           debug_video: Path | None = None, progress: Progress | None = None) -> TrackResult:
     """Follow the sled, pallet and visible bundles (or the marker-carrying objects of a wrapped
     unit) through the recording; `progress(frame, frames)` is called after every frame.
-    `ValueError` for a tracker that cannot run here (`vision.tracking.check_tracker`)."""
+    `ValueError` for an unknown tracker (`vision.tracking.check_tracker`)."""
     check_tracker(tracker)
     threads = cv2.getNumThreads()
     cv2.setNumThreads(1)  # objects run in parallel; OpenCV's own threads on small boxes only cost

@@ -14,8 +14,8 @@ Trackers (the `kind` names `track()` and the benchmarks use):
 - ``flow``: Farnebäck refinements alone, no NCC search (fails when the prediction is off by
   more than Farnebäck's window).
 - ``chain``: the paper's order, frame-to-frame Farnebäck mean displacement summed (drifts).
-- ``mil`` (and ``dasiamrpn``, ``nano``, ``vit`` when their ONNX models are given): OpenCV's
-  trackers; box centre only, integer pixels.
+- ``mil``: OpenCV's TrackerMIL; box centre only, integer pixels. (OpenCV's network trackers,
+  DaSiamRPN, Nano and Vit, need ONNX models that opencv-python-headless does not ship.)
 
 Every tracker's score is the NCC of the object's first-frame patch with the frame at the pose
 it reports (for ``ncc`` and ``ncc+flow``, the search's peak), so a tracker that went astray
@@ -45,7 +45,7 @@ LOST_SCORE = 0.5
 #: its prediction: the motion is then smooth enough for Farnebäck's window alone.
 SKIP_NCC_PX = 0.25
 OWN_TRACKERS = ("ncc+flow", "ncc", "flow", "chain")
-OPENCV_TRACKERS = ("mil", "dasiamrpn", "nano", "vit")
+OPENCV_TRACKERS = ("mil",)
 
 
 @dataclass(frozen=True)
@@ -194,13 +194,12 @@ def _patch_centre(size: tuple[int, int]) -> tuple[float, float]:
 
 
 class OpenCVTracker:
-    """cv2's single-object trackers (box centre only). They keep their own state in full-frame
-    coordinates, so they must be given whole frames (offset 0)."""
+    """cv2's TrackerMIL (box centre only). It keeps its own state in full-frame coordinates, so
+    it must be given whole frames (offset 0)."""
 
-    def __init__(self, frame: Frame, centre: tuple[float, float], size: tuple[int, int],
-                 kind: str = "mil", model: str | None = None) -> None:
+    def __init__(self, frame: Frame, centre: tuple[float, float], size: tuple[int, int]) -> None:
         self.box_size = size
-        self.tracker = opencv_tracker(kind, model)
+        self.tracker = cv2.TrackerMIL.create()
         box = Box.around(centre[0], centre[1], *size)
         self.offset = (centre[0] - (box.x0 + (box.width - 1) / 2),
                        centre[1] - (box.y0 + (box.height - 1) / 2))
@@ -222,42 +221,10 @@ def _bgr(gray: np.ndarray) -> np.ndarray:
     return cv2.cvtColor(gray, cv2.COLOR_GRAY2BGR)
 
 
-def opencv_tracker(kind: str, model: str | None = None) -> cv2.Tracker:
-    """An OpenCV tracker by name; the deep ones need their ONNX model file (`model`), which is
-    not bundled with opencv-python-headless: without one they raise `ValueError`."""
-    if kind == "mil":
-        return cv2.TrackerMIL.create()
-    if kind not in OPENCV_TRACKERS:
-        raise ValueError(f"{kind!r} is not one of OpenCV's trackers ({', '.join(OPENCV_TRACKERS)})")
-    if model is None:
-        raise ValueError(f"tracker {kind!r} needs its ONNX model file, which is not available")
-    try:
-        return _deep_tracker(kind, model)
-    except cv2.error as exc:
-        raise ValueError(f"tracker {kind!r} cannot load {model}: {exc.msg.strip()}") from None
-
-
-def _deep_tracker(kind: str, model: str) -> cv2.Tracker:
-    """One of OpenCV's network trackers from its ONNX file (each names the file differently)."""
-    if kind == "dasiamrpn":
-        siam = cv2.TrackerDaSiamRPN.Params()
-        siam.model = model
-        return cv2.TrackerDaSiamRPN.create(siam)
-    if kind == "nano":
-        nano = cv2.TrackerNano.Params()
-        nano.backbone = model
-        return cv2.TrackerNano.create(nano)
-    vit = cv2.TrackerVit.Params()
-    vit.net = model
-    return cv2.TrackerVit.create(vit)
-
-
 def check_tracker(kind: str) -> None:
-    """`ValueError` unless trackers of `kind` can be made here: OpenCV's network trackers cannot
-    without their ONNX models, so a run would follow nothing."""
-    if kind in OPENCV_TRACKERS:
-        opencv_tracker(kind)
-    elif kind not in OWN_TRACKERS:
+    """`ValueError` unless `kind` names a tracker (see the module docstring): an unknown one
+    would only fail object by object."""
+    if kind not in OWN_TRACKERS + OPENCV_TRACKERS:
         raise ValueError(f"unknown tracker {kind!r}; known: "
                          f"{', '.join(OWN_TRACKERS + OPENCV_TRACKERS)}")
 
@@ -268,7 +235,7 @@ def make_tracker(kind: str, frame: Frame, centre: tuple[float, float],
     if kind == "chain":
         return ChainFlowTracker(frame, centre, size)
     if kind in OPENCV_TRACKERS:
-        return OpenCVTracker(frame, centre, size, kind)
+        return OpenCVTracker(frame, centre, size)
     return PatchTracker(frame, centre, size, kind)
 
 

@@ -284,12 +284,15 @@ def test_calibrate_checks_its_figures_paths_before_fitting(slide_dir, tmp_path, 
 
 
 @pytest.mark.parametrize("tracker", ["dasiamrpn", "nano", "vit"])
-def test_track_with_an_unavailable_tracker_is_refused(tracker, recording_dir, tmp_path, capsys):
-    """OpenCV's network trackers need ONNX models this install lacks: refused before any work,
-    where every object used to be dropped with a warning and a header-only CSV written."""
+def test_trackers_that_cannot_run_here_are_not_offered(tracker, recording_dir, tmp_path,
+                                                       capsys):
+    """OpenCV's network trackers need ONNX models opencv-python-headless does not ship and
+    nothing passes: they were offered, then always refused."""
     out = tmp_path / "paths.csv"
-    assert main(["track", str(recording_dir), "--out", str(out), "--tracker", tracker]) == 2
-    _one_line_error(capsys, "--tracker", tracker, "ONNX")
+    with pytest.raises(SystemExit) as exit_:
+        main(["track", str(recording_dir), "--out", str(out), "--tracker", tracker])
+    assert exit_.value.code == 2
+    _one_line_error(capsys, "--tracker", "invalid choice", tracker)
     assert not out.exists()
 
 

@@ -99,9 +99,3 @@ def test_every_tracker_scores_a_frame_without_its_object_as_lost(kind: str) -> N
     predicted = Pose(CENTRE[0] + 1.0, CENTRE[1])
     pose, score = tracker.update(Frame(texture(300, 400, seed=8)), predicted)
     assert score < LOST_SCORE and pose == predicted
-
-
-def test_deep_trackers_without_models_are_reported_unavailable() -> None:
-    image = texture(300, 400)
-    with pytest.raises(ValueError, match="ONNX model"):
-        make_tracker("nano", Frame(image), CENTRE, SIZE)
