@@ -163,20 +163,16 @@ def run_synth(args: argparse.Namespace) -> int:
 
 
 def run_track(args: argparse.Namespace) -> int:
-    from calibration.recording import Recording, Truth
+    from calibration.recording import TRUTH, Recording, Truth
     from calibration.track import track
     from calibration.trajectories import error_vs_truth
-    from calibration.vision.tracking import check_tracker
 
-    try:
-        check_tracker(args.tracker)
-    except ValueError as exc:
-        raise InputError("arguments", "--tracker", str(exc)) from None
     rec = Recording.read(args.recording)
     out = args.out if args.out is not None else rec.folder / "trajectories.csv"
     check_output(out, "--out", inputs=rec.inputs())
     check_output(args.debug_video, "--debug-video", inputs=rec.inputs())
     check_distinct({"--out": out, "--debug-video": args.debug_video})
+    truth = Truth.read(rec.folder) if (rec.folder / TRUTH).exists() else None
     t0 = time.perf_counter()
     with _frame_bar() as progress:
         result = track(rec, tracker=args.tracker, debug_video=args.debug_video,
@@ -189,8 +185,8 @@ def run_track(args: argparse.Namespace) -> int:
     frames = max((len(p.t_s) for p in objects.values()), default=0)
     print(f"wrote {printable(str(out))}: {len(objects)} objects ({', '.join(objects)}), "
           f"{frames} frames in {wall:.1f} s ({frames / wall:.0f} frames/s, tracker {args.tracker})")
-    if (rec.folder / "truth.json").exists():
-        errors = error_vs_truth(result.trajectories, Truth.read(rec.folder).objects)
+    if truth is not None:
+        errors = error_vs_truth(result.trajectories, truth.objects)
         print("error against truth.json (displacement):  object  RMS mm  max mm")
         for name, e in errors.items():
             print(f"{name:>44s}  {1e3 * e.rms_m:6.2f}  {1e3 * e.max_m:6.2f}")

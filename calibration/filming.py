@@ -263,6 +263,7 @@ def write_video(path: Path, frames: Iterable[np.ndarray], fps: float, size: tupl
     writer = cv2.VideoWriter(str(path), cv2.CAP_OPENCV_MJPEG, cv2.VideoWriter.fourcc(*FOURCC),
                              fps, size)
     if not (writer.isOpened() and writer.set(cv2.VIDEOWRITER_PROP_QUALITY, JPEG_QUALITY)):
+        writer.release()  # an opened writer holds the file and its encoder
         raise RuntimeError(f"OpenCV cannot write {FOURCC} video at quality {JPEG_QUALITY}"
                            f" to {path}")
     count = 0

@@ -57,14 +57,6 @@ class SledProfile:
         return np.interp(t, self.t_s, self.pos_m)
 
     @classmethod
-    def from_accel(cls, t_s: np.ndarray, accel_mps2: np.ndarray) -> SledProfile:
-        """Velocity and position integrated (trapezoids) from rest at the first sample."""
-        dt = np.diff(t_s)
-        vel = np.concatenate([[0.0], np.cumsum(dt * (accel_mps2[1:] + accel_mps2[:-1]) / 2)])
-        pos = np.concatenate([[0.0], np.cumsum(dt * (vel[1:] + vel[:-1]) / 2)])
-        return cls(t_s, accel_mps2, vel, pos)
-
-    @classmethod
     def read(cls, path: str | Path) -> SledProfile:
         columns = _read_csv(Path(path))
         t, a = columns["t_s"], columns["accel_mps2"]
@@ -75,15 +67,21 @@ class SledProfile:
         if t[-1] - t[0] > MAX_PROFILE_S:
             raise InputError(str(path), "t_s", f"spans {t[-1] - t[0]:g} s, more than the "
                              f"{MAX_PROFILE_S:g} s a bench test lasts (in milliseconds?)")
-        integrated = cls.from_accel(t, a)
-        return cls(t, a, columns.get("vel_mps", integrated.vel_mps),
-                   columns.get("pos_m", integrated.pos_m))
+        vel = columns["vel_mps"] if "vel_mps" in columns else _integral(t, a)
+        pos = columns["pos_m"] if "pos_m" in columns else _integral(t, vel)
+        return cls(t, a, vel, pos)
 
     def to_csv(self) -> bytes:
         rows = [",".join(PROFILE_COLUMNS)]
         rows += [",".join(exact(v) for v in row) for row in
                  zip(self.t_s, self.accel_mps2, self.vel_mps, self.pos_m, strict=True)]
         return ("\n".join(rows) + "\n").encode()
+
+
+def _integral(t_s: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """The running integral of y over t (trapezoids), 0 at the first sample: the measured
+    columns a profile lacks are integrated from the highest derivative it gives."""
+    return np.concatenate([[0.0], np.cumsum(np.diff(t_s) * (y[1:] + y[:-1]) / 2)])
 
 
 def _read_csv(path: Path) -> dict[str, np.ndarray]:
@@ -238,6 +236,8 @@ class Truth:
 
 
 def _track(item: Any, src: str, where: str) -> ObjectTrack:
+    """One object's track: equally long arrays of finite numbers, at least one sample, times
+    strictly increasing (the error against truth interpolates in them)."""
     if not isinstance(item, dict):
         raise InputError(src, where, "must be an object with t_s, x_m, z_m, angle_rad")
     arrays = []
@@ -254,6 +254,11 @@ def _track(item: Any, src: str, where: str) -> ObjectTrack:
             raise InputError(src, f"{where}.{key}", f"has {len(values)} values, t_s"
                              f" {len(item['t_s'])}")
         arrays.append(values)
+    t_s = arrays[0]
+    if len(t_s) == 0:
+        raise InputError(src, f"{where}.t_s", "needs at least one sample")
+    if np.any(np.diff(t_s) <= 0):
+        raise InputError(src, f"{where}.t_s", "must increase strictly")
     return ObjectTrack(*arrays)
 
 

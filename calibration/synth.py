@@ -128,6 +128,7 @@ def synthesize(load: LoadUnit, out_dir: str | Path, *, wrap: WrapFormat | None =
         if wrap is not None:
             write_atomic(tmp / WRAP, wrap.to_toml().encode())
         write_truth(tmp, truth)
+        Recording.read(tmp)  # a recording that would not read back is never put in place
     return Recording.read(out_dir)
 
 
@@ -185,6 +186,9 @@ def _check_arguments(out_dir: Path, size: tuple[int, int], fps: float, jitter: f
     if not (math.isfinite(fps) and MIN_FPS <= fps <= MAX_FPS):
         raise InputError("arguments", "fps",
                          f"must be >= {MIN_FPS:g} and <= {MAX_FPS:g} (got {fps})")
+    if fps != round(fps):
+        raise InputError("arguments", "fps", f"must be a whole number: the video's container "
+                         f"stores whole frame rates (got {fps:g})")
     if not (math.isfinite(jitter) and 0 <= jitter < 1):
         raise InputError("arguments", "friction_jitter", f"must be in [0, 1) (got {jitter})")
     if not (math.isfinite(pre_roll_s) and 0 <= pre_roll_s <= MAX_PRE_ROLL_S):

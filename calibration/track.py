@@ -32,10 +32,11 @@ from calibration.trajectories import ObjectPath, Trajectories
 from calibration.vision.checks import frame_ranges, swap_warnings
 from calibration.vision.debug_video import DebugVideo
 from calibration.vision.marker_tracks import MarkerTracks
-from calibration.vision.markers import MarkerDetector
+from calibration.vision.markers import MarkerDetector, side_px, size_warning
 from calibration.vision.objects import (
     TrackedObject,
     View,
+    box_size,
     bundles,
     match_template,
     sled_and_pallet,
@@ -71,7 +72,7 @@ def track(recording: Recording, *, tracker: str = DEFAULT_TRACKER,
           debug_video: Path | None = None, progress: Progress | None = None) -> TrackResult:
     """Follow the sled, pallet and visible bundles (or the marker-carrying objects of a wrapped
     unit) through the recording; `progress(frame, frames)` is called after every frame.
-    `ValueError` for a tracker that cannot run here (`vision.tracking.check_tracker`)."""
+    `ValueError` for an unknown tracker (`vision.tracking.check_tracker`)."""
     check_tracker(tracker)
     threads = cv2.getNumThreads()
     cv2.setNumThreads(1)  # objects run in parallel; OpenCV's own threads on small boxes only cost
@@ -113,6 +114,12 @@ def _debug(path: Path | None, fps: float, size: tuple[int, int]
     """The debug video, whole when the block ends normally and absent when it raises; nothing
     when none was asked for."""
     return DebugVideo(path, fps, size) if path is not None else nullcontext()
+
+
+def _with_carried(now: dict[str, Pose], markers: MarkerTracks | None,
+                  index: int) -> dict[str, Pose]:
+    """This frame's poses of the patch-tracked objects and of those carrying markers."""
+    return now if markers is None else now | markers.poses_px(index)
 
 
 class _Poses:
@@ -158,6 +165,7 @@ class _Run:
     def __init__(self, recording: Recording, tracker: str, video: VideoReader) -> None:
         self.rec, self.kind, self.video = recording, tracker, video
         self.warnings: list[str] = []
+        self.out_of_view: list[int] = []
         self.pixmap = PixelMap(recording.px_per_m, *recording.origin_px)
         self.layout = recording.load.layout()
         self.sled_x = recording.profile.position_m(np.arange(video.stated) / recording.fps)
@@ -170,14 +178,29 @@ class _Run:
                          if spec and recording.wrap is not None else set())
         self.roi_extent = unit_extent_m(self.layout, _sled_marker_reach(spec))
 
-    def frame(self, index: int, bgr: np.ndarray) -> Frame:
-        """Grayscale of the frame's region of interest (the whole frame for OpenCV's trackers)."""
-        if self.full_frame:
-            return Frame(cv2.cvtColor(bgr, cv2.COLOR_BGR2GRAY))
+    def frame(self, index: int, bgr: np.ndarray) -> Frame | None:
+        """Grayscale of the frame's region of interest (the whole frame for OpenCV's trackers);
+        None when that region lies wholly outside the image: the unit is out of view."""
         box = predict_roi(self.pixmap, self.roi_extent, self.sled_at(index), self.video.size,
                           ROI_MARGIN_M)
+        if box.empty:
+            return None
+        if self.full_frame:
+            return Frame(cv2.cvtColor(bgr, cv2.COLOR_BGR2GRAY))
         crop = bgr[box.y0:box.y1, box.x0:box.x1]
         return Frame(cv2.cvtColor(crop, cv2.COLOR_BGR2GRAY), box.x0, box.y0)
+
+    def first_frame(self, bgr: np.ndarray) -> Frame:
+        """Frame 0's region of interest; the unit must be in view there, or setup.toml's
+        camera (or the profile's start) is wrong and nothing could be named."""
+        first = self.frame(0, bgr)
+        if first is None:
+            width, height = self.video.size
+            raise InputError(str(self.rec.folder / "setup.toml"), "camera.origin_px",
+                             f"{list(self.rec.origin_px)} puts the unit (sled at "
+                             f"x = {self.sled_x[0]:g} m by profile.csv) outside the "
+                             f"{width}x{height} image in frame 0")
+        return first
 
     def sled_at(self, index: int) -> float:
         """The sled's x in frame `index` according to the profile."""
@@ -191,36 +214,47 @@ class _Run:
         if bgr is None:
             raise InputError(str(self.rec.video), "", "no whole frame decodes" if
                              self.video.truncated else "the first frame does not decode")
-        first = self.frame(0, bgr)
+        first = self.first_frame(bgr)
         found = self.detector.detect(first) if self.detector is not None else {}
+        self._check_marker_size(found)
         objects = self._objects(first, found)
         trackers = self._trackers(first, [o for o in objects if o.name not in self.carriers])
         if not trackers and not self.carriers:
             raise InputError(str(self.rec.video), "", "no object can be followed from frame 0 "
                              f"({self.warnings[-1] if self.warnings else 'none found'})")
         poses = _Poses({o.name: Pose(*o.centre_px) for o in objects if o.name in trackers})
+        drawn = objects + self._carried(objects)
         with closing(MultiTracker(trackers, poses.latest())) as multi, \
                 _debug(debug_video, self.rec.fps, self.video.size) as debug:
             markers = self._marker_tracks(multi)
             if markers is not None:
                 markers.start(first, found, 0.0)
             if debug is not None:
-                debug.draw(bgr, 0, objects, poses.latest())
+                debug.draw(bgr, 0, drawn, _with_carried(poses.latest(), markers, 0))
             if progress:
                 progress(1, self.video.stated)
             index = 0
             for index, bgr in enumerate(frames, start=1):
-                frame = self.frame(index, bgr)
-                sled_u = self.pixmap.px_per_m * (self.sled_at(index) - self.sled_x[0])
-                results = multi.step(frame, sled_u)
-                if markers is not None:
-                    markers.step(index, frame, sled_u, results)
-                now = poses.record(index, results)
+                now = self._step(index, bgr, multi, markers, poses)
                 if debug is not None:
-                    debug.draw(bgr, index, objects, now)
+                    debug.draw(bgr, index, drawn, _with_carried(now, markers, index))
                 if progress:
                     progress(index + 1, self.video.stated)
         return self._result(objects, poses, markers, index + 1)
+
+    def _step(self, index: int, bgr: np.ndarray, multi: MultiTracker,
+              markers: MarkerTracks | None, poses: _Poses) -> dict[str, Pose]:
+        """Move every object into frame `index`; the poses found (none while the unit is out
+        of view: every object is then lost, the frame noted for one warning)."""
+        frame = self.frame(index, bgr)
+        if frame is None:
+            self.out_of_view.append(index)
+            return {}
+        sled_u = self.pixmap.px_per_m * (self.sled_at(index) - self.sled_x[0])
+        results = multi.step(frame, sled_u)
+        if markers is not None:
+            markers.step(index, frame, sled_u, results)
+        return poses.record(index, results)
 
     def _result(self, objects: list[TrackedObject], poses: _Poses,
                 markers: MarkerTracks | None, frames: int) -> TrackResult:
@@ -229,6 +263,10 @@ class _Run:
                                  f"{self.video.stated} frames, only {self.video.decoded} decode "
                                  "(a truncated file?) and the last may be cut short: dropped; "
                                  f"tracked frames 0-{frames - 1}")
+        if self.out_of_view:
+            self.warnings.append(f"unit out of view in frames {frame_ranges(self.out_of_view)}"
+                                 ": its predicted region is outside the image (profile.csv's "
+                                 "pos_m or setup.toml's camera); no object tracked there")
         self.warnings += poses.warnings()
         paths = poses.paths(self.pixmap, self.rec.fps)
         if markers is not None:
@@ -250,7 +288,33 @@ class _Run:
             matches = (match_template(self.view, first, self.rec.template)
                        if self.rec.template else None)
             objects += bundles(self.view, matches, self.warnings)
+        elif not self.carriers & {b.name for b in self.layout.bundles}:
+            self.warnings.append("the layers of a wrapped unit are followed only through "
+                                 "markers, and setup.toml places none on its bundles: no "
+                                 "layer is tracked")
         return objects
+
+    def _check_marker_size(self, found: dict[int, np.ndarray]) -> None:
+        """markers.size_m against the sides of the placed markers ArUco finds in frame 0."""
+        spec = self.rec.markers
+        if self.detector is None or spec is None:
+            return
+        placed = {p.id for p in spec.placements}
+        sides = [side_px(corners) for i, corners in found.items() if i in placed]
+        if warning := size_warning(spec.size_m, self.pixmap.px_per_m, sides):
+            self.warnings.append(warning)
+
+    def _carried(self, objects: list[TrackedObject]) -> list[TrackedObject]:
+        """The bundles followed through their markers (not among `objects`), with their
+        outlines' boxes at rest, for the debug video."""
+        s, named = self.pixmap.px_per_m, {o.name for o in objects}
+        out = []
+        for b in self.layout.bundles:
+            if b.name in self.carriers and b.name not in named:
+                u, v = self.pixmap.to_px(b.centre_m[0] + self.view.sled_x0_m, b.centre_m[2])
+                out.append(TrackedObject(b.name, (float(u), float(v)),
+                                         box_size(s * b.size_m[0], s * b.size_m[2])))
+        return out
 
     def _trackers(self, first: Frame, objects: list[TrackedObject]) -> dict[str, Tracker]:
         trackers = {}

@@ -125,12 +125,28 @@ class MarkerTracks:
             else:
                 self.poses[i][index] = pose
 
+    def carriers(self) -> dict[str, list[int]]:
+        """The carrying objects by name, each with its markers' ids."""
+        return {name: sorted(i for i, p in self.placements.items() if p.object == name)
+                for name in sorted({p.object for p in self.placements.values()})}
+
+    def poses_px(self, index: int) -> dict[str, Pose]:
+        """Each carrying object's pose (pixels) in frame `index`, for those with a marker
+        followed there."""
+        out = {}
+        for name, ids in self.carriers().items():
+            seen = [i for i in ids if index in self.poses.get(i, {})]
+            if seen:
+                x, z, theta = self._pose(index, seen)
+                u, v = self.pixmap.to_px(x, z)
+                out[name] = Pose(float(u), float(v), theta)
+        return out
+
     def paths(self, frames: int, fps: float) -> dict[str, ObjectPath]:
         """Per carrying object, its pose in every frame one of its markers is followed in; gaps
         inside the run are interpolated, frames outside it left out, and both reported."""
         out = {}
-        for name in sorted({p.object for p in self.placements.values()}):
-            ids = sorted(i for i, p in self.placements.items() if p.object == name)
+        for name, ids in self.carriers().items():
             self._warn_markers(name, ids)
             ks, values = [], []
             for k in range(frames):

@@ -22,6 +22,11 @@ from calibration.vision.tracking import Frame
 
 #: Relative disagreement of the markers' scale with setup.toml's px_per_m that gets a warning.
 SCALE_TOLERANCE = 0.01
+#: Relative disagreement of the markers' sides in the image with setup.toml's markers.size_m
+#: that gets a warning: a side is too short to measure the scale (see above), but this catches
+#: a size or scale off by a unit or a wrong print (a few pixels' blur and corner bias stay well
+#: under it).
+SIZE_TOLERANCE = 0.2
 
 
 def dictionary(name: str) -> cv2.aruco.Dictionary:
@@ -98,6 +103,24 @@ def scale_warning(measured_px_per_m: float | None, px_per_m: float) -> str | Non
     return (f"the sled's markers measure {measured_px_per_m:.1f} px/m but setup.toml "
             f"camera.px_per_m is {px_per_m:.1f} ({100 * (measured_px_per_m / px_per_m - 1):+.1f} "
             "%): positions use setup.toml")
+
+
+def size_warning(size_m: float | None, px_per_m: float, sides_px: list[float]) -> str | None:
+    """A warning when setup.toml's markers.size_m cannot cross-check the scale (not given), or
+    when at its scale it disagrees with the sides ArUco measures (`sides_px`, none: nothing
+    to compare) beyond `SIZE_TOLERANCE`."""
+    if size_m is None:
+        return ("setup.toml gives no markers.size_m: the markers' sides cannot cross-check the "
+                "scale (camera.px_per_m)")
+    if not sides_px:
+        return None
+    expected, measured = size_m * px_per_m, float(np.median(sides_px))
+    if abs(measured / expected - 1) <= SIZE_TOLERANCE:
+        return None
+    return (f"setup.toml's markers.size_m ({size_m:g} m) at camera.px_per_m ({px_per_m:g}) is "
+            f"{expected:.1f} px, but ArUco measures the markers' sides {measured:.1f} px in "
+            f"frame 0 ({100 * (measured / expected - 1):+.0f} %): is the size or the scale "
+            "wrong?")
 
 
 @dataclass(frozen=True)

@@ -14,8 +14,14 @@ Trackers (the `kind` names `track()` and the benchmarks use):
 - ``flow``: Farnebäck refinements alone, no NCC search (fails when the prediction is off by
   more than Farnebäck's window).
 - ``chain``: the paper's order, frame-to-frame Farnebäck mean displacement summed (drifts).
-- ``mil`` (and ``dasiamrpn``, ``nano``, ``vit`` when their ONNX models are given): OpenCV's
-  trackers; box centre only, integer pixels.
+- ``mil``: OpenCV's TrackerMIL; box centre only, integer pixels. (OpenCV's network trackers,
+  DaSiamRPN, Nano and Vit, need ONNX models that opencv-python-headless does not ship.)
+
+Every tracker's score is the NCC of the object's first-frame patch with the frame at the pose
+it reports (for ``ncc`` and ``ncc+flow``, the search's peak), so a tracker that went astray
+scores low and the object counts as lost (`LOST_SCORE`) instead of being reported where it is
+not. A neighbour that looks alike (the bundles' labels) can still score high: jumps to one are
+what `checks.swap_warnings` looks for.
 """
 
 from __future__ import annotations
@@ -39,7 +45,7 @@ LOST_SCORE = 0.5
 #: its prediction: the motion is then smooth enough for Farnebäck's window alone.
 SKIP_NCC_PX = 0.25
 OWN_TRACKERS = ("ncc+flow", "ncc", "flow", "chain")
-OPENCV_TRACKERS = ("mil", "dasiamrpn", "nano", "vit")
+OPENCV_TRACKERS = ("mil",)
 
 
 @dataclass(frozen=True)
@@ -73,6 +79,30 @@ class Tracker(Protocol):
     def update(self, frame: Frame, predicted: Pose) -> tuple[Pose, float]: ...
 
 
+@dataclass(frozen=True)
+class Reference:
+    """An object's first-frame patch and its centre in the patch, to score a pose by."""
+
+    patch: np.ndarray
+    centre: tuple[float, float]
+
+    @classmethod
+    def around(cls, frame: Frame, centre: tuple[float, float], size: tuple[int, int]
+               ) -> Reference:
+        """The patch of `size` centred on `centre` (resampled: a centre between pixels)."""
+        ref_centre = _patch_centre(size)
+        return cls(warp_to_reference(frame.gray, frame.local(Pose(*centre)), 0.0, ref_centre,
+                                     size), ref_centre)
+
+    def score(self, frame: Frame, pose: Pose) -> float:
+        """NCC of the patch with `frame` warped back at `pose`: near 1 where the object is as it
+        first looked, low where it is not."""
+        height, width = self.patch.shape
+        crop = warp_to_reference(frame.gray, frame.local(pose), pose.theta, self.centre,
+                                 (width, height))
+        return float(ncc(crop, self.patch)[0, 0])
+
+
 class PatchTracker:
     """An object followed by matching its first-frame patch (see the module docstring)."""
 
@@ -89,6 +119,7 @@ class PatchTracker:
         self.ref_centre = (centre[0] - frame.x0 - box.x0, centre[1] - frame.y0 - box.y0)
         self.box_size = (box.width, box.height)
         self.kind, self.search_px, self.pad_px = kind, search_px, pad_px
+        self.first = Reference(self.reference, self.ref_centre)
         self.score, self.predicted_well = 1.0, False
         # Farnebäck runs on the box plus a pad, so its window has real pixels at the box's edge
         self.flow = None if kind == "ncc" else RigidFlow(
@@ -98,7 +129,8 @@ class PatchTracker:
     def update(self, frame: Frame, predicted: Pose) -> tuple[Pose, float]:
         """NCC then Farnebäck; NCC is skipped while the prediction keeps landing within
         `SKIP_NCC_PX` of the result (Farnebäck alone captures that; the score is then the last
-        NCC's)."""
+        NCC's). ``flow`` has no search to score by: its score is the reference's at its
+        result."""
         pose, score = predicted, self.score
         if self.kind == "ncc" or (self.kind == "ncc+flow" and not self.predicted_well):
             pose, score = self._ncc(frame, pose)
@@ -108,6 +140,10 @@ class PatchTracker:
         if self.flow is not None:
             for _ in range(2 if self.kind == "flow" else 1):
                 pose = self._refine(frame, pose)
+        if self.kind == "flow":
+            score = self.first.score(frame, pose)
+            if score < LOST_SCORE:
+                return predicted, score
         self.predicted_well = math.hypot(pose.u - predicted.u, pose.v - predicted.v) < SKIP_NCC_PX
         self.score = score
         return pose, score
@@ -138,6 +174,7 @@ class ChainFlowTracker:
     def __init__(self, frame: Frame, centre: tuple[float, float], size: tuple[int, int]) -> None:
         self.box_size = size
         self.previous, self.pose = frame, Pose(*centre)
+        self.first = Reference.around(frame, centre, size)
 
     def update(self, frame: Frame, predicted: Pose) -> tuple[Pose, float]:
         centre = _patch_centre(self.box_size)
@@ -148,7 +185,8 @@ class ChainFlowTracker:
         self.pose = Pose(predicted.u + motion.du, predicted.v + motion.dv,
                          self.pose.theta + motion.dtheta)
         self.previous = frame
-        return self.pose, 1.0
+        score = self.first.score(frame, self.pose)
+        return (self.pose if score >= LOST_SCORE else predicted), score
 
 
 def _patch_centre(size: tuple[int, int]) -> tuple[float, float]:
@@ -156,65 +194,37 @@ def _patch_centre(size: tuple[int, int]) -> tuple[float, float]:
 
 
 class OpenCVTracker:
-    """cv2's single-object trackers (box centre only). They keep their own state in full-frame
-    coordinates, so they must be given whole frames (offset 0)."""
+    """cv2's TrackerMIL (box centre only). It keeps its own state in full-frame coordinates, so
+    it must be given whole frames (offset 0)."""
 
-    def __init__(self, frame: Frame, centre: tuple[float, float], size: tuple[int, int],
-                 kind: str = "mil", model: str | None = None) -> None:
+    def __init__(self, frame: Frame, centre: tuple[float, float], size: tuple[int, int]) -> None:
         self.box_size = size
-        self.tracker = opencv_tracker(kind, model)
+        self.tracker = cv2.TrackerMIL.create()
         box = Box.around(centre[0], centre[1], *size)
         self.offset = (centre[0] - (box.x0 + (box.width - 1) / 2),
                        centre[1] - (box.y0 + (box.height - 1) / 2))
         self.tracker.init(_bgr(frame.gray), (box.x0, box.y0, box.width, box.height))
+        self.first = Reference.around(frame, centre, size)
 
     def update(self, frame: Frame, predicted: Pose) -> tuple[Pose, float]:
+        """The box OpenCV's tracker reports, scored by the reference there (its own "ok" says
+        only that it placed a box)."""
         ok, (x, y, w, h) = self.tracker.update(_bgr(frame.gray))
         if not ok:
             return predicted, 0.0
-        return Pose(x + (w - 1) / 2 + self.offset[0], y + (h - 1) / 2 + self.offset[1]), 1.0
+        pose = Pose(x + (w - 1) / 2 + self.offset[0], y + (h - 1) / 2 + self.offset[1])
+        score = self.first.score(frame, pose)
+        return (pose if score >= LOST_SCORE else predicted), score
 
 
 def _bgr(gray: np.ndarray) -> np.ndarray:
     return cv2.cvtColor(gray, cv2.COLOR_GRAY2BGR)
 
 
-def opencv_tracker(kind: str, model: str | None = None) -> cv2.Tracker:
-    """An OpenCV tracker by name; the deep ones need their ONNX model file (`model`), which is
-    not bundled with opencv-python-headless: without one they raise `ValueError`."""
-    if kind == "mil":
-        return cv2.TrackerMIL.create()
-    if kind not in OPENCV_TRACKERS:
-        raise ValueError(f"{kind!r} is not one of OpenCV's trackers ({', '.join(OPENCV_TRACKERS)})")
-    if model is None:
-        raise ValueError(f"tracker {kind!r} needs its ONNX model file, which is not available")
-    try:
-        return _deep_tracker(kind, model)
-    except cv2.error as exc:
-        raise ValueError(f"tracker {kind!r} cannot load {model}: {exc.msg.strip()}") from None
-
-
-def _deep_tracker(kind: str, model: str) -> cv2.Tracker:
-    """One of OpenCV's network trackers from its ONNX file (each names the file differently)."""
-    if kind == "dasiamrpn":
-        siam = cv2.TrackerDaSiamRPN.Params()
-        siam.model = model
-        return cv2.TrackerDaSiamRPN.create(siam)
-    if kind == "nano":
-        nano = cv2.TrackerNano.Params()
-        nano.backbone = model
-        return cv2.TrackerNano.create(nano)
-    vit = cv2.TrackerVit.Params()
-    vit.net = model
-    return cv2.TrackerVit.create(vit)
-
-
 def check_tracker(kind: str) -> None:
-    """`ValueError` unless trackers of `kind` can be made here: OpenCV's network trackers cannot
-    without their ONNX models, so a run would follow nothing."""
-    if kind in OPENCV_TRACKERS:
-        opencv_tracker(kind)
-    elif kind not in OWN_TRACKERS:
+    """`ValueError` unless `kind` names a tracker (see the module docstring): an unknown one
+    would only fail object by object."""
+    if kind not in OWN_TRACKERS + OPENCV_TRACKERS:
         raise ValueError(f"unknown tracker {kind!r}; known: "
                          f"{', '.join(OWN_TRACKERS + OPENCV_TRACKERS)}")
 
@@ -225,7 +235,7 @@ def make_tracker(kind: str, frame: Frame, centre: tuple[float, float],
     if kind == "chain":
         return ChainFlowTracker(frame, centre, size)
     if kind in OPENCV_TRACKERS:
-        return OpenCVTracker(frame, centre, size, kind)
+        return OpenCVTracker(frame, centre, size)
     return PatchTracker(frame, centre, size, kind)
 
 

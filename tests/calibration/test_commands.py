@@ -6,6 +6,7 @@ from __future__ import annotations
 import csv
 import dataclasses
 import json
+import re
 import shutil
 from pathlib import Path
 from types import SimpleNamespace
@@ -74,6 +75,7 @@ def test_track_writes_into_the_recording_by_default(recording_dir, tmp_path, cap
     (["--size", "100000x100000"], ["--size", "<= 4096"]),
     (["--fps", "0"], ["--fps"]),
     (["--fps", "0.5"], ["--fps", ">= 1"]),   # the video's container stores none lower
+    (["--fps", "29.97"], ["--fps", "whole number"]),   # ... and whole rates only
     (["--fps", "100000"], ["--fps", "<= 1000"]),
     (["--friction-jitter", "1.5"], ["--friction-jitter"]),
     (["--stiffness-scale", "nan"], ["--stiffness-scale"]),
@@ -110,6 +112,51 @@ def test_track_of_a_corrupt_video_writes_nothing(recording_dir, tmp_path, capsys
     assert main(["track", str(rec), "--out", str(out)]) == 2
     _one_line_error(capsys, "video.avi")
     assert not out.exists() and not (rec / "trajectories.csv").exists()
+
+
+def test_track_of_a_unit_outside_the_image_is_one_line_naming_the_origin(recording_dir,
+                                                                         tmp_path, capsys):
+    rec = tmp_path / "rec"
+    shutil.copytree(recording_dir, rec)
+    setup = rec / "setup.toml"
+    setup.write_text(re.sub(r"origin_px = \[.*\]", "origin_px = [5000.0, 317.0]",
+                            setup.read_text()))
+    assert main(["track", str(rec)]) == 2
+    _one_line_error(capsys, str(setup), "camera.origin_px", "outside the 800x500 image")
+    assert not (rec / "trajectories.csv").exists()
+
+
+def _truth_objects(change):
+    def edit(path: Path) -> None:
+        data = json.loads(path.read_text())
+        change(data["objects"])
+        path.write_text(json.dumps(data))
+    return edit
+
+
+def _truth_folder(path: Path) -> None:
+    path.unlink()
+    path.mkdir()
+
+
+@pytest.mark.parametrize("edit, field", [
+    (lambda path: path.write_text('{"objects": '), ""),
+    (_truth_folder, ""),
+    (_truth_objects(lambda o: o.update(pallet={k: [] for k in o["pallet"]})),
+     "objects.pallet.t_s"),
+    (_truth_objects(lambda o: o["sled"]["t_s"].reverse()), "objects.sled.t_s"),
+], ids=["malformed", "a folder", "empty arrays", "decreasing t_s"])
+def test_track_with_a_bad_truth_json_writes_nothing(edit, field, recording_dir, tmp_path,
+                                                   capsys):
+    """truth.json is checked before tracking: it used to fail after the CSV was written and
+    "wrote ..." printed, or (empty arrays) with a traceback, or (times out of order) not at
+    all."""
+    rec = tmp_path / "rec"
+    shutil.copytree(recording_dir, rec)
+    edit(rec / "truth.json")
+    assert main(["track", str(rec)]) == 2
+    _one_line_error(capsys, f"{rec / 'truth.json'}: {field}")
+    assert not (rec / "trajectories.csv").exists()
 
 
 def test_track_into_a_missing_folder_is_refused_before_tracking(recording_dir, tmp_path, capsys):
@@ -237,12 +284,15 @@ def test_calibrate_checks_its_figures_paths_before_fitting(slide_dir, tmp_path, 
 
 
 @pytest.mark.parametrize("tracker", ["dasiamrpn", "nano", "vit"])
-def test_track_with_an_unavailable_tracker_is_refused(tracker, recording_dir, tmp_path, capsys):
-    """OpenCV's network trackers need ONNX models this install lacks: refused before any work,
-    where every object used to be dropped with a warning and a header-only CSV written."""
+def test_trackers_that_cannot_run_here_are_not_offered(tracker, recording_dir, tmp_path,
+                                                       capsys):
+    """OpenCV's network trackers need ONNX models opencv-python-headless does not ship and
+    nothing passes: they were offered, then always refused."""
     out = tmp_path / "paths.csv"
-    assert main(["track", str(recording_dir), "--out", str(out), "--tracker", tracker]) == 2
-    _one_line_error(capsys, "--tracker", tracker, "ONNX")
+    with pytest.raises(SystemExit) as exit_:
+        main(["track", str(recording_dir), "--out", str(out), "--tracker", tracker])
+    assert exit_.value.code == 2
+    _one_line_error(capsys, "--tracker", "invalid choice", tracker)
     assert not out.exists()
 
 

@@ -3,6 +3,7 @@ one `InputError` naming file and field for each way a folder can be wrong."""
 
 from __future__ import annotations
 
+import json
 import shutil
 from collections.abc import Callable
 from pathlib import Path
@@ -35,6 +36,18 @@ def test_profile_integrates_velocity_and_position_when_absent(tmp_path):
     np.testing.assert_allclose(profile.vel_mps, 2.0 * t, atol=1e-12)
     np.testing.assert_allclose(profile.pos_m, t**2, atol=1e-4)
     assert profile.position_m(1.5) == pytest.approx(2.25, abs=1e-4)
+
+
+def test_profile_position_comes_from_its_velocity_when_only_pos_m_is_absent(tmp_path):
+    """A measured velocity is the better source of position than the acceleration: the sled
+    here coasts at 1 m/s (vel_mps) while the accelerometer reads 0, so it travels t metres;
+    it used to be integrated from the acceleration and stand still."""
+    t = np.linspace(0.0, 2.0, 401)
+    path = tmp_path / "profile.csv"
+    path.write_text("t_s,accel_mps2,vel_mps\n" + "".join(f"{float(v)!r},0.0,1.0\n" for v in t))
+    profile = SledProfile.read(path)
+    np.testing.assert_array_equal(profile.vel_mps, np.ones_like(t))
+    np.testing.assert_allclose(profile.pos_m, t, atol=1e-12)
 
 
 def test_profile_round_trips_through_csv(tmp_path):
@@ -175,6 +188,30 @@ def test_bad_truth_is_one_input_error(change, field, copy_of, assert_input_error
     with pytest.raises(InputError) as err:
         Truth.read(folder)
     assert_input_error(err.value, str(path), field)
+
+
+def _empty_pallet(objects: dict) -> None:
+    objects["pallet"] = {key: [] for key in objects["pallet"]}
+
+
+def _pallet_backwards(objects: dict) -> None:
+    objects["pallet"]["t_s"].reverse()
+
+
+@pytest.mark.parametrize("change, message", [(_empty_pallet, "at least one sample"),
+                                             (_pallet_backwards, "increase strictly")],
+                         ids=["empty", "backwards"])
+def test_truth_tracks_need_samples_in_time_order(change, message, copy_of, assert_input_error):
+    """The error against truth interpolates in each track: an empty one was an IndexError,
+    times out of order gave a wrong error silently."""
+    folder = copy_of()
+    path = folder / "truth.json"
+    data = json.loads(path.read_text())
+    change(data["objects"])
+    path.write_text(json.dumps(data))
+    with pytest.raises(InputError, match=message) as err:
+        Truth.read(folder)
+    assert_input_error(err.value, str(path), "objects.pallet.t_s")
 
 
 def test_profile_in_milliseconds_is_refused(copy_of, assert_input_error):

@@ -197,6 +197,21 @@ def test_sigterm_leaves_no_staging_folder(tmp_path, small_load):
     assert list((tmp_path / "runs").iterdir()) == []
 
 
+def test_a_recording_that_does_not_read_back_leaves_nothing(tmp_path, small_load,
+                                                             monkeypatch):
+    """The read-back check runs before the folder is put in place: a video at another rate
+    than setup.toml's (as the container's whole rates made of --fps 29.97) used to leave the
+    whole folder behind, which blocked the rerun."""
+    from calibration import synth
+
+    write_video = synth.write_video
+    monkeypatch.setattr(synth, "write_video",
+                        lambda path, frames, fps, size: write_video(path, frames, fps + 1, size))
+    with pytest.raises(InputError, match="recording.fps"):
+        synthesize(small_load, tmp_path / "rec", **TINY)
+    assert list(tmp_path.iterdir()) == []
+
+
 def test_progress_is_reported_per_frame(tmp_path, small_load):
     calls = []
     rec = synthesize(small_load, tmp_path / "rec", progress=lambda k, n: calls.append((k, n)),

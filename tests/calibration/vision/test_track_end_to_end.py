@@ -21,6 +21,8 @@ from calibration.recording import Recording, SledProfile, Truth
 from calibration.synth import synthesize
 from calibration.track import track
 from calibration.trajectories import Trajectories, error_vs_truth
+from calibration.vision.debug_video import DebugVideo
+from calibration.vision.roi import PixelMap
 from wrapenv.config import InputError
 from wrapenv.load import LoadUnit
 from wrapenv.wrap import WrapFormat
@@ -94,16 +96,44 @@ def test_wrapped_small_follows_marker_patches(wrapped_dir: Path) -> None:
     assert result.warnings == []
 
 
+NO_SIZE_WARNING = ("setup.toml gives no markers.size_m: the markers' sides cannot cross-check "
+                   "the scale (camera.px_per_m)")
+
+
+def test_debug_video_of_a_wrapped_unit_draws_every_object_where_tracked(
+        wrapped_dir: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Each frame shows every object of that frame's CSV rows at its tracked centre: the
+    objects followed through markers (pallet and bundles) used to be left out."""
+    drawn: dict[int, dict[str, tuple[float, float]]] = {}
+
+    def draw(self, bgr, index, objects, poses) -> None:
+        drawn[index] = {o.name: (poses[o.name].u, poses[o.name].v)
+                        for o in objects if o.name in poses}
+
+    monkeypatch.setattr(DebugVideo, "draw", draw)
+    rec = Recording.read(wrapped_dir)
+    result = track(rec, debug_video=tmp_path / "debug.mp4")
+    pixmap = PixelMap(rec.px_per_m, *rec.origin_px)
+    for name, path in result.trajectories.objects.items():
+        for t, x, z in zip(path.t_s, path.x_m, path.z_m, strict=True):
+            centre = drawn[round(t * rec.fps)][name]
+            assert centre == pytest.approx(pixmap.to_px(x, z), abs=1e-3), (name, t)
+    assert {len(names) for names in drawn.values()} == {6}
+
+
 @pytest.mark.parametrize("marker_size", [True, False], ids=["size_m", "no size_m"])
 def test_scale_check_on_the_sled_markers(marker_size: bool, recording_dir: Path,
                                          tmp_path: Path) -> None:
     """The distance between the sled's markers agrees with setup.toml's scale; 3 % off warns.
-    The distance comes from their placements: markers.size_m is not needed."""
+    The distance comes from their placements: markers.size_m is not needed (without it a
+    warning says the markers' sides cannot check the scale too)."""
     folder = tmp_path / "scaled"
     shutil.copytree(recording_dir, folder)
     if not marker_size:
         _drop_marker_size(folder)
-    assert not any("px/m" in w for w in track(Recording.read(folder)).warnings)
+    warnings = track(Recording.read(folder)).warnings
+    assert not any("px/m" in w for w in warnings)
+    assert (NO_SIZE_WARNING in warnings) is not marker_size
     setup = folder / "setup.toml"
     setup.write_text(re.sub(r"px_per_m = ([0-9.]+)",
                             lambda m: f"px_per_m = {1.03 * float(m.group(1))!r}",
@@ -121,7 +151,8 @@ def _drop_marker_size(folder: Path) -> None:
 
 def test_wrapped_unit_without_marker_size(wrapped_dir: Path, tmp_path: Path) -> None:
     """Without setup.toml's markers.size_m the markers still name and locate every object:
-    their boxes are sized from the corners ArUco finds, as accurately as from the size."""
+    their boxes are sized from the corners ArUco finds, as accurately as from the size. The
+    sides they cannot check the scale by are a warning (CONTRACTS.md)."""
     folder = tmp_path / "no-size"
     shutil.copytree(wrapped_dir, folder)
     _drop_marker_size(folder)
@@ -131,7 +162,40 @@ def test_wrapped_unit_without_marker_size(wrapped_dir: Path, tmp_path: Path) -> 
     assert set(result.trajectories.objects) == {"sled", "pallet", "L1C1R1", "L1C2R1", "L2C1R1",
                                                 "L2C2R1"}
     _check_accuracy(rec, result.trajectories)
-    assert result.warnings == []
+    assert result.warnings == [NO_SIZE_WARNING]
+
+
+def test_marker_size_off_the_scale_is_said_with_both_sides(recording_dir: Path,
+                                                          tmp_path: Path) -> None:
+    """markers.size_m of 0.05 m where 0.075 m markers were printed: their sides in the image
+    disagree with size_m x px_per_m by a third, over the 20 % a side's blur cannot explain."""
+    folder = tmp_path / "small-size"
+    shutil.copytree(recording_dir, folder)
+    setup = folder / "setup.toml"
+    setup.write_text(setup.read_text().replace("size_m = 0.075", "size_m = 0.05"))
+    rec = Recording.read(folder)
+    (warning,) = track(rec).warnings
+    expected = f"is {0.05 * rec.px_per_m:.1f} px, but ArUco measures the markers' sides "
+    assert expected in warning, warning
+    measured = re.search(r"sides ([0-9.]+) px in frame 0", warning)
+    assert measured and float(measured[1]) == pytest.approx(0.075 * rec.px_per_m, rel=0.05)
+
+
+def test_wrapped_unit_without_markers_on_its_bundles_says_no_layer_is_tracked(
+        wrapped_dir: Path, tmp_path: Path) -> None:
+    """The web hides the bundles: with markers on the sled and the pallet only, the run
+    follows those two and says why no layer is among them (it used to say nothing)."""
+    folder = tmp_path / "no-load-markers"
+    shutil.copytree(wrapped_dir, folder)
+    setup = folder / "setup.toml"
+    head, *blocks = setup.read_text().split("[[markers.placement]]")
+    kept = [b for b in blocks if 'object = "sled"' in b or 'object = "pallet"' in b]
+    setup.write_text("[[markers.placement]]".join([head, *kept]))
+    result = track(Recording.read(folder))
+    assert set(result.trajectories.objects) == {"sled", "pallet"}
+    assert result.warnings == ["the layers of a wrapped unit are followed only through "
+                               "markers, and setup.toml places none on its bundles: no layer "
+                               "is tracked"]
 
 
 def test_scale_left_unchecked_is_said(recording_dir: Path, tmp_path: Path) -> None:
@@ -151,6 +215,37 @@ def _copy(rec: Recording, tmp_path: Path) -> Path:
     folder = tmp_path / "copy"
     shutil.copytree(rec.folder, folder)
     return folder
+
+
+@pytest.mark.parametrize("origin", ["[5000.0, 317.0]", "[-5000.0, -317.0]"])
+def test_unit_outside_the_image_in_frame_0_names_the_camera_origin(
+        origin: str, recording_dir: Path, tmp_path: Path, assert_input_error) -> None:
+    """Nothing can be named where the camera shows none of the unit: bad input, not the
+    traceback of an empty crop."""
+    folder = tmp_path / "away"
+    shutil.copytree(recording_dir, folder)
+    setup = folder / "setup.toml"
+    setup.write_text(re.sub(r"origin_px = \[.*\]", f"origin_px = {origin}", setup.read_text()))
+    with pytest.raises(InputError) as err:
+        track(Recording.read(folder))
+    assert_input_error(err.value, str(setup), "camera.origin_px")
+
+
+def test_unit_leaving_the_view_is_lost_there_with_one_warning(recording_dir: Path,
+                                                              tmp_path: Path) -> None:
+    """A profile that carries the sled 100 m away from 2 s on: every object is left out of
+    the frames the unit is out of view in, and one warning names them."""
+    folder = tmp_path / "leaves"
+    shutil.copytree(recording_dir, folder)
+    p = Recording.read(folder).profile
+    away = SledProfile(p.t_s, p.accel_mps2, p.vel_mps, p.pos_m + 100.0 * (p.t_s > 1.95))
+    (folder / "profile.csv").write_bytes(away.to_csv())
+    frames = len(Truth.read(folder).objects["sled"].t_s)
+    result = track(Recording.read(folder))
+    assert [w.split(":")[0] for w in result.warnings] == [
+        f"unit out of view in frames 20-{frames - 1}"], result.warnings
+    for name, path in result.trajectories.objects.items():
+        assert path.t_s[-1] == pytest.approx(1.9), name
 
 
 def test_corrupt_video_is_an_input_error(two_layer: Recording, tmp_path: Path) -> None:

@@ -4,7 +4,14 @@ import pytest
 from vision_frames import moved, texture
 
 from calibration.vision.flow import RigidFlow, warp_to_reference
-from calibration.vision.tracking import Frame, MultiTracker, PatchTracker, Pose, make_tracker
+from calibration.vision.tracking import (
+    LOST_SCORE,
+    Frame,
+    MultiTracker,
+    PatchTracker,
+    Pose,
+    make_tracker,
+)
 
 CENTRE = (200.3, 150.6)
 SIZE = (110, 130)
@@ -76,12 +83,19 @@ def test_lost_object_scores_low() -> None:
 def test_other_trackers_follow_a_small_shift(kind: str) -> None:
     image = texture(300, 400, seed=9)
     tracker = make_tracker(kind, Frame(image), CENTRE, SIZE)
-    pose, _ = tracker.update(Frame(moved(image, CENTRE, 2.0, 1.0)), Pose(*CENTRE))
+    pose, score = tracker.update(Frame(moved(image, CENTRE, 2.0, 1.0)), Pose(*CENTRE))
     tol = 1.0 if kind == "mil" else 0.1
     assert abs(pose.u - CENTRE[0] - 2.0) < tol and abs(pose.v - CENTRE[1] - 1.0) < tol
+    assert score > (0.7 if kind == "mil" else 0.9)  # mil's whole pixels cost some NCC
 
 
-def test_deep_trackers_without_models_are_reported_unavailable() -> None:
-    image = texture(300, 400)
-    with pytest.raises(ValueError, match="ONNX model"):
-        make_tracker("nano", Frame(image), CENTRE, SIZE)
+@pytest.mark.parametrize("kind", ["ncc+flow", "ncc", "flow", "chain", "mil"])
+def test_every_tracker_scores_a_frame_without_its_object_as_lost(kind: str) -> None:
+    """The score is the first-frame patch's NCC at the pose reported: where the object is not,
+    it is under LOST_SCORE and the pose is the prediction. flow, chain and mil used to score
+    1.0 whatever they reported, so lost objects were written as found."""
+    image = texture(300, 400, seed=7)
+    tracker = make_tracker(kind, Frame(image), CENTRE, SIZE)
+    predicted = Pose(CENTRE[0] + 1.0, CENTRE[1])
+    pose, score = tracker.update(Frame(texture(300, 400, seed=8)), predicted)
+    assert score < LOST_SCORE and pose == predicted
