@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import argparse
 import time
+from pathlib import Path
 
 import numpy as np
 
@@ -44,7 +45,7 @@ def row(rec: Recording, kind: str) -> str:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--size", type=int, nargs=2, default=(960, 600))
-    parser.add_argument("--cache", default=CACHE)
+    parser.add_argument("--cache", type=Path, default=CACHE)
     args = parser.parse_args()
     for load, level, wrap in RECORDINGS:
         rec = cached_recording(load, level, tuple(args.size), wrap=wrap, cache=args.cache)
