@@ -3,8 +3,10 @@
 Rows: this project's trackers (`calibration.vision.tracking`: ncc+flow, ncc, flow, chain) and
 OpenCV 5's TrackerMIL (DaSiamRPN, Nano and Vit need ONNX model files that opencv-python-headless
 does not ship and that cannot be fetched offline, so they are not offered). Columns:
-mean and worst per-object RMS and max displacement error (mm), objects whose error ever exceeds
-half a bundle's width (a swap or a loss), and fps of the whole `track` run.
+mean and worst per-object RMS and max displacement error (mm) over the frames each object is
+reported in, objects whose error ever exceeds half a bundle's width (a swap or a loss), the
+share of object-frames reported (the rest were scored lost and said so), and fps of the whole
+`track` run.
 
     python -m benchmarks.trackers [--size 960 600]
 """
@@ -33,13 +35,16 @@ def row(rec: Recording, kind: str) -> str:
     start = time.perf_counter()
     result = track(rec, tracker=kind)
     seconds = time.perf_counter() - start
-    frames = max(len(p.t_s) for p in result.trajectories.objects.values())
+    lengths = [len(p.t_s) for p in result.trajectories.objects.values()]
+    frames = max(lengths)
+    # a frame whose pose scores too low is reported lost and left out of the errors
+    tracked = 100 * sum(lengths) / (frames * len(lengths))
     errors = error_vs_truth(result.trajectories, Truth.read(rec.folder).objects).values()
     rms = np.array([e.rms_m for e in errors]) * 1e3
     worst = np.array([e.max_m for e in errors]) * 1e3
     swaps = int(np.sum(worst > SWAP_M * 1e3))
     return (f"| {kind:9} | {rms.mean():7.2f} | {rms.max():7.2f} | {worst.max():8.2f} "
-            f"| {swaps:5d} | {frames / seconds:6.1f} |")
+            f"| {swaps:5d} | {tracked:7.1f} | {frames / seconds:6.1f} |")
 
 
 def main() -> None:
@@ -50,8 +55,8 @@ def main() -> None:
     for load, level, wrap in RECORDINGS:
         rec = cached_recording(load, level, tuple(args.size), wrap=wrap, cache=args.cache)
         print(f"\n{load} at {level} g, {args.size[0]}x{args.size[1]}, {rec.px_per_m:.0f} px/m")
-        print("| tracker   | RMS avg | RMS max | max (mm) | swaps |    fps |")
-        print("|-----------|---------|---------|----------|-------|--------|")
+        print("| tracker   | RMS avg | RMS max | max (mm) | swaps | tracked |    fps |")
+        print("|-----------|---------|---------|----------|-------|---------|--------|")
         for kind in OWN_TRACKERS + OPENCV_TRACKERS:
             print(row(rec, kind), flush=True)
 
