@@ -1,0 +1,95 @@
+"""How much the verdicts lean on three assumptions docs/materials.md marks [A]: the examples'
+friction, Kraft's glued seam, and LLDPE's applied stiffness.
+
+The programs are the answers that matter: on Kraft, the least web of `recommend`'s space (one
+bottom wrap, a touching spiral, one top wrap) at half the yield force, as it answers on the
+examples (benchmarks/tension_cap.py); on LLDPE, the machine's default program
+(examples/program_lldpe_default.toml). Each runs on the 2- and 3-layer columnar examples, both
+sides along the motion, 16 h after wrapping (relaxed, as `recommend` judges), through the EUMOS
+sequence to 0.5 g on the nominal load. Variants: the examples' friction (nominal), the bench's
+default friction (the CTU Code's figures), the examples' pallet-bundle and bundle-bundle
+coefficients 0.05 and 0.10 lower (kinetic in the same ratio), a seam of 1000 N/m (the low end
+of P5's range) instead of 3000, and LLDPE's stiffness halved and doubled. Prints a Markdown
+table: the highest level passed and the margin at 0.5 g.
+
+    python -m benchmarks.sensitivity [--workers 2]
+"""
+
+from __future__ import annotations
+
+import argparse
+from dataclasses import replace
+from multiprocessing import Pool
+
+from benchmarks.tension_cap import HOURS_SINCE_WRAPPING, TARGET_G, lightest
+from wrapenv.bench import run_levels
+from wrapenv.design import ProgramSpace
+from wrapenv.eumos import level_margin
+from wrapenv.load import Friction, FrictionPair, LoadUnit
+from wrapenv.profile import eumos_levels
+from wrapenv.wrap import WrapFormat
+
+EXAMPLES = ("examples/pet_2layer_columnar.toml", "examples/pet_3layer_columnar.toml")
+ORIENTATIONS = ("long", "short")
+LLDPE_PROGRAM = "examples/program_lldpe_default.toml"
+#: (material, variant): what each variant changes is in `variant`.
+VARIANTS = (("kraft", "nominal"), ("kraft", "CTU default friction"),
+            ("kraft", "friction -0.05"), ("kraft", "friction -0.10"), ("kraft", "seam 1000 N/m"),
+            ("lldpe", "nominal"), ("lldpe", "stiffness x 0.5"), ("lldpe", "stiffness x 2"))
+
+
+def _lower(friction: Friction, delta: float) -> Friction:
+    """The pallet-bundle and bundle-bundle coefficients `delta` lower, kinetic in ratio."""
+    def lowered(pair: FrictionPair) -> FrictionPair:
+        static = pair.static - delta
+        return FrictionPair(static, pair.kinetic * static / pair.static)
+    return replace(friction, pallet_bundle=lowered(friction.pallet_bundle),
+                   bundle_bundle=lowered(friction.bundle_bundle))
+
+
+def _unit_and_wrap(load_path: str, material: str, variant: str) -> tuple[LoadUnit, WrapFormat]:
+    load = LoadUnit.from_toml(load_path)
+    if material == "kraft":
+        space = ProgramSpace.for_layout(load.layout(), "kraft")
+        wrap = space.laid(lightest(0.5 * space.material.yield_force_n_per_m * space.web_width_m))
+    else:
+        wrap = WrapFormat.from_toml(LLDPE_PROGRAM, load.load_height_m)
+    if variant == "CTU default friction":
+        load = load.with_friction(replace(Friction(), sled_pallet=load.friction.sled_pallet))
+    elif variant.startswith("friction -"):
+        load = load.with_friction(_lower(load.friction, float(variant.split("-")[1])))
+    elif variant == "seam 1000 N/m":
+        wrap = replace(wrap, material=replace(wrap.material, seam_strength_n_per_m=1000.0))
+    elif variant.startswith("stiffness x "):
+        wrap = wrap.scaled(stiffness_scale=float(variant.removeprefix("stiffness x ")))
+    return load, wrap.relaxed(HOURS_SINCE_WRAPPING)
+
+
+def case(args: tuple[str, str, str, str]) -> str:
+    load_path, material, variant, orientation = args
+    load, wrap = _unit_and_wrap(load_path, material, variant)
+    verdict = run_levels(load, eumos_levels(TARGET_G), orientation=orientation,
+                         stop_at_failure=True, wrap=wrap).verdict
+    last = {round(v.level_g, 2): v for v in verdict.levels}.get(TARGET_G)
+    margin = f"{level_margin(last, verdict.load_height_m):.2f}" if last else "–"
+    best = verdict.highest_passed_g
+    name = load_path.rsplit("/", 1)[-1].removesuffix(".toml")
+    return (f"| {name} | {material} | {variant} | {orientation} | "
+            f"{'none' if best is None else f'{best:.1f} g'} | {margin} |")
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--workers", type=int, default=2)
+    args = parser.parse_args()
+    cases = [(load, m, v, o) for load in EXAMPLES for m, v in VARIANTS for o in ORIENTATIONS]
+    print(f"| load | web | variant | side along the motion | highest passed (to {TARGET_G} g) "
+          f"| margin at {TARGET_G} g |")
+    print("|---|---|---|---|---|---|")
+    with Pool(args.workers) as pool:
+        for line in pool.imap(case, cases):
+            print(line, flush=True)
+
+
+if __name__ == "__main__":
+    main()
