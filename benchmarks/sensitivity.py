@@ -2,8 +2,9 @@
 friction, Kraft's glued seam, and LLDPE's applied stiffness.
 
 The programs are the answers that matter: on Kraft, the least web of `recommend`'s space (one
-bottom wrap, a touching spiral, one top wrap) at half the yield force, as it answers on the
-examples (benchmarks/tension_cap.py); on LLDPE, the machine's default program
+bottom wrap, a touching spiral, one top wrap), which it answers on the examples, here at half
+the yield force (its margin is about the same at 20-50 %: benchmarks/tension_cap.py); on LLDPE,
+the machine's default program
 (examples/program_lldpe_default.toml). Each runs on the 2- and 3-layer columnar examples, both
 sides along the motion, 16 h after wrapping (relaxed, as `recommend` judges), through the EUMOS
 sequence to 0.5 g on the nominal load. Variants: the examples' friction (nominal), the bench's

@@ -20,20 +20,21 @@ from wrapenv.calibrated import Calibration, draw_pair, draw_scale
 from wrapenv.load import PAIRS, FrictionPair, LoadUnit
 from wrapenv.wrap import WrapFormat
 
-#: Friction standard deviation for a pair without calibration (CTU Code figures are quoted to
-#: about ±0.03).
+#: Friction standard deviation for a pair without calibration [A]: the CTU Code tabulates one
+#: figure per pair, with no spread; ±0.03 is the second decimal its figures are given to.
 DEFAULT_FRICTION_STD = 0.03
 #: Bundles' mass drawn uniformly within ± this fraction (filling tolerance) [A].
 MASS_SPREAD = 0.05
 #: Standard deviation of the web's stiffness and of the laid tension without a calibration, as
-#: fractions [A]: supplier cards quote stiffness to about ±10 %, and a wrapper's tension
-#: setting is a brake or a dancer, not a measurement.
+#: fractions [A]: no supplier card with a stiffness tolerance was found (docs/materials.md, L1),
+#: and a wrapper's tension setting is a brake or a dancer, not a measurement.
 DEFAULT_SCALE_STD = 0.10
 #: Standard deviation of the load's give (its bundles' edge stiffness under the web) without a
 #: calibration, as a fraction [A]: docs/materials.md section 5; the design chart
 #: (benchmarks/design_chart.py) shows what halving or doubling it does.
 DEFAULT_GIVE_STD = 0.25
-#: Standard deviation of the tension left after relaxing, as a fraction of it [A].
+#: Standard deviation of the tension lost in relaxing, as a fraction of that loss [A] (at 16 h
+#: Kraft loses 11 %, so the tension left varies by about ±0.6 %).
 RELAXATION_STD = 0.05
 #: Hours between wrapping and the road that `recommend` assumes: ASTM D5414 rests a wrapped
 #: load 16 h before its impact test, so that the wrap has relaxed as it would in transport.

@@ -42,8 +42,8 @@ class Relaxation:
 #: LLDPE at 23 °C: 26 % lost in 30 days, most of it in the first 2 h (Dunno & Symanski 2021);
 #: the Prony fit to those endpoints is docs/materials.md L5 [A].
 FILM_RELAXATION = Relaxation(0.74, ((0.18, 0.5), (0.08, 72.0)))
-#: Kraft paper: no published relaxation of wrapped paper was found; paper relaxes by a fifth to
-#: a quarter at constant strain (docs/materials.md, P8) [A].
+#: Kraft paper: no published relaxation of wrapped paper was found; paper is viscoelastic and
+#: relaxes at constant strain, assumed like film: 20 % in 30 days (docs/materials.md, P8) [A].
 PAPER_RELAXATION = Relaxation(0.80, ((0.10, 1.0), (0.10, 100.0)))
 NO_RELAXATION = Relaxation()
 

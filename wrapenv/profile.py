@@ -40,8 +40,10 @@ class PulseProfile:
     level_g: float
     ramp_s: float = 0.05
     dwell_s: float = 0.5
-    #: Deceleration as a fraction of the level: 0.25 stops the sled in about 4 x dwell and stays
-    #: below the lowest friction of a load (0.25 x 1.0 g < 0.3 g).
+    #: Deceleration as a fraction of the level [A]: no source gives the ESTL sled's braking;
+    #: 0.25 stops it in about 4 x dwell. Up to 0.8 g that is at most 0.2 g, below the default
+    #: static coefficients (0.30) but above a 3-layer column's tipping level (0.19 g), so the
+    #: stop can move a unit at the highest levels: the bench simulates it.
     decel_ratio: float = 0.25
 
     def __post_init__(self) -> None:
