@@ -1,5 +1,6 @@
-"""How much the verdicts lean on three assumptions docs/materials.md marks [A]: the examples'
-friction, Kraft's glued seam, and LLDPE's applied stiffness.
+"""How much the verdicts lean on four assumptions docs/materials.md marks [A]: the examples'
+friction, Kraft's glued seam, LLDPE's applied stiffness, and the web's cross-direction share of
+its machine-direction law (`cd_ratio`, which the panels between the rings have).
 
 The programs are the answers that matter: on Kraft, the least web of `recommend`'s space (one
 bottom wrap, a touching spiral, one top wrap), which it answers on the examples, here at half
@@ -10,7 +11,8 @@ sides along the motion, 16 h after wrapping (relaxed, as `recommend` judges), th
 sequence to 0.5 g on the nominal load. Variants: the examples' friction (nominal), the bench's
 default friction (the CTU Code's figures), the examples' pallet-bundle and bundle-bundle
 coefficients 0.05 and 0.10 lower (kinetic in the same ratio), a seam of 1000 N/m (the low end
-of P5's range) instead of 3000, and LLDPE's stiffness halved and doubled. Prints a Markdown
+of P5's range) instead of 3000, LLDPE's stiffness halved and doubled, and either web's
+`cd_ratio` halved. Prints a Markdown
 table: the highest level passed and the margin at 0.5 g.
 
     python -m benchmarks.sensitivity [--workers 2]
@@ -36,7 +38,9 @@ LLDPE_PROGRAM = "examples/program_lldpe_default.toml"
 #: (material, variant): what each variant changes is in `variant`.
 VARIANTS = (("kraft", "nominal"), ("kraft", "CTU default friction"),
             ("kraft", "friction -0.05"), ("kraft", "friction -0.10"), ("kraft", "seam 1000 N/m"),
-            ("lldpe", "nominal"), ("lldpe", "stiffness x 0.5"), ("lldpe", "stiffness x 2"))
+            ("kraft", "cross direction x 0.5"), ("lldpe", "nominal"),
+            ("lldpe", "stiffness x 0.5"), ("lldpe", "stiffness x 2"),
+            ("lldpe", "cross direction x 0.5"))
 
 
 def _lower(friction: Friction, delta: float) -> Friction:
@@ -61,6 +65,8 @@ def _unit_and_wrap(load_path: str, material: str, variant: str) -> tuple[LoadUni
         load = load.with_friction(_lower(load.friction, float(variant.split("-")[1])))
     elif variant == "seam 1000 N/m":
         wrap = replace(wrap, material=replace(wrap.material, seam_strength_n_per_m=1000.0))
+    elif variant == "cross direction x 0.5":
+        wrap = replace(wrap, material=replace(wrap.material, cd_ratio=wrap.material.cd_ratio / 2))
     elif variant.startswith("stiffness x "):
         wrap = wrap.scaled(stiffness_scale=float(variant.removeprefix("stiffness x ")))
     return load, wrap.relaxed(HOURS_SINCE_WRAPPING)
