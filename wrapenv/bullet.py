@@ -18,6 +18,16 @@ from typing import Any
 import numpy as np
 
 G = 9.81
+#: What the numpy side hands to Bullet (body friction coefficients, wrap forces and torques) is
+#: rounded to these many decimals (coefficients; newtons and newton-metres). numpy's linear
+#: algebra and its vectorised functions round differently in their last bits from one processor
+#: to another (OpenBLAS's AVX-512 kernels against its AVX2 ones, numpy's AVX-512 loops), and a
+#: stack on the bench is chaotic enough to turn 1e-16 into another run: unrounded, the 2-layer
+#: example at 0.45 g slid its top layer 0.46 m with one kernel and 0.54 m with the other. Rounded
+#: well below anything physical, every processor hands Bullet the same numbers, and Bullet's own
+#: arithmetic is the same everywhere, so the same inputs give the same results on every machine.
+FRICTION_DECIMALS = 9
+WRENCH_DECIMALS = 6
 
 
 _LIBC = ctypes.CDLL(None)
@@ -151,6 +161,7 @@ class BulletWorld:
     ) -> int:
         """Add a box (mass 0: static, part of the sled). Returns its index in this world."""
         c = self._client
+        friction = round(friction, FRICTION_DECIMALS)
         half = [s / 2 for s in size_m]
         col = c.createCollisionShape(pb.GEOM_BOX, halfExtents=half)
         vis = c.createVisualShape(pb.GEOM_BOX, halfExtents=half, rgbaColor=list(rgba))
@@ -185,6 +196,7 @@ class BulletWorld:
                        forces: np.ndarray, torques: np.ndarray) -> None:
         """Forces at the bodies' centres and torques (world frame) for the next step only."""
         cid = self._id
+        forces, torques = forces.round(WRENCH_DECIMALS), torques.round(WRENCH_DECIMALS)
         for index, centre, force, torque in zip(indices, centres.tolist(), forces.tolist(),
                                                 torques.tolist(), strict=True):
             body = self._ids[index]
@@ -200,6 +212,7 @@ class BulletWorld:
     def set_friction(self, index: int, coefficient: float) -> None:
         """Set a body's own coefficient; Bullet multiplies the two bodies' values per contact."""
         body = self._ids[index]
+        coefficient = round(coefficient, FRICTION_DECIMALS)
         if self._friction[body] != coefficient:
             pb.changeDynamics(body, -1, lateralFriction=coefficient, physicsClientId=self._id)
             self._friction[body] = coefficient

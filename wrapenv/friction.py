@@ -162,8 +162,9 @@ def _projections(a_rest: np.ndarray, a_side: np.ndarray) -> tuple[np.ndarray, np
     """P_rest, P_side with log m = P_rest @ b_rest + P_side @ b_side: meet the resting contacts
     in least squares, then use the null space left over to meet the side contacts (a ridge
     keeps it well posed). On one BLAS thread: a threaded SVD rounds differently with the number
-    of cores, and a last-bit change of one coefficient changes a whole run (same inputs, same
-    results on every machine)."""
+    of cores, and a last-bit change of one coefficient changes a whole run. Processors still
+    round it differently (OpenBLAS's AVX-512 kernels against its AVX2 ones): the world rounds
+    the coefficients it is given (`wrapenv.bullet.FRICTION_DECIMALS`)."""
     with threadpool_limits(limits=1, user_api="blas"):
         pinv = np.linalg.pinv(a_rest)
         _, s, vt = np.linalg.svd(a_rest)

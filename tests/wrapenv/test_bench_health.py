@@ -3,8 +3,13 @@
 from __future__ import annotations
 
 import json
+import os
+import platform
+import subprocess
+import sys
 
 import numpy as np
+import pytest
 
 from recommender.cli import main
 from wrapenv import bullet
@@ -30,6 +35,41 @@ def test_same_inputs_give_identical_json(tmp_path):
         outs.append(out.read_bytes())
     assert outs[0] == outs[1]
     assert json.loads(outs[0])["levels"][0]["level_g"] == 0.3
+
+
+#: A level that turns a last-bit difference into another run: the 2-layer example's top layer
+#: sliding off at 0.45 g, unwrapped and Kraft-wrapped (wrap forces reach Bullet too); prints a
+#: digest of each trace.
+_CHAOTIC_LEVELS = """
+import hashlib
+from wrapenv.bench import run_level
+from wrapenv.load import LoadUnit
+from wrapenv.profile import PulseProfile
+from wrapenv.wrap import WrapFormat
+load = LoadUnit.from_toml("examples/pet_2layer_columnar.toml")
+for wrap in (None, WrapFormat.from_toml("examples/wrap_kraft_2layer.toml", load.load_height_m)):
+    trace = run_level(load.layout(), PulseProfile(0.45), wrap=wrap)
+    print(hashlib.sha256(trace.bundle_pos.tobytes()).hexdigest())
+"""
+#: Another processor, as far as numpy's arithmetic goes: OpenBLAS's SSE3 kernels (every x86-64
+#: has them) and numpy's loops without AVX-512 (a no-op where the processor has none).
+_ANOTHER_PROCESSOR = {"OPENBLAS_CORETYPE": "Prescott",
+                      "NPY_DISABLE_CPU_FEATURES": "X86_V4 AVX512_ICL AVX512_SPR"}
+
+
+@pytest.mark.skipif(platform.machine() not in ("x86_64", "AMD64"),
+                    reason="OpenBLAS's kernels are named per architecture; these are x86-64's")
+def test_processors_that_round_differently_run_the_same_level_identically():
+    """Unrounded, OpenBLAS's AVX-512 and AVX2 kernels slid the unwrapped top layer 0.46 and
+    0.54 m (wrapenv.bullet.FRICTION_DECIMALS)."""
+    digests = []
+    for extra in ({}, _ANOTHER_PROCESSOR):
+        env = os.environ | extra
+        done = subprocess.run([sys.executable, "-c", _CHAOTIC_LEVELS], env=env, check=True,
+                              capture_output=True, text=True)
+        digests.append(done.stdout.split())
+    assert len(digests[0]) == 2
+    assert digests[0] == digests[1]
 
 
 def _rss_kb() -> int:
