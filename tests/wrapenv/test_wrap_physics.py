@@ -460,7 +460,9 @@ def test_a_squeezed_stack_does_not_creep_below_its_friction(iterations, creeps):
     machine's 800 N Kraft default squeezes each layer with kilonewtons; a solve converged for
     it (the wrapped default, 50 iterations) keeps it still, 20 iterations let it creep (measured
     2026-11-24: 0.7 and 1.8 mm at 0.2 and 0.3 g, against 24.6 mm at 0.2 g with 20 iterations;
-    benchmarks/bench_solver.py)."""
+    benchmarks/bench_solver.py). How far it creeps is the unconverged solve's path, not a
+    property of the unit (9.0 mm since the world rounds the wrap's forces, 2026-11-26): the
+    test asks for twice the still bound."""
     load = LoadUnit.from_toml(EXAMPLE_3)
     assert (load.friction.pallet_bundle.static, load.friction.bundle_bundle.static) == (0.5, 0.4)
     wrap = WrapFormat.from_toml("examples/program_kraft_default.toml", load.load_height_m)
@@ -468,6 +470,6 @@ def test_a_squeezed_stack_does_not_creep_below_its_friction(iterations, creeps):
                      wrap=wrap)
     total = max(v.permanent_total_max_m for v in run.verdict.levels)
     if creeps:
-        assert total > 0.010, total
+        assert total > 0.006, total
     else:
         assert total < 0.003, total     # the bench's jitter at rest, not a slide
