@@ -315,7 +315,7 @@ def _propose_with_policy(args: argparse.Namespace, problem: Problem,
         where = "arguments" if args.policy is None else str(args.policy)
         raise InputError(where, "--policy", "a policy.zip from `wrapbench train` is needed "
                                             "with --method ppo")
-    calibration = Calibration.from_json(args.calibration) if args.calibration else None
+    calibration = _observable_calibration(args.calibration)
     if read_meta(args.policy).get("calibrated", False) != (calibration is not None):
         warn("recommend", ("the policy was trained " + ("without a calibration, and --calibration "
                            "is given" if calibration else "with a calibration, and none is given")
@@ -406,6 +406,17 @@ def _write_report(args: argparse.Namespace, problem: Problem, check: Verificatio
 # --- train -------------------------------------------------------------------------------------
 
 
+def _observable_calibration(path: Path | None) -> Calibration | None:
+    """The calibration a policy is trained or asked under (None: none given)."""
+    from wrapenv.envs.observation import check_observable
+
+    if path is None:
+        return None
+    calibration = Calibration.from_json(path)
+    check_observable(calibration, str(path))
+    return calibration
+
+
 def run_train(args: argparse.Namespace) -> int:
     from recommender.policy import CHECKPOINT_DIR, TrainSettings, train
 
@@ -420,7 +431,7 @@ def run_train(args: argparse.Namespace) -> int:
         raise InputError("arguments", "--minutes", f"must be > 0 (got {args.minutes})")
     _material(args.material)
     _target(args.target)
-    calibration = Calibration.from_json(args.calibration) if args.calibration else None
+    calibration = _observable_calibration(args.calibration)
     if args.out.exists() and not args.out.is_dir():
         raise InputError(str(args.out), "--out", "exists and is not a folder")
     try:
@@ -428,8 +439,10 @@ def run_train(args: argparse.Namespace) -> int:
     except OSError as exc:
         raise InputError(str(args.out), "--out", f"cannot be created ({exc.strerror})") from None
     check_output(args.out / "policy.zip", "--out")
-    earlier = [name for name in ("policy.zip", "log.csv", CHECKPOINT_DIR)
-               if (args.out / name).exists()]
+    # a run that failed before its first checkpoint leaves an empty checkpoints/: no run
+    earlier = [name for name in ("policy.zip", "log.csv") if (args.out / name).exists()]
+    if any((args.out / CHECKPOINT_DIR).glob("*")):
+        earlier.append(CHECKPOINT_DIR)
     if earlier:
         raise InputError(str(args.out), "--out", f"holds an earlier training run "
                                                  f"({', '.join(earlier)}): give a new folder")

@@ -21,6 +21,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+import recommender.policy
 from recommender.cli import main
 from recommender.policy import (
     CHECKPOINT_DIR,
@@ -133,14 +134,20 @@ def test_a_time_budget_ends_training_early_and_still_writes_the_policy(tmp_path)
         assert [int(r["timesteps"]) for r in csv.DictReader(f)] == list(range(1, 10))
 
 
-def test_a_policy_trained_on_a_calibration_observes_its_uncertainty_and_says_so(tmp_path):
+def test_a_policy_trained_on_a_calibration_observes_its_uncertainty_and_says_so(tmp_path,
+                                                                               monkeypatch):
     """Its random units spread about the calibrated friction and show its standard deviations
     (observation features 19-24), which a policy trained without one only ever saw as 0."""
     cal = Calibration.from_dict({"friction": {"pallet_bundle": {
         "static": 0.3, "kinetic": 0.25, "static_std": 0.04, "kinetic_std": 0.03}}})
     settings = TrainSettings(timesteps=2, n_envs=1, n_steps=2, batch_size=2, checkpoint_every=2,
                              progress_bar=False, calibration=cal)
+    made = recommender.policy.make_vec_env
+    env_kwargs = []
+    monkeypatch.setattr(recommender.policy, "make_vec_env",
+                        lambda *a, **k: env_kwargs.append(k["env_kwargs"]) or made(*a, **k))
     path = train(settings, tmp_path)
+    assert [k["calibration"] for k in env_kwargs] == [cal]   # what the training envs are given
     with zipfile.ZipFile(path) as archive:
         assert json.loads(archive.read(POLICY_META))["calibrated"] is True
     assert policy_meta(TrainSettings())["calibrated"] is False

@@ -544,11 +544,44 @@ def test_train_refuses_a_folder_holding_an_earlier_run(earlier, tmp_path, capsys
     run's checkpoint as this one's."""
     out = tmp_path / "run"
     out.mkdir()
-    (out / earlier).mkdir() if earlier == "checkpoints" else (out / earlier).write_text("x")
+    if earlier == "checkpoints":
+        (out / earlier).mkdir()
+        (out / earlier / "policy_512_steps.zip").write_text("x")
+    else:
+        (out / earlier).write_text("x")
     code = main(["train", "--out", str(out), "--timesteps", "1"])
     err = capsys.readouterr().err.strip()
     assert code == 2 and "\n" not in err and "earlier training run" in err
     assert sorted(p.name for p in out.iterdir()) == [earlier]
+
+
+def test_train_goes_on_in_the_folder_of_a_run_that_failed_before_its_first_checkpoint(
+        tmp_path, monkeypatch):
+    """Such a run leaves only an empty checkpoints/: nothing to overwrite, so a retry into the
+    same folder trains (refused, it could never be retried there)."""
+    import recommender.policy
+
+    out = tmp_path / "run"
+    (out / "checkpoints").mkdir(parents=True)
+    trained = []
+    monkeypatch.setattr(recommender.policy, "train",
+                        lambda settings, folder: trained.append(folder) or folder / "policy.zip")
+    assert main(["train", "--out", str(out), "--timesteps", "1", "--envs", "1"]) == 0
+    assert trained == [out]
+
+
+def test_train_refuses_a_calibration_whose_spread_no_policy_observes(tmp_path, capsys):
+    """Refused before any environment is made, naming the file and field (the vector env's
+    workers refused it each in its own process, with tracebacks)."""
+    cal = tmp_path / "CAL.json"
+    cal.write_text(json.dumps({"friction": {"pallet_bundle": {
+        "static": 0.5, "kinetic": 0.4, "static_std": 3.0, "kinetic_std": 0.01,
+        "identified": True}}}))
+    code = main(["train", "--out", str(tmp_path / "run"), "--calibration", str(cal)])
+    err = capsys.readouterr().err.strip()
+    assert code == 2 and "\n" not in err
+    assert str(cal) in err and "friction.pallet_bundle.static_std" in err
+    assert not (tmp_path / "run").exists()
 
 
 def test_the_bundled_example_is_package_data_and_the_readme_example():

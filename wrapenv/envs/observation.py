@@ -9,6 +9,7 @@ import math
 import numpy as np
 
 from wrapenv.calibrated import Calibration
+from wrapenv.config import InputError
 from wrapenv.load import PAIRS, PATTERNS, Layout, LoadUnit
 from wrapenv.material import Material
 
@@ -18,6 +19,9 @@ BUNDLE_SIZE_SCALE_M = 0.5
 BUNDLE_MASS_SCALE_KG = 20.0
 PALLET_SIZE_SCALE_M = 1.2   # the EUR pallet's length
 LOAD_HEIGHT_SCALE_M = 2.0
+
+#: The largest standard deviation of a friction coefficient the observation holds.
+MAX_FRICTION_STD = 2.0
 
 #: Observation features in order: (name, upper bound of the space). Every lower bound is 0.
 OBS_FEATURES: tuple[tuple[str, float], ...] = (
@@ -33,7 +37,8 @@ OBS_FEATURES: tuple[tuple[str, float], ...] = (
     *((f"pattern_{p}", 1.0) for p in PATTERNS),
     *((f"friction_{pair}_{kind}", 2.0) for pair in PAIRS for kind in ("static", "kinetic")),
     ("target_g", 1.1),
-    *((f"friction_{pair}_{kind}_std", 2.0) for pair in PAIRS for kind in ("static", "kinetic")),
+    *((f"friction_{pair}_{kind}_std", MAX_FRICTION_STD) for pair in PAIRS
+      for kind in ("static", "kinetic")),
     ("material_grammage", 10.0),
     ("material_log_stiffness", 10.0),
     ("material_yield_strain", 10.0),
@@ -72,6 +77,18 @@ def observe(unit: LoadUnit, layout: Layout, target_g: float, material: Material,
         *_material_features(material),
     ]
     return np.array(values, np.float32)
+
+
+def check_observable(calibration: Calibration, source: str) -> None:
+    """Refuse, naming the field of `source`, a calibration whose spreads a policy cannot
+    observe: checked before any environment is made (a training env refused it in its own
+    process, and the vector env's workers died with tracebacks)."""
+    for pair, c in calibration.friction.items():
+        for kind, value in (("static_std", c.static_std), ("kinetic_std", c.kinetic_std)):
+            if value > MAX_FRICTION_STD:
+                raise InputError(source, f"friction.{pair}.{kind}",
+                                 f"{value:g} is beyond the {MAX_FRICTION_STD:g} a policy "
+                                 "observes")
 
 
 def _material_features(card: Material) -> list[float]:
