@@ -128,7 +128,11 @@ def synthesize(load: LoadUnit, out_dir: str | Path, *, wrap: WrapFormat | None =
         if wrap is not None:
             write_atomic(tmp / WRAP, wrap.to_toml().encode())
         write_truth(tmp, truth)
-        Recording.read(tmp)  # a recording that would not read back is never put in place
+        try:  # a recording that would not read back is never put in place
+            Recording.read(tmp)
+        except InputError as exc:  # named where it would have been: tmp is removed
+            source = exc.source.replace(str(tmp), str(out_dir), 1)
+            raise InputError(source, exc.field, exc.message) from None
     return Recording.read(out_dir)
 
 
