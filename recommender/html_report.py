@@ -125,8 +125,9 @@ def write_report(folder: Path, make: Callable[[Path], Page]) -> Path:
     """`make(stage)` writes the figures and the video into a staging folder and returns the
     page; then the files are written into `folder` together (`write_together`), the page last.
     The stage is a temporary folder of the system's, so an interrupted report leaves nothing
-    in `folder` (nor the folder if it made it), and a report that was there stays whole; a
-    killed one leaves its stage where temporary files go."""
+    in `folder` (nor the folder if it made it), and a report that was there stays whole unless
+    the interrupt falls between two of the final renames (each file is put in place whole, one
+    after another); a killed one leaves its stage where temporary files go."""
     folder = Path(folder)
     created = not folder.exists()
     stage = Path(tempfile.mkdtemp(prefix="wrapbench-report-"))

@@ -185,8 +185,9 @@ def run_levels(
 ) -> BenchRun:
     """Run test levels (in g, or explicit profiles) as a lab does: one unit, each level
     starting from the state the last one left (`fresh`: a freshly stacked and wrapped unit per
-    level). A cumulative sequence ends after a level that did not end at rest (invalid, or
-    stopped once decided): there is no state to go on from.
+    level). A cumulative sequence ends after a level that left no state to go on from (invalid,
+    or stopped once decided); a level still moving at the longest wait is judged where it
+    stands, and the next starts from there.
     `on_level` hears each level's verdict as it is decided (progress for people)."""
     layout = load.layout(orientation)  # type: ignore[arg-type]
     verdicts: list[LevelVerdict] = []
