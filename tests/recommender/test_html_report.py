@@ -62,8 +62,8 @@ def test_an_interrupted_report_leaves_nothing(tmp_path):
     assert list((tmp_path / "old").iterdir()) == []
 
 
-def test_a_report_interrupted_while_put_in_place_leaves_the_old_one_whole(tmp_path,
-                                                                          monkeypatch):
+def test_a_report_interrupted_before_its_files_go_in_leaves_the_old_one_whole(
+        tmp_path, monkeypatch):
     """The new figures never land beside the old page: the files go in together."""
     folder = tmp_path / "old"
     folder.mkdir()
