@@ -95,6 +95,11 @@ CASES = [
          {"run/log.csv": "timesteps\n"}, needles=("--out", "earlier")),
     Case("train --envs 100000", ["train", "--out", "run", "--envs", "100000"],
          needles=("--envs",)),
+    Case("train --calibration with a spread no policy observes",
+         ["train", "--out", "run", "--calibration", "c.json"],
+         {"c.json": '{"friction": {"pallet_bundle": {"static": 0.5, "kinetic": 0.4, '
+                    '"static_std": 3.0, "kinetic_std": 0.01, "identified": true}}}'},
+         needles=("c.json", "friction.pallet_bundle.static_std")),
     Case("simulate --level abc", ["simulate", "L.toml", "--level", "abc"], {"L.toml": LOAD},
          needles=("--level", "abc")),
     Case("simulate --hours-since-wrapping -1", ["simulate", "L.toml", "--wrap", "W.toml",
