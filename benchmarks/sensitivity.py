@@ -24,12 +24,9 @@ import argparse
 from dataclasses import replace
 from multiprocessing import Pool
 
-from benchmarks.tension_cap import HOURS_SINCE_WRAPPING, TARGET_G, lightest
-from wrapenv.bench import run_levels
+from benchmarks.tension_cap import HOURS_SINCE_WRAPPING, TARGET_G, lightest, to_target
 from wrapenv.design import ProgramSpace
-from wrapenv.eumos import level_margin
 from wrapenv.load import Friction, FrictionPair, LoadUnit
-from wrapenv.profile import eumos_levels
 from wrapenv.wrap import WrapFormat
 
 EXAMPLES = ("examples/pet_2layer_columnar.toml", "examples/pet_3layer_columnar.toml")
@@ -75,14 +72,8 @@ def _unit_and_wrap(load_path: str, material: str, variant: str) -> tuple[LoadUni
 def case(args: tuple[str, str, str, str]) -> str:
     load_path, material, variant, orientation = args
     load, wrap = _unit_and_wrap(load_path, material, variant)
-    verdict = run_levels(load, eumos_levels(TARGET_G), orientation=orientation,
-                         stop_at_failure=True, wrap=wrap).verdict
-    last = {round(v.level_g, 2): v for v in verdict.levels}.get(TARGET_G)
-    margin = f"{level_margin(last, verdict.load_height_m):.2f}" if last else "–"
-    best = verdict.highest_passed_g
-    name = load_path.rsplit("/", 1)[-1].removesuffix(".toml")
-    return (f"| {name} | {material} | {variant} | {orientation} | "
-            f"{'none' if best is None else f'{best:.1f} g'} | {margin} |")
+    row, _ = to_target(load_path, load, wrap, orientation)
+    return row.format(f"{material} | {variant} | {orientation}")
 
 
 def main() -> None:

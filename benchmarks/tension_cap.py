@@ -18,10 +18,11 @@ from multiprocessing import Pool
 
 from wrapenv.bench import run_levels
 from wrapenv.design import MIN_BOTTOM_WRAPS, MIN_TOP_WRAPS, TOP_OVERHANG_M, ProgramSpace
-from wrapenv.eumos import level_margin
+from wrapenv.eumos import LevelVerdict, level_margin
 from wrapenv.load import LoadUnit
 from wrapenv.profile import eumos_levels
 from wrapenv.program import Program
+from wrapenv.wrap import WrapFormat
 
 EXAMPLES = ("examples/pet_2layer_columnar.toml", "examples/pet_3layer_columnar.toml",
             "examples/pet_3layer_interlocked.toml")
@@ -38,22 +39,30 @@ def lightest(tension_n: float) -> Program:
                    top_overhang_m=TOP_OVERHANG_M, top_tension_n=tension_n)
 
 
+def to_target(load_path: str, load: LoadUnit, wrap: WrapFormat, orientation: str
+              ) -> tuple[str, LevelVerdict | None]:
+    """The EUMOS sequence to `TARGET_G`: the table's first cells (the load's name, then the
+    highest level passed and the margin at the target, `{}` where the caller's cells go) and
+    the target level's verdict (None if the unit failed before it)."""
+    verdict = run_levels(load, eumos_levels(TARGET_G), orientation=orientation,
+                         stop_at_failure=True, wrap=wrap).verdict
+    last = {round(v.level_g, 2): v for v in verdict.levels}.get(TARGET_G)
+    margin = f"{level_margin(last, verdict.load_height_m):.2f}" if last else "–"
+    best = verdict.highest_passed_g
+    name = load_path.rsplit("/", 1)[-1].removesuffix(".toml")
+    return (f"| {name} | {{}} | {'none' if best is None else f'{best:.1f} g'} | {margin} |",
+            last)
+
+
 def case(args: tuple[str, float, str]) -> str:
     load_path, fraction, orientation = args
     load = LoadUnit.from_toml(load_path)
     space = ProgramSpace.for_layout(load.layout(), "kraft")
     tension = fraction * space.material.yield_force_n_per_m * space.web_width_m
     wrap = space.laid(lightest(tension)).relaxed(HOURS_SINCE_WRAPPING)
-    verdict = run_levels(load, eumos_levels(TARGET_G), orientation=orientation,
-                         stop_at_failure=True, wrap=wrap).verdict
-    at = {round(v.level_g, 2): v for v in verdict.levels}
-    last = at.get(TARGET_G)
-    margin = f"{level_margin(last, verdict.load_height_m):.2f}" if last else "–"
+    row, last = to_target(load_path, load, wrap, orientation)
     peak = f"{last.wrap.peak_utilisation:.2f}" if last and last.wrap else "–"
-    best = verdict.highest_passed_g
-    name = load_path.rsplit("/", 1)[-1].removesuffix(".toml")
-    return (f"| {name} | {fraction:.0%} ({tension:.0f} N) | {orientation} | "
-            f"{'none' if best is None else f'{best:.1f} g'} | {margin} | {peak} |")
+    return row.format(f"{fraction:.0%} ({tension:.0f} N) | {orientation}") + f" {peak} |"
 
 
 def main() -> None:
