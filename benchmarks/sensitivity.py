@@ -20,11 +20,15 @@ table: the highest level passed and the margin at 0.5 g.
 
 from __future__ import annotations
 
-import argparse
 from dataclasses import replace
-from multiprocessing import Pool
 
-from benchmarks.tension_cap import HOURS_SINCE_WRAPPING, TARGET_G, lightest, to_target
+from benchmarks.tension_cap import (
+    HOURS_SINCE_WRAPPING,
+    TARGET_G,
+    lightest,
+    print_table,
+    to_target,
+)
 from wrapenv.design import ProgramSpace
 from wrapenv.load import Friction, FrictionPair, LoadUnit
 from wrapenv.wrap import WrapFormat
@@ -77,16 +81,10 @@ def case(args: tuple[str, str, str, str]) -> str:
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--workers", type=int, default=2)
-    args = parser.parse_args()
     cases = [(load, m, v, o) for load in EXAMPLES for m, v in VARIANTS for o in ORIENTATIONS]
-    print(f"| load | web | variant | side along the motion | highest passed (to {TARGET_G} g) "
-          f"| margin at {TARGET_G} g |")
-    print("|---|---|---|---|---|---|")
-    with Pool(args.workers) as pool:
-        for line in pool.imap(case, cases):
-            print(line, flush=True)
+    print_table(("load", "web", "variant", "side along the motion",
+                 f"highest passed (to {TARGET_G} g)", f"margin at {TARGET_G} g"), case, cases,
+                __doc__.splitlines()[0])
 
 
 if __name__ == "__main__":

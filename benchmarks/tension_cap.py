@@ -14,7 +14,9 @@ passed, the margin at 0.5 g and the web's peak utilisation there. Prints a Markd
 from __future__ import annotations
 
 import argparse
+from collections.abc import Callable, Sequence
 from multiprocessing import Pool
+from typing import Any
 
 from wrapenv.bench import run_levels
 from wrapenv.design import MIN_BOTTOM_WRAPS, MIN_TOP_WRAPS, TOP_OVERHANG_M, ProgramSpace
@@ -65,17 +67,25 @@ def case(args: tuple[str, float, str]) -> str:
     return row.format(f"{fraction:.0%} ({tension:.0f} N) | {orientation}") + f" {peak} |"
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+def print_table(columns: Sequence[str], case: Callable[[Any], str], cases: Sequence[Any],
+                description: str) -> None:
+    """The benchmarks' command line (`--workers`) and table: a Markdown row per case, run on
+    a pool of workers, printed in order as they come."""
+    parser = argparse.ArgumentParser(description=description)
     parser.add_argument("--workers", type=int, default=2)
     args = parser.parse_args()
-    cases = [(load, f, o) for load in EXAMPLES for f in YIELD_FRACTIONS for o in ORIENTATIONS]
-    print("| load | tension (of yield force) | side along the motion | highest passed "
-          f"(to {TARGET_G} g) | margin at {TARGET_G} g | peak utilisation |")
-    print("|---|---|---|---|---|---|")
+    print("| " + " | ".join(columns) + " |")
+    print("|" + "---|" * len(columns))
     with Pool(args.workers) as pool:
         for line in pool.imap(case, cases):
             print(line, flush=True)
+
+
+def main() -> None:
+    cases = [(load, f, o) for load in EXAMPLES for f in YIELD_FRACTIONS for o in ORIENTATIONS]
+    print_table(("load", "tension (of yield force)", "side along the motion",
+                 f"highest passed (to {TARGET_G} g)", f"margin at {TARGET_G} g",
+                 "peak utilisation"), case, cases, __doc__.splitlines()[0])
 
 
 if __name__ == "__main__":
