@@ -425,6 +425,8 @@ def _summary(result) -> str:
 
 
 def _validation_summary(check: Validation) -> str:
+    from calibration.validate import REPRODUCED_SHARE
+
     lines = [f"validation {printable(check.source)} ({check.replays} replays): slide on its "
              "support at "
              "the end of the predictable frames, mm; 'uncertain': replayed with the calibrated "
@@ -442,6 +444,10 @@ def _validation_summary(check: Validation) -> str:
                  "calibration's uncertainty, "
                  + ("explained" if c.explained else "NOT explained by it: the recording shows "
                     "something the calibrated bench does not do"))
+    if c.reproduced is not None:
+        lines.append(f"  {c.reproduced:.0%} of the replays with the calibrated values come within "
+                     f"{REPRODUCED_SHARE:.0%} of it (a unit near a threshold has several outcomes"
+                     ", and a take is one of them)")
     return "\n".join(lines)
 
 

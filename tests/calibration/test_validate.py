@@ -118,3 +118,12 @@ def test_a_recording_is_explained_within_two_spreads_of_the_uncertain_prediction
     assert check.uncertain_spreads == pytest.approx(spreads)
     assert check.explained is explained
     assert check.to_dict()["explained"] is explained
+
+
+def test_the_share_of_replays_that_reproduce_a_take_within_15_pct_is_reported():
+    """A unit near a threshold has several outcomes: two of these four replays come within
+    15 % (12 mm) of the 80 mm recorded, the others took another outcome."""
+    check = validate._check(-0.08, [-0.08, -0.05, -0.085, -0.02], [-0.06])
+    assert check.reproduced == 0.5
+    assert check.to_dict()["reproduced"] == 0.5
+    assert validate._check(-0.005, [-0.005], [-0.005]).reproduced is None   # below MIN_SLIDE_M
