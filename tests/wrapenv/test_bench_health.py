@@ -39,7 +39,8 @@ def test_same_inputs_give_identical_json(tmp_path):
 
 #: A level that turns a last-bit difference into another run: the 2-layer example's top layer
 #: sliding off at 0.45 g, unwrapped and Kraft-wrapped (wrap forces reach Bullet too); prints a
-#: digest of each trace.
+#: digest of each trace's positions, which Bullet reports (the trace's rotation matrices are
+#: numpy's products of its quaternions, last bits per processor, read only against thresholds).
 _CHAOTIC_LEVELS = """
 import hashlib
 from wrapenv.bench import run_level
