@@ -13,7 +13,9 @@ and the trace. Its level ends when nothing more can happen, so it simulates less
 issue's plain run; the plain run is therefore timed for the 4.5 s the issue measured, and for
 exactly as long as the bench's level lasted (settling plus the trace), the like-for-like figure
 per simulated second. A wrapped unit is solved with `SimSettings.wrapped_solver_iterations` (50)
-where the issue's plain run has 20: the plain 4.5 s is also timed with as many.
+where the issue's plain run has 20: the plain 4.5 s is also timed with as many, and with the
+iterations a new PyBullet world has (read from the engine: 50 in pybullet 3.2.7), plain PyBullet
+as it ships.
 
 Each timing is the median of `--repeat` runs, alternated, inside this process (imports and
 interpreter start-up excluded, which only dilutes a ratio towards 1); wall and CPU time are both
@@ -97,6 +99,15 @@ def plain_pybullet(layout: Layout, profile: PulseProfile, sim_s: float,
         pb.disconnect(client)
 
 
+def pybullet_default_iterations() -> int:
+    """The solver iterations a new PyBullet world has: plain PyBullet as it ships."""
+    client = pb.connect(pb.DIRECT)
+    try:
+        return int(pb.getPhysicsEngineParameters(physicsClientId=client)["numSolverIterations"])
+    finally:
+        pb.disconnect(client)
+
+
 def bench_level() -> int:
     """The bench's level (as `run_level` runs it); returns how many contact points Bullet
     holds at rest after it."""
@@ -152,9 +163,9 @@ def compare(runs: dict[str, Callable[[], object]], repeat: int, clock: Callable[
     wall_s = {n: statistics.median(w for w, _ in r) for n, r in results.items()}
     cpu_s = {n: statistics.median(c for _, c in r) for n, r in results.items()}
     print(f"\n{title}, median of {repeat}")
-    print(f"{'run':32s} {'wall s':>7} {'CPU s':>7}")
+    print(f"{'run':44s} {'wall s':>7} {'CPU s':>7}")
     for name in runs:
-        print(f"{name:32s} {wall_s[name]:7.3f} {cpu_s[name]:7.3f}")
+        print(f"{name:44s} {wall_s[name]:7.3f} {cpu_s[name]:7.3f}")
     bench = next(iter(runs))
     for name in list(runs)[1:]:
         print(f"ratio bench / {name}: {wall_s[bench] / wall_s[name]:.2f} wall, "
@@ -175,7 +186,8 @@ def main(argv: list[str] | None = None) -> None:
     level_sim_s = SETTLE_S + float(trace.t_s[-1])
     wrapped_iterations = SimSettings().wrapped_solver_iterations
     print(f"3-layer example (48 bundles), {LEVEL_G} g, dt 1/240 s; the bench's wrapped unit "
-          f"{wrapped_iterations} solver iterations; CPUs {sorted(os.sched_getaffinity(0))}")
+          f"{wrapped_iterations} solver iterations, a new PyBullet world "
+          f"{pybullet_default_iterations()}; CPUs {sorted(os.sched_getaffinity(0))}")
     print(f"the bench's level: {SETTLE_S:.2f} s settling + {trace.t_s[-1]:.2f} s of pulse and "
           f"rest = {level_sim_s:.2f} s simulated")
     runs: list[tuple[str, Callable[[], object], str]] = [
@@ -184,10 +196,13 @@ def main(argv: list[str] | None = None) -> None:
          f"plain_level({ISSUE_SIM_S})"),
         (f"plain PyBullet, {level_sim_s:.2f} s", partial(plain_level, level_sim_s),
          f"plain_level({level_sim_s})"),
-        (f"plain, {ISSUE_SIM_S} s, {wrapped_iterations} it",
-         partial(plain_level, ISSUE_SIM_S, wrapped_iterations),
-         f"plain_level({ISSUE_SIM_S}, {wrapped_iterations})"),
     ]
+    default = pybullet_default_iterations()
+    for iterations in sorted({default, wrapped_iterations}):
+        name = f"plain, {ISSUE_SIM_S} s, {iterations} it"
+        runs.append((name + (" (PyBullet's default)" if iterations == default else ""),
+                     partial(plain_level, ISSUE_SIM_S, iterations),
+                     f"plain_level({ISSUE_SIM_S}, {iterations})"))
     compare({name: fn for name, fn, _ in runs}, args.repeat, time.process_time,
             "in this process")
     bench_points, plain_points = bench_level(), plain_level(ISSUE_SIM_S)
@@ -201,7 +216,7 @@ def main(argv: list[str] | None = None) -> None:
         counts = {name: instructions(code) for name, _, code in runs}
         print("\ninstructions (callgrind; the run alone, imports subtracted)")
         for name, n in counts.items():
-            print(f"{name:32s} {n / 1e9:7.2f} G")
+            print(f"{name:44s} {n / 1e9:7.2f} G")
         bench = runs[0][0]
         for name, _, _ in runs[1:]:
             print(f"ratio bench / {name}: {counts[bench] / counts[name]:.2f} (goal <= 1.0)")
