@@ -31,6 +31,7 @@ from wrapenv.load import Friction, LoadUnit
 from wrapenv.wrap import WrapFormat
 
 if TYPE_CHECKING:   # imported where used: the CLI starts without the fitting's modules
+    from calibration.fit import FitResult
     from calibration.validate import Check, Validation
 
 #: Longest message printed whole (it may quote a recording's folder, which `printable` makes safe).
@@ -390,7 +391,7 @@ def run_calibrate(args: argparse.Namespace) -> int:
     return 0
 
 
-def _summary(result) -> str:
+def _summary(result: FitResult) -> str:
     cal = result.calibration
     lines = (["pair            static         kinetic        identified"] if cal.friction
              else ["friction: not fitted (the load file's values)"])

@@ -6,7 +6,9 @@ the video's still."""
 from __future__ import annotations
 
 import io
+from collections.abc import Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import matplotlib
 
@@ -15,7 +17,7 @@ import cv2  # noqa: E402
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from matplotlib.axes import Axes  # noqa: E402
-from matplotlib.colors import Normalize  # noqa: E402
+from matplotlib.colors import Colormap, Normalize  # noqa: E402
 
 from wrapenv.bench import BenchRun  # noqa: E402
 from wrapenv.config import printable  # noqa: E402
@@ -26,6 +28,9 @@ from wrapenv.trace import Trace  # noqa: E402
 from wrapenv.wrap import WrapFormat  # noqa: E402
 from wrapenv.wrap_geometry import CORNER_NAMES, corner_positions_m  # noqa: E402
 from wrapenv.wrap_report import Place, WrapReport  # noqa: E402
+
+if TYPE_CHECKING:
+    from recommender.search import Evaluation
 
 #: Layers' colours: matplotlib's tab10 without its orange and red, which draw the limits.
 LAYER_COLOURS = tuple(plt.get_cmap("tab10")(i) for i in (0, 2, 4, 5, 6, 7, 8, 9))
@@ -75,7 +80,8 @@ def plot_level(ax: Axes, trace: Trace, verdict: LevelVerdict, height_m: float) -
     ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))
 
 
-def plot_search(history: list, best, margin_goal: float) -> bytes:
+def plot_search(history: Sequence[Evaluation], best: Evaluation | None,
+                margin_goal: float) -> bytes:
     """Every simulated candidate of a search: material against its worst sample's margin,
     robust passes in green, the recommendation circled: where the search found the cheap side
     of safe."""
@@ -147,7 +153,7 @@ def plot_tension_map(run: BenchRun, layout: Layout, title: str = "") -> bytes:
     return _png(fig)
 
 
-def _map_places(ax: Axes, report: WrapReport, cmap, norm: Normalize) -> None:
+def _map_places(ax: Axes, report: WrapReport, cmap: Colormap, norm: Normalize) -> None:
     """Diagonals first (patches), then verticals, rings and their corners on top."""
     order = {"diagonals": 0, "vertical": 1, "ring": 2, "seam": 3}
     for p in sorted(report.places, key=lambda p: order[p.element]):

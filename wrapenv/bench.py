@@ -269,7 +269,8 @@ class _Run:
         pos, quat, vel, omega = self.world.state(self.dynamic)
         return pos, rotation_matrices(quat), vel, omega
 
-    def _update_friction(self, pos, rot, vel, omega) -> None:
+    def _update_friction(self, pos: np.ndarray, rot: np.ndarray, vel: np.ndarray,
+                         omega: np.ndarray) -> None:
         changed = self.stick_slip.update_moving(pos, rot, vel, omega)
         if changed:
             _set_friction(self.world, self.scene, self.stick_slip, changed)
@@ -304,8 +305,9 @@ class _Run:
             return f"elastic displacement {elastic * 1000:.0f} mm past {limit * 1000:.0f} mm"
         return ""
 
-    def _apply_wrap(self, pos, rot, vel, omega, t_s: float | None = None) -> None:
-        force, torque = self.wrap.forces(pos, rot, vel, omega, t_s)  # type: ignore[union-attr]
+    def _apply_wrap(self, wrap: WrapNet, pos: np.ndarray, rot: np.ndarray, vel: np.ndarray,
+                    omega: np.ndarray, t_s: float | None = None) -> None:
+        force, torque = wrap.forces(pos, rot, vel, omega, t_s)
         bodies = np.flatnonzero(np.any(force != 0, axis=1) | np.any(torque != 0, axis=1))
         self.world.apply_wrenches(self.scene.moving[bodies], pos[bodies], force[bodies],
                                   torque[bodies])
@@ -320,7 +322,7 @@ class _Run:
                 x = min(1.0, step / (2 * n / 3))
                 self.wrap.laying(x * x * (3 - 2 * x))
                 pos, rot, vel, omega = self._state()
-                self._apply_wrap(pos, rot, vel, omega)
+                self._apply_wrap(self.wrap, pos, rot, vel, omega)
             self.world.step()
         if self.wrap is not None:
             pos, rot, _, _ = self._state()
@@ -348,7 +350,7 @@ class _Run:
             return step
         pos, rot, vel, omega = self._state()
         if self.wrap is not None:
-            self._apply_wrap(pos, rot, vel, omega, step * self.s.timestep_s)
+            self._apply_wrap(self.wrap, pos, rot, vel, omega, step * self.s.timestep_s)
         if self.push is not None and step < self.stop_step:
             self.world.push(self.push[0], self.push[1])
         if not sample:

@@ -18,7 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from wrapenv.load import Layout
+from wrapenv.load import BundlePlacement, Layout
 from wrapenv.scene import bundle_row
 from wrapenv.wrap import WrapFormat
 
@@ -33,6 +33,8 @@ _CORNER_SIGNS = ((-1, -1), (1, -1), (1, 1), (-1, 1))  # counter-clockwise seen f
 #: Names of the outline's corners and of the face that follows each, counter-clockwise.
 CORNER_NAMES = ("corner -x-y", "corner +x-y", "corner +x+y", "corner -x+y")
 FACE_NAMES = ("face -y", "face +x", "face +y", "face -x")
+#: A point of a ring: (body's state row, the point in the body's frame, its world xy at rest).
+OutlinePoint = tuple[int, tuple[float, float, float], tuple[float, float]]
 
 
 @dataclass(frozen=True)
@@ -107,11 +109,12 @@ def corner_positions_m(layout: Layout) -> tuple[float, ...]:
     return (0.0, lx, lx + ly, 2 * lx + ly, 2 * (lx + ly))
 
 
-def _outline_points(members, z: float) -> tuple[list, list[int]]:
+def _outline_points(members: list[tuple[int, BundlePlacement]], z: float
+                    ) -> tuple[list[OutlinePoint], list[int]]:
     """Vertical edges of the layer's bundles that lie on the layer's outline (its convex hull,
     where the web runs), at height z, counter-clockwise from the -x-y corner, and which of them
     are the outline's corners."""
-    edges = []
+    edges: list[OutlinePoint] = []
     for k, b in members:
         for sx, sy in _CORNER_SIGNS:
             local = (sx * b.size_m[0] / 2, sy * b.size_m[1] / 2, z - b.centre_m[2])
@@ -157,7 +160,7 @@ def _distance_to_polygon(p: tuple[float, float], polygon: np.ndarray) -> float:
     return float(np.min(np.linalg.norm(ap - t[:, None] * ab, axis=1)))
 
 
-def _make_ring(wrap: WrapFormat, z: float, share: tuple[float, float], pts: list,
+def _make_ring(wrap: WrapFormat, z: float, share: tuple[float, float], pts: list[OutlinePoint],
                corners: list[int], outline: tuple[float, float]) -> Ring:
     """A ring through `pts` = (body, local point, world xy at rest), over the height `share`."""
     h = share[1] - share[0]
