@@ -145,7 +145,7 @@ def _headlines(check: Validation) -> list[tuple[str, tuple[int, Check]]]:
     return [("slid", check.largest)] + ([("moved on the pallet", on_pallet)] if on_pallet else [])
 
 
-def _unit(values) -> str:
+def _unit(values: np.ndarray) -> str:
     return "[" + " ".join(f"{v:.3f}" for v in values) + "]"
 
 

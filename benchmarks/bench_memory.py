@@ -19,7 +19,7 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 
 from wrapenv.bench import SimSettings, run_level  # noqa: E402
 from wrapenv.eumos import evaluate  # noqa: E402
-from wrapenv.load import LoadUnit  # noqa: E402
+from wrapenv.load import Layout, LoadUnit  # noqa: E402
 from wrapenv.profile import PulseProfile  # noqa: E402
 from wrapenv.wrap import WrapFormat  # noqa: E402
 
@@ -41,7 +41,7 @@ def rss_mb() -> float:
         return int(fh.read().split()[1]) * os.sysconf("SC_PAGE_SIZE") / 2**20
 
 
-def one_run(k: int, layout, wrap: WrapFormat) -> bool:
+def one_run(k: int, layout: Layout, wrap: WrapFormat) -> bool:
     settings = SimSettings(stop_when_decided=True)
     wrapped = wrap if k % 10 == 9 else None
     return evaluate(run_level(layout, PulseProfile(LEVELS_G[k % 2]), settings, wrapped)).passed

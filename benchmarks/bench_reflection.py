@@ -16,19 +16,24 @@ from __future__ import annotations
 
 import argparse
 import os
+from collections.abc import Callable
 from dataclasses import replace
 
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 
 import numpy as np  # noqa: E402
 
-from benchmarks.bench_screening import CASES, UNITS, describe, wrap_of  # noqa: E402
+from benchmarks.bench_screening import CASES, UNITS, Case, describe, wrap_of  # noqa: E402
 from wrapenv.bench import run_level  # noqa: E402
 from wrapenv.eumos import evaluate, level_margin  # noqa: E402
 from wrapenv.load import Layout, LoadUnit  # noqa: E402
 from wrapenv.profile import PulseProfile  # noqa: E402
 
-UNWRAPPED = [("2L", None, 0.3), ("2L", None, 0.5), ("3L", None, 0.2), ("3L", None, 0.3)]
+#: A case without a wrap: (unit, None, level g).
+Unwrapped = tuple[str, None, float]
+
+UNWRAPPED: list[Unwrapped] = [("2L", None, 0.3), ("2L", None, 0.5), ("3L", None, 0.2),
+                              ("3L", None, 0.3)]
 
 
 def reflected(layout: Layout) -> Layout:
@@ -43,11 +48,12 @@ def renumbered(layout: Layout) -> Layout:
     return replace(layout, bundles=layout.bundles[::-1])
 
 
-WAYS = {"as laid out": lambda layout: layout, "reflected in y": reflected,
-        "bundles in reverse order": renumbered}
+WAYS: dict[str, Callable[[Layout], Layout]] = {
+    "as laid out": lambda layout: layout, "reflected in y": reflected,
+    "bundles in reverse order": renumbered}
 
 
-def run(case, way: str) -> tuple[bool, float, float]:
+def run(case: Case | Unwrapped, way: str) -> tuple[bool, float, float]:
     """Passed, margin and largest permanent displacement of `case` laid out `way`."""
     unit, spec, level = case
     load = LoadUnit.from_toml(UNITS[unit])

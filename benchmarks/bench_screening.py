@@ -29,10 +29,14 @@ from wrapenv.load import LoadUnit  # noqa: E402
 from wrapenv.profile import PulseProfile  # noqa: E402
 from wrapenv.wrap import WrapFormat  # noqa: E402
 
+#: A case's wrap and a case, as in CASES.
+WrapSpec = str | tuple[str, int, float]
+Case = tuple[str, WrapSpec, float]
+
 UNITS = {"3L": "examples/pet_3layer_columnar.toml", "2L": "examples/pet_2layer_columnar.toml",
          "3L interlocked": "examples/pet_3layer_interlocked.toml"}
 #: (unit, wrap: an example file or (material, layers, tension_n) over the full height, level g)
-CASES = [
+CASES: list[Case] = [
     ("3L", "examples/wrap_kraft_3layer.toml", 0.5), ("3L", "examples/wrap_kraft_3layer.toml", 0.8),
     ("3L", "examples/wrap_lldpe_3layer.toml", 0.5), ("3L", "examples/wrap_lldpe_3layer.toml", 0.7),
     ("3L", ("lldpe", 1, 70.0), 0.4), ("3L", ("lldpe", 1, 70.0), 0.6),
@@ -64,7 +68,7 @@ class Outcome:
     cpu_s: float
 
 
-def wrap_of(spec, height_m: float) -> WrapFormat:
+def wrap_of(spec: WrapSpec, height_m: float) -> WrapFormat:
     if isinstance(spec, str):
         return WrapFormat.from_toml(spec, height_m)
     material, layers, tension = spec
@@ -72,7 +76,7 @@ def wrap_of(spec, height_m: float) -> WrapFormat:
         {"from_m": 0.0, "to_m": height_m, "layers": layers, "tension_n": tension}]})
 
 
-def run_case(case, settings: SimSettings) -> Outcome:
+def run_case(case: Case, settings: SimSettings) -> Outcome:
     unit, spec, level = case
     load = LoadUnit.from_toml(UNITS[unit])
     wrap = wrap_of(spec, load.load_height_m)
@@ -82,7 +86,7 @@ def run_case(case, settings: SimSettings) -> Outcome:
                    verdict.permanent_max_m or 0.0, time.process_time() - t0)
 
 
-def describe(case) -> str:
+def describe(case: Case) -> str:
     unit, spec, level = case
     wrap = spec.split("/")[-1].removesuffix(".toml") if isinstance(spec, str) else \
         f"{spec[0]} {spec[1]} x {spec[2]:.0f} N"

@@ -37,10 +37,13 @@ def sequence(load: LoadUnit, wrap: WrapFormat, levels: list[float], solve: str) 
                            wrapped_contact_erp=float(erp))
     t0 = time.process_time()
     run = run_levels(load, levels, settings, stop_at_failure=True, wrap=wrap)
+    # A valid level's figures are never None (None only reports a non-finite figure, and a
+    # valid run stayed finite): the `is not None` tests only narrow the types.
     cells = [f"{v.level_g:.1f} g " + ("pass" if v.passed else "FAIL" if v.valid else
                                       f"INVALID ({v.invalid_reason})")
              + (f" {1e3 * v.elastic_max_m:.1f}/{1e3 * v.permanent_total_max_m:.1f}"
-                if v.valid else "") for v in run.verdict.levels]
+                if v.valid and v.elastic_max_m is not None
+                and v.permanent_total_max_m is not None else "") for v in run.verdict.levels]
     return (f"{iterations:>4s} it, ERP {erp}, {time.process_time() - t0:5.1f} CPU s: "
             + "; ".join(cells))
 

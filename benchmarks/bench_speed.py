@@ -23,7 +23,7 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")  # one core, as the goal asks
 from wrapenv import bench  # noqa: E402
 from wrapenv.bench import SimSettings, run_level  # noqa: E402
 from wrapenv.eumos import evaluate  # noqa: E402
-from wrapenv.load import LoadUnit  # noqa: E402
+from wrapenv.load import Layout, LoadUnit  # noqa: E402
 from wrapenv.profile import G, PulseProfile  # noqa: E402
 from wrapenv.wrap import WrapFormat  # noqa: E402
 
@@ -43,12 +43,13 @@ SETTINGS = {
 }
 
 
-def counted_level(layout, level_g: float, settings: SimSettings, wrap) -> tuple[float, int, str]:
+def counted_level(layout: Layout, level_g: float, settings: SimSettings,
+                  wrap: WrapFormat | None) -> tuple[float, int, str]:
     """CPU seconds, Bullet steps and verdict of one level."""
     steps = 0
     real = bench.BulletWorld.step
 
-    def counting(world) -> None:
+    def counting(world: bench.BulletWorld) -> None:
         nonlocal steps
         steps += 1
         real(world)

@@ -17,11 +17,13 @@ from __future__ import annotations
 import os
 import time
 from collections import defaultdict
+from collections.abc import Callable
+from typing import ParamSpec, TypeVar
 
 from benchmarks.deformable_wrap import run_deformable_wrap
 from wrapenv import bench
 from wrapenv.bench import SimSettings, run_level
-from wrapenv.load import LoadUnit
+from wrapenv.load import Layout, LoadUnit
 from wrapenv.profile import PulseProfile
 from wrapenv.wrap import WrapFormat
 from wrapenv.wrap_physics import WrapNet
@@ -32,6 +34,9 @@ EXAMPLE = "examples/pet_3layer_columnar.toml"
 WRAPS = {"kraft": "examples/wrap_kraft_3layer.toml", "lldpe": "examples/wrap_lldpe_3layer.toml"}
 LEVELS_G = (0.3, 0.5)
 
+P = ParamSpec("P")
+R = TypeVar("R")
+
 
 class Timers:
     """CPU time spent in the bench's wrap coupling and in Bullet's step, by monkey-patching."""
@@ -39,10 +44,11 @@ class Timers:
     def __init__(self) -> None:
         self.seconds: dict[str, float] = defaultdict(float)
         self.calls: dict[str, int] = defaultdict(int)
-        self._originals = {"step": bench.BulletWorld.step, "wrap": bench._Run._apply_wrap}
+        self._originals: dict[str, Callable[..., None]] = {
+            "step": bench.BulletWorld.step, "wrap": bench._Run._apply_wrap}
 
-    def _timed(self, name: str, fn):
-        def wrapper(*args, **kwargs):
+    def _timed(self, name: str, fn: Callable[P, R]) -> Callable[P, R]:
+        def wrapper(*args: P.args, **kwargs: P.kwargs) -> R:
             t0 = time.process_time()
             out = fn(*args, **kwargs)
             self.seconds[name] += time.process_time() - t0
@@ -60,7 +66,7 @@ class Timers:
         setattr(bench._Run, "_apply_wrap", self._originals["wrap"])  # noqa: B010
 
 
-def level_run(layout, level_g: float, wrap: WrapFormat | None) -> dict:
+def level_run(layout: Layout, level_g: float, wrap: WrapFormat | None) -> dict[str, float]:
     settings = SimSettings()
     with Timers() as timers:
         t0, c0 = time.perf_counter(), time.process_time()

@@ -22,8 +22,16 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+from types import ModuleType
+from typing import TYPE_CHECKING
 
 import numpy as np
+
+if TYPE_CHECKING:  # for the annotations only: the project is imported lazily (see below)
+    from pybullet_utils.bullet_client import BulletClient
+
+    from wrapenv.load import Layout, LoadUnit
+    from wrapenv.profile import PulseProfile
 
 REPO = Path(__file__).resolve().parent.parent
 EXAMPLES = {
@@ -49,7 +57,7 @@ DECK_SIZE_M = (4.0, 3.0, 0.1)
 SPRING_DAMPING = 1.0
 
 
-def _project_imports():
+def _project_imports() -> tuple[type[LoadUnit], type[PulseProfile]]:
     """Import the project lazily (nothing runs at import) and from this checkout if needed."""
     try:
         from wrapenv.load import LoadUnit
@@ -102,7 +110,7 @@ def _write_tube_obj(path: Path, ring_xy: list[tuple[float, float]],
     return verts
 
 
-def _body_frictions(layout) -> tuple[float, float, float]:
+def _body_frictions(layout: Layout) -> tuple[float, float, float]:
     """Per-body coefficients (deck, pallet, bundle) whose products, as Bullet combines them,
     give the load's kinetic coefficient for each contact pair."""
     f = layout.friction
@@ -112,13 +120,13 @@ def _body_frictions(layout) -> tuple[float, float, float]:
     return deck, pallet, bundle
 
 
-def _mesh_nodes(client, pb, body: int) -> np.ndarray:
+def _mesh_nodes(client: BulletClient, pb: ModuleType, body: int) -> np.ndarray:
     _, pos = client.getMeshData(body, -1, flags=pb.MESH_DATA_SIMULATION_MESH)
     return np.asarray(pos, dtype=float).reshape(-1, 3)
 
 
-def _exploded(client, pb, soft: int, rigid: list[int], node0: np.ndarray,
-              rigid0: np.ndarray) -> bool:
+def _exploded(client: BulletClient, pb: ModuleType, soft: int, rigid: list[int],
+              node0: np.ndarray, rigid0: np.ndarray) -> bool:
     nodes = _mesh_nodes(client, pb, soft)
     pos = np.array([client.getBasePositionAndOrientation(b)[0] for b in rigid], dtype=float)
     if nodes.shape != node0.shape or not (np.all(np.isfinite(nodes)) and np.all(np.isfinite(pos))):
@@ -159,7 +167,8 @@ def run_deformable_wrap(layers: int = 3, nodes_around: int = 24, rings: int = 7,
         client.setPhysicsEngineParameter(sparseSdfVoxelSize=0.25)
         mu_deck, mu_pallet, mu_bundle = _body_frictions(layout)
 
-        def box(size, centre, mass, mu):
+        def box(size: tuple[float, float, float], centre: tuple[float, float, float],
+                mass: float, mu: float) -> int:
             half = [s / 2 for s in size]
             col = client.createCollisionShape(pb.GEOM_BOX, halfExtents=half)
             body = client.createMultiBody(mass, col, -1, basePosition=list(centre))

@@ -77,7 +77,7 @@ class PulseProfile:
     def duration_s(self) -> float:
         return self._phases()[3]
 
-    def accel(self, t: np.ndarray) -> np.ndarray:
+    def accel(self, t: float | np.ndarray) -> np.ndarray:
         t1, t2, t3, t4, d = self._phases()
         a = self.peak_mps2
         t = np.asarray(t, dtype=float)
@@ -107,7 +107,7 @@ class MeasuredProfile:
     def duration_s(self) -> float:
         return float(self.t_s[-1] - self.t_s[0])
 
-    def accel(self, t: np.ndarray) -> np.ndarray:
+    def accel(self, t: float | np.ndarray) -> np.ndarray:
         t = np.asarray(t, dtype=float) + self.t_s[0]
         inside = (t >= self.t_s[0]) & (t <= self.t_s[-1])
         return np.where(inside, np.interp(t, self.t_s, self.accel_mps2), 0.0)
