@@ -20,7 +20,8 @@ So the test is per body, then per recording:
   that few replays visit moves several bodies at once, and one replay in it suffices;
 - the fit is refused when the worst recording's exceeds `FitSettings.max_residual_m`: a value
   one recording is sensitive to is judged there, not diluted by recordings blind to it.
-Measured with `python -m benchmarks.bench_calibrate --truth N [--offset PAIR.KIND=DELTA]`.
+Measured with `python -m benchmarks.bench_calibrate --truth N [--offset PAIR.KIND=DELTA]`; its power
+against other rules: `python -m benchmarks.acceptance_power`.
 """
 
 from __future__ import annotations

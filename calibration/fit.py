@@ -60,8 +60,10 @@ PROBE_STATIC = 3 * RESOLVED_STATIC_STD
 #: The surrogate's fitted values are replayed this many times per recording (each settling a
 #: little longer, `replay.resettled`): their mean is the prediction, their scatter the part of
 #: the residual no calibration can remove (`calibration.acceptance`). The 2-layer columnar
-#: unit's true values are refused in 22 % of draws of 3 replays, 3 % of 6 (`bench_calibrate
-#: --truth 24`). The descents get one.
+#: unit's true values were refused in 22 % of draws of 3 replays, 3 % of 6 on the earlier
+#: machines' bench; on today's, whose 0.45 g take is an outcome one replay in 24 reproduces,
+#: in 80 % and 52 % (`bench_calibrate --truth 24`, `acceptance_power`: README, "When a fit is
+#: refused"). The descents get one.
 FINAL_REPLAYS = 6
 
 

@@ -1,0 +1,174 @@
+"""How well the fit's acceptance test tells right values from wrong ones (issue 13).
+
+columnar2's fitted takes (`bench_calibrate`: examples/pet_2layer_columnar.toml at 0.35, 0.425
+and 0.45 g) are replayed with their true friction and with one value shifted: 24 replays each
+with the true values, 12 with a shift, each replay settling a little longer
+(`replay.resettled`), as a fit's final replays do. Each set is also replayed over a fit's
+uncertainty, every pair's static and kinetic coefficients drawn about the set's values with
+standard deviations `JITTER` (seeded).
+
+Then, in 200 random draws of a fit's `FINAL_REPLAYS` replays, how often each rule refuses:
+- the fit's test (`calibration.acceptance.worst`), on replays at the values and, the column
+  "over the uncertainty", on the jittered ones;
+- "permutation": a recording is refused only when, besides the fit's test, it is less explained
+  than every replay is by the others (each replay judged as if it were the recording);
+- "outcome seen once": a recording is refused only when, besides the fit's test, no replay's
+  outcome is a singleton (every replay has another within the limit): a Good-Turing estimate
+  says outcomes not yet seen are likely where some were seen only once.
+The alternatives are measured here, not used by `calibrate`. Last, per take, how many of the
+true values' replays reproduce the recording (within the limit at every body, the tracker's
+noise allowed): how rare the recorded outcome is for the bench.
+
+    python -m benchmarks.acceptance_power [--workers 2]
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+from collections.abc import Callable, Sequence
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+
+from benchmarks.bench_calibrate import CASES, Offset, observation, true_calibration
+from calibration import acceptance, features
+from calibration.fit import FINAL_REPLAYS, FitSettings
+from calibration.replay import Observation, replay, resettled, residuals
+from wrapenv.bench import SimSettings
+from wrapenv.load import PAIRS, Friction, FrictionPair
+
+#: A fit's uncertainty about a static and a kinetic coefficient [A]: a resolved static
+#: coefficient's standard deviation is at most 0.025 (`fit.RESOLVED_STATIC_STD`).
+JITTER = (0.015, 0.008)
+OFFSETS = ("pallet_bundle.static=+0.1", "pallet_bundle.static=-0.1",
+           "pallet_bundle.static=+0.02", "bundle_bundle.static=+0.1",
+           "bundle_bundle.static=-0.1", "pallet_bundle.kinetic=+0.03",
+           "bundle_bundle.kinetic=+0.03", "bundle_bundle.kinetic=-0.03")
+TRUTH_REPLAYS, OFFSET_REPLAYS, DRAWS = 24, 12, 200
+LIMIT_M = FitSettings().max_residual_m
+
+#: per recording, the residual vectors of its replays (replays x features)
+Residuals = list[np.ndarray]
+Spans = list[tuple[str, np.ndarray]]
+
+
+def jittered(friction: Friction, rng: np.random.Generator) -> Friction:
+    """`friction` with every pair's coefficients drawn about their values (`JITTER`)."""
+    for name in PAIRS:
+        pair = friction.pair(name)
+        static = pair.static + rng.normal(0.0, JITTER[0])
+        kinetic = min(pair.kinetic + rng.normal(0.0, JITTER[1]), static)
+        friction = replace(friction, **{name: FrictionPair(static, kinetic)})
+    return friction
+
+
+def replayed(pool: ProcessPoolExecutor, observed: Sequence[Observation], offsets: list[Offset],
+             n: int, jitter: bool) -> Residuals:
+    """Each recording's residuals over `n` replays with the true values shifted by `offsets`."""
+    truth = observation(CASES["columnar2"][0][0])[1]
+    cal = true_calibration(truth, offsets)
+    rng = np.random.default_rng(1)
+    futures = []
+    for obs in observed:
+        friction = cal.apply(obs.load).friction
+        futures.append([pool.submit(replay, obs, jittered(friction, rng) if jitter else friction,
+                                    cal.wrap_scales(), resettled(SimSettings(), k))
+                        for k in range(n)])
+    out = []
+    for obs, fs in zip(observed, futures, strict=True):
+        runs = [f.result() for f in fs]
+        if any(run is None for run in runs):
+            raise SystemExit(f"{obs.source}: a replay became unphysical")
+        out.append(np.array([residuals(obs, run) for run in runs if run is not None]))
+    return out
+
+
+def unexplained_m(r: np.ndarray, spans: Spans) -> float:
+    """The fit's test on one recording (`acceptance.recording`), from its residuals."""
+    by_mean = acceptance.judge({b: acceptance.body_unexplained(r[:, i]) for b, i in spans})
+    return min([by_mean.rms_m] + [_apart_m(one, spans, acceptance.NOISE_VAR_M2) for one in r])
+
+
+def _apart_m(d: np.ndarray, spans: Spans, noise_m2: float = 0.0) -> float:
+    """How far apart two outcomes whose features differ by d are, judged as the test does."""
+    return acceptance.judge({b: max(0.0, float(np.mean(d[i] ** 2)) - noise_m2)
+                             for b, i in spans}).rms_m
+
+
+def _distances_m(r: np.ndarray, spans: Spans) -> np.ndarray:
+    """Between every two replays (inf on the diagonal)."""
+    n = len(r)
+    return np.array([[_apart_m(r[j] - r[k], spans) if j != k else np.inf for k in range(n)]
+                     for j in range(n)])
+
+
+def fits_test(r: np.ndarray, spans: Spans) -> bool:
+    return unexplained_m(r, spans) > LIMIT_M
+
+
+def permutation(r: np.ndarray, spans: Spans) -> bool:
+    if not fits_test(r, spans):
+        return False
+    others = [unexplained_m(np.delete(r, j, axis=0) - r[j], spans) for j in range(len(r))]
+    return unexplained_m(r, spans) > max(others)
+
+
+def seen_once(r: np.ndarray, spans: Spans) -> bool:
+    return fits_test(r, spans) and bool(np.all(_distances_m(r, spans).min(axis=1) <= LIMIT_M))
+
+
+Rule = Callable[[np.ndarray, Spans], bool]
+
+
+def refused_share(rule: Rule, sets: Residuals, spans: list[Spans]) -> float:
+    """How often `rule` refuses some recording, over `DRAWS` draws of a fit's replays."""
+    rng = np.random.default_rng(0)
+    n = len(sets[0])
+    refused = 0
+    for _ in range(DRAWS):
+        pick = rng.choice(n, FINAL_REPLAYS, replace=False)
+        refused += any(rule(r[pick], s) for r, s in zip(sets, spans, strict=True))
+    return refused / DRAWS
+
+
+def main(argv: list[str] | None = None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--workers", type=int, default=2)
+    args = parser.parse_args(argv)
+    t0 = time.perf_counter()
+    observed = [observation(t)[0] for t in CASES["columnar2"][0]]
+    spans = [list(features.spans(o.frames).items()) for o in observed]
+    print(f"columnar2's fitted takes; refused in {DRAWS} draws of {FINAL_REPLAYS} replays "
+          f"(limit {1e3 * LIMIT_M:g} mm); jitter ±{JITTER[0]} static, ±{JITTER[1]} kinetic")
+    print("| replayed with | the fit's test | over the uncertainty | permutation "
+          "| outcome seen once |")
+    print("|---|---|---|---|---|")
+    truth: Residuals = []
+    with ProcessPoolExecutor(args.workers) as pool:
+        for label in ("the true values", *OFFSETS):
+            offsets = [] if label == "the true values" else [Offset.parse(label)]
+            n = OFFSET_REPLAYS if offsets else TRUTH_REPLAYS
+            plain = replayed(pool, observed, offsets, n, jitter=False)
+            wide = replayed(pool, observed, offsets, n, jitter=True)
+            truth = truth or plain
+            shares = [refused_share(fits_test, plain, spans),
+                      refused_share(fits_test, wide, spans),
+                      refused_share(permutation, plain, spans),
+                      refused_share(seen_once, plain, spans)]
+            print(f"| {label} | " + " | ".join(f"{100 * s:.0f} %" for s in shares) + " |",
+                  flush=True)
+    print(f"\nreplays with the true values that reproduce the recording (of {TRUTH_REPLAYS}):")
+    for obs, r, s in zip(observed, truth, spans, strict=True):
+        near = np.array([_apart_m(one, s, acceptance.NOISE_VAR_M2) for one in r])
+        off = near[near > LIMIT_M]
+        rest = (f" (the others {1e3 * off.min():.1f}-{1e3 * off.max():.1f} mm off)"
+                if len(off) else "")
+        print(f"  {Path(obs.source).name}: {len(near) - len(off)}{rest}")
+    print(f"\n{time.perf_counter() - t0:.0f} s")
+
+
+if __name__ == "__main__":
+    main()
