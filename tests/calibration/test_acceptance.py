@@ -88,11 +88,12 @@ def test_small_units_excuse_no_body():
 
 def test_a_refusal_names_the_recording_and_the_excused_body():
     verdict = acceptance.Unexplained("rec-0.45g", 0.0237, ("L2C2R1",))
-    reason = _failure(0.05, verdict, 300, _Fitted(Friction()), FitSettings())
-    assert reason.startswith("rec-0.45g is left 23.7 mm unexplained > 10 mm")
+    reason = _failure(0.05, verdict, 24, 300, _Fitted(Friction()), FitSettings())
+    assert reason.startswith("rec-0.45g is left 23.7 mm unexplained > 10 mm by the scatter of "
+                             "its 24 replays")
     assert "L2C2R1" in reason
     explained = dataclasses.replace(verdict, rms_m=0.009)
-    assert _failure(0.05, explained, 300, _Fitted(Friction()), FitSettings()) == ""
+    assert _failure(0.05, explained, 24, 300, _Fitted(Friction()), FitSettings()) == ""
 
 
 def test_a_search_most_of_whose_replays_blew_up_is_refused():
@@ -101,8 +102,8 @@ def test_a_search_most_of_whose_replays_blew_up_is_refused():
     explained = acceptance.Unexplained("rec", 0.001)
     half = _Fitted(Friction(), replays=200, unphysical=100)
     most = _Fitted(Friction(), replays=200, unphysical=101)
-    assert _failure(0.005, explained, 240, half, FitSettings()) == ""
-    assert _failure(0.005, explained, 240, most, FitSettings()) == (
+    assert _failure(0.005, explained, 6, 240, half, FitSettings()) == ""
+    assert _failure(0.005, explained, 6, 240, most, FitSettings()) == (
         "101 of the search's 200 replays became unphysical")
 
 

@@ -9,14 +9,15 @@ One draw of such a test says little on its own: the unit is chaotic, and what th
 it changes with the draw (and, until the bench rounded what it hands Bullet, with the last bits
 of the processor's arithmetic: this test's draw then predicted its third level within 15 % with
 OpenBLAS's AVX2 kernels and 26.5 % off with its AVX-512 ones). Over the draws of seeds 0-5 at
-this budget (2026-11-26): every draw found the pair that slid; 4 fits were written, each with
+this budget (2026-11-26, a recording its final replays leave unexplained replayed 24 times
+before the fit is refused): every draw found the pair that slid; 5 fits were written, each with
 its kinetic coefficient within 0.03 of the truth and its static one within 0.05 or reported
-unresolved (seed 1: 0.109 off at +- 0.057); 2 were refused (seed 0: static 0.095 off, the 0.45 g
-take left 48.6 mm unexplained; seed 4: 12.1 mm); 1 written fit in 4 predicted its third level
-within 15 % (+9 %; the others +34 %, +61 %, -65 %). So the tests specify what held on every
-draw, a calibration claims only what its takes pin and a wrong one is refused saying where, on
-one draw of each kind, and keep the issue's 15 % as an expected failure until the fit meets
-it."""
+unresolved with its error within two standard deviations (seed 0: 0.095 off at +- 0.052, seed 1:
+0.109 at +- 0.057); 1 was refused (seed 4: its kinetic coefficient 0.031 off, the 0.45 g take
+left 11.0 mm unexplained); 1 written fit in 5 predicted its third level within 15 % (+9 %; the
+others +58 %, -65 %, +61 %, +34 %). So the tests specify what held on every draw, a calibration
+claims only what its takes pin and a wrong one is refused saying where, on one draw of each
+kind, and keep the issue's 15 % as an expected failure until the fit meets it."""
 
 from __future__ import annotations
 
@@ -24,7 +25,14 @@ from concurrent.futures import ProcessPoolExecutor
 
 import pytest
 
-from calibration.fit import FINAL_REPLAYS, RESOLVED_STATIC_STD, FitResult, FitSettings, fit
+from calibration.fit import (
+    FINAL_REPLAYS,
+    RESOLVED_STATIC_STD,
+    UNEXPLAINED_REPLAYS,
+    FitResult,
+    FitSettings,
+    fit,
+)
 from calibration.recording import Recording, Truth
 from calibration.replay import Observation, observe
 from calibration.synth import synthesize
@@ -45,10 +53,11 @@ UNIT = {
 FITTED, HELD_OUT = (0.35, 0.45), 0.40
 BUDGET = 150
 #: The draws: one whose fit is written (its static coefficient not pinned), one refused.
-WRITTEN, REFUSED = 1, 0
+WRITTEN, REFUSED = 1, 4
 #: Probes come on top of the budget: a resolved static coefficient is replayed shifted down and
-#: up, FINAL_REPLAYS times per bare take, and as often again refitted (README, "Calibration").
-MOST_SIMULATIONS = BUDGET + 4 * FINAL_REPLAYS * len(FITTED)
+#: up, FINAL_REPLAYS times per bare take, and as often again refitted (README, "Calibration");
+#: so do the replays of a take the final ones leave unexplained, up to UNEXPLAINED_REPLAYS.
+MOST_SIMULATIONS = BUDGET + (4 * FINAL_REPLAYS + UNEXPLAINED_REPLAYS - FINAL_REPLAYS) * len(FITTED)
 
 
 class Draw:
@@ -107,16 +116,18 @@ def test_a_written_calibration_claims_only_what_its_takes_pin(written):
 
 
 def test_a_fit_outside_the_bounds_is_refused_naming_the_take_it_leaves_unexplained(refused):
+    """Refused after the take was replayed UNEXPLAINED_REPLAYS times, not only FINAL_REPLAYS."""
     result = refused.result
     pair = result.calibration.friction["bundle_bundle"]
-    assert abs(pair.static - refused.truth["static"]) > 0.05  # what CAL.json would have claimed
+    assert abs(pair.kinetic - refused.truth["kinetic"]) > 0.03  # what CAL.json would have claimed
     assert not result.converged
     assert f"at{FITTED[1]}" in result.reason and "unexplained" in result.reason
+    assert f"its {UNEXPLAINED_REPLAYS} replays" in result.reason
     assert result.simulations <= MOST_SIMULATIONS
 
 
 @pytest.mark.xfail(strict=True, reason="issue 13 open: a written calibration predicted its "
-                   "third level within 15 % in 1 draw of 4 (this one: 65 % off)")
+                   "third level within 15 % in 1 draw of 5 (this one: 65 % off)")
 def test_a_written_calibration_predicts_a_level_it_was_not_fitted_to_within_15_pct(written):
     layer, slide = written.held_out()
     assert layer == 2 and slide.recorded_m < -0.05
