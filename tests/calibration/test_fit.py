@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from calibration.fit import (
+    UNEXPLAINED_REPLAYS,
     FitSettings,
     _bracketed,
     _calibration,
@@ -17,6 +18,7 @@ from calibration.fit import (
     _friction_params,
     _probe,
     _profiled,
+    _replayed_more,
     _shifted,
     fit,
     min_budget,
@@ -215,6 +217,29 @@ def test_a_shift_the_others_can_make_up_for_is_allowed(monkeypatch, inline_pool)
     assert found.stds["static", "bundle_bundle"] == pytest.approx(0.0375)
     assert found.unrefused["bundle_bundle"] == pytest.approx([-0.075, 0.075])
     assert progress.simulations == pool.submitted == 2 * (2 * 2 * 6)
+
+
+def test_a_take_its_replays_leave_unexplained_is_replayed_up_to_24_times(
+        monkeypatch, inline_pool):
+    """A stand-in acceptance test that explains take "rare" only on 24 replays (as columnar2's
+    0.45 g take, which one replay in 24 reproduces): its 6 final replays leave it unexplained,
+    so it gets 18 more, each settling 0.05 s longer; take "common", explained by its 6, and
+    take "blown", one of whose replays was unphysical (refused whatever follows), get none.
+    The descents replay once and never more."""
+    from calibration import fit as fit_module
+    monkeypatch.setattr(fit_module, "replay", lambda obs, friction, scales, sim: sim.settle_s)
+    monkeypatch.setattr(fit_module.acceptance, "recording", lambda obs, runs: SimpleNamespace(
+        rms_m=0.0 if obs.source == "common" or len(runs) == UNEXPLAINED_REPLAYS else 0.05))
+    takes = [SimpleNamespace(source=name) for name in ("rare", "common", "blown")]
+    six: list[list] = [[0.3] * 6, [0.3] * 6, [0.3] * 5 + [None]]
+    pool, progress = inline_pool, Progress()
+    replays = _replayed_more(takes, _Fitted(Friction()), FitSettings(), six, pool, progress)
+    assert [len(runs) for runs in replays] == [UNEXPLAINED_REPLAYS, 6, 6]
+    assert replays[0][6:] == pytest.approx([0.3 + 0.05 * k for k in range(6, 24)])
+    assert progress.simulations == pool.submitted == UNEXPLAINED_REPLAYS - 6
+    descents = _replayed_more(takes, _Fitted(Friction()), FitSettings(method="cmaes"),
+                              [[0.3], [0.3], [None]], pool, Progress())
+    assert [len(runs) for runs in descents] == [1, 1, 1]
 
 
 @pytest.mark.parametrize("fitted, std, widened, unrefused", [
