@@ -26,7 +26,7 @@ from __future__ import annotations
 
 import argparse
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import replace
 from pathlib import Path
@@ -52,7 +52,8 @@ LIMIT_M = FitSettings().max_residual_m
 
 #: per recording, the residual vectors of its replays (replays x features)
 Residuals = list[np.ndarray]
-Spans = list[tuple[str, np.ndarray]]
+#: per body, the indices of its features (`features.spans`)
+Spans = Mapping[str, np.ndarray]
 
 
 def jittered(friction: Friction, rng: np.random.Generator) -> Friction:
@@ -88,14 +89,13 @@ def replayed(pool: ProcessPoolExecutor, observed: Sequence[Observation], offsets
 
 def unexplained_m(r: np.ndarray, spans: Spans) -> float:
     """The fit's test on one recording (`acceptance.recording`), from its residuals."""
-    by_mean = acceptance.judge({b: acceptance.body_unexplained(r[:, i]) for b, i in spans})
-    return min([by_mean.rms_m] + [_apart_m(one, spans, acceptance.NOISE_VAR_M2) for one in r])
+    return acceptance.by_residuals(r, spans).rms_m
 
 
-def _apart_m(d: np.ndarray, spans: Spans, noise_m2: float = 0.0) -> float:
-    """How far apart two outcomes whose features differ by d are, judged as the test does."""
-    return acceptance.judge({b: max(0.0, float(np.mean(d[i] ** 2)) - noise_m2)
-                             for b, i in spans}).rms_m
+def _apart_m(d: np.ndarray, spans: Spans) -> float:
+    """How far apart two replays whose features differ by d are, judged as the test judges
+    one replay (no tracker between them)."""
+    return acceptance.judge({b: float(np.mean(d[i] ** 2)) for b, i in spans.items()}).rms_m
 
 
 def _distances_m(r: np.ndarray, spans: Spans) -> np.ndarray:
@@ -123,7 +123,7 @@ def seen_once(r: np.ndarray, spans: Spans) -> bool:
 Rule = Callable[[np.ndarray, Spans], bool]
 
 
-def refused_share(rule: Rule, sets: Residuals, spans: list[Spans],
+def refused_share(rule: Rule, sets: Residuals, spans: Sequence[Spans],
                    escalate: bool = False) -> float:
     """How often `rule` refuses some recording, over `DRAWS` draws of a fit's replays; with
     `escalate`, a recording the draw leaves unexplained is judged on all its replays."""
@@ -143,7 +143,7 @@ def main(argv: list[str] | None = None) -> None:
     args = parser.parse_args(argv)
     t0 = time.perf_counter()
     observed = [observation(t)[0] for t in CASES["columnar2"][0]]
-    spans = [list(features.spans(o.frames).items()) for o in observed]
+    spans = [features.spans(o.frames) for o in observed]
     print(f"columnar2's fitted takes; refused in {DRAWS} draws of {FINAL_REPLAYS} replays "
           f"(limit {1e3 * LIMIT_M:g} mm); jitter ±{JITTER[0]} static, ±{JITTER[1]} kinetic")
     print(f"| replayed with | the fit's test on {FINAL_REPLAYS} | ... then on "
@@ -166,7 +166,7 @@ def main(argv: list[str] | None = None) -> None:
     print(f"\nreplays with the true values that reproduce the recording "
           f"(of {UNEXPLAINED_REPLAYS}):")
     for obs, r, s in zip(observed, truth, spans, strict=True):
-        near = np.array([_apart_m(one, s, acceptance.NOISE_VAR_M2) for one in r])
+        near = np.array([unexplained_m(one[None], s) for one in r])
         off = near[near > LIMIT_M]
         rest = (f" (the others {1e3 * off.min():.1f}-{1e3 * off.max():.1f} mm off)"
                 if len(off) else "")

@@ -82,10 +82,16 @@ def recording(obs: Observation, runs: Runs) -> Unexplained:
     if not runs or any(run is None for run in runs):
         return Unexplained(obs.source, math.inf)
     r = np.array([residuals(obs, run) for run in runs if run is not None])
-    spans = features.spans(obs.frames).items()
-    by_mean = judge({name: body_unexplained(r[:, idx]) for name, idx in spans}, obs.source)
+    return by_residuals(r, features.spans(obs.frames), obs.source)
+
+
+def by_residuals(r: np.ndarray, spans: Mapping[str, np.ndarray], source: str = ""
+                 ) -> Unexplained:
+    """`recording`'s verdict from the replays' residuals r (replays x features, simulated minus
+    recorded) and each body's features (`features.spans`)."""
+    by_mean = judge({name: body_unexplained(r[:, idx]) for name, idx in spans.items()}, source)
     nearest = [judge({name: max(0.0, float(np.mean(one[idx] ** 2)) - NOISE_VAR_M2)
-                      for name, idx in spans}, obs.source) for one in r]
+                      for name, idx in spans.items()}, source) for one in r]
     k = int(np.argmin([v.rms_m for v in nearest]))
     if nearest[k].rms_m < by_mean.rms_m:
         return replace(nearest[k], by=f"replay {k}")
