@@ -56,8 +56,9 @@ BUDGET = 150
 WRITTEN, REFUSED = 1, 4
 #: Probes come on top of the budget: a resolved static coefficient is replayed shifted down and
 #: up, FINAL_REPLAYS times per bare take, and as often again refitted (README, "Calibration");
-#: so do the replays of a take the final ones leave unexplained, up to UNEXPLAINED_REPLAYS.
-MOST_SIMULATIONS = BUDGET + (4 * FINAL_REPLAYS + UNEXPLAINED_REPLAYS - FINAL_REPLAYS) * len(FITTED)
+#: so do the replays of a take the final ones, or a probe's, leave unexplained, up to
+#: UNEXPLAINED_REPLAYS.
+MOST_SIMULATIONS = BUDGET + (5 * UNEXPLAINED_REPLAYS - FINAL_REPLAYS) * len(FITTED)
 
 
 class Draw:
