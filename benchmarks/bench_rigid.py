@@ -7,11 +7,13 @@ short (`BulletWorld.add_box`). pybullet's solver mode already holds two friction
 velocity, which SOLVER_DISABLE_VELOCITY_DEPENDENT_FRICTION_DIRECTION turns off. That flag, like
 the warm-start one, is reached through a saved world's solver mode (`bench_warm_start`).
 
-Compared, each case on the bench as it is and with rigid boxes (with and without the flag):
-the closed-form slide of tests/wrapenv/test_bench_mechanics.py at 0.6 g; the 2- and 3-layer
-columnar examples unwrapped at 0.3 g; the 3-layer example in Kraft bands at 0.5 g. Per case:
-CPU s and the bundles' largest displacement along the motion at the end, or why the run became
-unphysical.
+Compared, each case on the bench as it is and with rigid boxes (with and without the flag,
+and with it but not warm-started: `warmStartingFactor` 0): the closed-form slide of
+tests/wrapenv/test_bench_mechanics.py at 0.6 g; the 2- and 3-layer columnar examples unwrapped
+at 0.3 g; the 3-layer example in Kraft bands at 0.5 g, and at 0.05 g, which moves nothing on
+the bench (is a squeezed rigid stack stable by itself?). Per case:
+CPU s, the bundles' largest displacement along the motion at the end and how far and when a
+bundle rose (a squeezed stack coming apart), or why the run became unphysical.
 
     taskset -c 0 python -m benchmarks.bench_rigid
 """
@@ -23,6 +25,7 @@ import statistics
 import tempfile
 import time
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -40,6 +43,8 @@ CASES = (  # (name, load, wrap, level g)
     ("3 layers, 0.3 g", "examples/pet_3layer_columnar.toml", None, 0.3),
     ("3 layers, Kraft bands, 0.5 g", "examples/pet_3layer_columnar.toml",
      "examples/wrap_kraft_3layer.toml", 0.5),
+    ("3 layers, Kraft bands, 0.05 g", "examples/pet_3layer_columnar.toml",
+     "examples/wrap_kraft_3layer.toml", 0.05),
 )
 
 
@@ -49,9 +54,17 @@ def case(load: LoadUnit, wrap: WrapFormat | None, level_g: float) -> tuple[float
     trace = run_level(load.layout(), PulseProfile(level_g), SimSettings(), wrap=wrap)
     cpu = time.process_time() - t0
     dx = trace.bundle_pos[-1, :, 0] - trace.bundle_pos[0, :, 0]
+    rise = trace.bundle_pos[:, :, 2] - trace.bundle_pos[0, :, 2]
     if not trace.valid:
         return cpu, f"invalid: {trace.invalid_reason}"
-    return cpu, f"{1e3 * np.max(np.abs(dx)):.1f} mm"
+    return cpu, (f"{1e3 * np.max(np.abs(dx)):.1f} mm, a bundle rose {1e3 * np.max(rise):.1f} mm"
+                 f" at most (first by 10 mm at {_first(trace.t_s, np.max(rise, axis=1))})")
+
+
+def _first(t_s: np.ndarray, rise_m: np.ndarray) -> str:
+    """When a bundle first rose 10 mm above where the level found it."""
+    above = np.flatnonzero(rise_m > 0.01)
+    return f"{t_s[above[0]]:.2f} s" if len(above) else "no time"
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -61,31 +74,34 @@ def main(argv: list[str] | None = None) -> None:
     with tempfile.TemporaryDirectory() as folder:
         plain = world_file(Path(folder), 0)
         steady = world_file(Path(folder), SOLVER_DISABLE_VELOCITY_DEPENDENT_FRICTION_DIRECTION)
-        variants = (("the bench (reduced coordinates)", None, False),
-                    ("rigid boxes", plain, True),
-                    ("rigid, friction directions not from velocity", steady, True))
+        variants: tuple[tuple[str, Path | None, bool, dict[str, Any]], ...] = (
+            ("the bench (reduced coordinates)", None, False, {}),
+            ("rigid boxes", plain, True, {}),
+            ("rigid, friction directions not from velocity", steady, True, {}),
+            ("the same, not warm-started", steady, True, {"warmStartingFactor": 0.0}))
         print("closed-form slide at 0.6 g: " + ", ".join(
-            f"{label} {_slip(world, rigid)}" for label, world, rigid in variants))
+            f"{label} {_slip(world, rigid, parameters)}"
+            for label, world, rigid, parameters in variants))
         for name, load_path, wrap_path, level_g in CASES:
             load = LoadUnit.from_toml(load_path)
             wrap = WrapFormat.from_toml(wrap_path, load.load_height_m) if wrap_path else None
-            cpu: dict[str, list[float]] = {label: [] for label, _, _ in variants}
+            cpu: dict[str, list[float]] = {label: [] for label, *_ in variants}
             end: dict[str, str] = {}
             for _ in range(args.repeat):
-                for label, world, rigid in variants:
-                    with worlds_loaded_from(world, rigid):
+                for label, world, rigid, parameters in variants:
+                    with worlds_loaded_from(world, rigid, parameters):
                         seconds, end[label] = case(load, wrap, level_g)
                     cpu[label].append(seconds)
             base = statistics.median(cpu[variants[0][0]])
             print(f"{name} (CPU s, median of {args.repeat}; the end of the last run):")
-            for label, _, _ in variants:
+            for label, *_ in variants:
                 median = statistics.median(cpu[label])
                 print(f"  {label}: {median:.2f} s ({median / base:.2f} x), {end[label]}",
                       flush=True)
 
 
-def _slip(world: Path | None, rigid: bool) -> str:
-    with worlds_loaded_from(world, rigid):
+def _slip(world: Path | None, rigid: bool, parameters: dict[str, Any]) -> str:
+    with worlds_loaded_from(world, rigid, parameters):
         return slip_error(SimSettings())
 
 

@@ -74,10 +74,12 @@ def world_file(folder: Path, flags: int) -> Path:
 
 
 @contextlib.contextmanager
-def worlds_loaded_from(path: Path | None, rigid: bool = False) -> Iterator[None]:
+def worlds_loaded_from(path: Path | None, rigid: bool = False,
+                       parameters: dict[str, Any] | None = None) -> Iterator[None]:
     """Every bench world built meanwhile loads `path` first (None: the bench as it is); `rigid`
     makes its boxes maximal-coordinate (rigid) bodies, whose velocities are read from Bullet
-    (the bench's finite differences hold for reduced-coordinate bodies only)."""
+    (the bench's finite differences hold for reduced-coordinate bodies only); `parameters`
+    are engine parameters set after the bench's own."""
     if path is None:
         yield
         return
@@ -95,6 +97,8 @@ def worlds_loaded_from(path: Path | None, rigid: bool = False) -> Iterator[None]
 
                 client.createMultiBody = create_rigid
             super()._set_parameters(solver_iterations, contact_erp)
+            if parameters:
+                client.setPhysicsEngineParameter(**parameters)
 
         def state(self, indices: Sequence[int]) -> tuple[np.ndarray, ...]:
             if not rigid:
