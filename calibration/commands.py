@@ -376,8 +376,8 @@ def run_calibrate(args: argparse.Namespace) -> int:
     out = result.calibration.to_dict() | {
         "residual_rms_m": result.residual_rms_m, "spread_rms_m": result.spread_rms_m,
         "replay_rms_m": result.replay_rms_m, "simulations": result.simulations,
-        "method": result.method, "advice": result.advice,
-        "validation": [c.to_dict() for c in checks]}
+        "simulations_by_part": result.simulations_by_part, "method": result.method,
+        "advice": result.advice, "validation": [c.to_dict() for c in checks]}
     paths = _outputs(args.out)
     write_together({
         paths["json"]: result_json(out),
@@ -387,9 +387,15 @@ def run_calibrate(args: argparse.Namespace) -> int:
     print(_summary(result))
     for check in checks:
         print(_validation_summary(check))
-    print(f"{result.simulations} simulations in {wall:.0f} s ({result.method}); wrote "
+    print(f"{result.simulations} simulations ({_parts(result.simulations_by_part)}) in "
+          f"{wall:.0f} s ({result.method}); wrote "
           f"{', '.join(printable(str(p)) for p in paths.values())}")
     return 0
+
+
+def _parts(simulations_by_part: dict[str, int]) -> str:
+    """'search 282, final replays 18, ...': where a fit's simulations went."""
+    return ", ".join(f"{part.replace('_', ' ')} {n}" for part, n in simulations_by_part.items())
 
 
 def _summary(result: FitResult) -> str:

@@ -118,6 +118,9 @@ class FitResult:
     #: the wrap scales the fit estimated (`WRAP_PARAMS`); the others are not fitted: measured
     #: (`Calibration.known`) or the material card's and load file's
     fitted_scales: tuple[str, ...] = ()
+    #: `simulations` by what they were for: the search (`budget` less the final replays), the
+    #: final replays, more replays of recordings those left unexplained, and the probes
+    simulations_by_part: dict[str, int] = field(default_factory=dict)
 
 
 @dataclass
@@ -187,9 +190,9 @@ def fit(observations: Sequence[Observation], settings: FitSettings,
                              resettled(settings.sim, k)) for k in range(repeats)]
                 for o in observations]
         replays = [[f.result() for f in fs] for fs in runs]
-        progress.spend(repeats * len(observations))
+        progress.spend(repeats * len(observations), "final_replays")
         replays = _replayed_more(observations, found.friction, found.scales, settings, replays,
-                                 pool, progress)
+                                 pool, progress, "unexplained_replays")
         _probe(bare, _bracketed(bare, settings), found, settings, repeats, pool, progress)
     return _result(observations, bare, settings, slipped, found, replays, progress)
 
@@ -280,11 +283,11 @@ def _refused(bare: Sequence[Observation], candidates: dict[Shift, Friction],
     refused = set()
     for shift, futures in runs.items():
         replays = [[f.result() for f in fs] for fs in futures]
-        progress.spend(repeats * len(bare))
+        progress.spend(repeats * len(bare), "probes")
         if acceptance.worst(bare, replays).rms_m <= settings.max_residual_m:
             continue
         replays = _replayed_more(bare, candidates[shift], scales, settings, replays, pool,
-                                 progress)
+                                 progress, "probes")
         if acceptance.worst(bare, replays).rms_m > settings.max_residual_m:
             refused.add(shift)
     return refused
@@ -351,13 +354,14 @@ def min_budget(observations: Sequence[Observation], settings: FitSettings) -> in
 def _replayed_more(observations: Sequence[Observation], friction: Friction,
                    scales: dict[str, float], settings: FitSettings,
                    replays: list[list[dict[str, np.ndarray] | None]],
-                   pool: ProcessPoolExecutor, progress: Progress
+                   pool: ProcessPoolExecutor, progress: Progress, part: str
                    ) -> list[list[dict[str, np.ndarray] | None]]:
     """The replays of these values (the fit's final ones, or a probe's), those of each
     recording they leave unexplained (and all physical) made up to `UNEXPLAINED_REPLAYS`,
     settling longer each as before; the surrogate's only (the descents replay once). A wrong
     value moves bodies the same way in every replay, so more replays leave it unexplained
-    still; a rare outcome of the right values is found among them."""
+    still; a rare outcome of the right values is found among them. `part`: what the
+    replays are counted as (`Progress.parts`)."""
     if settings.method != "surrogate":
         return replays
     more = {i: [pool.submit(replay, obs, friction, scales, resettled(settings.sim, k))
@@ -366,7 +370,7 @@ def _replayed_more(observations: Sequence[Observation], friction: Friction,
             if all(run is not None for run in runs)
             and acceptance.recording(obs, runs).rms_m > settings.max_residual_m}
     out = [runs + [f.result() for f in more.get(i, [])] for i, runs in enumerate(replays)]
-    progress.spend(sum(len(fs) for fs in more.values()))
+    progress.spend(sum(len(fs) for fs in more.values()), part)
     return out
 
 
@@ -500,7 +504,8 @@ def _result(observations: Sequence[Observation], bare: Sequence[Observation],
     return FitResult(calibration, rms, progress.simulations, settings.method, progress.curve,
                      [runs[0] for runs in replays], not reason, spread_rms, replay_rms, reason,
                      advice, tuple(found.stages), verdict,
-                     tuple(name for name in WRAP_PARAMS if (name, "") in found.stds))
+                     tuple(name for name in WRAP_PARAMS if (name, "") in found.stds),
+                     dict(progress.parts))
 
 
 def _failure(rms: float, verdict: acceptance.Unexplained, replays: int, simulations: int,

@@ -90,6 +90,9 @@ class Progress:
     """Loss history of a fit: (simulations so far, loss of the best point so far)."""
 
     simulations: int = 0
+    #: the simulations by what they were for (`SEARCH` and the parts `fit` names), which the
+    #: budget bounds only in part (`FitSettings.budget`)
+    parts: dict[str, int] = field(default_factory=dict)
     curve: list[tuple[int, float]] = field(default_factory=list)
     #: told the simulations spent after every batch (a progress bar)
     listener: Callable[[int], None] | None = None
@@ -108,8 +111,10 @@ class Progress:
         the last stage's best."""
         self.best_u, self.best_loss = None, math.inf
 
-    def spend(self, sims: int) -> None:
+    def spend(self, sims: int, part: str = "search") -> None:
         self.simulations += sims
+        if sims:
+            self.parts[part] = self.parts.get(part, 0) + sims
         if self.listener is not None:
             self.listener(self.simulations)
 

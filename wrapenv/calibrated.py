@@ -11,11 +11,11 @@ from wrapenv.config import InputError, Table, read_json
 from wrapenv.load import PAIRS, Friction, FrictionPair, LoadUnit
 
 #: CAL.json's keys beside `friction` and `wrap`: the fit's diagnostics (residual, the replays'
-#: own scatter, one replay's residual, simulations, method), advice on further tests, and the
-#: prediction errors on recordings that were not fitted (`calibrate --validate`), and the version
-#: of wrapbench that fitted it.
-DIAGNOSTICS = ("residual_rms_m", "spread_rms_m", "replay_rms_m", "simulations", "method",
-               "advice", "validation", "wrapbench_version")
+#: own scatter, one replay's residual, simulations and what they were for, method), advice on
+#: further tests, the prediction errors on recordings that were not fitted (`calibrate
+#: --validate`), and the version of wrapbench that fitted it.
+DIAGNOSTICS = ("residual_rms_m", "spread_rms_m", "replay_rms_m", "simulations",
+               "simulations_by_part", "method", "advice", "validation", "wrapbench_version")
 
 
 @dataclass(frozen=True)

@@ -176,6 +176,11 @@ def test_calibrate_writes_cal_json_that_simulate_accepts(slide_dir, tmp_path, ca
     assert set(data) >= {"friction", "wrap", "residual_rms_m", "simulations", "method",
                          "wrapbench_version"}
     assert data["simulations"] <= 30 and data["method"] == "surrogate"
+    # where they went: the budget bounds the search and the final replays
+    parts = data["simulations_by_part"]
+    assert sum(parts.values()) == data["simulations"]
+    assert parts["search"] + parts["final_replays"] <= 30 and parts["final_replays"] == 6
+    assert f"{data['simulations']} simulations (search {parts['search']}, final replays 6" in out
     assert data["friction"]["pallet_bundle"]["identified"] is True
     assert data["friction"]["sled_pallet"]["identified"] is False
     assert (tmp_path / "cal-loss.png").read_bytes()[:4] == b"\x89PNG"

@@ -216,6 +216,7 @@ def test_a_shift_the_others_can_make_up_for_is_allowed(monkeypatch, inline_pool)
     # 6 replays per take of each shift kept and refitted, and 18 more per take of the kept
     # shifts, which 6 left unexplained
     assert progress.simulations == pool.submitted == 2 * (2 * 2 * 6) + 2 * 2 * 18
+    assert progress.parts == {"probes": progress.simulations}
 
 
 def _stand_in_acceptance(monkeypatch, allowed, replays_needed: int = 1) -> None:
@@ -266,12 +267,14 @@ def test_a_take_its_replays_leave_unexplained_is_replayed_up_to_24_times(
     takes = [SimpleNamespace(source=name) for name in ("rare", "common", "blown")]
     six: list[list] = [[0.3] * 6, [0.3] * 6, [0.3] * 5 + [None]]
     pool, progress = inline_pool, Progress()
-    replays = _replayed_more(takes, Friction(), {}, FitSettings(), six, pool, progress)
+    replays = _replayed_more(takes, Friction(), {}, FitSettings(), six, pool, progress,
+                             "unexplained_replays")
     assert [len(runs) for runs in replays] == [UNEXPLAINED_REPLAYS, 6, 6]
     assert replays[0][6:] == pytest.approx([0.3 + 0.05 * k for k in range(6, 24)])
     assert progress.simulations == pool.submitted == UNEXPLAINED_REPLAYS - 6
+    assert progress.parts == {"unexplained_replays": UNEXPLAINED_REPLAYS - 6}
     descents = _replayed_more(takes, Friction(), {}, FitSettings(method="cmaes"),
-                              [[0.3], [0.3], [None]], pool, Progress())
+                              [[0.3], [0.3], [None]], pool, Progress(), "unexplained_replays")
     assert [len(runs) for runs in descents] == [1, 1, 1]
 
 
