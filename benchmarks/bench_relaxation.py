@@ -34,13 +34,12 @@ from collections.abc import Iterator, Sequence
 from pathlib import Path
 
 import numpy as np
-import pybullet as pb
 
 import wrapenv.bench
 from benchmarks.bench_warm_start import (
     EXAMPLE,
-    MARKER_ITERATIONS,
     WRAPS,
+    saved_world,
     timed_level,
     worlds_loaded_from,
 )
@@ -62,18 +61,11 @@ BUNDLE_MAX_KG = 20.0
 
 def sor_world(folder: Path, sor: float) -> Path:
     """An empty world saved by pybullet with its solver info's relaxation set to `sor`."""
-    client = pb.connect(pb.DIRECT)
-    try:
-        pb.setPhysicsEngineParameter(numSolverIterations=MARKER_ITERATIONS,
-                                     physicsClientId=client)
-        path = folder / f"world-sor-{sor}.bullet"
-        pb.saveBullet(str(path), physicsClientId=client)
-    finally:
-        pb.disconnect(client)
-    data = bytearray(path.read_bytes())
+    path = folder / f"world-sor-{sor}.bullet"
+    data, iterations_at = saved_world(path)
     if not data.startswith(b"BULLETd"):
         raise RuntimeError(f"{path}: not a double-precision world, m_sor is not where expected")
-    at = data.index(struct.pack("<i", MARKER_ITERATIONS)) - 8 * SOR_DOUBLES_BEFORE_ITERATIONS
+    at = iterations_at - 8 * SOR_DOUBLES_BEFORE_ITERATIONS
     (saved,) = struct.unpack_from("<d", data, at)
     if saved != 1.0:  # Bullet's default relaxation
         raise RuntimeError(f"{path}: found {saved} where m_sor (1.0) should be")

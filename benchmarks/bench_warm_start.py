@@ -52,13 +52,13 @@ MARKER_ITERATIONS = 987654
 PYBULLET_RESIDUAL_THRESHOLD = 1e-7
 
 
-def world_file(folder: Path, flags: int) -> Path:
-    """An empty world saved by pybullet, these flags added to its solver mode (0: as saved)."""
+def saved_world(path: Path) -> tuple[bytearray, int]:
+    """An empty world saved by pybullet to `path`: its bytes, and where in them the solver
+    info's iteration count (`m_numIterations`, set to a marker value to be found) lies."""
     client = pb.connect(pb.DIRECT)
     try:
         pb.setPhysicsEngineParameter(numSolverIterations=MARKER_ITERATIONS,
                                      physicsClientId=client)
-        path = folder / f"world-{flags}.bullet"
         pb.saveBullet(str(path), physicsClientId=client)
     finally:
         pb.disconnect(client)
@@ -66,7 +66,14 @@ def world_file(folder: Path, flags: int) -> Path:
     marker = struct.pack("<i", MARKER_ITERATIONS)
     if data.count(marker) != 1:
         raise RuntimeError(f"{path}: the solver info's iteration count is not found once")
-    at = data.index(marker) + len(marker)  # m_solverMode follows m_numIterations
+    return data, data.index(marker)
+
+
+def world_file(folder: Path, flags: int) -> Path:
+    """An empty world saved by pybullet, these flags added to its solver mode (0: as saved)."""
+    path = folder / f"world-{flags}.bullet"
+    data, iterations_at = saved_world(path)
+    at = iterations_at + 4  # m_solverMode follows m_numIterations
     (mode,) = struct.unpack_from("<i", data, at)
     struct.pack_into("<i", data, at, mode | flags)
     path.write_bytes(bytes(data))
