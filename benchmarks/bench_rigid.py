@@ -11,7 +11,9 @@ Compared, each case on the bench as it is and with rigid boxes (with and without
 and with it but not warm-started: `warmStartingFactor` 0): the closed-form slide of
 tests/wrapenv/test_bench_mechanics.py at 0.6 g; the 2- and 3-layer columnar examples unwrapped
 at 0.3 g; the 3-layer example in Kraft bands at 0.5 g, and at 0.05 g, which moves nothing on
-the bench (is a squeezed rigid stack stable by itself?). Per case:
+the bench (is a squeezed rigid stack stable by itself?); the wrapped cases also with the wrap's
+torques left out (its forces kept), on the bench and on rigid boxes: a different model, run
+only to find what a squeezed rigid stack cannot bear. Per case:
 CPU s, the bundles' largest displacement along the motion at the end and how far and when a
 bundle rose (a squeezed stack coming apart), or why the run became unphysical.
 
@@ -21,9 +23,12 @@ bundle rose (a squeezed stack coming apart), or why the run became unphysical.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import statistics
 import tempfile
 import time
+from collections.abc import Iterator, Sequence
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -32,6 +37,7 @@ import numpy as np
 from benchmarks.bench_speed import slip_error
 from benchmarks.bench_warm_start import world_file, worlds_loaded_from
 from wrapenv.bench import SimSettings, run_level
+from wrapenv.bullet import BulletWorld
 from wrapenv.load import LoadUnit
 from wrapenv.profile import PulseProfile
 from wrapenv.wrap import WrapFormat
@@ -46,6 +52,38 @@ CASES = (  # (name, load, wrap, level g)
     ("3 layers, Kraft bands, 0.05 g", "examples/pet_3layer_columnar.toml",
      "examples/wrap_kraft_3layer.toml", 0.05),
 )
+
+
+@dataclass(frozen=True)
+class Variant:
+    """How the bench's worlds are built: loaded from a saved world (None: as they are), with
+    rigid boxes, engine parameters set after the bench's own, and the wrap's torques applied
+    or left out (a different model: only to find what a rigid stack cannot bear)."""
+
+    label: str
+    world: Path | None
+    rigid: bool
+    parameters: dict[str, Any] = field(default_factory=dict)
+    torques: bool = True
+
+    @contextlib.contextmanager
+    def worlds(self) -> Iterator[None]:
+        with worlds_loaded_from(self.world, self.rigid, self.parameters):
+            if self.torques:
+                yield
+                return
+            apply = BulletWorld.apply_wrenches
+
+            def forces_only(world: BulletWorld, indices: Sequence[int] | np.ndarray,
+                            centres: np.ndarray, forces: np.ndarray,
+                            torques: np.ndarray) -> None:
+                apply(world, indices, centres, forces, np.zeros_like(torques))
+
+            BulletWorld.apply_wrenches = forces_only  # type: ignore[method-assign,assignment]
+            try:
+                yield
+            finally:
+                BulletWorld.apply_wrenches = apply  # type: ignore[method-assign]
 
 
 def case(load: LoadUnit, wrap: WrapFormat | None, level_g: float) -> tuple[float, str]:
@@ -74,34 +112,39 @@ def main(argv: list[str] | None = None) -> None:
     with tempfile.TemporaryDirectory() as folder:
         plain = world_file(Path(folder), 0)
         steady = world_file(Path(folder), SOLVER_DISABLE_VELOCITY_DEPENDENT_FRICTION_DIRECTION)
-        variants: tuple[tuple[str, Path | None, bool, dict[str, Any]], ...] = (
-            ("the bench (reduced coordinates)", None, False, {}),
-            ("rigid boxes", plain, True, {}),
-            ("rigid, friction directions not from velocity", steady, True, {}),
-            ("the same, not warm-started", steady, True, {"warmStartingFactor": 0.0}))
+        variants = (
+            Variant("the bench (reduced coordinates)", None, False),
+            Variant("rigid boxes", plain, True),
+            Variant("rigid, friction directions not from velocity", steady, True),
+            Variant("the same, not warm-started", steady, True, {"warmStartingFactor": 0.0}),
+            Variant("the bench, the wrap's torques left out", None, False, torques=False),
+            Variant("rigid, directions not from velocity, the wrap's torques left out", steady,
+                    True, torques=False))
         print("closed-form slide at 0.6 g: " + ", ".join(
-            f"{label} {_slip(world, rigid, parameters)}"
-            for label, world, rigid, parameters in variants))
+            f"{v.label} {_slip(v)}" for v in variants if v.torques))
         for name, load_path, wrap_path, level_g in CASES:
             load = LoadUnit.from_toml(load_path)
             wrap = WrapFormat.from_toml(wrap_path, load.load_height_m) if wrap_path else None
-            cpu: dict[str, list[float]] = {label: [] for label, *_ in variants}
+            cpu: dict[str, list[float]] = {v.label: [] for v in variants}
             end: dict[str, str] = {}
             for _ in range(args.repeat):
-                for label, world, rigid, parameters in variants:
-                    with worlds_loaded_from(world, rigid, parameters):
-                        seconds, end[label] = case(load, wrap, level_g)
-                    cpu[label].append(seconds)
-            base = statistics.median(cpu[variants[0][0]])
+                for v in variants:
+                    if wrap is None and not v.torques:
+                        continue  # no wrap: no torques to leave out
+                    with v.worlds():
+                        seconds, end[v.label] = case(load, wrap, level_g)
+                    cpu[v.label].append(seconds)
+            base = statistics.median(cpu[variants[0].label])
             print(f"{name} (CPU s, median of {args.repeat}; the end of the last run):")
-            for label, *_ in variants:
-                median = statistics.median(cpu[label])
-                print(f"  {label}: {median:.2f} s ({median / base:.2f} x), {end[label]}",
-                      flush=True)
+            for v in variants:
+                if cpu[v.label]:
+                    median = statistics.median(cpu[v.label])
+                    print(f"  {v.label}: {median:.2f} s ({median / base:.2f} x), "
+                          f"{end[v.label]}", flush=True)
 
 
-def _slip(world: Path | None, rigid: bool, parameters: dict[str, Any]) -> str:
-    with worlds_loaded_from(world, rigid, parameters):
+def _slip(variant: Variant) -> str:
+    with variant.worlds():
         return slip_error(SimSettings())
 
 
