@@ -12,8 +12,9 @@ and with it but not warm-started: `warmStartingFactor` 0): the closed-form slide
 tests/wrapenv/test_bench_mechanics.py at 0.6 g; the 2- and 3-layer columnar examples unwrapped
 at 0.3 g; the 3-layer example in Kraft bands at 0.5 g, and at 0.05 g, which moves nothing on
 the bench (is a squeezed rigid stack stable by itself?); the wrapped cases also with the wrap's
-torques left out (its forces kept), on the bench and on rigid boxes: a different model, run
-only to find what a squeezed rigid stack cannot bear. Per case:
+torques left out (its forces kept), on the bench and on rigid boxes, and on rigid boxes with
+only its torque about the vertical left out or kept: a different model, run only to find what a
+squeezed rigid stack cannot bear. Per case:
 CPU s, the bundles' largest displacement along the motion at the end and how far and when a
 bundle rose (a squeezed stack coming apart), or why the run became unphysical.
 
@@ -57,14 +58,20 @@ CASES = (  # (name, load, wrap, level g)
 @dataclass(frozen=True)
 class Variant:
     """How the bench's worlds are built: loaded from a saved world (None: as they are), with
-    rigid boxes, engine parameters set after the bench's own, and the wrap's torques applied
-    or left out (a different model: only to find what a rigid stack cannot bear)."""
+    rigid boxes, engine parameters set after the bench's own, and which components (world x,
+    y, z) of the wrap's torques are applied (others left out: a different model, only to find
+    what a rigid stack cannot bear)."""
 
     label: str
     world: Path | None
     rigid: bool
     parameters: dict[str, Any] = field(default_factory=dict)
-    torques: bool = True
+    torque_axes: tuple[float, float, float] = (1.0, 1.0, 1.0)
+
+    @property
+    def torques(self) -> bool:
+        """Whether the wrap's torques are applied whole."""
+        return self.torque_axes == (1.0, 1.0, 1.0)
 
     @contextlib.contextmanager
     def worlds(self) -> Iterator[None]:
@@ -72,14 +79,14 @@ class Variant:
             if self.torques:
                 yield
                 return
-            apply = BulletWorld.apply_wrenches
+            apply, axes = BulletWorld.apply_wrenches, np.array(self.torque_axes)
 
-            def forces_only(world: BulletWorld, indices: Sequence[int] | np.ndarray,
-                            centres: np.ndarray, forces: np.ndarray,
-                            torques: np.ndarray) -> None:
-                apply(world, indices, centres, forces, np.zeros_like(torques))
+            def some_torques(world: BulletWorld, indices: Sequence[int] | np.ndarray,
+                             centres: np.ndarray, forces: np.ndarray,
+                             torques: np.ndarray) -> None:
+                apply(world, indices, centres, forces, torques * axes)
 
-            BulletWorld.apply_wrenches = forces_only  # type: ignore[method-assign,assignment]
+            BulletWorld.apply_wrenches = some_torques  # type: ignore[method-assign,assignment]
             try:
                 yield
             finally:
@@ -117,9 +124,14 @@ def main(argv: list[str] | None = None) -> None:
             Variant("rigid boxes", plain, True),
             Variant("rigid, friction directions not from velocity", steady, True),
             Variant("the same, not warm-started", steady, True, {"warmStartingFactor": 0.0}),
-            Variant("the bench, the wrap's torques left out", None, False, torques=False),
+            Variant("the bench, the wrap's torques left out", None, False,
+                    torque_axes=(0.0, 0.0, 0.0)),
             Variant("rigid, directions not from velocity, the wrap's torques left out", steady,
-                    True, torques=False))
+                    True, torque_axes=(0.0, 0.0, 0.0)),
+            Variant("the same, only its torque about the vertical left out", steady, True,
+                    torque_axes=(1.0, 1.0, 0.0)),
+            Variant("the same, only its torque about the vertical kept", steady, True,
+                    torque_axes=(0.0, 0.0, 1.0)))
         print("closed-form slide at 0.6 g: " + ", ".join(
             f"{v.label} {_slip(v)}" for v in variants if v.torques))
         for name, load_path, wrap_path, level_g in CASES:
