@@ -14,7 +14,8 @@ at 0.3 g; the 3-layer example in Kraft bands at 0.5 g, and at 0.05 g, which move
 the bench (is a squeezed rigid stack stable by itself?); the wrapped cases also with the wrap's
 torques left out (its forces kept), on the bench and on rigid boxes, and on rigid boxes with
 only its torque about the vertical left out or kept: a different model, run only to find what a
-squeezed rigid stack cannot bear. Per case:
+squeezed rigid stack cannot bear. First, whether a lone box's static friction holds a twist
+about the vertical, with and without friction anchors. Per case:
 CPU s, the bundles' largest displacement along the motion at the end and how far and when a
 bundle rose (a squeezed stack coming apart), or why the run became unphysical.
 
@@ -34,6 +35,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import pybullet as pb
 
 from benchmarks.bench_speed import slip_error
 from benchmarks.bench_warm_start import world_file, worlds_loaded_from
@@ -112,10 +114,57 @@ def _first(t_s: np.ndarray, rise_m: np.ndarray) -> str:
     return f"{t_s[above[0]]:.2f} s" if len(above) else "no time"
 
 
+#: the twist check: a bundle-sized box on a still floor, twisted about the vertical by a torque
+#: below what its friction holds (0.7 x 9.3 kg x g x ~0.1 m: about 6 N m)
+TWIST_TORQUE_N_M = 2.0
+TWIST_STEPS = 2400  # 10 s at the bench's 1/240 s
+
+
+def twist_deg(rigid: bool, anchored: bool) -> tuple[float, float]:
+    """How far (degrees) a lone box on a floor turns under `TWIST_TORQUE_N_M` about the
+    vertical after 2 s and 10 s: static friction should hold it still."""
+    client = pb.connect(pb.DIRECT)
+    try:
+        pb.setTimeStep(1 / 240, physicsClientId=client)
+        pb.setGravity(0, 0, -9.81, physicsClientId=client)
+        pb.setPhysicsEngineParameter(numSolverIterations=50, physicsClientId=client)
+        floor = pb.createMultiBody(0, pb.createCollisionShape(
+            pb.GEOM_BOX, halfExtents=[2, 2, 0.05], physicsClientId=client), -1, [0, 0, -0.05],
+            useMaximalCoordinates=rigid, physicsClientId=client)
+        box = pb.createMultiBody(9.3, pb.createCollisionShape(
+            pb.GEOM_BOX, halfExtents=[0.14, 0.095, 0.165], physicsClientId=client), -1,
+            [0, 0, 0.165], useMaximalCoordinates=rigid, physicsClientId=client)
+        for body in (floor, box):
+            pb.changeDynamics(body, -1, lateralFriction=0.7, restitution=0.0,
+                              linearDamping=0.0, angularDamping=0.0,
+                              frictionAnchor=int(anchored),
+                              activationState=pb.ACTIVATION_STATE_DISABLE_SLEEPING,
+                              physicsClientId=client)
+        yaw = []
+        for step in range(TWIST_STEPS):
+            torque = TWIST_TORQUE_N_M * min(1.0, step / 48)
+            pb.applyExternalTorque(box, -1, [0, 0, torque], pb.WORLD_FRAME,
+                                   physicsClientId=client)
+            pb.stepSimulation(physicsClientId=client)
+            if step + 1 in (TWIST_STEPS // 5, TWIST_STEPS):
+                quat = pb.getBasePositionAndOrientation(box, physicsClientId=client)[1]
+                yaw.append(float(np.degrees(pb.getEulerFromQuaternion(quat)[2])))
+    finally:
+        pb.disconnect(client)
+    return yaw[0], yaw[1]
+
+
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeat", type=int, default=3, help="runs per case, alternated")
     args = parser.parse_args(argv)
+    print(f"a box twisted by {TWIST_TORQUE_N_M} N m on a floor (friction holds about 6 N m), "
+          "its turn after 2 s and 10 s:")
+    for rigid in (False, True):
+        for anchored in (True, False):
+            early, late = twist_deg(rigid, anchored)
+            print(f"  {'rigid' if rigid else 'reduced coordinates'}, friction anchors "
+                  f"{'on' if anchored else 'off'}: {early:.3f} deg, {late:.3f} deg", flush=True)
     with tempfile.TemporaryDirectory() as folder:
         plain = world_file(Path(folder), 0)
         steady = world_file(Path(folder), SOLVER_DISABLE_VELOCITY_DEPENDENT_FRICTION_DIRECTION)
