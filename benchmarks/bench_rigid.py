@@ -114,15 +114,17 @@ def _first(t_s: np.ndarray, rise_m: np.ndarray) -> str:
     return f"{t_s[above[0]]:.2f} s" if len(above) else "no time"
 
 
-#: the twist check: a bundle-sized box on a still floor, twisted about the vertical by a torque
-#: below what its friction holds (0.7 x 9.3 kg x g x ~0.1 m: about 6 N m)
-TWIST_TORQUE_N_M = 2.0
+#: the twist check: a bundle-sized box on a still floor, twisted about the vertical by torques
+#: below what its friction holds: 0.7 x 9.3 kg x g = 64 N at a lever between the mean distance
+#: of its footprint from the centre (~0.08 m: 5 N m) and its corners, where Bullet's contact
+#: points lie (0.17 m: 11 N m)
+TWIST_TORQUES_N_M = (2.0, 5.0)
 TWIST_STEPS = 2400  # 10 s at the bench's 1/240 s
 
 
-def twist_deg(rigid: bool, anchored: bool) -> tuple[float, float]:
-    """How far (degrees) a lone box on a floor turns under `TWIST_TORQUE_N_M` about the
-    vertical after 2 s and 10 s: static friction should hold it still."""
+def twist_deg(rigid: bool, anchored: bool, torque_n_m: float) -> tuple[float, float]:
+    """How far (degrees) a lone box on a floor turns under a torque about the vertical after 2 s
+    and 10 s: static friction should hold it still."""
     client = pb.connect(pb.DIRECT)
     try:
         pb.setTimeStep(1 / 240, physicsClientId=client)
@@ -142,7 +144,7 @@ def twist_deg(rigid: bool, anchored: bool) -> tuple[float, float]:
                               physicsClientId=client)
         yaw = []
         for step in range(TWIST_STEPS):
-            torque = TWIST_TORQUE_N_M * min(1.0, step / 48)
+            torque = torque_n_m * min(1.0, step / 48)
             pb.applyExternalTorque(box, -1, [0, 0, torque], pb.WORLD_FRAME,
                                    physicsClientId=client)
             pb.stepSimulation(physicsClientId=client)
@@ -158,13 +160,15 @@ def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeat", type=int, default=3, help="runs per case, alternated")
     args = parser.parse_args(argv)
-    print(f"a box twisted by {TWIST_TORQUE_N_M} N m on a floor (friction holds about 6 N m), "
-          "its turn after 2 s and 10 s:")
-    for rigid in (False, True):
-        for anchored in (True, False):
-            early, late = twist_deg(rigid, anchored)
-            print(f"  {'rigid' if rigid else 'reduced coordinates'}, friction anchors "
-                  f"{'on' if anchored else 'off'}: {early:.3f} deg, {late:.3f} deg", flush=True)
+    for torque in TWIST_TORQUES_N_M:
+        print(f"a box twisted by {torque} N m on a floor (its friction holds 5-11 N m), its "
+              "turn after 2 s and 10 s:")
+        for rigid in (False, True):
+            for anchored in (True, False):
+                early, late = twist_deg(rigid, anchored, torque)
+                print(f"  {'rigid' if rigid else 'reduced coordinates'}, friction anchors "
+                      f"{'on' if anchored else 'off'}: {early:.3f} deg, {late:.3f} deg",
+                      flush=True)
     with tempfile.TemporaryDirectory() as folder:
         plain = world_file(Path(folder), 0)
         steady = world_file(Path(folder), SOLVER_DISABLE_VELOCITY_DEPENDENT_FRICTION_DIRECTION)
