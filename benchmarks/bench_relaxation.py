@@ -33,20 +33,16 @@ import tempfile
 from collections.abc import Iterator, Sequence
 from pathlib import Path
 
-import numpy as np
-
 import wrapenv.bench
+from benchmarks.bench_solver_options import level
 from benchmarks.bench_warm_start import (
     EXAMPLE,
     WRAPS,
     saved_world,
-    timed_level,
     worlds_loaded_from,
 )
-from wrapenv.bench import SimSettings
 from wrapenv.bullet import BulletWorld
 from wrapenv.load import LoadUnit
-from wrapenv.profile import PulseProfile
 from wrapenv.wrap import WrapFormat
 
 #: m_sor's place in btContactSolverInfoDoubleData: doubles before m_numIterations
@@ -93,17 +89,6 @@ def soft_bundles(stiffness_n_per_m: float) -> Iterator[None]:
         yield
     finally:
         wrapenv.bench.BulletWorld = BulletWorld  # type: ignore[misc]
-
-
-def level(load: LoadUnit, wrap: WrapFormat, level_g: float, iterations: int,
-          world: contextlib.AbstractContextManager[None]) -> tuple[float, float, bool]:
-    """CPU s, the bundles' largest displacement along the motion (m), and whether it rested."""
-    settings = SimSettings(wrapped_solver_iterations=iterations)
-    with world:
-        cpu, trace, dx = timed_level(load, wrap, level_g, settings)
-    waited_out_s = PulseProfile(level_g).duration_s + settings.max_rest_wait_s
-    rested = trace.valid and float(trace.t_s[-1]) < waited_out_s - settings.timestep_s
-    return cpu, float(np.max(np.abs(dx))), rested
 
 
 def print_row(label: str, run: tuple[float, float, bool], converged: float) -> None:

@@ -76,10 +76,11 @@ def engine_parameters(parameters: dict[str, Any]) -> Iterator[None]:
 
 
 def level(load: LoadUnit, wrap: WrapFormat, level_g: float, iterations: int,
-          parameters: dict[str, Any]) -> tuple[float, float, bool]:
-    """CPU s, the bundles' largest displacement along the motion (m), and whether it rested."""
+          worlds: contextlib.AbstractContextManager[None]) -> tuple[float, float, bool]:
+    """CPU s, the bundles' largest displacement along the motion (m), and whether it rested,
+    with the bench's worlds built as `worlds` builds them meanwhile."""
     settings = SimSettings(wrapped_solver_iterations=iterations)
-    with engine_parameters(parameters):
+    with worlds:
         cpu, trace, dx = timed_level(load, wrap, level_g, settings)
     waited_out_s = PulseProfile(level_g).duration_s + settings.max_rest_wait_s
     rested = trace.valid and float(trace.t_s[-1]) < waited_out_s - settings.timestep_s
@@ -100,7 +101,8 @@ def main(argv: list[str] | None = None) -> None:
               flush=True)
         converged = None
         for label, iterations, parameters in solves:
-            cpu, largest, rested = level(load, wrap, g, iterations, parameters)
+            cpu, largest, rested = level(load, wrap, g, iterations,
+                                         engine_parameters(parameters))
             converged = largest if converged is None else converged
             print(f"  {label:32s} {cpu:6.2f} s  {1e3 * largest:7.2f} mm  "
                   f"{1e3 * (largest - converged):+7.2f} mm"

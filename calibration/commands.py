@@ -213,8 +213,8 @@ def add_calibrate(sub: argparse._SubParsersAction) -> None:
                    help="most simulations of the fit's search and final replays (default "
                         "300); a static coefficient it would report resolved is probed on top, "
                         "12 replays per bare recording, up to 24 when the other values are "
-                        "refitted; a recording the final replays leave unexplained is replayed "
-                        "up to 24 times in all before the fit is refused")
+                        "refitted; a recording the final replays, or a probe's, leave "
+                        "unexplained is replayed up to 24 times in all before it is judged")
     p.add_argument("--workers", type=int, default=os.cpu_count() or 1,
                    help="parallel simulations (default: all cores)")
     p.add_argument("--seed", type=seed, default=0,

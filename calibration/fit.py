@@ -284,8 +284,6 @@ def _refused(bare: Sequence[Observation], candidates: dict[Shift, Friction],
     for shift, futures in runs.items():
         replays = [[f.result() for f in fs] for fs in futures]
         progress.spend(repeats * len(bare), "probes")
-        if acceptance.worst(bare, replays).rms_m <= settings.max_residual_m:
-            continue
         replays = _replayed_more(bare, candidates[shift], scales, settings, replays, pool,
                                  progress, "probes")
         if acceptance.worst(bare, replays).rms_m > settings.max_residual_m:

@@ -90,8 +90,8 @@ class Progress:
     """Loss history of a fit: (simulations so far, loss of the best point so far)."""
 
     simulations: int = 0
-    #: the simulations by what they were for (`SEARCH` and the parts `fit` names), which the
-    #: budget bounds only in part (`FitSettings.budget`)
+    #: the simulations by what they were for ("search", the default, and the parts `fit`
+    #: names), which the budget bounds only in part (`FitSettings.budget`)
     parts: dict[str, int] = field(default_factory=dict)
     curve: list[tuple[int, float]] = field(default_factory=list)
     #: told the simulations spent after every batch (a progress bar)
