@@ -15,7 +15,8 @@ exactly as long as the bench's level lasted (settling plus the trace), the like-
 per simulated second. A wrapped unit is solved with `SimSettings.wrapped_solver_iterations` (50)
 where the issue's plain run has 20: the plain 4.5 s is also timed with as many, and with the
 iterations a new PyBullet world has (read from the engine: 50 in pybullet 3.2.7), plain PyBullet
-as it ships.
+as it ships. The bench also runs with rigid boxes (`SimSettings.rigid_boxes`), and plain
+PyBullet with rigid boxes too (20 iterations), for a like-for-like count of that choice.
 
 Each timing is the median of `--repeat` runs, alternated, inside this process (imports and
 interpreter start-up excluded, which only dilutes a ratio towards 1); wall and CPU time are both
@@ -73,8 +74,10 @@ def part_coefficients(scene: BenchScene) -> dict[int, float]:
 
 
 def plain_pybullet(layout: Layout, profile: PulseProfile, sim_s: float,
-                   timestep_s: float = 1 / 240, iterations: int = 20) -> int:
-    """The plain run: build, settle still for `SETTLE_S`, run the pulse, `sim_s` in all.
+                   timestep_s: float = 1 / 240, iterations: int = 20,
+                   rigid: bool = False) -> int:
+    """The plain run: build, settle still for `SETTLE_S`, run the pulse, `sim_s` in all
+    (`rigid`: boxes with maximal coordinates, not `createMultiBody`'s default).
     Returns how many contact points Bullet holds at the end."""
     client = pb.connect(pb.DIRECT)
     try:
@@ -87,7 +90,7 @@ def plain_pybullet(layout: Layout, profile: PulseProfile, sim_s: float,
             shape = pb.createCollisionShape(pb.GEOM_BOX, halfExtents=half,
                                             physicsClientId=client)
             body = pb.createMultiBody(box.mass_kg, shape, basePosition=list(box.start_centre_m),
-                                      physicsClientId=client)
+                                      useMaximalCoordinates=rigid, physicsClientId=client)
             pb.changeDynamics(body, -1, lateralFriction=mu[part], physicsClientId=client)
         steps = round(sim_s / timestep_s)
         settle = round(SETTLE_S / timestep_s)
@@ -108,18 +111,19 @@ def pybullet_default_iterations() -> int:
         pb.disconnect(client)
 
 
-def bench_level() -> int:
-    """The bench's level (as `run_level` runs it); returns how many contact points Bullet
-    holds at rest after it."""
+def bench_level(rigid: bool = False) -> int:
+    """The bench's level (as `run_level` runs it; `rigid`: `SimSettings.rigid_boxes`); returns
+    how many contact points Bullet holds at rest after it."""
     load = LoadUnit.from_toml(EXAMPLE)
-    with BenchUnit(load.layout(), wrap=WrapFormat.from_toml(WRAP, load.load_height_m)) as unit:
+    with BenchUnit(load.layout(), SimSettings(rigid_boxes=rigid),
+                   WrapFormat.from_toml(WRAP, load.load_height_m)) as unit:
         unit.level(PulseProfile(LEVEL_G))
         return unit.world.contact_points()
 
 
-def plain_level(sim_s: float, iterations: int = 20) -> int:
+def plain_level(sim_s: float, iterations: int = 20, rigid: bool = False) -> int:
     return plain_pybullet(LoadUnit.from_toml(EXAMPLE).layout(), PulseProfile(LEVEL_G), sim_s,
-                   iterations=iterations)
+                          iterations=iterations, rigid=rigid)
 
 
 def in_a_fresh_interpreter(call: str) -> Callable[[], object]:
@@ -152,8 +156,9 @@ def child_cpu_s() -> float:
 
 
 def compare(runs: dict[str, Callable[[], object]], repeat: int, clock: Callable[[], float],
-            title: str) -> None:
-    """Median wall and CPU time of each run (alternated), and the bench's ratio to the rest."""
+            title: str, benches: int = 2) -> None:
+    """Median wall and CPU time of each run (alternated), and the ratio of each of the first
+    `benches` runs (the bench's) to the rest."""
     results: dict[str, list[tuple[float, float]]] = {name: [] for name in runs}
     for _ in range(repeat):
         for name, fn in runs.items():
@@ -166,10 +171,10 @@ def compare(runs: dict[str, Callable[[], object]], repeat: int, clock: Callable[
     print(f"{'run':44s} {'wall s':>7} {'CPU s':>7}")
     for name in runs:
         print(f"{name:44s} {wall_s[name]:7.3f} {cpu_s[name]:7.3f}")
-    bench = next(iter(runs))
-    for name in list(runs)[1:]:
-        print(f"ratio bench / {name}: {wall_s[bench] / wall_s[name]:.2f} wall, "
-              f"{cpu_s[bench] / cpu_s[name]:.2f} CPU (goal <= 1.0)")
+    for bench in list(runs)[:benches]:
+        for name in list(runs)[benches:]:
+            print(f"ratio {bench} / {name}: {wall_s[bench] / wall_s[name]:.2f} wall, "
+                  f"{cpu_s[bench] / cpu_s[name]:.2f} CPU (goal <= 1.0)")
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -192,6 +197,7 @@ def main(argv: list[str] | None = None) -> None:
           f"rest = {level_sim_s:.2f} s simulated")
     runs: list[tuple[str, Callable[[], object], str]] = [
         ("bench, Kraft-wrapped", bench_level, "bench_level()"),
+        ("bench, Kraft-wrapped, rigid boxes", partial(bench_level, True), "bench_level(True)"),
         (f"plain PyBullet, {ISSUE_SIM_S} s", partial(plain_level, ISSUE_SIM_S),
          f"plain_level({ISSUE_SIM_S})"),
         (f"plain PyBullet, {level_sim_s:.2f} s", partial(plain_level, level_sim_s),
@@ -203,6 +209,9 @@ def main(argv: list[str] | None = None) -> None:
         runs.append((name + (" (PyBullet's default)" if iterations == default else ""),
                      partial(plain_level, ISSUE_SIM_S, iterations),
                      f"plain_level({ISSUE_SIM_S}, {iterations})"))
+    runs.append((f"plain, {ISSUE_SIM_S} s, 20 it, rigid boxes",
+                 partial(plain_level, ISSUE_SIM_S, 20, True),
+                 f"plain_level({ISSUE_SIM_S}, 20, True)"))
     compare({name: fn for name, fn, _ in runs}, args.repeat, time.process_time,
             "in this process")
     bench_points, plain_points = bench_level(), plain_level(ISSUE_SIM_S)
@@ -217,9 +226,10 @@ def main(argv: list[str] | None = None) -> None:
         print("\ninstructions (callgrind; the run alone, imports subtracted)")
         for name, n in counts.items():
             print(f"{name:44s} {n / 1e9:7.2f} G")
-        bench = runs[0][0]
-        for name, _, _ in runs[1:]:
-            print(f"ratio bench / {name}: {counts[bench] / counts[name]:.2f} (goal <= 1.0)")
+        for bench, _, _ in runs[:2]:
+            for name, _, _ in runs[2:]:
+                print(f"ratio {bench} / {name}: {counts[bench] / counts[name]:.2f} "
+                      "(goal <= 1.0)")
 
 
 if __name__ == "__main__":

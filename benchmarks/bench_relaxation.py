@@ -38,10 +38,9 @@ from benchmarks.bench_solver_options import level
 from benchmarks.bench_warm_start import (
     EXAMPLE,
     WRAPS,
-    saved_world,
     worlds_loaded_from,
 )
-from wrapenv.bullet import BulletWorld
+from wrapenv.bullet import BulletWorld, saved_empty_world
 from wrapenv.load import LoadUnit
 from wrapenv.wrap import WrapFormat
 
@@ -58,7 +57,7 @@ BUNDLE_MAX_KG = 20.0
 def sor_world(folder: Path, sor: float) -> Path:
     """An empty world saved by pybullet with its solver info's relaxation set to `sor`."""
     path = folder / f"world-sor-{sor}.bullet"
-    data, iterations_at = saved_world(path)
+    data, iterations_at = saved_empty_world(path)
     if not data.startswith(b"BULLETd"):
         raise RuntimeError(f"{path}: not a double-precision world, m_sor is not where expected")
     at = iterations_at - 8 * SOR_DOUBLES_BEFORE_ITERATIONS

@@ -38,15 +38,17 @@ import numpy as np
 import pybullet as pb
 
 from benchmarks.bench_speed import slip_error
-from benchmarks.bench_warm_start import world_file, worlds_loaded_from
+from benchmarks.bench_warm_start import worlds_loaded_from
 from wrapenv.bench import SimSettings, run_level
-from wrapenv.bullet import BulletWorld
+from wrapenv.bullet import (
+    SOLVER_DISABLE_VELOCITY_DEPENDENT_FRICTION_DIRECTION,
+    BulletWorld,
+    solver_mode_world,
+)
 from wrapenv.load import LoadUnit
 from wrapenv.profile import PulseProfile
 from wrapenv.wrap import WrapFormat
 
-#: btContactSolverInfo's solver mode flag (Bullet's btContactSolverInfo.h)
-SOLVER_DISABLE_VELOCITY_DEPENDENT_FRICTION_DIRECTION = 64
 CASES = (  # (name, load, wrap, level g)
     ("2 layers, 0.3 g", "examples/pet_2layer_columnar.toml", None, 0.3),
     ("3 layers, 0.3 g", "examples/pet_3layer_columnar.toml", None, 0.3),
@@ -84,9 +86,9 @@ class Variant:
             apply, axes = BulletWorld.apply_wrenches, np.array(self.torque_axes)
 
             def some_torques(world: BulletWorld, indices: Sequence[int] | np.ndarray,
-                             centres: np.ndarray, forces: np.ndarray,
-                             torques: np.ndarray) -> None:
-                apply(world, indices, centres, forces, torques * axes)
+                             centres: np.ndarray, forces: np.ndarray, torques: np.ndarray,
+                             rotations: np.ndarray) -> None:
+                apply(world, indices, centres, forces, torques * axes, rotations)
 
             BulletWorld.apply_wrenches = some_torques  # type: ignore[method-assign,assignment]
             try:
@@ -170,8 +172,9 @@ def main(argv: list[str] | None = None) -> None:
                       f"{'on' if anchored else 'off'}: {early:.3f} deg, {late:.3f} deg",
                       flush=True)
     with tempfile.TemporaryDirectory() as folder:
-        plain = world_file(Path(folder), 0)
-        steady = world_file(Path(folder), SOLVER_DISABLE_VELOCITY_DEPENDENT_FRICTION_DIRECTION)
+        plain = solver_mode_world(Path(folder), 0)
+        steady = solver_mode_world(Path(folder),
+                                   SOLVER_DISABLE_VELOCITY_DEPENDENT_FRICTION_DIRECTION)
         variants = (
             Variant("the bench (reduced coordinates)", None, False),
             Variant("rigid boxes", plain, True),

@@ -9,7 +9,7 @@ of the level's margin (`wrapenv.eumos.level_margin`, the figure a search ranks b
 levels not decided failed (margin > -1: a level stopped once decided only bounds its margin),
 the permanent displacement's error, and the speed-up in CPU time over all cases.
 
-    taskset -c 0 python -m benchmarks.bench_screening [--candidates]
+    taskset -c 0 python -m benchmarks.bench_screening [--candidates | --only NAME ...]
 """
 
 from __future__ import annotations
@@ -17,7 +17,7 @@ from __future__ import annotations
 import argparse
 import os
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 
@@ -57,6 +57,9 @@ CANDIDATES = {
                                                     simulate_stop=False),
     "20 iterations, end at first rest": SimSettings(wrapped_solver_iterations=20,
                                                     simulate_stop=False),
+    "rigid boxes": SimSettings(rigid_boxes=True),
+    "rigid boxes, screening()": replace(SimSettings.screening(), rigid_boxes=True),
+    "rigid boxes, training()": replace(SimSettings.training(), rigid_boxes=True),
 }
 
 
@@ -97,8 +100,11 @@ def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--candidates", action="store_true",
                         help="compare the candidate settings, not only SimSettings.screening()")
+    parser.add_argument("--only", nargs="+", choices=CANDIDATES, metavar="NAME",
+                        help="compare only these candidates (and the two named settings)")
     args = parser.parse_args(argv)
-    settings = dict(CANDIDATES) if args.candidates else {}
+    chosen = args.only or (list(CANDIDATES) if args.candidates else [])
+    settings = {name: CANDIDATES[name] for name in chosen}
     settings.setdefault("screening()", SimSettings.screening())
     settings.setdefault("training()", SimSettings.training())
     results: dict[str, list[Outcome]] = {"default": [], **{name: [] for name in settings}}

@@ -23,7 +23,6 @@ from __future__ import annotations
 
 import argparse
 import contextlib
-import struct
 import tempfile
 import time
 from collections.abc import Iterator, Sequence
@@ -31,11 +30,10 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import pybullet as pb
 
 import wrapenv.bench
 from wrapenv.bench import SimSettings, run_level
-from wrapenv.bullet import BulletWorld
+from wrapenv.bullet import PYBULLET_RESIDUAL_THRESHOLD, BulletWorld, solver_mode_world
 from wrapenv.load import LoadUnit
 from wrapenv.profile import PulseProfile
 from wrapenv.trace import Trace
@@ -47,37 +45,6 @@ EXAMPLE = "examples/pet_3layer_columnar.toml"
 WRAPS = ("examples/wrap_kraft_3layer.toml", "examples/program_kraft_default.toml")
 #: btContactSolverInfo's solver mode flag (Bullet's btContactSolverInfo.h)
 SOLVER_USE_ARTICULATED_WARMSTARTING = 4096
-MARKER_ITERATIONS = 987654
-#: pybullet's residual threshold (PhysicsServerCommandProcessor), which the importer resets
-PYBULLET_RESIDUAL_THRESHOLD = 1e-7
-
-
-def saved_world(path: Path) -> tuple[bytearray, int]:
-    """An empty world saved by pybullet to `path`: its bytes, and where in them the solver
-    info's iteration count (`m_numIterations`, set to a marker value to be found) lies."""
-    client = pb.connect(pb.DIRECT)
-    try:
-        pb.setPhysicsEngineParameter(numSolverIterations=MARKER_ITERATIONS,
-                                     physicsClientId=client)
-        pb.saveBullet(str(path), physicsClientId=client)
-    finally:
-        pb.disconnect(client)
-    data = bytearray(path.read_bytes())
-    marker = struct.pack("<i", MARKER_ITERATIONS)
-    if data.count(marker) != 1:
-        raise RuntimeError(f"{path}: the solver info's iteration count is not found once")
-    return data, data.index(marker)
-
-
-def world_file(folder: Path, flags: int) -> Path:
-    """An empty world saved by pybullet, these flags added to its solver mode (0: as saved)."""
-    path = folder / f"world-{flags}.bullet"
-    data, iterations_at = saved_world(path)
-    at = iterations_at + 4  # m_solverMode follows m_numIterations
-    (mode,) = struct.unpack_from("<i", data, at)
-    struct.pack_into("<i", data, at, mode | flags)
-    path.write_bytes(bytes(data))
-    return path
 
 
 @contextlib.contextmanager
@@ -145,8 +112,8 @@ def main(argv: list[str] | None = None) -> None:
     args = parser.parse_args(argv)
     load = LoadUnit.from_toml(EXAMPLE)
     with tempfile.TemporaryDirectory() as folder:
-        plain = world_file(Path(folder), 0)
-        warm = world_file(Path(folder), SOLVER_USE_ARTICULATED_WARMSTARTING)
+        plain = solver_mode_world(Path(folder), 0)
+        warm = solver_mode_world(Path(folder), SOLVER_USE_ARTICULATED_WARMSTARTING)
         default = SimSettings().wrapped_solver_iterations
         for path, g in ((p, g) for p in WRAPS for g in args.levels):
             wrap = WrapFormat.from_toml(path, load.load_height_m)

@@ -78,6 +78,11 @@ class SimSettings:
     #: nothing, which saves a rest hold: for screening. A wrapped unit springs back at the stop
     #: by up to ~1 mm (14 cases, benchmarks/bench_screening.py).
     simulate_stop: bool = True
+    #: Boxes as rigid (maximal-coordinate) bodies, whose contacts Bullet warm-starts, instead
+    #: of reduced-coordinate ones: a wrapped level in about half the CPU (benchmarks/
+    #: bench_baseline.py), within the bench's own reproducibility of the default
+    #: (benchmarks/bench_screening.py). Off by default: every published figure is the default's.
+    rigid_boxes: bool = False
 
     @classmethod
     def screening(cls) -> SimSettings:
@@ -135,7 +140,7 @@ class BenchUnit:
         self.scene = BenchScene(layout)
         iterations, erp = ((settings.wrapped_solver_iterations, settings.wrapped_contact_erp)
                            if wrap is not None else (settings.solver_iterations, None))
-        self.world = BulletWorld(settings.timestep_s, iterations, erp)
+        self.world = BulletWorld(settings.timestep_s, iterations, erp, settings.rigid_boxes)
         _build(self.world, self.scene, self._stick_slip().coefficients())
         #: The wrap as the last level left it (None: unwrapped).
         self.wrap = WrapNet(wrap, layout) if wrap is not None else None
@@ -310,7 +315,7 @@ class _Run:
         force, torque = wrap.forces(pos, rot, vel, omega, t_s)
         bodies = np.flatnonzero(np.any(force != 0, axis=1) | np.any(torque != 0, axis=1))
         self.world.apply_wrenches(self.scene.moving[bodies], pos[bodies], force[bodies],
-                                  torque[bodies])
+                                  torque[bodies], rot[bodies])
 
     def _settle(self) -> None:
         """Let the stack settle on the still sled; a wrap is laid at its wrapping tension,

@@ -10,9 +10,13 @@ from __future__ import annotations
 
 import contextlib
 import ctypes
+import functools
 import os
+import struct
 import sys
+import tempfile
 from collections.abc import Iterable, Iterator, Sequence
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -28,6 +32,16 @@ G = 9.81
 #: arithmetic is the same everywhere, so the same inputs give the same results on every machine.
 FRICTION_DECIMALS = 9
 WRENCH_DECIMALS = 6
+#: The angular velocity a torque adds to a rigid body in a step (rad/s), rounded likewise.
+VELOCITY_DECIMALS = 9
+#: btContactSolverInfo's solver mode flag: friction directions not taken from the sliding
+#: velocity (Bullet's btContactSolverInfo.h). Without it a rigid box sliding on another dynamic
+#: box veers and spins, sliding 28 % short of the closed form (benchmarks/bench_rigid.py).
+SOLVER_DISABLE_VELOCITY_DEPENDENT_FRICTION_DIRECTION = 64
+#: a solver iteration count no world has, to find the solver info in a saved world's bytes
+_MARKER_ITERATIONS = 987654
+#: pybullet's residual threshold (PhysicsServerCommandProcessor), which loading a world resets
+PYBULLET_RESIDUAL_THRESHOLD = 1e-7
 
 
 _LIBC = ctypes.CDLL(None)
@@ -105,6 +119,55 @@ def _step_velocities(pos0: np.ndarray, quat0: np.ndarray, pos1: np.ndarray, quat
     return (pos1 - pos0) / dt, turn * (scale / dt)[:, None]
 
 
+def saved_empty_world(path: Path) -> tuple[bytearray, int]:
+    """An empty world saved by pybullet to `path`: its bytes, and where in them its solver
+    info's iteration count (`m_numIterations`; the solver mode `m_solverMode` follows it)
+    lies. pybullet cannot set the solver mode, but `loadBullet` copies a saved world's solver
+    info into the world that loads it: a patched file sets it."""
+    client = pb.connect(pb.DIRECT)
+    try:
+        pb.setPhysicsEngineParameter(numSolverIterations=_MARKER_ITERATIONS,
+                                     physicsClientId=client)
+        pb.saveBullet(str(path), physicsClientId=client)
+    finally:
+        pb.disconnect(client)
+    data = bytearray(path.read_bytes())
+    marker = struct.pack("<i", _MARKER_ITERATIONS)
+    if data.count(marker) != 1:
+        raise RuntimeError(f"{path}: the solver info's iteration count is not found once")
+    return data, data.index(marker)
+
+
+def solver_mode_world(folder: Path, flags: int) -> Path:
+    """An empty world saved by pybullet, these flags added to its solver mode (0: as saved)."""
+    path = folder / f"world-{flags}.bullet"
+    data, iterations_at = saved_empty_world(path)
+    at = iterations_at + 4
+    (mode,) = struct.unpack_from("<i", data, at)
+    struct.pack_into("<i", data, at, mode | flags)
+    path.write_bytes(bytes(data))
+    return path
+
+
+@functools.cache
+def _rigid_world_bytes() -> bytes:
+    """The saved world a world of rigid boxes loads first: pybullet's solver mode plus
+    `SOLVER_DISABLE_VELOCITY_DEPENDENT_FRICTION_DIRECTION`, made once per process."""
+    with tempfile.TemporaryDirectory() as folder:
+        flags = SOLVER_DISABLE_VELOCITY_DEPENDENT_FRICTION_DIRECTION
+        return solver_mode_world(Path(folder), flags).read_bytes()
+
+
+def _load_rigid_solver_mode(client: Any) -> None:
+    """Give a new world the solver mode of `_rigid_world_bytes` (through a file of its own,
+    gone once loaded) and pybullet's residual threshold, which loading resets."""
+    with tempfile.TemporaryDirectory() as folder:
+        path = Path(folder) / "world.bullet"
+        path.write_bytes(_rigid_world_bytes())
+        client.loadBullet(str(path))
+    client.setPhysicsEngineParameter(solverResidualThreshold=PYBULLET_RESIDUAL_THRESHOLD)
+
+
 class _Client(bullet_client.BulletClient):
     """pybullet's client wrapper, safe to collect half-built: an interrupt (Ctrl-C, SIGTERM)
     inside its `__init__`, before it set `_client`, made its `__del__` look the attribute up in
@@ -121,10 +184,15 @@ class BulletWorld:
     """
 
     def __init__(self, timestep_s: float, solver_iterations: int,
-                 contact_erp: float | None = None) -> None:
-        """`contact_erp`: the share of a penetration corrected per step (None: pybullet's)."""
+                 contact_erp: float | None = None, rigid: bool = False) -> None:
+        """`contact_erp`: the share of a penetration corrected per step (None: pybullet's).
+        `rigid`: boxes are rigid (maximal-coordinate) bodies, not reduced-coordinate ones
+        (`add_box`)."""
+        self.rigid = rigid
         with _quiet_stdout():
             self._client: Any = _Client(connection_mode=pb.DIRECT)
+            if rigid:
+                _load_rigid_solver_mode(self._client)
         self.timestep_s = timestep_s
         # Per-step calls go to pybullet with this client's id: the same client, without the
         # BulletClient wrapper's attribute lookup (halves the cost of a state read or a step).
@@ -133,6 +201,8 @@ class BulletWorld:
         self._ids: list[int] = []
         self._dynamic: list[int] = []
         self._friction: dict[int, float] = {}
+        #: a rigid body's inverse principal moments of inertia (1/(kg m²)), by Bullet id
+        self._inverse_inertia: dict[int, np.ndarray] = {}
         self._anchor_wanted: dict[int, bool] = {}
         self._refreshing: set[int] = set()
         self._steps = 0  # steps taken, so `state` knows when a finite difference is exact
@@ -140,8 +210,8 @@ class BulletWorld:
         self._last_state: tuple[tuple[int, ...], int, np.ndarray, np.ndarray] | None = None
 
     def _set_parameters(self, solver_iterations: int, contact_erp: float | None) -> None:
-        """The world's time step, solve and gravity (benchmarks/bench_warm_start.py sets them
-        again after loading a saved world's solver mode)."""
+        """The world's time step, solve and gravity (after a saved world's solver mode is
+        loaded: benchmarks/bench_warm_start.py loads others)."""
         self._client.setTimeStep(self.timestep_s)
         self._client.setPhysicsEngineParameter(
             numSolverIterations=solver_iterations, deterministicOverlappingPairs=1
@@ -165,12 +235,8 @@ class BulletWorld:
         half = [s / 2 for s in size_m]
         col = c.createCollisionShape(pb.GEOM_BOX, halfExtents=half)
         vis = c.createVisualShape(pb.GEOM_BOX, halfExtents=half, rgbaColor=list(rgba))
-        body = c.createMultiBody(
-            mass_kg, col, vis, basePosition=list(centre_m),
-            # Reduced-coordinate bodies: with maximal coordinates a box sliding on another
-            # dynamic box (bundle on pallet) veers and spins, sliding 20 % short of the closed form.
-            useMaximalCoordinates=False
-        )
+        body = c.createMultiBody(mass_kg, col, vis, basePosition=list(centre_m),
+                                 useMaximalCoordinates=self.rigid)
         c.changeDynamics(
             body, -1, lateralFriction=friction, restitution=0.0, rollingFriction=0.0,
             spinningFriction=0.0, linearDamping=0.0, angularDamping=0.0,
@@ -181,6 +247,9 @@ class BulletWorld:
             frictionAnchor=1,
         )
         self._friction[body] = friction
+        if self.rigid and mass_kg > 0:
+            inertia = c.getDynamicsInfo(body, -1)[2]
+            self._inverse_inertia[body] = 1.0 / np.array(inertia)
         self._anchor_wanted[body] = True
         self._ids.append(body)
         if mass_kg > 0:
@@ -193,15 +262,46 @@ class BulletWorld:
         pb.setGravity(-accel_mps2, 0.0, -G, physicsClientId=self._id)
 
     def apply_wrenches(self, indices: Sequence[int] | np.ndarray, centres: np.ndarray,
-                       forces: np.ndarray, torques: np.ndarray) -> None:
-        """Forces at the bodies' centres and torques (world frame) for the next step only."""
+                       forces: np.ndarray, torques: np.ndarray, rotations: np.ndarray) -> None:
+        """Forces at the bodies' centres and torques (world frame) for the next step only.
+        `rotations` (n, 3, 3): the bodies' orientations now, with which a rigid body takes its
+        torque (`_turn`)."""
         cid = self._id
         forces, torques = forces.round(WRENCH_DECIMALS), torques.round(WRENCH_DECIMALS)
-        for index, centre, force, torque in zip(indices, centres.tolist(), forces.tolist(),
-                                                torques.tolist(), strict=True):
-            body = self._ids[index]
-            pb.applyExternalForce(body, -1, force, centre, pb.WORLD_FRAME, physicsClientId=cid)
-            pb.applyExternalTorque(body, -1, torque, pb.WORLD_FRAME, physicsClientId=cid)
+        for index, centre, force in zip(indices, centres.tolist(), forces.tolist(), strict=True):
+            pb.applyExternalForce(self._ids[index], -1, force, centre, pb.WORLD_FRAME,
+                                  physicsClientId=cid)
+        if self.rigid:
+            self._turn(indices, torques, rotations)
+            return
+        for index, torque in zip(indices, torques.tolist(), strict=True):
+            pb.applyExternalTorque(self._ids[index], -1, torque, pb.WORLD_FRAME,
+                                   physicsClientId=cid)
+
+    def _turn(self, indices: Sequence[int] | np.ndarray, torques: np.ndarray,
+              rotations: np.ndarray) -> None:
+        """Torques on rigid bodies, given as the angular velocity they add in one step
+        (w += dt I_world^-1 tau) before the step rather than as external torques.
+
+        Bullet's rigid-body solver leaves an external torque out of the velocity its friction
+        rows hold still (btSequentialImpulseConstraintSolver::setupFrictionConstraint adds the
+        step's external force impulse but not its torque impulse, which only the normal rows
+        see), so each step the torque turns a box that friction should hold by tau dt² / I: a
+        box twisted below its friction limit creeps round at a steady rate
+        (tests/wrapenv/test_bullet.py). As a velocity, friction sees it and holds it. The
+        velocity added to is Bullet's own, read back, not the poses' finite difference, whose
+        last bits depend on the processor (`FRICTION_DECIMALS`)."""
+        cid = self._id
+        bodies = [self._ids[i] for i in indices]
+        if not bodies:
+            return
+        inverse = np.array([self._inverse_inertia[b] for b in bodies])
+        in_body = np.einsum("nji,nj->ni", rotations, torques)  # R^T tau
+        added = self.timestep_s * np.einsum("nij,nj->ni", rotations, inverse * in_body)
+        for body, turn in zip(bodies, added.round(VELOCITY_DECIMALS).tolist(), strict=True):
+            omega = pb.getBaseVelocity(body, physicsClientId=cid)[1]
+            turned = [w + dw for w, dw in zip(omega, turn, strict=True)]
+            pb.resetBaseVelocity(body, angularVelocity=turned, physicsClientId=cid)
 
     def push(self, index: int, force: Sequence[float]) -> None:
         """A force at the body's centre (world frame) for the next step only."""
@@ -266,8 +366,8 @@ class BulletWorld:
         """Positions (n, 3), quaternions (n, 4), linear and angular velocities (n, 3) of the
         given bodies, sled frame.
 
-        Bullet moves a reduced-coordinate body's base by x += v dt and q = exp(w dt) q (world
-        frame) with the velocities after the step, so one step after the previous call for the
+        Bullet moves a body's base by x += v dt and q = exp(w dt) q (world frame) with the
+        velocities after the step, so one step after the previous call for the
         same bodies the velocities are the poses' finite differences, exact to 1e-14
         (tests/wrapenv/test_bench_health.py). That saves the second pybullet call per body, a
         state request of ~30 000 instructions, which was a fifth of a wrapped step's Python.

@@ -13,7 +13,7 @@ import pytest
 
 from recommender.cli import main
 from wrapenv import bullet
-from wrapenv.bench import run_level, run_levels
+from wrapenv.bench import SimSettings, run_level, run_levels
 from wrapenv.eumos import evaluate
 from wrapenv.load import LoadUnit
 from wrapenv.profile import PulseProfile
@@ -38,19 +38,23 @@ def test_same_inputs_give_identical_json(tmp_path):
 
 
 #: A level that turns a last-bit difference into another run: the 2-layer example's top layer
-#: sliding off at 0.45 g, unwrapped and Kraft-wrapped (wrap forces reach Bullet too); prints a
+#: sliding off at 0.45 g, unwrapped and Kraft-wrapped (wrap forces reach Bullet too), with
+#: reduced-coordinate and rigid boxes (a rigid body's torques reach it as velocities); prints a
 #: digest of each trace's positions, which Bullet reports (the trace's rotation matrices are
 #: numpy's products of its quaternions, last bits per processor, read only against thresholds).
 _CHAOTIC_LEVELS = """
 import hashlib
-from wrapenv.bench import run_level
+from wrapenv.bench import SimSettings, run_level
 from wrapenv.load import LoadUnit
 from wrapenv.profile import PulseProfile
 from wrapenv.wrap import WrapFormat
 load = LoadUnit.from_toml("examples/pet_2layer_columnar.toml")
-for wrap in (None, WrapFormat.from_toml("examples/wrap_kraft_2layer.toml", load.load_height_m)):
-    trace = run_level(load.layout(), PulseProfile(0.45), wrap=wrap)
-    print(hashlib.sha256(trace.bundle_pos.tobytes()).hexdigest())
+for rigid in (False, True):
+    for wrap in (None, WrapFormat.from_toml("examples/wrap_kraft_2layer.toml",
+                                            load.load_height_m)):
+        trace = run_level(load.layout(), PulseProfile(0.45), SimSettings(rigid_boxes=rigid),
+                          wrap=wrap)
+        print(hashlib.sha256(trace.bundle_pos.tobytes()).hexdigest())
 """
 #: Another processor, as far as numpy's arithmetic goes: OpenBLAS's SSE3 kernels (every x86-64
 #: has them) and numpy's loops without AVX-512 (a no-op where the processor has none).
@@ -69,7 +73,7 @@ def test_processors_that_round_differently_run_the_same_level_identically():
         done = subprocess.run([sys.executable, "-c", _CHAOTIC_LEVELS], env=env, check=True,
                               capture_output=True, text=True)
         digests.append(done.stdout.split())
-    assert len(digests[0]) == 2
+    assert len(digests[0]) == 4
     assert digests[0] == digests[1]
 
 
@@ -127,7 +131,8 @@ def test_non_finite_state_is_invalid(monkeypatch):
     assert not evaluate(trace).passed
 
 
-def test_velocities_from_one_step_of_poses_are_bullets_own(monkeypatch):
+@pytest.mark.parametrize("rigid", [False, True], ids=["reduced", "rigid"])
+def test_velocities_from_one_step_of_poses_are_bullets_own(monkeypatch, rigid):
     # BulletWorld.state derives velocities from the poses of consecutive steps (one pybullet
     # call per body instead of two); they must be what Bullet reports, through a wrapped level
     errors = []
@@ -142,6 +147,6 @@ def test_velocities_from_one_step_of_poses_are_bullets_own(monkeypatch):
     monkeypatch.setattr(bullet.BulletWorld, "state", checked)
     load = LoadUnit.from_toml("examples/pet_2layer_columnar.toml")
     wrap = WrapFormat.from_toml("examples/wrap_kraft_2layer.toml", load.load_height_m)
-    run_level(load.layout(), PulseProfile(0.5), wrap=wrap)
+    run_level(load.layout(), PulseProfile(0.5), SimSettings(rigid_boxes=rigid), wrap=wrap)
     assert len(errors) > 200
     assert max(errors) < 1e-9
