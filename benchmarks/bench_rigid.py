@@ -2,7 +2,7 @@
 
 The bench's boxes are reduced-coordinate bodies (`btMultiBody`), whose contacts Bullet does not
 warm-start. Rigid bodies are warm-started, but a box sliding on a dynamic one veers and slides
-short (`BulletWorld.add_box`). pybullet's solver mode already holds two friction directions
+short. pybullet's solver mode already holds two friction directions
 (SOLVER_USE_2_FRICTION_DIRECTIONS); the veer comes from directions that follow the sliding
 velocity, which SOLVER_DISABLE_VELOCITY_DEPENDENT_FRICTION_DIRECTION turns off. That flag, like
 the warm-start one, is reached through a saved world's solver mode (`bench_warm_start`).
@@ -15,7 +15,13 @@ the bench (is a squeezed rigid stack stable by itself?); the wrapped cases also 
 torques left out (its forces kept), on the bench and on rigid boxes, and on rigid boxes with
 only its torque about the vertical left out or kept: a different model, run only to find what a
 squeezed rigid stack cannot bear. First, whether a lone box's static friction holds a twist
-about the vertical, with and without friction anchors. Per case:
+about the vertical, with and without friction anchors: a rigid box does not, because Bullet's
+rigid-body friction leaves an external torque out (`BulletWorld._turn`), unless the torque is
+given as the angular velocity it adds. Then whether a lone box slides along a pull across a
+floor at the closed-form rate: with the flag, a rigid box's friction holds each of two
+world-fixed directions apart (a pyramid, where a reduced-coordinate body's is a cone). So last,
+rigid boxes as the bench builds them with `SimSettings.rigid_boxes`: the flag set, torques given
+as velocities. Per case:
 CPU s, the bundles' largest displacement along the motion at the end and how far and when a
 bundle rose (a squeezed stack coming apart), or why the run became unphysical.
 
@@ -43,6 +49,7 @@ from wrapenv.bench import SimSettings, run_level
 from wrapenv.bullet import (
     SOLVER_DISABLE_VELOCITY_DEPENDENT_FRICTION_DIRECTION,
     BulletWorld,
+    G,
     solver_mode_world,
 )
 from wrapenv.load import LoadUnit
@@ -71,6 +78,7 @@ class Variant:
     rigid: bool
     parameters: dict[str, Any] = field(default_factory=dict)
     torque_axes: tuple[float, float, float] = (1.0, 1.0, 1.0)
+    settings: SimSettings = SimSettings()
 
     @property
     def torques(self) -> bool:
@@ -97,10 +105,11 @@ class Variant:
                 BulletWorld.apply_wrenches = apply  # type: ignore[method-assign]
 
 
-def case(load: LoadUnit, wrap: WrapFormat | None, level_g: float) -> tuple[float, str]:
+def case(load: LoadUnit, wrap: WrapFormat | None, level_g: float,
+         settings: SimSettings | None = None) -> tuple[float, str]:
     """CPU s, and the largest displacement along the motion or why the run is invalid."""
     t0 = time.process_time()
-    trace = run_level(load.layout(), PulseProfile(level_g), SimSettings(), wrap=wrap)
+    trace = run_level(load.layout(), PulseProfile(level_g), settings or SimSettings(), wrap=wrap)
     cpu = time.process_time() - t0
     dx = trace.bundle_pos[-1, :, 0] - trace.bundle_pos[0, :, 0]
     rise = trace.bundle_pos[:, :, 2] - trace.bundle_pos[0, :, 2]
@@ -124,9 +133,11 @@ TWIST_TORQUES_N_M = (2.0, 5.0)
 TWIST_STEPS = 2400  # 10 s at the bench's 1/240 s
 
 
-def twist_deg(rigid: bool, anchored: bool, torque_n_m: float) -> tuple[float, float]:
+def twist_deg(rigid: bool, anchored: bool, torque_n_m: float,
+              as_velocity: bool = False) -> tuple[float, float]:
     """How far (degrees) a lone box on a floor turns under a torque about the vertical after 2 s
-    and 10 s: static friction should hold it still."""
+    and 10 s: static friction should hold it still. `as_velocity`: the torque given as the
+    angular velocity it adds in a step, as `BulletWorld` gives it to a rigid body."""
     client = pb.connect(pb.DIRECT)
     try:
         pb.setTimeStep(1 / 240, physicsClientId=client)
@@ -145,10 +156,16 @@ def twist_deg(rigid: bool, anchored: bool, torque_n_m: float) -> tuple[float, fl
                               activationState=pb.ACTIVATION_STATE_DISABLE_SLEEPING,
                               physicsClientId=client)
         yaw = []
+        inertia_z = pb.getDynamicsInfo(box, -1, physicsClientId=client)[2][2]
         for step in range(TWIST_STEPS):
             torque = torque_n_m * min(1.0, step / 48)
-            pb.applyExternalTorque(box, -1, [0, 0, torque], pb.WORLD_FRAME,
-                                   physicsClientId=client)
+            if as_velocity:
+                wx, wy, wz = pb.getBaseVelocity(box, physicsClientId=client)[1]
+                pb.resetBaseVelocity(box, angularVelocity=[wx, wy, wz + torque / 240 / inertia_z],
+                                     physicsClientId=client)
+            else:
+                pb.applyExternalTorque(box, -1, [0, 0, torque], pb.WORLD_FRAME,
+                                       physicsClientId=client)
             pb.stepSimulation(physicsClientId=client)
             if step + 1 in (TWIST_STEPS // 5, TWIST_STEPS):
                 quat = pb.getBasePositionAndOrientation(box, physicsClientId=client)[1]
@@ -158,17 +175,54 @@ def twist_deg(rigid: bool, anchored: bool, torque_n_m: float) -> tuple[float, fl
     return yaw[0], yaw[1]
 
 
+#: the slide check: a bundle-sized box on a still floor (coefficients 0.7 each: 0.49 combined),
+#: its friction anchors dropped as the bench drops a sliding body's, pulled at 0.8 g for 0.5 s
+#: at these angles to the x axis: it should slide along the pull at (0.8 - 0.49) g
+SLIDE_ANGLES_DEG = (0.0, 22.5, 45.0)
+SLIDE_G = 0.8
+
+
+def slide(rigid: bool, angle_deg: float) -> tuple[float, float]:
+    """The box's mean acceleration (m/s²) and direction (degrees from x) sliding under a pull
+    at `angle_deg`, in a world as the bench builds it (`rigid`: `SimSettings.rigid_boxes`)."""
+    with BulletWorld(1 / 240, 50, rigid=rigid) as world:
+        world.add_box((4.0, 4.0, 0.1), (0.0, 0.0, -0.05), 0.0, 0.7)
+        box = world.add_box((0.28, 0.19, 0.33), (0.0, 0.0, 0.165), 9.3, 0.7)
+        for _ in range(60):
+            world.step()
+        for index in (0, box):
+            world.set_anchored(index, False)
+        world.refresh_contacts([0, box])
+        world.step()
+        start = world.poses([box])[0][0]
+        angle = np.radians(angle_deg)
+        pull = SLIDE_G * G * np.array([np.cos(angle), np.sin(angle)])
+        # a pull across the sled's axis, which BulletWorld does not offer (benchmark only)
+        pb.setGravity(-pull[0], -pull[1], -G, physicsClientId=world._id)
+        for _ in range(120):
+            world.step()
+        moved = start[:2] - world.poses([box])[0][0][:2]
+    return 2 * float(np.linalg.norm(moved)) / 0.5**2, float(np.degrees(np.arctan2(*moved[::-1])))
+
+
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeat", type=int, default=3, help="runs per case, alternated")
     args = parser.parse_args(argv)
+    print(f"a box pulled at {SLIDE_G} g across a floor (combined coefficient 0.49), its "
+          f"acceleration (closed form {(SLIDE_G - 0.49) * G:.2f} m/s^2) and direction:")
+    for angle in SLIDE_ANGLES_DEG:
+        print(f"  pulled at {angle} deg: " + ", ".join(
+            "{}: {:.2f} m/s^2 at {:.1f} deg".format(kind, *slide(rigid, angle))
+            for kind, rigid in (("reduced coordinates", False), ("rigid boxes", True))))
     for torque in TWIST_TORQUES_N_M:
         print(f"a box twisted by {torque} N m on a floor (its friction holds 5-11 N m), its "
               "turn after 2 s and 10 s:")
-        for rigid in (False, True):
+        for rigid, as_velocity in ((False, False), (True, False), (True, True)):
             for anchored in (True, False):
-                early, late = twist_deg(rigid, anchored, torque)
-                print(f"  {'rigid' if rigid else 'reduced coordinates'}, friction anchors "
+                early, late = twist_deg(rigid, anchored, torque, as_velocity)
+                how = "rigid" if rigid else "reduced coordinates"
+                print(f"  {how}{', as a velocity' if as_velocity else ''}, friction anchors "
                       f"{'on' if anchored else 'off'}: {early:.3f} deg, {late:.3f} deg",
                       flush=True)
     with tempfile.TemporaryDirectory() as folder:
@@ -180,6 +234,8 @@ def main(argv: list[str] | None = None) -> None:
             Variant("rigid boxes", plain, True),
             Variant("rigid, friction directions not from velocity", steady, True),
             Variant("the same, not warm-started", steady, True, {"warmStartingFactor": 0.0}),
+            Variant("rigid, torques as velocities (SimSettings.rigid_boxes)", None, False,
+                    settings=SimSettings(rigid_boxes=True)),
             Variant("the bench, the wrap's torques left out", None, False,
                     torque_axes=(0.0, 0.0, 0.0)),
             Variant("rigid, directions not from velocity, the wrap's torques left out", steady,
@@ -200,7 +256,7 @@ def main(argv: list[str] | None = None) -> None:
                     if wrap is None and not v.torques:
                         continue  # no wrap: no torques to leave out
                     with v.worlds():
-                        seconds, end[v.label] = case(load, wrap, level_g)
+                        seconds, end[v.label] = case(load, wrap, level_g, v.settings)
                     cpu[v.label].append(seconds)
             base = statistics.median(cpu[variants[0].label])
             print(f"{name} (CPU s, median of {args.repeat}; the end of the last run):")
@@ -213,7 +269,7 @@ def main(argv: list[str] | None = None) -> None:
 
 def _slip(variant: Variant) -> str:
     with variant.worlds():
-        return slip_error(SimSettings())
+        return slip_error(variant.settings)
 
 
 if __name__ == "__main__":

@@ -9,6 +9,7 @@ alternated in rounds so a busy machine disturbs each alike:
 - the bench's default settings (`SimSettings()`, before issue 15) and the training settings
   (`TrainSettings.sim`: `SimSettings.training()`), and how far the latter's verdicts and
   margins stand from the former's on the same episodes;
+- the training settings with rigid boxes (`SimSettings.rigid_boxes`);
 - `DummyVecEnv` (1 env, in this process) and `SubprocVecEnv` with 2 and 4 env processes (a
   vector step waits for its slowest env; more envs than cores let the others use the wait).
 
@@ -21,6 +22,7 @@ import argparse
 import os
 import resource
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -31,7 +33,8 @@ from recommender.policy import MAKE_ID, TrainSettings
 from wrapenv.bench import SimSettings
 from wrapenv.design import N_PARAMS
 
-SETTINGS = {"default SimSettings()": SimSettings(), "TrainSettings.sim": TrainSettings().sim}
+SETTINGS = {"default SimSettings()": SimSettings(), "TrainSettings.sim": TrainSettings().sim,
+            "the same, rigid boxes": replace(TrainSettings().sim, rigid_boxes=True)}
 VEC_ENVS: dict[str, tuple[int, type[DummyVecEnv] | type[SubprocVecEnv]]] = {
     "DummyVecEnv x 1": (1, DummyVecEnv), "SubprocVecEnv x 2": (2, SubprocVecEnv),
     "SubprocVecEnv x 4": (4, SubprocVecEnv)}
@@ -101,24 +104,27 @@ def main(argv: list[str] | None = None) -> None:
                 outcomes[sim_name].extend(seen)
                 print(f"  round {round_}: {vec_name:18s} {sim_name:22s} {wall:5.2f} episodes/s, "
                       f"{cpu:5.2f} per CPU s (mean reward {reward:+.3f})", flush=True)
-    print("\nepisodes/s of wall time (episodes per CPU second); ratio of the wall figures")
-    print(f"{'vector env':18s} " + " ".join(f"{name:>24s}" for name in SETTINGS) + "  ratio")
+    print("\nepisodes/s of wall time (episodes per CPU second); ratios of the wall figures to "
+          "the defaults'")
+    print(f"{'vector env':18s} " + " ".join(f"{name:>24s}" for name in SETTINGS) + "  ratios")
     for vec_name in VEC_ENVS:
         mean = [np.mean(rates[vec_name, sim_name], axis=0) for sim_name in SETTINGS]
         print(f"{vec_name:18s} " + " ".join(f"{w:11.2f} ({c:.2f} /CPU s)" for w, c in mean)
-              + f"  {mean[1][0] / mean[0][0]:.2f} x")
-    agreement(*outcomes.values())
+              + "  " + ", ".join(f"{m[0] / mean[0][0]:.2f} x" for m in mean[1:]))
+    default, *cheaper = outcomes.items()
+    for name, seen in cheaper:
+        agreement(default[1], seen, name)
 
 
-def agreement(default: list[Outcome], cheaper: list[Outcome]) -> None:
-    """How far the training settings' rewards stand from the defaults' on the same episodes:
+def agreement(default: list[Outcome], cheaper: list[Outcome], name: str) -> None:
+    """How far a cheaper setting's rewards stand from the defaults' on the same episodes:
     verdicts, the margin where both passed (a failure's margin is bounded once decided), and
     simulations that blew up (rewarded as failures)."""
     agree = sum(a[0] == b[0] for a, b in zip(default, cheaper, strict=True))
     error = np.array([abs(a[1] - b[1]) for a, b in zip(default, cheaper, strict=True)
                       if a[0] and b[0]])
     text = f"{error.mean():.3f} / {error.max():.3f}" if len(error) else "-"
-    print(f"TrainSettings.sim against the defaults on the same episodes: verdicts agree "
+    print(f"{name} against the defaults on the same episodes: verdicts agree "
           f"{agree} of {len(default)}, margin error where both passed (mean / max) {text}; "
           f"blown up {sum(not o[2] for o in default)} and {sum(not o[2] for o in cheaper)}")
 
