@@ -78,10 +78,13 @@ class SimSettings:
     #: nothing, which saves a rest hold: for screening. A wrapped unit springs back at the stop
     #: by up to ~1 mm (14 cases, benchmarks/bench_screening.py).
     simulate_stop: bool = True
-    #: Boxes as rigid (maximal-coordinate) bodies, whose contacts Bullet warm-starts, instead
-    #: of reduced-coordinate ones: a wrapped level in about half the CPU (benchmarks/
-    #: bench_baseline.py), within the bench's own reproducibility of the default
-    #: (benchmarks/bench_screening.py). Off by default: every published figure is the default's.
+    #: Boxes as rigid (maximal-coordinate) bodies instead of reduced-coordinate ones. Bullet
+    #: warm-starts their contacts: a Kraft-wrapped 3-layer level takes half the CPU, 0.93 x
+    #: the issue's plain PyBullet run (benchmarks/bench_baseline.py). Off by default: their
+    #: friction is a pyramid on two world-fixed directions, not a cone (a box pulled at 22.5
+    #: degrees to x slides along x; benchmarks/bench_rigid.py), and wrapped margins stand 0.20
+    #: from the default's on average, up to 0.56, beyond the bench's own reproducibility
+    #: (benchmarks/bench_screening.py); the closed-form tests pass either way.
     rigid_boxes: bool = False
 
     @classmethod
