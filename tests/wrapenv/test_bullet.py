@@ -3,11 +3,12 @@
 from __future__ import annotations
 
 import math
+import tempfile
 
 import numpy as np
 import pytest
 
-from wrapenv.bullet import BulletWorld, G, rotation_matrices
+from wrapenv.bullet import BulletWorld, G, _rigid_world_bytes, rotation_matrices
 
 BOX_M = (0.28, 0.19, 0.33)
 BOX_KG = 9.3
@@ -47,3 +48,14 @@ def test_static_friction_holds_a_twist_below_its_limit_and_not_above(rigid):
     # (27 degrees in 10 s at 1 N m): the world gives it as a velocity instead.
     assert abs(turn_deg(rigid, 0.9 * TWIST_LIMIT_N_M)) < 0.01
     assert abs(turn_deg(rigid, BEYOND[rigid] * TWIST_LIMIT_N_M)) > 10.0
+
+
+def test_a_rigid_world_leaves_no_file_behind(tmp_path, monkeypatch):
+    # the solver mode reaches a rigid world through a saved world on disk: made and loaded in
+    # temporary folders that are gone once the world is built (searches build thousands)
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))
+    _rigid_world_bytes.cache_clear()
+    for _ in range(3):
+        with BulletWorld(1 / 240, 20, rigid=True) as world:
+            world.add_box(BOX_M, (0.0, 0.0, BOX_M[2] / 2), BOX_KG, MU)
+    assert list(tmp_path.iterdir()) == []
