@@ -7,9 +7,10 @@ resolution: what no cheaper fidelity (a larger step, fewer iterations, half a un
 below, and how far apart a margin must be to tell two wraps apart. Cases: bench_screening's 14
 wrapped ones and four unwrapped ones, each run three ways, alternated. Printed per way: verdicts
 that agree with the unit as laid out, the margin's difference (over the levels not decided
-failed) and the largest permanent displacement's difference.
+failed) and the largest permanent displacement's difference. `--rigid-boxes`: the same with
+`SimSettings.rigid_boxes` (its pyramid of friction directions is symmetric in y too).
 
-    taskset -c 0 python -m benchmarks.bench_reflection
+    taskset -c 0 python -m benchmarks.bench_reflection [--rigid-boxes]
 """
 
 from __future__ import annotations
@@ -24,7 +25,7 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 import numpy as np  # noqa: E402
 
 from benchmarks.bench_screening import CASES, UNITS, Case, describe, wrap_of  # noqa: E402
-from wrapenv.bench import run_level  # noqa: E402
+from wrapenv.bench import SimSettings, run_level  # noqa: E402
 from wrapenv.eumos import evaluate, level_margin  # noqa: E402
 from wrapenv.load import Layout, LoadUnit  # noqa: E402
 from wrapenv.profile import PulseProfile  # noqa: E402
@@ -53,25 +54,28 @@ WAYS: dict[str, Callable[[Layout], Layout]] = {
     "bundles in reverse order": renumbered}
 
 
-def run(case: Case | Unwrapped, way: str) -> tuple[bool, float, float]:
+def run(case: Case | Unwrapped, way: str, settings: SimSettings) -> tuple[bool, float, float]:
     """Passed, margin and largest permanent displacement of `case` laid out `way`."""
     unit, spec, level = case
     load = LoadUnit.from_toml(UNITS[unit])
     wrap = None if spec is None else wrap_of(spec, load.load_height_m)
-    verdict = evaluate(run_level(WAYS[way](load.layout()), PulseProfile(level), wrap=wrap))
+    verdict = evaluate(run_level(WAYS[way](load.layout()), PulseProfile(level), settings, wrap))
     return (verdict.passed, level_margin(verdict, load.load_height_m),
             verdict.permanent_max_m or 0.0)
 
 
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    parser.parse_args(argv)
+    parser.add_argument("--rigid-boxes", action="store_true",
+                        help="run with SimSettings.rigid_boxes (not the bench's default)")
+    args = parser.parse_args(argv)
+    settings = SimSettings(rigid_boxes=args.rigid_boxes)
     cases = CASES + UNWRAPPED
     results: dict[str, list[tuple[bool, float, float]]] = {way: [] for way in WAYS}
     print(f"{len(cases)} cases; verdict, margin and permanent displacement of each way:")
     for case in cases:
         for way in WAYS:
-            results[way].append(run(case, way))
+            results[way].append(run(case, way, settings))
         name = describe(case) if case[1] is not None else f"{case[0]}, unwrapped, {case[2]} g"
         print(f"  {name:42s} " + " | ".join(
             f"{'pass' if p else 'FAIL'} {m:+.3f} {1000 * d:6.1f} mm"

@@ -82,9 +82,9 @@ class SimSettings:
     #: warm-starts their contacts: a Kraft-wrapped 3-layer level takes half the CPU, 0.93 x
     #: the issue's plain PyBullet run (benchmarks/bench_baseline.py). Off by default: their
     #: friction is a pyramid on two world-fixed directions, not a cone (a box pulled at 22.5
-    #: degrees to x slides along x; benchmarks/bench_rigid.py), and wrapped margins stand 0.20
-    #: from the default's on average, up to 0.56, beyond the bench's own reproducibility
-    #: (benchmarks/bench_screening.py); the closed-form tests pass either way.
+    #: degrees to x slides along x; benchmarks/bench_rigid.py). Wrapped margins stand 0.20 from
+    #: the default's on average, about as far as the bench's own from itself renumbered
+    #: (benchmarks/bench_screening.py, bench_reflection.py); the closed-form tests pass either way.
     rigid_boxes: bool = False
 
     @classmethod
