@@ -59,6 +59,9 @@ EXAMPLE = "examples/pet_3layer_columnar.toml"
 WRAP = "examples/wrap_kraft_3layer.toml"
 LEVEL_G = 0.5
 ISSUE_SIM_S = 4.5
+#: how many of the timed runs are the bench's own (first in the list): each is compared with
+#: every plain run
+BENCH_RUNS = 2
 SETTLE_S = SimSettings().settle_s
 
 
@@ -156,9 +159,9 @@ def child_cpu_s() -> float:
 
 
 def compare(runs: dict[str, Callable[[], object]], repeat: int, clock: Callable[[], float],
-            title: str, benches: int = 2) -> None:
+            title: str) -> None:
     """Median wall and CPU time of each run (alternated), and the ratio of each of the first
-    `benches` runs (the bench's) to the rest."""
+    `BENCH_RUNS` runs (the bench's) to the rest."""
     results: dict[str, list[tuple[float, float]]] = {name: [] for name in runs}
     for _ in range(repeat):
         for name, fn in runs.items():
@@ -171,8 +174,8 @@ def compare(runs: dict[str, Callable[[], object]], repeat: int, clock: Callable[
     print(f"{'run':44s} {'wall s':>7} {'CPU s':>7}")
     for name in runs:
         print(f"{name:44s} {wall_s[name]:7.3f} {cpu_s[name]:7.3f}")
-    for bench in list(runs)[:benches]:
-        for name in list(runs)[benches:]:
+    for bench in list(runs)[:BENCH_RUNS]:
+        for name in list(runs)[BENCH_RUNS:]:
             print(f"ratio {bench} / {name}: {wall_s[bench] / wall_s[name]:.2f} wall, "
                   f"{cpu_s[bench] / cpu_s[name]:.2f} CPU (goal <= 1.0)")
 
@@ -226,8 +229,8 @@ def main(argv: list[str] | None = None) -> None:
         print("\ninstructions (callgrind; the run alone, imports subtracted)")
         for name, n in counts.items():
             print(f"{name:44s} {n / 1e9:7.2f} G")
-        for bench, _, _ in runs[:2]:
-            for name, _, _ in runs[2:]:
+        for bench, _, _ in runs[:BENCH_RUNS]:
+            for name, _, _ in runs[BENCH_RUNS:]:
                 print(f"ratio {bench} / {name}: {counts[bench] / counts[name]:.2f} "
                       "(goal <= 1.0)")
 
