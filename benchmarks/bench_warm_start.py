@@ -33,7 +33,7 @@ import numpy as np
 
 import wrapenv.bench
 from wrapenv.bench import SimSettings, run_level
-from wrapenv.bullet import PYBULLET_RESIDUAL_THRESHOLD, BulletWorld, solver_mode_world
+from wrapenv.bullet import BulletWorld, load_saved_world, solver_mode_world
 from wrapenv.load import LoadUnit
 from wrapenv.profile import PulseProfile
 from wrapenv.trace import Trace
@@ -51,18 +51,19 @@ SOLVER_USE_ARTICULATED_WARMSTARTING = 4096
 def worlds_loaded_from(path: Path | None, rigid: bool = False,
                        parameters: dict[str, Any] | None = None) -> Iterator[None]:
     """Every bench world built meanwhile loads `path` first (None: the bench as it is); `rigid`
-    makes its boxes maximal-coordinate (rigid) bodies, whose velocities are read from Bullet
-    (the bench's finite differences hold for reduced-coordinate bodies only); `parameters`
-    are engine parameters set after the bench's own."""
+    makes its boxes maximal-coordinate (rigid) bodies as pybullet makes them (torques as
+    external torques; `SimSettings.rigid_boxes` is the bench's own), whose velocities are read
+    from Bullet, as when these variants were first measured; `parameters` are engine
+    parameters set after the bench's own."""
     if path is None:
         yield
         return
+    saved = path
 
     class Loaded(BulletWorld):
         def _set_parameters(self, solver_iterations: int, contact_erp: float | None) -> None:
             client = self._client  # the world's own pybullet client (benchmark only)
-            client.loadBullet(str(path))
-            client.setPhysicsEngineParameter(solverResidualThreshold=PYBULLET_RESIDUAL_THRESHOLD)
+            load_saved_world(client, saved)
             if rigid:
                 create = client.createMultiBody
 

@@ -41,7 +41,7 @@ SOLVER_DISABLE_VELOCITY_DEPENDENT_FRICTION_DIRECTION = 64
 #: a solver iteration count no world has, to find the solver info in a saved world's bytes
 _MARKER_ITERATIONS = 987654
 #: pybullet's residual threshold (PhysicsServerCommandProcessor), which loading a world resets
-PYBULLET_RESIDUAL_THRESHOLD = 1e-7
+_PYBULLET_RESIDUAL_THRESHOLD = 1e-7
 
 
 _LIBC = ctypes.CDLL(None)
@@ -158,14 +158,20 @@ def _rigid_world_bytes() -> bytes:
         return solver_mode_world(Path(folder), flags).read_bytes()
 
 
+def load_saved_world(client: Any, path: Path) -> None:
+    """Give a new world (its `BulletClient`) the solver info of a saved world, and pybullet's
+    residual threshold back, which loading resets."""
+    client.loadBullet(str(path))
+    client.setPhysicsEngineParameter(solverResidualThreshold=_PYBULLET_RESIDUAL_THRESHOLD)
+
+
 def _load_rigid_solver_mode(client: Any) -> None:
-    """Give a new world the solver mode of `_rigid_world_bytes` (through a file of its own,
-    gone once loaded) and pybullet's residual threshold, which loading resets."""
+    """Give a new world the solver mode of `_rigid_world_bytes`, through a file of its own that
+    is gone once loaded."""
     with tempfile.TemporaryDirectory() as folder:
         path = Path(folder) / "world.bullet"
         path.write_bytes(_rigid_world_bytes())
-        client.loadBullet(str(path))
-    client.setPhysicsEngineParameter(solverResidualThreshold=PYBULLET_RESIDUAL_THRESHOLD)
+        load_saved_world(client, path)
 
 
 class _Client(bullet_client.BulletClient):
