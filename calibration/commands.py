@@ -31,7 +31,7 @@ from wrapenv.load import Friction, LoadUnit
 from wrapenv.wrap import WrapFormat
 
 if TYPE_CHECKING:   # imported where used: the CLI starts without the fitting's modules
-    from calibration.fit import FitResult
+    from calibration.fit import FitResult, FitSettings
     from calibration.validate import Check, Validation
 
 #: Longest message printed whole (it may quote a recording's folder, which `printable` makes safe).
@@ -233,6 +233,12 @@ def add_calibrate(sub: argparse._SubParsersAction) -> None:
                         "or give (the load's edges, against LOAD.toml), e.g. tension=1 give=0.8")
     p.add_argument("--retrack", action="store_true",
                    help="track every recording even where DIR/trajectories.csv exists")
+    p.add_argument("--checkpoint", type=Path, metavar="FILE",
+                   help="keep the search's replays here as they finish (default: beside "
+                        "--out, CAL.checkpoint.jsonl); removed when the fit ends")
+    p.add_argument("--resume", action="store_true",
+                   help="continue an interrupted fit: the replays its checkpoint holds are "
+                        "not simulated again (same recordings and flags, same CAL.json)")
 
 
 def _same_unit(load: LoadUnit) -> LoadUnit:
@@ -324,25 +330,39 @@ def _outputs(out: Path) -> dict[str, Path]:
     return {"json": out, "loss": Path(f"{stem}-loss.png"), "overlay": Path(f"{stem}-overlay.png")}
 
 
-def _check_outputs(out: Path, recordings: list) -> None:
+def _checkpoint(args: argparse.Namespace) -> Path:
+    """Where the fit keeps its replays: --checkpoint, else beside --out."""
+    if args.checkpoint is not None:
+        return Path(args.checkpoint)
+    return args.out.with_name(args.out.stem + ".checkpoint.jsonl")
+
+
+def _check_outputs(args: argparse.Namespace, recordings: list) -> None:
     """Every output writable and none of them a file the run reads (checked once the
-    recordings are read, before they are tracked)."""
+    recordings are read, before they are tracked); the checkpoint there to resume from."""
     inputs = [p for rec in recordings
               for p in (*rec.inputs(), rec.folder / "trajectories.csv")]
-    for path in _outputs(out).values():
+    outputs = _outputs(args.out)
+    for path in outputs.values():
         check_output(path, "--out", inputs=inputs)
+    checkpoint = _checkpoint(args)
+    check_output(checkpoint, "--checkpoint", inputs=inputs)
+    check_distinct({"--out": outputs["json"], "--out (loss figure)": outputs["loss"],
+                    "--out (overlay figure)": outputs["overlay"], "--checkpoint": checkpoint})
+    if args.resume and not checkpoint.exists():
+        raise InputError(str(checkpoint), "--resume", "no checkpoint to resume from")
 
 
 def run_calibrate(args: argparse.Namespace) -> int:
     from concurrent.futures import ProcessPoolExecutor
 
-    from calibration.fit import FitSettings, fit, min_budget
+    from calibration.fit import FitSettings, min_budget
     from calibration.report import loss_png, overlay_png
     from calibration.validate import Unpredictable, validate
 
     _check_calibrate_args(args)
     fitted, held = _recordings(args)
-    _check_outputs(args.out, fitted + held)
+    _check_outputs(args, fitted + held)
     if args.params == "wrap" and all(rec.wrap is None for rec in fitted):
         raise InputError("arguments", "--params",
                          "wrap: none of the recordings is of a wrapped unit (no wrap.toml)")
@@ -355,9 +375,8 @@ def run_calibrate(args: argparse.Namespace) -> int:
                          f"must be >= {least} to fit these {len(observations)} recordings "
                          f"(got {args.budget})")
     t0 = time.perf_counter()
-    with tqdm(total=args.budget, desc="simulations", unit="sim", leave=False,
-              disable=None) as bar:
-        result = fit(observations, settings, lambda n: bar.update(n - bar.n))
+    checkpoint = _checkpoint(args)
+    result, reused = _fit_kept(observations, settings, checkpoint, args.resume)
     wall = time.perf_counter() - t0
     if not result.converged:
         # what the refused fit found, and the advice: which test would pin what it missed
@@ -365,6 +384,7 @@ def run_calibrate(args: argparse.Namespace) -> int:
         sys.stderr.write("wrapbench calibrate: the fit did not converge: "
                          f"{printable(result.reason, MESSAGE_CHARS)}; "
                          "nothing written\n")
+        checkpoint.unlink(missing_ok=True)
         return 1
     try:
         with ProcessPoolExecutor(max_workers=args.workers) as pool:
@@ -372,7 +392,12 @@ def run_calibrate(args: argparse.Namespace) -> int:
     except Unpredictable as exc:
         sys.stderr.write(f"wrapbench calibrate: --validate: {printable(str(exc), MESSAGE_CHARS)}; "
                          "nothing written\n")
+        checkpoint.unlink(missing_ok=True)
         return 1
+    except KeyboardInterrupt as exc:
+        exc.add_note(f"interrupted, nothing written; the fit's replays are kept in "
+                     f"{printable(str(checkpoint))} (--resume continues it)")
+        raise
     out = result.calibration.to_dict() | {
         "residual_rms_m": result.residual_rms_m, "spread_rms_m": result.spread_rms_m,
         "replay_rms_m": result.replay_rms_m, "simulations": result.simulations,
@@ -387,10 +412,30 @@ def run_calibrate(args: argparse.Namespace) -> int:
     print(_summary(result))
     for check in checks:
         print(_validation_summary(check))
-    print(f"{result.simulations} simulations ({_parts(result.simulations_by_part)}) in "
+    taken = f", {reused} replays from the checkpoint" if reused else ""
+    print(f"{result.simulations} simulations ({_parts(result.simulations_by_part)}{taken}) in "
           f"{wall:.0f} s ({result.method}); wrote "
           f"{', '.join(printable(str(p)) for p in paths.values())}")
+    checkpoint.unlink(missing_ok=True)
     return 0
+
+
+def _fit_kept(observations: list, settings: FitSettings, checkpoint: Path, resume: bool
+              ) -> tuple[FitResult, int]:
+    """The fit, its search's replays kept in `checkpoint` as they finish (and taken from it
+    when resuming); how many were taken from it."""
+    from calibration.checkpoint import ReplayLog
+    from calibration.fit import fit
+
+    try:
+        with ReplayLog(checkpoint, observations, resume) as log, \
+                tqdm(total=settings.budget, desc="simulations", unit="sim", leave=False,
+                     disable=None) as bar:
+            return fit(observations, settings, lambda n: bar.update(n - bar.n), log), log.reused
+    except KeyboardInterrupt as exc:
+        exc.add_note(f"interrupted, nothing written; the fit's replays are kept in "
+                     f"{printable(str(checkpoint))} (--resume continues it)")
+        raise
 
 
 def _parts(simulations_by_part: dict[str, int]) -> str:

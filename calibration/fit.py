@@ -26,6 +26,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from calibration import acceptance, identify
+from calibration.checkpoint import ReplayLog
 from calibration.descent import UNIFORM_STD, descend, least_points
 from calibration.objective import Model, Objective, Param, Progress
 from calibration.replay import Observation, replay, resettled, residuals
@@ -168,10 +169,12 @@ def _friction_params(observations: Sequence[Observation], slipped: frozenset[str
 
 
 def fit(observations: Sequence[Observation], settings: FitSettings,
-        listener: Callable[[int], None] | None = None) -> FitResult:
+        listener: Callable[[int], None] | None = None, log: ReplayLog | None = None
+        ) -> FitResult:
     """Fit the asked parameters to the observations (see the module docstring). What slipped,
     and the bounds of what did not, are read off the recordings friction is fitted to: a wrap
-    holds pairs that friction alone would not."""
+    holds pairs that friction alone would not. With a `log`, the search's replays are kept in
+    it, and those it already holds are not simulated again (a resumed fit)."""
     bare, slipped, stages = _stages(observations, settings)
     nominal = observations[0].load.friction
     base = identify.held_stuck(nominal, identify.pair_bounds(bare, nominal, frozenset()),
@@ -184,7 +187,8 @@ def fit(observations: Sequence[Observation], settings: FitSettings,
         for k, (params, indices) in enumerate(stages):
             limit = _stage_limit(budget, progress.simulations, stages[k:])
             model = Model(params, found.friction, dict(found.scales))
-            objective = Objective([observations[i] for i in indices], model, pool, settings.sim)
+            objective = Objective([observations[i] for i in indices], model, pool, settings.sim,
+                                  log)
             _run_stage(objective, settings, limit, progress, found)
         runs = [[pool.submit(replay, o, found.friction, found.scales,
                              resettled(settings.sim, k)) for k in range(repeats)]

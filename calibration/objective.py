@@ -10,12 +10,13 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Mapping, Sequence
-from concurrent.futures import Executor
+from concurrent.futures import Executor, Future
 from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from calibration import features
+from calibration.checkpoint import ReplayLog
 from calibration.replay import Observation, replay, residuals
 from wrapenv.bench import SimSettings
 from wrapenv.load import PAIRS, Friction, FrictionPair
@@ -126,25 +127,49 @@ def _replay_task(obs: Observation, friction: Friction, scales: dict[str, float],
 
 
 class Objective:
-    """Residual vectors and losses of points of the unit box, simulated in parallel."""
+    """Residual vectors and losses of points of the unit box, simulated in parallel; with a
+    `log`, each replay is taken from it when it holds it and added to it when simulated (a
+    resumed fit, `calibration.checkpoint`)."""
 
     def __init__(self, observations: Sequence[Observation], model: Model, pool: Executor,
-                 sim: SimSettings) -> None:
+                 sim: SimSettings, log: ReplayLog | None = None) -> None:
         self.observations, self.model, self.pool, self.sim = observations, model, pool, sim
-        #: replays simulated, and those of them that became unphysical
+        self.log = log
+        #: replays made (simulated, or taken from the log), and those that became unphysical
         self.replays = self.unphysical = 0
 
     def residuals(self, us: Sequence[np.ndarray]) -> list[np.ndarray | None]:
         """Per point its residuals over every recording (None: a replay became unphysical)."""
-        futures = [[self.pool.submit(_replay_task, obs, *self.model.decode(u), self.sim)
-                    for obs in self.observations] for u in us]
+        futures = [[self._replay(obs, u) for obs in self.observations] for u in us]
         out: list[np.ndarray | None] = []
         for fs in futures:
-            parts = [r for r in (f.result() for f in fs) if r is not None]
+            results = [self._logged(key, f) for key, f in fs]
+            parts = [r for r in results if r is not None]
             self.replays += len(fs)
             self.unphysical += len(fs) - len(parts)
             out.append(np.concatenate(parts) if len(parts) == len(fs) else None)
         return out
+
+    def _replay(self, obs: Observation, u: np.ndarray
+                ) -> tuple[str | None, Future[np.ndarray | None]]:
+        """The replay of `obs` at `u` under way, and its key in the log (None: taken from the
+        log, or no log)."""
+        friction, scales = self.model.decode(u)
+        if self.log is None:
+            return None, self.pool.submit(_replay_task, obs, friction, scales, self.sim)
+        key = self.log.key(obs, friction, scales, self.sim)
+        held, residual = self.log.get(key)
+        if not held:
+            return key, self.pool.submit(_replay_task, obs, friction, scales, self.sim)
+        done: Future[np.ndarray | None] = Future()
+        done.set_result(residual)
+        return None, done
+
+    def _logged(self, key: str | None, future: Future[np.ndarray | None]) -> np.ndarray | None:
+        result = future.result()
+        if key is not None and self.log is not None:
+            self.log.add(key, result)
+        return result
 
     def losses(self, us: Sequence[np.ndarray]) -> list[float]:
         return [INVALID_LOSS if r is None else float(np.mean(r**2)) for r in self.residuals(us)]

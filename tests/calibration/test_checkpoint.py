@@ -1,0 +1,139 @@
+"""A fit keeps its search's replays as data and resumes from them: the resumed fit writes what
+the uninterrupted one writes, without simulating again what the checkpoint holds."""
+
+from __future__ import annotations
+
+import json
+import shutil
+
+import numpy as np
+import pytest
+
+import calibration.fit
+from calibration.checkpoint import CHECKPOINT_FORMAT, ReplayLog
+from calibration.recording import Recording, Truth
+from calibration.replay import observe
+from calibration.trajectories import ObjectPath, Trajectories
+from recommender.cli import main
+from wrapenv.bench import SimSettings
+from wrapenv.config import InputError
+from wrapenv.load import Friction, FrictionPair
+
+FRICTION = Friction(pallet_bundle=FrictionPair(0.37, 0.30))
+
+
+@pytest.fixture(scope="module")
+def slide_obs(slide_dir):
+    truth = Truth.read(slide_dir)
+    paths = Trajectories({k: ObjectPath(*(np.asarray(a) for a in (v.t_s, v.x_m, v.z_m,
+                                                                   v.angle_rad)))
+                          for k, v in truth.objects.items()})
+    return observe(Recording.read(slide_dir), paths)
+
+
+def test_a_replay_reads_back_bit_for_bit_and_an_unphysical_one_as_none(slide_obs, tmp_path):
+    path = tmp_path / "fit.checkpoint.jsonl"
+    residuals = np.array([0.1, -1 / 3, 2e-17, 123.456789012345678])
+    with ReplayLog(path, [slide_obs], resume=False) as log:
+        key = log.key(slide_obs, FRICTION, {}, SimSettings())
+        other = log.key(slide_obs, FRICTION, {"stiffness": 1.5}, SimSettings())
+        log.add(key, residuals)
+        log.add(other, None)
+    with ReplayLog(path, [slide_obs], resume=True) as log:
+        held, got = log.get(key)
+        assert held and got is not None and got.tobytes() == residuals.tobytes()
+        assert log.get(other) == (True, None)
+        # a replay given anything else is another replay
+        assert log.get(log.key(slide_obs, FRICTION, {}, SimSettings(timestep_s=1 / 200))) \
+            == (False, None)
+        assert log.reused == 2
+
+
+def test_a_line_cut_off_mid_write_is_ignored(slide_obs, tmp_path):
+    path = tmp_path / "c.jsonl"
+    with ReplayLog(path, [slide_obs], resume=False) as log:
+        key = log.key(slide_obs, FRICTION, {}, SimSettings())
+        log.add(key, np.ones(3))
+    with path.open("a") as f:
+        f.write('{"replay": "ab')        # killed while writing the next line
+    with ReplayLog(path, [slide_obs], resume=True) as log:
+        assert log.get(key)[0]
+
+
+@pytest.mark.parametrize("line, field", [
+    ("not json", "line 2"),
+    ('{"replay": "nope", "residuals": [1.0]}', "line 2.replay"),
+    ('{"replay": "' + "a" * 64 + '", "residuals": [1.0, NaN]}', "line 2.residuals"),
+    ('{"replay": "' + "a" * 64 + '", "residuals": ["1"]}', "line 2.residuals"),
+    ('{"replay": "' + "a" * 64 + '", "residuals": []}', "line 2.residuals"),
+])
+def test_a_line_the_fit_never_writes_is_refused_naming_it(line, field, slide_obs, tmp_path):
+    path = tmp_path / "c.jsonl"
+    ReplayLog(path, [slide_obs], resume=False).close()
+    with path.open("a") as f:
+        f.write(line + "\n")
+    with pytest.raises(InputError, match=field.replace(".", r"\.")):
+        ReplayLog(path, [slide_obs], resume=True)
+
+
+def test_a_checkpoint_of_other_recordings_or_no_checkpoint_is_refused(slide_obs, tmp_path):
+    path = tmp_path / "c.jsonl"
+    path.write_text(json.dumps({"format": CHECKPOINT_FORMAT, "recordings": ["0" * 64]}) + "\n")
+    with pytest.raises(InputError, match="other recordings"):
+        ReplayLog(path, [slide_obs], resume=True)
+    path.write_text(json.dumps({"format": "wrapbench-search/2"}) + "\n")
+    with pytest.raises(InputError, match="not a wrapbench calibration checkpoint"):
+        ReplayLog(path, [slide_obs], resume=True)
+    with pytest.raises(InputError, match="no checkpoint to resume from"):
+        ReplayLog(tmp_path / "none.jsonl", [slide_obs], resume=True)
+
+
+def _stopping_after(simulations: int, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The next fit is interrupted (as by Ctrl-C) once `simulations` have been spent."""
+    real = calibration.fit.fit
+
+    def interrupted(observations, settings, listener, log):
+        def listen(n: int) -> None:
+            listener(n)
+            if n >= simulations:
+                raise KeyboardInterrupt
+        return real(observations, settings, listen, log)
+
+    monkeypatch.setattr(calibration.fit, "fit", interrupted)
+
+
+def test_an_interrupted_calibration_resumes_to_the_cal_json_of_an_uninterrupted_one(
+        slide_dir, tmp_path, capsys, monkeypatch):
+    rec = tmp_path / "rec"
+    shutil.copytree(slide_dir, rec)
+    whole, parts = tmp_path / "whole", tmp_path / "parts"
+    whole.mkdir()
+    parts.mkdir()
+    args = [str(rec), "--budget", "30", "--workers", "1"]
+    assert main(["calibrate", *args, "--out", str(whole / "cal.json")]) == 0
+    assert not (whole / "cal.checkpoint.jsonl").exists()   # removed once the fit is written
+    capsys.readouterr()
+
+    _stopping_after(8, monkeypatch)
+    assert main(["calibrate", *args, "--out", str(parts / "cal.json")]) == 130
+    err = [line for line in capsys.readouterr().err.strip().splitlines()
+           if ": warning: " not in line]
+    assert len(err) == 1 and "nothing written" in err[0] and "--resume" in err[0]
+    checkpoint = parts / "cal.checkpoint.jsonl"
+    kept = checkpoint.read_text().splitlines()
+    assert not (parts / "cal.json").exists() and len(kept) > 8   # the header and the replays
+
+    monkeypatch.undo()
+    assert main(["calibrate", *args, "--out", str(parts / "cal.json"), "--resume"]) == 0
+    out = capsys.readouterr().out
+    assert f"{len(kept) - 1} replays from the checkpoint" in out
+    assert not checkpoint.exists()
+    resumed, uninterrupted = (json.loads((d / "cal.json").read_text()) for d in (parts, whole))
+    assert resumed == uninterrupted
+
+
+def test_resume_without_a_checkpoint_is_refused_before_fitting(slide_dir, tmp_path, capsys):
+    assert main(["calibrate", str(slide_dir), "--out", str(tmp_path / "cal.json"),
+                 "--resume"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "cal.checkpoint.jsonl" in err[0] and "--resume" in err[0]
