@@ -418,7 +418,7 @@ def _observable_calibration(path: Path | None) -> Calibration | None:
 
 
 def run_train(args: argparse.Namespace) -> int:
-    from recommender.policy import CHECKPOINT_DIR, TrainSettings, train
+    from recommender.policy import TrainSettings, last_checkpoint, train
 
     for flag, value in (("--timesteps", args.timesteps), ("--envs", args.envs)):
         if value < 1:
@@ -439,13 +439,7 @@ def run_train(args: argparse.Namespace) -> int:
     except OSError as exc:
         raise InputError(str(args.out), "--out", f"cannot be created ({exc.strerror})") from None
     check_output(args.out / "policy.zip", "--out")
-    # a run that failed before its first checkpoint leaves an empty checkpoints/: no run
-    earlier = [name for name in ("policy.zip", "log.csv") if (args.out / name).exists()]
-    if any((args.out / CHECKPOINT_DIR).glob("*")):
-        earlier.append(CHECKPOINT_DIR)
-    if earlier:
-        raise InputError(str(args.out), "--out", f"holds an earlier training run "
-                                                 f"({', '.join(earlier)}): give a new folder")
+    _check_run_folder(args.out, args.resume)
     settings = TrainSettings(timesteps=args.timesteps, n_envs=args.envs, material=args.material,
                              target_g=args.target, seed=args.seed, max_minutes=args.minutes,
                              calibration=calibration)
@@ -453,11 +447,36 @@ def run_train(args: argparse.Namespace) -> int:
         print(f"training {settings.rollout_timesteps} timesteps: PPO collects whole rollouts of "
               f"{settings.n_steps} steps x {settings.n_envs} envs")
     try:
-        path = train(settings, args.out)
+        path = train(settings, args.out, resume=args.resume)
     except KeyboardInterrupt as exc:
-        kept = sorted((args.out / CHECKPOINT_DIR).glob("*.zip"), key=lambda p: p.stat().st_mtime)
+        kept = last_checkpoint(args.out)
         if kept:
-            exc.add_note(f"interrupted; no policy.zip written, the last checkpoint is {kept[-1]}")
+            exc.add_note(f"interrupted; no policy.zip written, the last checkpoint is {kept[0]} "
+                         f"(--resume continues from it)")
         raise
     print(f"policy written to {path} (log: {args.out / 'log.csv'})")
     return 0
+
+
+def _check_run_folder(out: Path, resume: bool) -> None:
+    """A new run needs a folder without one; a resumed run, an interrupted one (checkpoints,
+    its log, no policy.zip)."""
+    from recommender.policy import CHECKPOINT_DIR, last_checkpoint
+
+    done = (out / "policy.zip").exists()
+    if resume:
+        if done:
+            raise InputError(str(out), "--resume", "the run finished (policy.zip): train a new "
+                                                   "one into another folder")
+        if last_checkpoint(out) is None or not (out / "log.csv").is_file():
+            raise InputError(str(out), "--resume", "holds no interrupted run to resume "
+                                                   "(checkpoints/ and log.csv)")
+        return
+    # a run that failed before its first checkpoint leaves an empty checkpoints/: no run
+    earlier = [name for name in ("policy.zip", "log.csv") if (out / name).exists()]
+    if any((out / CHECKPOINT_DIR).glob("*")):
+        earlier.append(CHECKPOINT_DIR)
+    if earlier:
+        raise InputError(str(out), "--out", f"holds an earlier training run "
+                                            f"({', '.join(earlier)}): give a new folder, or "
+                                            f"--resume an interrupted one")

@@ -12,10 +12,12 @@ trained on. A policy is refused, in one line, by a bench that observes or acts o
 another material; and it is loaded without unpickling anything from the file (SB3 keeps its
 spaces and schedules pickled: `load_policy` supplies them itself).
 
-`train` writes into one folder: ``policy.zip`` (the final policy), ``checkpoints/`` (SB3
-checkpoints every `TrainSettings.checkpoint_every` timesteps, so a long run that is stopped still
-leaves a usable policy) and ``log.csv`` (one row per episode, flushed as it goes, so progress can
-be followed and plotted while training runs).
+`train` writes into one folder: ``policy.zip`` (the final policy), ``checkpoints/`` (the
+policy every `TrainSettings.checkpoint_every` timesteps, saved between PPO updates so that each
+holds what was learned from every episode it counts: a long run that is stopped still leaves a
+usable policy, and `train(..., resume=True)` continues from the last one) and ``log.csv`` (one
+row per episode, flushed as it goes, so progress can be followed and plotted while training
+runs).
 """
 
 from __future__ import annotations
@@ -24,6 +26,7 @@ import csv
 import json
 import math
 import os
+import re
 import time
 import zipfile
 from dataclasses import dataclass
@@ -33,8 +36,9 @@ from typing import IO, Any
 import numpy as np
 import torch
 from stable_baselines3 import PPO
+from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.buffers import RolloutBuffer
-from stable_baselines3.common.callbacks import BaseCallback, CallbackList, CheckpointCallback
+from stable_baselines3.common.callbacks import BaseCallback, CallbackList
 from stable_baselines3.common.env_util import make_vec_env
 from stable_baselines3.common.logger import configure as configure_logger
 from stable_baselines3.common.policies import ActorCriticPolicy
@@ -59,7 +63,8 @@ POLICY_META = "wrapbench.json"
 MAKE_ID = f"wrapenv:{ENV_ID}"
 POLICY_FILE = "policy.zip"
 CHECKPOINT_DIR = "checkpoints"
-CHECKPOINT_PREFIX = "policy"  # SB3 names them policy_<timesteps>_steps.zip
+CHECKPOINT_PREFIX = "policy"  # named policy_<timesteps>_steps.zip, as SB3 names its own
+CHECKPOINT_NAME = re.compile(rf"{CHECKPOINT_PREFIX}_(\d+)_steps\.zip")
 LOG_FILE = "log.csv"
 LOG_COLUMNS = ("timesteps", "reward", "passed", "margin", "material_kg", "valid")
 #: Second word of the held-out units' seed: the training envs are seeded with plain integers
@@ -124,21 +129,38 @@ class TrainSettings:
 
 class EpisodeLog(BaseCallback):
     """Writes one CSV row per finished episode from the step infos (every step ends an episode
-    here), flushing after each vector step so the file is readable while training runs."""
+    here), flushing after each vector step so the file is readable while training runs.
+    Resuming from `kept` timesteps, the rows of the run so far up to them are kept: those after
+    them were episodes the checkpoint did not learn from, which the resumed run plays anew."""
 
-    def __init__(self, path: Path) -> None:
+    def __init__(self, path: Path, kept: int | None = None) -> None:
         super().__init__()
-        self.path = path
+        self.path, self.kept = path, kept
         self._file: IO[str] | None = None
         self._writer: Any = None
         self.rows = 0
         self.invalid = 0
 
     def _on_training_start(self) -> None:
-        self._file = self.path.open("w", newline="")
-        self._writer = csv.writer(self._file)
-        self._writer.writerow(LOG_COLUMNS)
+        if self.kept is None:
+            self._file = self.path.open("w", newline="")
+            self._writer = csv.writer(self._file)
+            self._writer.writerow(LOG_COLUMNS)
+        else:
+            self._keep_rows(self.kept)
+            self._file = self.path.open("a", newline="")
+            self._writer = csv.writer(self._file)
         self._file.flush()
+
+    def _keep_rows(self, timesteps: int) -> None:
+        """Rewrite the log with the rows of the first `timesteps` only."""
+        with self.path.open(newline="") as f:
+            rows = list(csv.reader(f))
+        kept = [rows[0]] + [r for r in rows[1:] if r and r[0].isdigit() and int(r[0]) <= timesteps]
+        partial = self.path.with_name(f".{self.path.name}.partial")
+        with partial.open("w", newline="") as f:
+            csv.writer(f).writerows(kept)
+        os.replace(partial, self.path)
 
     def _on_step(self) -> bool:
         infos, dones, rewards = self.locals["infos"], self.locals["dones"], self.locals["rewards"]
@@ -193,49 +215,51 @@ class TimeBudget(BaseCallback):
         return not self._spent
 
 
-def train(settings: TrainSettings, out_dir: Path) -> Path:
+def train(settings: TrainSettings, out_dir: Path, resume: bool = False) -> Path:
     """Train PPO on wrapenv/WrapBenchRandom-v2 for `settings.timesteps` (or until its
     `max_minutes`); writes out_dir/policy.zip (final), periodic
-    out_dir/checkpoints/policy_<steps>_steps.zip (SB3 CheckpointCallback), and out_dir/log.csv
-    (one row per episode: timesteps, reward, passed, margin, material_kg, valid — via a small
-    callback reading infos; written incrementally, flushed). Returns the policy path."""
+    out_dir/checkpoints/policy_<steps>_steps.zip (`Checkpoints`), and out_dir/log.csv (one row
+    per episode: timesteps, reward, passed, margin, material_kg, valid — via a small callback
+    reading infos; written incrementally, flushed). `resume`: continue the interrupted run in
+    `out_dir` from its last checkpoint, up to the same total of timesteps (its random units
+    drawn anew: the envs are seeded past the ones it started with). Returns the policy path."""
     settings.check()
     out_dir = Path(out_dir)
     checkpoints = out_dir / CHECKPOINT_DIR
     checkpoints.mkdir(parents=True, exist_ok=True)
+    start = last_checkpoint(out_dir) if resume else None
+    if resume and start is None:
+        raise InputError(str(checkpoints), "--resume", "no checkpoint to resume from")
+    done = start[1] if start else 0
     # The policy is a small MLP: one thread avoids oversubscribing the cores the env workers
     # simulate on (and thread start-up costs more than it saves on a 64-unit layer).
     threads = torch.get_num_threads()
     torch.set_num_threads(1)
     vec_env = make_vec_env(
-        MAKE_ID, n_envs=settings.n_envs, seed=settings.seed,
+        MAKE_ID, n_envs=settings.n_envs, seed=settings.seed + done,
         env_kwargs={"material": settings.material, "target_g": settings.target_g,
                     "levels": settings.levels, "settings": settings.sim,
                     "calibration": settings.calibration},
         vec_env_cls=SubprocVecEnv if settings.n_envs > 1 else DummyVecEnv,
     )
-    log = EpisodeLog(out_dir / LOG_FILE)
+    log = EpisodeLog(out_dir / LOG_FILE, kept=done if start else None)
     try:
-        model = PPO("MlpPolicy", vec_env, n_steps=settings.n_steps,
-                    batch_size=settings.batch_size, learning_rate=settings.learning_rate,
-                    seed=settings.seed, device="cpu", verbose=0)
+        meta = policy_meta(settings)
+        model = (_resumed(start[0], meta, vec_env) if start else
+                 PPO("MlpPolicy", vec_env, n_steps=settings.n_steps,
+                     batch_size=settings.batch_size, learning_rate=settings.learning_rate,
+                     seed=settings.seed, device="cpu", verbose=0))
         # SB3's default logger makes an empty folder in the system's temp dir per run, even
         # writing nothing: ours writes nothing either, in the run's folder
         model.set_logger(configure_logger(str(out_dir), []))
-        meta = policy_meta(settings)
-        # save_freq counts vector steps, each n_envs timesteps
-        checkpoint = _StampedCheckpoints(meta, max(1, settings.checkpoint_every // settings.n_envs),
-                                         str(checkpoints), name_prefix=CHECKPOINT_PREFIX)
-        callbacks: list[BaseCallback] = [checkpoint, log]
+        callbacks: list[BaseCallback] = [Checkpoints(meta, settings.checkpoint_every,
+                                                     checkpoints), log]
         if settings.max_minutes is not None:
             callbacks.append(TimeBudget(settings.max_minutes))
-        model.learn(settings.rollout_timesteps, callback=CallbackList(callbacks),
-                    progress_bar=settings.progress_bar)
+        model.learn(max(0, settings.rollout_timesteps - done), callback=CallbackList(callbacks),
+                    progress_bar=settings.progress_bar, reset_num_timesteps=start is None)
         path = out_dir / POLICY_FILE
-        partial = out_dir / f".{POLICY_FILE}.partial.zip"
-        model.save(partial)
-        stamp(partial, meta)
-        os.replace(partial, path)  # never a half-written policy.zip
+        save_stamped(model, path, meta)
         return path
     finally:
         log.close()
@@ -256,19 +280,48 @@ def stamp(path: Path, meta: dict[str, Any]) -> None:
         archive.writestr(POLICY_META, json.dumps(meta))
 
 
-class _StampedCheckpoints(CheckpointCallback):
-    """SB3's checkpoints, each stamped with what the policy was trained on."""
+class Checkpoints(BaseCallback):
+    """The policy saved once `every` timesteps have passed since the last save, at the start of
+    a rollout: after PPO learned from the last one, so a checkpoint holds what was learned from
+    every episode it counts (SB3's CheckpointCallback saves within a rollout, before the update
+    that learns from it). Each is stamped with what the policy was trained on, and written
+    whole or not at all."""
 
-    def __init__(self, meta: dict[str, Any], *args: Any, **kwargs: Any) -> None:
-        super().__init__(*args, **kwargs)
-        self.meta = meta
+    def __init__(self, meta: dict[str, Any], every: int, folder: Path) -> None:
+        super().__init__()
+        self.meta, self.every, self.folder = meta, every, folder
+        self._saved_at = 0
+
+    def _on_training_start(self) -> None:
+        self._saved_at = self.model.num_timesteps
+
+    def _on_rollout_start(self) -> None:
+        steps = self.model.num_timesteps
+        if steps - self._saved_at >= self.every:
+            save_stamped(self.model, self.folder / f"{CHECKPOINT_PREFIX}_{steps}_steps.zip",
+                         self.meta)
+            self._saved_at = steps
 
     def _on_step(self) -> bool:
-        saved = self.n_calls % self.save_freq == 0
-        result = super()._on_step()
-        if saved:
-            stamp(Path(self._checkpoint_path(extension="zip")), self.meta)
-        return result
+        return True
+
+
+def save_stamped(model: BaseAlgorithm, path: Path, meta: dict[str, Any]) -> None:
+    """Save the policy stamped with `meta`, never half-written."""
+    partial = path.with_name(f".{path.name}.partial.zip")
+    model.save(partial)
+    stamp(partial, meta)
+    os.replace(partial, path)
+
+
+def last_checkpoint(out_dir: Path) -> tuple[Path, int] | None:
+    """The checkpoint of the most timesteps in a run's folder, and its timesteps."""
+    found = [(int(m.group(1)), p) for p in (Path(out_dir) / CHECKPOINT_DIR).glob("*.zip")
+             if (m := CHECKPOINT_NAME.fullmatch(p.name))]
+    if not found:
+        return None
+    steps, path = max(found)
+    return path, steps
 
 
 def _trusted_objects() -> dict[str, Any]:
@@ -328,7 +381,23 @@ def _check_sizes(path: Path, data: dict[str, Any]) -> None:
 def load_policy(policy_path: Path, material: str | None = None) -> PPO:
     """The trained policy, on the CPU, if it was trained for this bench (and `material`)."""
     path = Path(policy_path)
-    meta = read_meta(path)
+    _check_meta(path, read_meta(path), material)
+    return _load(path, _trusted_objects())
+
+
+def _resumed(path: Path, meta: dict[str, Any], env: Any) -> PPO:
+    """A run's checkpoint, to train on in `env`, if it was trained as `meta` says."""
+    found = read_meta(path)
+    _check_meta(path, found, meta["material"])
+    for key in ("target_g", "calibrated"):
+        if found.get(key) != meta[key]:
+            raise InputError(str(path), key, f"the run was trained with {key} "
+                             f"{found.get(key)!r}, not {meta[key]!r}: resume it as it was started")
+    return _load(path, _trusted_objects(), env)
+
+
+def _check_meta(path: Path, meta: dict[str, Any], material: str | None) -> None:
+    """A policy file trained for this bench (and `material`), or a one-line error."""
     if meta.get("observation") != list(OBS_NAMES) or meta.get("action") != list(NAMES):
         raise InputError(str(path), "observation", f"the policy was trained on "
                          f"{meta.get('env_id', 'another env')}, which observes or acts otherwise"
@@ -339,13 +408,16 @@ def load_policy(policy_path: Path, material: str | None = None) -> PPO:
     if material is not None and meta.get("material") != material:
         raise InputError(str(path), "material", f"the policy was trained for "
                          f"{meta.get('material')!r}, not {material!r}")
-    trusted = _trusted_objects()
-    unknown = set(meta["_pickled"]) - set(trusted)
+    unknown = set(meta["_pickled"]) - set(_trusted_objects())
     if unknown:
         raise InputError(str(path), "policy", f"holds pickled entries {sorted(unknown)}, which "
                                               "are not loaded")
+
+
+def _load(path: Path, trusted: dict[str, Any], env: Any = None) -> PPO:
+    """The policy file's weights (and optimizer state), nothing unpickled from it."""
     try:
-        model = PPO.load(path, device="cpu", custom_objects=trusted)
+        model = PPO.load(path, env=env, device="cpu", custom_objects=trusted)
     except (OSError, ValueError, KeyError, RuntimeError, TypeError, AttributeError) as exc:
         raise InputError(str(path), "policy", f"cannot be loaded ({exc})") from None
     if not all(bool(p.isfinite().all()) for p in model.policy.parameters()):

@@ -27,9 +27,11 @@ from recommender.policy import (
     CHECKPOINT_DIR,
     LOG_COLUMNS,
     POLICY_META,
+    EpisodeLog,
     TrainSettings,
     evaluate,
     held_out_loads,
+    last_checkpoint,
     load_policy,
     pass_rate,
     policy_meta,
@@ -49,13 +51,13 @@ from wrapenv.wrap import WrapFormat
 TINY_LOAD = {"name": "tiny", "pallet": {"preset": "EUR"}, "bundle": {"preset": "PET6x1.5L"},
              "stack": {"layers": 1, "pattern": "explicit", "positions": [[-0.2, 0.0], [0.2, 0.0]]}}
 HEAVY_BUNDLE = {"length_m": 0.28, "width_m": 0.19, "height_m": 0.33, "mass_kg": 14.0}
-TINY = TrainSettings(timesteps=8, n_envs=1, n_steps=8, batch_size=8, checkpoint_every=4,
+TINY = TrainSettings(timesteps=8, n_envs=1, n_steps=4, batch_size=4, checkpoint_every=4,
                      progress_bar=False)
 
 
 @pytest.fixture(scope="module")
 def trained(tmp_path_factory) -> tuple[Path, Path]:
-    """A barely trained policy (one PPO update on 8 episodes) and its output folder."""
+    """A barely trained policy (two PPO updates on 4 episodes each) and its output folder."""
     out = tmp_path_factory.mktemp("policy")
     return train(TINY, out), out
 
@@ -92,9 +94,10 @@ def test_training_runs_whole_rollouts():
 def test_train_writes_the_policy_checkpoints_and_one_log_row_per_episode(trained):
     path, out = trained
     assert path == out / "policy.zip" and path.is_file()
+    # saved between updates: after the first rollout's (the last one's is policy.zip)
     checkpoints = sorted(p.name for p in (out / CHECKPOINT_DIR).iterdir())
-    assert checkpoints == ["policy_4_steps.zip", "policy_8_steps.zip"]
-    assert not list(out.glob(".*partial*"))
+    assert checkpoints == ["policy_4_steps.zip"]
+    assert not list(out.glob(".*partial*")) and not list(out.glob("*/.*partial*"))
     with (out / "log.csv").open() as f:
         rows = list(csv.reader(f))
     assert tuple(rows[0]) == LOG_COLUMNS
@@ -159,12 +162,13 @@ def test_a_policy_trained_on_a_calibration_observes_its_uncertainty_and_says_so(
 
 def test_train_with_two_subprocess_envs(tmp_path):
     """The default: SubprocVecEnv workers, which import nothing of the parent's but the env."""
-    settings = TrainSettings(timesteps=4, n_envs=2, n_steps=2, batch_size=4, checkpoint_every=2,
+    settings = TrainSettings(timesteps=4, n_envs=2, n_steps=1, batch_size=2, checkpoint_every=2,
                              seed=7, progress_bar=False)
     path = train(settings, tmp_path)
     assert path.is_file()
+    # two rollouts of a vector step: the checkpoint between their updates, then policy.zip
     assert sorted(p.name for p in (tmp_path / CHECKPOINT_DIR).iterdir()) == [
-        "policy_2_steps.zip", "policy_4_steps.zip"]
+        "policy_2_steps.zip"]
     with (tmp_path / "log.csv").open() as f:
         assert [int(r["timesteps"]) for r in csv.DictReader(f)] == [1, 2, 3, 4]
 
@@ -366,7 +370,7 @@ def test_an_interrupted_training_names_its_last_checkpoint(tmp_path, monkeypatch
     are usable: the one line says which is the last, instead of "nothing written"."""
     import recommender.policy
 
-    def interrupted(settings: TrainSettings, out: Path) -> Path:
+    def interrupted(settings: TrainSettings, out: Path, resume: bool = False) -> Path:
         (out / CHECKPOINT_DIR).mkdir()
         for steps in (512, 1024):
             (out / CHECKPOINT_DIR / f"policy_{steps}_steps.zip").write_bytes(b"")
@@ -377,4 +381,76 @@ def test_an_interrupted_training_names_its_last_checkpoint(tmp_path, monkeypatch
     code = main(["train", "--out", str(tmp_path / "run")])
     err = capsys.readouterr().err.strip()
     assert code == 130 and "\n" not in err
-    assert "policy_1024_steps.zip" in err and "no policy.zip" in err
+    assert "policy_1024_steps.zip" in err and "no policy.zip" in err and "--resume" in err
+
+
+def _log_timesteps(out: Path) -> list[int]:
+    with (out / "log.csv").open() as f:
+        rows = list(csv.reader(f))
+    assert tuple(rows[0]) == LOG_COLUMNS
+    return [int(r[0]) for r in rows[1:]]
+
+
+def test_an_interrupted_run_resumes_from_its_last_checkpoint_to_the_whole_run(tmp_path,
+                                                                              monkeypatch):
+    """Killed in its third rollout of two episodes, a run keeps the checkpoint of the two it
+    learned from; resumed, it learns the two it lacks: the log holds each of the 8 episodes
+    once (the dropped one played anew), and the policy counts 8 timesteps."""
+    settings = replace(TINY, timesteps=8, n_steps=2, batch_size=2, checkpoint_every=2)
+    out = tmp_path / "run"
+    real = EpisodeLog._on_step
+
+    def killed_at_the_fifth_episode(self: EpisodeLog) -> bool:
+        result = real(self)
+        if self.num_timesteps >= 5:
+            raise KeyboardInterrupt
+        return result
+
+    monkeypatch.setattr(EpisodeLog, "_on_step", killed_at_the_fifth_episode)
+    with pytest.raises(KeyboardInterrupt):
+        train(settings, out)
+    monkeypatch.undo()
+    assert not (out / "policy.zip").exists() and _log_timesteps(out) == [1, 2, 3, 4, 5]
+    assert last_checkpoint(out) == (out / CHECKPOINT_DIR / "policy_4_steps.zip", 4)
+
+    path = train(settings, out, resume=True)
+    assert _log_timesteps(out) == list(range(1, 9))
+    with zipfile.ZipFile(path) as archive:
+        assert json.loads(archive.read("data"))["num_timesteps"] == 8
+    assert sorted(p.name for p in (out / CHECKPOINT_DIR).iterdir()) == [
+        "policy_2_steps.zip", "policy_4_steps.zip", "policy_6_steps.zip"]
+    load_policy(path, "kraft")
+
+
+def test_a_run_is_resumed_only_as_it_was_started(trained, tmp_path, assert_input_error):
+    _, out = trained
+    run = tmp_path / "run"
+    (run / CHECKPOINT_DIR).mkdir(parents=True)
+    for name in ("log.csv", f"{CHECKPOINT_DIR}/policy_4_steps.zip"):
+        (run / name).write_bytes((out / name).read_bytes())
+    for settings, field in ((replace(TINY, material="lldpe"), "material"),
+                            (replace(TINY, target_g=0.8), "target_g")):
+        with pytest.raises(InputError) as info:
+            train(settings, run, resume=True)
+        assert_input_error(info.value, str(run / CHECKPOINT_DIR / "policy_4_steps.zip"), field)
+
+
+@pytest.mark.parametrize("files, needle", [
+    ((), "no interrupted run"),
+    (("log.csv",), "no interrupted run"),
+    (("log.csv", "policy.zip", f"{CHECKPOINT_DIR}/policy_4_steps.zip"), "the run finished"),
+])
+def test_resume_needs_an_interrupted_run(files, needle, tmp_path, capsys):
+    run = tmp_path / "run"
+    (run / CHECKPOINT_DIR).mkdir(parents=True)
+    for name in files:
+        (run / name).write_bytes(b"")
+    assert main(["train", "--out", str(run), "--resume"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "\n" not in err and "--resume" in err and needle in err
+
+
+def test_a_new_run_into_an_interrupted_one_names_resume(trained, capsys):
+    _, out = trained
+    assert main(["train", "--out", str(out)]) == 2
+    assert "--resume" in capsys.readouterr().err
