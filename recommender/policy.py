@@ -231,6 +231,9 @@ def train(settings: TrainSettings, out_dir: Path, resume: bool = False) -> Path:
     if resume and start is None:
         raise InputError(str(checkpoints), "--resume", "no checkpoint to resume from")
     done = start[1] if start else 0
+    meta = policy_meta(settings)
+    if start:
+        _check_resumable(start[0], meta)   # before any env process starts
     # The policy is a small MLP: one thread avoids oversubscribing the cores the env workers
     # simulate on (and thread start-up costs more than it saves on a 64-unit layer).
     threads = torch.get_num_threads()
@@ -244,8 +247,7 @@ def train(settings: TrainSettings, out_dir: Path, resume: bool = False) -> Path:
     )
     log = EpisodeLog(out_dir / LOG_FILE, kept=done if start else None)
     try:
-        meta = policy_meta(settings)
-        model = (_resumed(start[0], meta, vec_env) if start else
+        model = (_load(start[0], _trusted_objects(), vec_env) if start else
                  PPO("MlpPolicy", vec_env, n_steps=settings.n_steps,
                      batch_size=settings.batch_size, learning_rate=settings.learning_rate,
                      seed=settings.seed, device="cpu", verbose=0))
@@ -385,15 +387,14 @@ def load_policy(policy_path: Path, material: str | None = None) -> PPO:
     return _load(path, _trusted_objects())
 
 
-def _resumed(path: Path, meta: dict[str, Any], env: Any) -> PPO:
-    """A run's checkpoint, to train on in `env`, if it was trained as `meta` says."""
+def _check_resumable(path: Path, meta: dict[str, Any]) -> None:
+    """A run's checkpoint, if it was trained as `meta` says, or a one-line error."""
     found = read_meta(path)
     _check_meta(path, found, meta["material"])
     for key in ("target_g", "calibrated"):
         if found.get(key) != meta[key]:
             raise InputError(str(path), key, f"the run was trained with {key} "
                              f"{found.get(key)!r}, not {meta[key]!r}: resume it as it was started")
-    return _load(path, _trusted_objects(), env)
 
 
 def _check_meta(path: Path, meta: dict[str, Any], material: str | None) -> None:
