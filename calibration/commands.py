@@ -354,11 +354,7 @@ def _check_outputs(args: argparse.Namespace, recordings: list) -> None:
 
 
 def run_calibrate(args: argparse.Namespace) -> int:
-    from concurrent.futures import ProcessPoolExecutor
-
     from calibration.fit import FitSettings, min_budget
-    from calibration.report import loss_png, overlay_png
-    from calibration.validate import Unpredictable, validate
 
     _check_calibrate_args(args)
     fitted, held = _recordings(args)
@@ -374,30 +370,49 @@ def run_calibrate(args: argparse.Namespace) -> int:
         raise InputError("arguments", "--budget",
                          f"must be >= {least} to fit these {len(observations)} recordings "
                          f"(got {args.budget})")
-    t0 = time.perf_counter()
     checkpoint = _checkpoint(args)
-    result, reused = _fit_kept(observations, settings, checkpoint, args.resume)
+    try:
+        return _fitted_and_written(args, observations, held_out, settings, checkpoint)
+    except KeyboardInterrupt as exc:
+        if checkpoint.exists():
+            exc.add_note(f"interrupted, nothing written; the fit's replays are kept in "
+                         f"{printable(str(checkpoint))} (--resume continues it)")
+        raise
+
+
+def _fitted_and_written(args: argparse.Namespace, observations: list, held_out: list,
+                        settings: FitSettings, checkpoint: Path) -> int:
+    """Fit (the search's replays kept in `checkpoint`), validate and write; the checkpoint is
+    removed once the fit has ended, written or refused."""
+    from concurrent.futures import ProcessPoolExecutor
+
+    from calibration.checkpoint import ReplayLog
+    from calibration.fit import fit
+    from calibration.report import loss_png, overlay_png
+    from calibration.validate import Unpredictable, validate
+
+    t0 = time.perf_counter()
+    with ReplayLog(checkpoint, observations, args.resume) as log, \
+            tqdm(total=settings.budget, desc="simulations", unit="sim", leave=False,
+                 disable=None) as bar:
+        result = fit(observations, settings, lambda n: bar.update(n - bar.n), log)
     wall = time.perf_counter() - t0
     if not result.converged:
         # what the refused fit found, and the advice: which test would pin what it missed
+        checkpoint.unlink()
         print("the refused fit (not written):\n" + _summary(result))
         sys.stderr.write("wrapbench calibrate: the fit did not converge: "
                          f"{printable(result.reason, MESSAGE_CHARS)}; "
                          "nothing written\n")
-        checkpoint.unlink(missing_ok=True)
         return 1
     try:
         with ProcessPoolExecutor(max_workers=args.workers) as pool:
             checks = validate(held_out, result.calibration, pool)
     except Unpredictable as exc:
+        checkpoint.unlink()
         sys.stderr.write(f"wrapbench calibrate: --validate: {printable(str(exc), MESSAGE_CHARS)}; "
                          "nothing written\n")
-        checkpoint.unlink(missing_ok=True)
         return 1
-    except KeyboardInterrupt as exc:
-        exc.add_note(f"interrupted, nothing written; the fit's replays are kept in "
-                     f"{printable(str(checkpoint))} (--resume continues it)")
-        raise
     out = result.calibration.to_dict() | {
         "residual_rms_m": result.residual_rms_m, "spread_rms_m": result.spread_rms_m,
         "replay_rms_m": result.replay_rms_m, "simulations": result.simulations,
@@ -409,33 +424,15 @@ def run_calibrate(args: argparse.Namespace) -> int:
         paths["loss"]: loss_png(result.curve, f"{result.method}: {result.simulations} "
                                 "simulations"),
         paths["overlay"]: overlay_png(observations, result.fitted)})
+    checkpoint.unlink()
     print(_summary(result))
     for check in checks:
         print(_validation_summary(check))
-    taken = f", {reused} replays from the checkpoint" if reused else ""
+    taken = f", {log.reused} replays from the checkpoint" if log.reused else ""
     print(f"{result.simulations} simulations ({_parts(result.simulations_by_part)}{taken}) in "
           f"{wall:.0f} s ({result.method}); wrote "
           f"{', '.join(printable(str(p)) for p in paths.values())}")
-    checkpoint.unlink(missing_ok=True)
     return 0
-
-
-def _fit_kept(observations: list, settings: FitSettings, checkpoint: Path, resume: bool
-              ) -> tuple[FitResult, int]:
-    """The fit, its search's replays kept in `checkpoint` as they finish (and taken from it
-    when resuming); how many were taken from it."""
-    from calibration.checkpoint import ReplayLog
-    from calibration.fit import fit
-
-    try:
-        with ReplayLog(checkpoint, observations, resume) as log, \
-                tqdm(total=settings.budget, desc="simulations", unit="sim", leave=False,
-                     disable=None) as bar:
-            return fit(observations, settings, lambda n: bar.update(n - bar.n), log), log.reused
-    except KeyboardInterrupt as exc:
-        exc.add_note(f"interrupted, nothing written; the fit's replays are kept in "
-                     f"{printable(str(checkpoint))} (--resume continues it)")
-        raise
 
 
 def _parts(simulations_by_part: dict[str, int]) -> str:

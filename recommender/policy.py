@@ -334,7 +334,7 @@ def _trusted_objects() -> dict[str, Any]:
         return {"policy_class": ActorCriticPolicy, "rollout_buffer_class": RolloutBuffer,
                 "observation_space": env.observation_space, "action_space": env.action_space,
                 "lr_schedule": _constant(0.0), "clip_range": _constant(0.2),
-                # training state, not needed to predict
+                # training state: not needed to predict, and rebuilt by a resumed run
                 **dict.fromkeys(("_last_obs", "_last_original_obs", "_last_episode_starts",
                                  "ep_info_buffer", "ep_success_buffer"))}
     finally:
