@@ -42,7 +42,7 @@ from stable_baselines3.common.callbacks import BaseCallback, CallbackList
 from stable_baselines3.common.env_util import make_vec_env
 from stable_baselines3.common.logger import configure as configure_logger
 from stable_baselines3.common.policies import ActorCriticPolicy
-from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv
+from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecEnv
 
 import wrapenv  # noqa: F401  (registers the env ids used by gym.make)
 from wrapenv.bench import SimSettings
@@ -265,8 +265,26 @@ def train(settings: TrainSettings, out_dir: Path, resume: bool = False) -> Path:
         return path
     finally:
         log.close()
-        vec_env.close()
+        close_envs(vec_env)
         torch.set_num_threads(threads)
+
+
+def close_envs(vec_env: VecEnv) -> None:
+    """Close a vector env, also one interrupted within a step. SB3's `SubprocVecEnv.close`
+    first reads every worker's answer to the step under way, and an interrupt can come after
+    some of them were read: it then waits forever for an answer already taken (a SIGTERM, which
+    reaches this process and not its workers, hung `wrapbench train`). Its workers are ended
+    instead; they hold nothing to keep."""
+    if isinstance(vec_env, SubprocVecEnv) and vec_env.waiting and not vec_env.closed:
+        for process in vec_env.processes:
+            process.terminate()
+        for process in vec_env.processes:
+            process.join()
+        for remote in vec_env.remotes:
+            remote.close()
+        vec_env.closed = True
+    else:
+        vec_env.close()
 
 
 def policy_meta(settings: TrainSettings) -> dict[str, Any]:

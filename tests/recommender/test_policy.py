@@ -29,6 +29,7 @@ from recommender.policy import (
     POLICY_META,
     EpisodeLog,
     TrainSettings,
+    close_envs,
     evaluate,
     held_out_loads,
     last_checkpoint,
@@ -454,3 +455,22 @@ def test_a_new_run_into_an_interrupted_one_names_resume(trained, capsys):
     _, out = trained
     assert main(["train", "--out", str(out)]) == 2
     assert "--resume" in capsys.readouterr().err
+
+
+def test_envs_interrupted_within_a_step_close_without_waiting_for_answers_already_read():
+    """SIGTERM reaches `wrapbench train` and not its env workers: interrupted after reading one
+    worker's answer to a step, SB3's own close() would wait forever for it again."""
+    import threading
+
+    import gymnasium as gym
+    from stable_baselines3.common.vec_env import SubprocVecEnv
+
+    vec = SubprocVecEnv([lambda: gym.make("CartPole-v1")] * 2)
+    vec.reset()
+    vec.step_async(np.zeros(2, dtype=int))
+    vec.remotes[0].recv()                # the step's first answer, read before the interrupt
+    closing = threading.Thread(target=close_envs, args=(vec,), daemon=True)
+    closing.start()
+    closing.join(timeout=30)
+    assert not closing.is_alive(), "close_envs waited for an answer already read"
+    assert vec.closed and not any(p.is_alive() for p in vec.processes)
