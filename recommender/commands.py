@@ -453,6 +453,9 @@ def run_train(args: argparse.Namespace) -> int:
         if kept:
             exc.add_note(f"interrupted; no policy.zip written, the last checkpoint is {kept[0]} "
                          f"(--resume continues from it)")
+        elif (args.out / "log.csv").exists():
+            exc.add_note(f"interrupted before the first checkpoint: no policy written, "
+                         f"{args.out / 'log.csv'} holds the episodes so far")
         raise
     print(f"policy written to {path} (log: {args.out / 'log.csv'})")
     return 0

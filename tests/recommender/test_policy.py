@@ -474,3 +474,15 @@ def test_envs_interrupted_within_a_step_close_without_waiting_for_answers_alread
     closing.join(timeout=30)
     assert not closing.is_alive(), "close_envs waited for an answer already read"
     assert vec.closed and not any(p.is_alive() for p in vec.processes)
+
+
+def test_a_training_interrupted_before_its_first_checkpoint_says_what_it_left(tmp_path,
+                                                                             monkeypatch, capsys):
+    def interrupted(settings: TrainSettings, out: Path, resume: bool = False) -> Path:
+        (out / "log.csv").write_text(",".join(LOG_COLUMNS) + "\n")
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(recommender.policy, "train", interrupted)
+    assert main(["train", "--out", str(tmp_path / "run")]) == 130
+    err = capsys.readouterr().err.strip()
+    assert "\n" not in err and "before the first checkpoint" in err and "log.csv" in err
