@@ -384,12 +384,11 @@ def _fitted_and_written(args: argparse.Namespace, observations: list, held_out: 
                         settings: FitSettings, checkpoint: Path) -> int:
     """Fit (the search's replays kept in `checkpoint`), validate and write; the checkpoint is
     removed once the fit has ended, written or refused."""
-    from concurrent.futures import ProcessPoolExecutor
-
     from calibration.checkpoint import ReplayLog
     from calibration.fit import fit
     from calibration.report import loss_png, overlay_png
     from calibration.validate import Unpredictable, validate
+    from wrapenv.pool import ProcessPool
 
     t0 = time.perf_counter()
     with ReplayLog(checkpoint, observations, args.resume) as log, \
@@ -406,7 +405,7 @@ def _fitted_and_written(args: argparse.Namespace, observations: list, held_out: 
                          "nothing written\n")
         return 1
     try:
-        with ProcessPoolExecutor(max_workers=args.workers) as pool:
+        with ProcessPool(args.workers) as pool:
             checks = validate(held_out, result.calibration, pool)
     except Unpredictable as exc:
         checkpoint.unlink()

