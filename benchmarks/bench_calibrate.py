@@ -145,6 +145,15 @@ def _headlines(check: Validation) -> list[tuple[str, tuple[int, Check]]]:
     return [("slid", check.largest)] + ([("moved on the pallet", on_pallet)] if on_pallet else [])
 
 
+def _reproduced(c: Check) -> str:
+    """How many replays came within 15 % of the recording: a take near a threshold is one of
+    several outcomes, and a calibration is as good as the truth where it reproduces the take
+    as often as the true values do (`--truth`)."""
+    if c.reproduced is None:
+        return ""
+    return f"; {c.reproduced:.0%} of the replays within 15 % of it"
+
+
 def _unit(values: np.ndarray) -> str:
     return "[" + " ".join(f"{v:.3f}" for v in values) + "]"
 
@@ -183,7 +192,8 @@ def report(name: str, method: str, result: FitResult, truth: Truth, wall: float,
                          f"{1e3 * c.spread_m:.1f} mm ({pct}); over the calibration's "
                          f"uncertainty {1e3 * c.uncertain_m:.1f} ± "
                          f"{1e3 * c.uncertain_spread_m:.1f} mm ({c.uncertain_spreads:.1f} "
-                         f"spreads: {'explained' if c.explained else 'NOT explained'})")
+                         f"spreads: {'explained' if c.explained else 'NOT explained'})"
+                         f"{_reproduced(c)}")
             cells.append(f"layer {layer} {what} {pct.removesuffix(' (beyond goal)')}")
     lines += [f"  advice: {k}: {v}" for k, v in result.advice.items()]
     lines += [f"  stage {k}: {s.added} new, {s.used} used; box {_unit(s.centre)} ± "
@@ -349,7 +359,7 @@ def run_truth(name: str, repeats: int, workers: int, offsets: Sequence[Offset] =
             pct = f" ({c.error_pct:+.0f} %)" if c.error_pct is not None else ""
             print(f"  held out {Path(check.source).name}: layer {layer} {what} "
                   f"{1e3 * c.recorded_m:.1f} mm, predicted {1e3 * c.predicted_m:.1f} ± "
-                  f"{1e3 * c.spread_m:.1f} mm{pct}")
+                  f"{1e3 * c.spread_m:.1f} mm{pct}{_reproduced(c)}")
         for body, b in check.objects.items():
             print(f"    {body}: {1e3 * b.recorded_m:.1f} mm, predicted "
                   f"{1e3 * b.predicted_m:.1f} ± {1e3 * b.spread_m:.1f} mm")
