@@ -108,7 +108,7 @@ def _read(path: Path, recordings: list[str]) -> dict[str, np.ndarray | None]:
                                               f"version ({CHECKPOINT_FORMAT})")
     if head.get("recordings") != recordings:
         raise InputError(str(path), "recordings", "the checkpoint is of other recordings (or "
-                                                  "they were tracked again since)")
+                                                  "their tracked paths changed since)")
     known = {}
     for number, text in enumerate(complete[1:], start=2):
         key, residuals = _replay(path, number, _parse(path, number, text))
