@@ -565,7 +565,8 @@ def test_train_goes_on_in_the_folder_of_a_run_that_failed_before_its_first_check
     (out / "checkpoints").mkdir(parents=True)
     trained = []
     monkeypatch.setattr(recommender.policy, "train",
-                        lambda settings, folder: trained.append(folder) or folder / "policy.zip")
+                        lambda settings, folder, resume=False:
+                        trained.append(folder) or folder / "policy.zip")
     assert main(["train", "--out", str(out), "--timesteps", "1", "--envs", "1"]) == 0
     assert trained == [out]
 
