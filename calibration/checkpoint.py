@@ -7,7 +7,8 @@ scales it was given, the bench's settings) and the residual vector it gave (null
 unphysical). A hit is therefore exactly what the simulation would return, and a resumed fit
 writes the CAL.json the uninterrupted one would. Lines are appended as replays finish, so an
 interrupted fit loses at most the replays under way; a last line cut off mid-write is ignored.
-The first line names the recordings, and a checkpoint of other recordings is refused.
+The first line names the recordings and the version of wrapbench; a checkpoint of other
+recordings, or of another version's bench, is refused.
 """
 
 from __future__ import annotations
@@ -22,6 +23,7 @@ from typing import IO, Any
 import numpy as np
 
 from calibration.replay import Observation
+from wrapenv import __version__
 from wrapenv.bench import SimSettings
 from wrapenv.config import InputError
 from wrapenv.load import Friction
@@ -58,7 +60,8 @@ class ReplayLog:
         self.reused = 0
         self._file: IO[str] = path.open("a" if resume else "w", encoding="utf-8")
         if not resume:
-            self._write({"format": CHECKPOINT_FORMAT, "recordings": names})
+            self._write({"format": CHECKPOINT_FORMAT, "wrapbench_version": __version__,
+                         "recordings": names})
 
     def key(self, obs: Observation, friction: Friction, scales: Mapping[str, float],
             sim: SimSettings) -> str:
@@ -106,6 +109,10 @@ def _read(path: Path, recordings: list[str]) -> dict[str, np.ndarray | None]:
     if head.get("format") != CHECKPOINT_FORMAT:
         raise InputError(str(path), "format", f"not a wrapbench calibration checkpoint of this "
                                               f"version ({CHECKPOINT_FORMAT})")
+    if head.get("wrapbench_version") != __version__:
+        raise InputError(str(path), "wrapbench_version", f"written by wrapbench "
+                         f"{head.get('wrapbench_version')}, not {__version__}: its replays are "
+                         "another bench's")
     if head.get("recordings") != recordings:
         raise InputError(str(path), "recordings", "the checkpoint is of other recordings (or "
                                                   "their tracked paths changed since)")

@@ -15,6 +15,7 @@ from calibration.recording import Recording, Truth
 from calibration.replay import observe
 from calibration.trajectories import ObjectPath, Trajectories
 from recommender.cli import main
+from wrapenv import __version__
 from wrapenv.bench import SimSettings
 from wrapenv.config import InputError
 from wrapenv.load import Friction, FrictionPair
@@ -76,10 +77,17 @@ def test_a_line_the_fit_never_writes_is_refused_naming_it(line, field, slide_obs
         ReplayLog(path, [slide_obs], resume=True)
 
 
-def test_a_checkpoint_of_other_recordings_or_no_checkpoint_is_refused(slide_obs, tmp_path):
+def test_a_checkpoint_of_other_recordings_or_another_version_or_none_is_refused(slide_obs,
+                                                                              tmp_path):
     path = tmp_path / "c.jsonl"
-    path.write_text(json.dumps({"format": CHECKPOINT_FORMAT, "recordings": ["0" * 64]}) + "\n")
+    path.write_text(json.dumps({"format": CHECKPOINT_FORMAT, "wrapbench_version": __version__,
+                                "recordings": ["0" * 64]}) + "\n")
     with pytest.raises(InputError, match="other recordings"):
+        ReplayLog(path, [slide_obs], resume=True)
+    ReplayLog(path, [slide_obs], resume=False).close()
+    head = json.loads(path.read_text()) | {"wrapbench_version": "0.0.1"}
+    path.write_text(json.dumps(head) + "\n")
+    with pytest.raises(InputError, match="wrapbench_version: written by wrapbench 0.0.1"):
         ReplayLog(path, [slide_obs], resume=True)
     path.write_text(json.dumps({"format": "wrapbench-search/2"}) + "\n")
     with pytest.raises(InputError, match="not a wrapbench calibration checkpoint"):
