@@ -8,14 +8,13 @@ back by `setup_toml` for synthetic recordings.
 from __future__ import annotations
 
 import json
-import math
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import cv2
 
-from wrapenv.config import InputError, Table, write_atomic
+from wrapenv.config import InputError, Table, is_finite_number, write_atomic
 from wrapenv.load import LoadUnit
 
 SETUP = "setup.toml"
@@ -91,8 +90,7 @@ class Setup:
 def _pair(t: Table, key: str) -> tuple[float, float]:
     """Two finite numbers, e.g. ``origin_px = [960.0, 1020.0]``."""
     raw = t.array(key)
-    ok = len(raw) == 2 and all(isinstance(v, int | float) and not isinstance(v, bool)
-                               and math.isfinite(v) for v in raw)
+    ok = len(raw) == 2 and all(map(is_finite_number, raw))
     if not ok:
         raise t.error(key, f"must be two finite numbers (got {raw!r})")
     return float(raw[0]), float(raw[1])

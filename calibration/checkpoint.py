@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import hashlib
 import json
-import math
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import IO, Any
@@ -25,7 +24,7 @@ import numpy as np
 from calibration.replay import Observation
 from wrapenv import __version__
 from wrapenv.bench import SimSettings
-from wrapenv.config import InputError
+from wrapenv.config import InputError, is_finite_number
 from wrapenv.load import Friction
 
 CHECKPOINT_FORMAT = "wrapbench-calibration-replays/1"
@@ -140,9 +139,8 @@ def _replay(path: Path, number: int, line: dict[str, Any]) -> tuple[str, np.ndar
         raise InputError(str(path), f"line {number}.replay", "must be a replay's key")
     if residuals is None:
         return key, None
-    if not (isinstance(residuals, list) and residuals and all(
-            isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)
-            for v in residuals)):
+    if not (isinstance(residuals, list) and residuals
+            and all(map(is_finite_number, residuals))):
         raise InputError(str(path), f"line {number}.residuals",
                          "must be null or a list of finite numbers")
     return key, np.array(residuals, dtype=float)

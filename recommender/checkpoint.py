@@ -11,11 +11,10 @@ refuses a file of another search.
 from __future__ import annotations
 
 import json
-import math
 from pathlib import Path
 from typing import Any
 
-from wrapenv.config import InputError, read_json, write_atomic
+from wrapenv.config import InputError, is_finite_number, read_json, write_atomic
 
 #: /2: every candidate records the fidelity it was judged with (multi-fidelity search).
 CHECKPOINT_FORMAT = "wrapbench-search/2"
@@ -63,12 +62,9 @@ def load(path: Path | None, identity: dict[str, Any]) -> list[dict[str, Any]]:
 def _check_values(generation: dict[str, Any], where: str, source: str) -> None:
     """What the search tells CMA-ES must be what it wrote: finite numbers and real booleans (a
     NaN margin would rank first, and "false" is a true string)."""
-    def finite(v: Any) -> bool:
-        return isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)
-
-    checks = {"x": lambda row: isinstance(row, list) and all(map(finite, row)),
-              "objective": finite,
-              "margins": lambda row: isinstance(row, list) and all(map(finite, row)),
+    checks = {"x": lambda row: isinstance(row, list) and all(map(is_finite_number, row)),
+              "objective": is_finite_number,
+              "margins": lambda row: isinstance(row, list) and all(map(is_finite_number, row)),
               "passed": lambda row: isinstance(row, list)
               and all(isinstance(p, bool) for p in row),
               "fidelity": lambda v: isinstance(v, str)}

@@ -23,6 +23,7 @@ runs).
 from __future__ import annotations
 
 import csv
+import io
 import json
 import math
 import os
@@ -47,7 +48,7 @@ from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecEnv
 import wrapenv  # noqa: F401  (registers the env ids used by gym.make)
 from wrapenv.bench import SimSettings
 from wrapenv.calibrated import Calibration
-from wrapenv.config import InputError
+from wrapenv.config import InputError, write_atomic
 from wrapenv.design import N_PARAMS, NAMES
 from wrapenv.envs import WrapBenchEnv, WrapBenchRandomEnv
 from wrapenv.envs.observation import OBS_NAMES
@@ -157,10 +158,9 @@ class EpisodeLog(BaseCallback):
         with self.path.open(newline="") as f:
             rows = list(csv.reader(f))
         kept = [rows[0]] + [r for r in rows[1:] if r and r[0].isdigit() and int(r[0]) <= timesteps]
-        partial = self.path.with_name(f".{self.path.name}.partial")
-        with partial.open("w", newline="") as f:
-            csv.writer(f).writerows(kept)
-        os.replace(partial, self.path)
+        text = io.StringIO()
+        csv.writer(text).writerows(kept)
+        write_atomic(self.path, text.getvalue().encode())
 
     def _on_step(self) -> bool:
         infos, dones, rewards = self.locals["infos"], self.locals["dones"], self.locals["rewards"]

@@ -286,6 +286,13 @@ def result_json(data: dict[str, Any]) -> bytes:
     return (json.dumps(stamped, indent=2, allow_nan=False) + "\n").encode()
 
 
+def is_finite_number(value: Any) -> bool:
+    """A finite int or float as a parsed file gives it (a bool is not a number, though
+    Python counts it as one)."""
+    return (isinstance(value, int | float) and not isinstance(value, bool)
+            and math.isfinite(value))
+
+
 def write_atomic(path: str | Path, data: bytes) -> None:
     """Write a file so readers see the old content or the whole new one, never a part."""
     write_together({Path(path): data})

@@ -7,14 +7,13 @@ of the pallet at z = 0 and the pallet centred on x = y = 0.
 
 from __future__ import annotations
 
-import math
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any, Literal, cast
 
 import tomli_w
 
-from wrapenv.config import InputError, Table, read_toml
+from wrapenv.config import InputError, Table, is_finite_number, read_toml
 from wrapenv.load_checks import BUNDLE_GAP_M, check_unit, fit, footprints_overlap
 
 Pattern = Literal["columnar", "interlocked", "explicit"]
@@ -280,10 +279,7 @@ def _stack(t: Table) -> Stack:
             raise t.error("positions", "must list at least one bundle centre")
         parsed = []
         for i, item in enumerate(raw):
-            ok = isinstance(item, list) and len(item) == 2 and all(
-                isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)
-                for v in item
-            )
+            ok = isinstance(item, list) and len(item) == 2 and all(map(is_finite_number, item))
             if not ok:
                 raise t.error(f"positions[{i}]", f"must be [x, y] in metres (got {item!r})")
             parsed.append((float(item[0]), float(item[1])))
