@@ -21,12 +21,20 @@ PATTERNS: tuple[str, ...] = ("columnar", "interlocked", "explicit")
 PAIRS: tuple[str, ...] = ("sled_pallet", "pallet_bundle", "bundle_bundle")
 
 
+#: The EPAL Euro pallet's safe working load, evenly spread [S] (docs/materials.md, U0): what a
+#: pallet described by its size alone is taken to carry.
+EUR_SAFE_LOAD_KG = 1500.0
+
+
 @dataclass(frozen=True)
 class Pallet:
     length_m: float
     width_m: float
     height_m: float
     mass_kg: float
+    #: The most the pallet carries, evenly spread (its safe working load): a heavier stack
+    #: is a unit no pallet of this kind carries, refused when the load file is read.
+    safe_load_kg: float = EUR_SAFE_LOAD_KG
 
 
 #: The give of a shrink-wrapped PET bundle's vertical edge under the wrap [A]: 1.7 mm of dent
@@ -55,8 +63,20 @@ class Bundle:
     edge_radius_m: float = PET_EDGE_RADIUS_M
 
 
-#: EUR pallet (EN 13698-1): 1200 x 800 x 144 mm, about 25 kg.
-PALLET_PRESETS = {"EUR": Pallet(1.200, 0.800, 0.144, 25.0)}
+#: EPAL's pallets (length x width x height, mass, safe working load; docs/materials.md, U3):
+#: the Euro pallet (EPAL 1, EN 13698-1), the 1200 x 1000 mm industrial pallets (EPAL 2 with
+#: its base frame, EPAL 3) and the half pallet (EPAL 6) the drinks trade ships on, whose
+#: height and mass are assumed [A]: its sources give neither exactly.
+PALLET_PRESETS = {
+    "EUR": Pallet(1.200, 0.800, 0.144, 25.0, EUR_SAFE_LOAD_KG),
+    "EPAL2": Pallet(1.200, 1.000, 0.162, 35.0, 1250.0),
+    "EPAL3": Pallet(1.000, 1.200, 0.144, 30.0, 1500.0),
+    "EPAL6": Pallet(0.800, 0.600, 0.144, 9.5, 500.0),
+}
+#: The most a load file may say its pallet carries [A]: the highest rating the sources give a
+#: wooden pallet in transport, the Euro pallet's with a compact load spread evenly over the
+#: whole deck (docs/materials.md, U0); a larger figure is a typo, not a pallet.
+MAX_SAFE_LOAD_KG = 2000.0
 #: Six 1.5 L PET bottles in shrink film, 3 x 2 bottles of ~90 mm diameter and ~330 mm height:
 #: 6 x (1.5 kg water + ~50 g PET and cap); give as above.
 BUNDLE_PRESETS = {"PET6x1.5L": Bundle(0.28, 0.19, 0.33, 9.3, PET_CORNER_STIFFNESS_N_PER_M2,
@@ -224,7 +244,7 @@ class LoadUnit:
     def from_dict(cls, data: dict, source: str = "load") -> LoadUnit:
         top = Table(data, source)
         name = top.string("name", "load unit")
-        pallet = _sized(top.table("pallet", required=True), Pallet, PALLET_PRESETS)
+        pallet = _pallet(top.table("pallet", required=True))
         bundle = _bundle(top.table("bundle", required=True))
         stack = _stack(top.table("stack", required=True))
         friction = _friction(top.table("friction"))
@@ -251,6 +271,15 @@ def _sized(t: Table, kind: type, presets: dict, done: bool = True) -> Any:
     if done:
         t.done()
     return kind(**values) if base is None else replace(base, **values)
+
+
+def _pallet(t: Table) -> Pallet:
+    """The pallet's box, then what it carries: a preset's rating, or the Euro pallet's."""
+    box: Pallet = _sized(t, Pallet, PALLET_PRESETS, done=False)
+    safe_load = t.number("safe_load_kg", box.safe_load_kg, positive=True,
+                         maximum=MAX_SAFE_LOAD_KG)
+    t.done()
+    return replace(box, safe_load_kg=safe_load)
 
 
 def _bundle(t: Table) -> Bundle:

@@ -19,12 +19,9 @@ if TYPE_CHECKING:
 BUNDLE_GAP_M = 0.002
 #: Largest overhang tolerated when checking that bundles stay on the pallet (rounding of layouts).
 OVERHANG_TOLERANCE_M = 0.001
-#: What a pallet carries (docs/materials.md, section 6, "Load-unit limits"): the EPAL Euro
-#: pallet's safe working load with the load spread evenly, 1500 kg [S] (a stack of bundles
-#: covering the deck is such a load) ...
-MAX_PAYLOAD_KG = 1500.0
-#: ... and the height of a loaded pallet a road trailer takes: European trailers are 2.55 to
-#: 3.00 m high inside [S]; a taller unit travels in no truck.
+#: The height of a loaded pallet a road trailer takes (docs/materials.md, section 6,
+#: "Load-unit limits"; what a pallet carries is its own, `Pallet.safe_load_kg`): European
+#: trailers are 2.55 to 3.00 m high inside [S]; a taller unit travels in no truck.
 MAX_LOAD_HEIGHT_M = 3.0
 #: A bundle's smallest side [A]: below 5 cm a box is no bundle of goods, and the bench's
 #: contact tolerances (its 20 mm interpenetration limit) would be a large part of it.
@@ -77,12 +74,12 @@ def _check_limits(unit: LoadUnit, source: str) -> None:
         raise InputError(source, "stack.layers",
                          f"the stack holds {count} bundles, more than the {MAX_BUNDLES} the"
                          f" bench simulates")
-    payload = count * b.mass_kg
-    if payload > MAX_PAYLOAD_KG:
+    payload, safe_load = count * b.mass_kg, unit.pallet.safe_load_kg
+    if payload > safe_load:
         raise InputError(source, "bundle.mass_kg",
                          f"{count} bundles of {b.mass_kg} kg weigh {payload:.0f} kg, above the"
-                         f" {MAX_PAYLOAD_KG:.0f} kg a pallet carries (EPAL Euro pallet's safe"
-                         f" working load, evenly spread)")
+                         f" {safe_load:.0f} kg the pallet carries (its safe working load,"
+                         f" evenly spread: pallet.safe_load_kg)")
 
 
 def footprints_overlap(a: BundlePlacement, b: BundlePlacement, tol: float = 1e-6) -> bool:

@@ -10,8 +10,16 @@ from pathlib import Path
 import pytest
 
 from wrapenv.config import InputError
-from wrapenv.load import Bundle, Friction, FrictionPair, LoadUnit, Pallet
-from wrapenv.load_checks import MAX_BUNDLES, MAX_LOAD_HEIGHT_M, MAX_PAYLOAD_KG, MIN_BUNDLE_SIDE_M
+from wrapenv.load import (
+    EUR_SAFE_LOAD_KG,
+    MAX_SAFE_LOAD_KG,
+    Bundle,
+    Friction,
+    FrictionPair,
+    LoadUnit,
+    Pallet,
+)
+from wrapenv.load_checks import MAX_BUNDLES, MAX_LOAD_HEIGHT_M, MIN_BUNDLE_SIDE_M
 
 EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
 NAME = re.compile(r"^L(\d+)C(\d+)R(\d+)$")
@@ -49,6 +57,29 @@ def inside_pallet(layout, tol: float = 1e-3) -> bool:
 def test_eur_pallet_preset_is_1200_by_800_by_144_mm_and_25_kg():
     unit = LoadUnit.from_dict(minimal())
     assert unit.pallet == Pallet(1.2, 0.8, 0.144, 25.0)
+
+
+@pytest.mark.parametrize("preset, pallet", [
+    ("EUR", Pallet(1.2, 0.8, 0.144, 25.0, 1500.0)),     # EPAL 1
+    ("EPAL2", Pallet(1.2, 1.0, 0.162, 35.0, 1250.0)),   # with its base frame
+    ("EPAL3", Pallet(1.0, 1.2, 0.144, 30.0, 1500.0)),
+    ("EPAL6", Pallet(0.8, 0.6, 0.144, 9.5, 500.0)),     # the half pallet
+])
+def test_epal_presets_give_size_mass_and_safe_working_load(preset, pallet):
+    assert LoadUnit.from_dict(minimal(pallet={"preset": preset})).pallet == pallet
+
+
+def test_a_pallet_given_by_its_size_alone_carries_what_a_euro_pallet_carries():
+    unit = LoadUnit.from_dict(minimal(
+        pallet={"length_m": 1.0, "width_m": 1.0, "height_m": 0.15, "mass_kg": 20}))
+    assert unit.pallet.safe_load_kg == EUR_SAFE_LOAD_KG == 1500.0
+
+
+def test_safe_load_overrides_a_preset_s_and_is_written_out():
+    unit = LoadUnit.from_dict(minimal(pallet={"preset": "EPAL6", "safe_load_kg": 600.0}))
+    assert unit.pallet.safe_load_kg == 600.0
+    assert LoadUnit.from_dict(unit.to_dict()) == unit
+    assert tomllib.loads(unit.to_toml())["pallet"]["safe_load_kg"] == 600.0
 
 
 def test_pet_bundle_preset_is_280_by_190_by_330_mm_and_9_3_kg():
@@ -321,6 +352,11 @@ BAD_LOADS = {
     "negative pallet width": ({"pallet.width_m": -0.8}, "pallet.width_m"),
     "nan pallet mass": ({"pallet.mass_kg": float("nan")}, "pallet.mass_kg"),
     "unknown pallet preset": ({"pallet.preset": "US"}, "pallet.preset"),
+    "zero safe load": ({"pallet.safe_load_kg": 0.0}, "pallet.safe_load_kg"),
+    "nan safe load": ({"pallet.safe_load_kg": float("nan")}, "pallet.safe_load_kg"),
+    "safe load no pallet bears": ({"pallet.safe_load_kg": MAX_SAFE_LOAD_KG + 1},
+                                  "pallet.safe_load_kg"),
+    "safe load a string": ({"pallet.safe_load_kg": "1500"}, "pallet.safe_load_kg"),
     "unknown bundle preset": ({"bundle.preset": "PET6x2L"}, "bundle.preset"),
     "unknown pattern": ({"stack.pattern": "pinwheel"}, "stack.pattern"),
     "zero layers": ({"stack.layers": 0}, "stack.layers"),
@@ -511,14 +547,27 @@ def test_one_layer_too_tall_names_the_height_to_change_not_the_layers(load_file,
 def test_a_unit_heavier_than_a_pallet_carries_names_the_limit_and_its_source(load_file):
     # 2 layers of 16 bundles: 32 x 47 kg = 1504 kg
     with pytest.raises(InputError, match=r"32 bundles of 47\.0 kg weigh 1504 kg, above the 1500 kg"
-                                         r" a pallet carries \(EPAL Euro pallet"):
+                                         r" the pallet carries \(its safe working load") as err:
         LoadUnit.from_toml(load_file({"bundle.mass_kg": 47.0}))
+    assert err.value.field == "bundle.mass_kg"
+
+
+def test_a_half_pallet_refuses_what_a_euro_pallet_carries():
+    """Two layers of the PET bundles on EPAL's half pallet: 2 x 2 x 3 = 12 bundles; 12 x 45 kg
+    = 540 kg is within the Euro pallet's 1500 kg but above the half pallet's 500 kg."""
+    data = minimal(pallet={"preset": "EPAL6"}, stack={"layers": 2},
+                   bundle={"preset": "PET6x1.5L", "mass_kg": 45.0})
+    with pytest.raises(InputError, match=r"12 bundles of 45\.0 kg weigh 540 kg, above the 500 kg"):
+        LoadUnit.from_dict(data)
+    data["pallet"]["safe_load_kg"] = 540.0
+    assert LoadUnit.from_dict(data).pallet.safe_load_kg == 540.0
 
 
 def test_the_limits_themselves_are_allowed(load_file):
     """<= each limit passes: exactly 1500 kg of bundles, exactly 3.0 m tall, 5 cm bundles."""
     heaviest = LoadUnit.from_toml(load_file({"bundle.mass_kg": 1500 / 32}))
-    assert len(heaviest.layout().bundles) * heaviest.bundle.mass_kg == pytest.approx(MAX_PAYLOAD_KG)
+    assert len(heaviest.layout().bundles) * heaviest.bundle.mass_kg == pytest.approx(
+        heaviest.pallet.safe_load_kg)
     tallest = LoadUnit.from_toml(load_file({
         "pallet": {"length_m": 1.2, "width_m": 0.8, "height_m": 0.5, "mass_kg": 25.0},
         "bundle.height_m": 0.25, "bundle.mass_kg": 1.0, "stack.layers": 10}))
