@@ -187,7 +187,7 @@ def _level_row(verdict: Verdict, level: LevelVerdict, criteria: tuple[Criterion,
         f"{100 * w.peak_utilisation:.0f} % of strength"
         + (f", torn at {', '.join(f'{z:.2f}' for z in w.torn_at_m)} m" if w.torn else "")))
     result = level_result(verdict, level)
-    why = level.invalid_reason or level.not_at_rest
+    why = level.invalid_reason or level.stopped_early or level.not_at_rest
     reason = f" ({_t(why)})" if why else ""
     cells.append(f'<b class="{"ok" if result == "PASS" else "bad"}">{result}</b>{reason}')
     return cells

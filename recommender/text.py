@@ -30,7 +30,8 @@ def level_result(verdict: Verdict, v: LevelVerdict) -> str:
 def _row(verdict: Verdict, v: LevelVerdict, height_m: float) -> str:
     result = level_result(verdict, v)
     failed = [k for k, ok in v.criteria.items() if not ok]
-    note = v.invalid_reason or ", ".join(failed + ([v.not_at_rest] if v.not_at_rest else []))
+    ended = [why for why in (v.stopped_early, v.not_at_rest) if why]
+    note = v.invalid_reason or ", ".join(failed + ended)
     damage = f"; {len(v.damage)} damaged: {', '.join(v.damage[:4])}" if v.damage else ""
     if len(v.damage) > 4:
         damage += ", ..."

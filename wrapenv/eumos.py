@@ -145,8 +145,9 @@ class LevelVerdict:
     bodies: tuple[BodyResult, ...]
     invalid_reason: str = ""
     wrap: WrapReport | None = None
-    #: Why the level was stopped before rest, already failed (`SimSettings.stop_when_decided`);
-    #: its figures are then those at the stop.
+    #: Why the level was stopped before rest, already failed (`SimSettings.stop_when_decided`,
+    #: or, in every mode, a body gone over the edge of the sled's deck); its figures are then
+    #: those at the stop.
     stopped_early: str = ""
     #: Why the level ended with a body still moving (`Trace.not_at_rest`): its permanent
     #: figures are those at the end, which may not be where the unit would rest.

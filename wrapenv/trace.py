@@ -32,7 +32,8 @@ class Trace:
     valid: bool = True
     invalid_reason: str = ""
     wrap: WrapReport | None = None  # None: the unit was not wrapped
-    #: Why the run stopped before rest, its verdict already decided failed ("": it ran to rest).
+    #: Why the run stopped before rest, its verdict already decided failed ("": it ran to rest):
+    #: `SimSettings.stop_when_decided`, or a body gone over the edge of the sled's deck.
     #: The figures of such a trace are those at the stop, not the permanent ones.
     stopped_early: str = ""
     #: Why the run ended with a body still moving ("": it ended at rest or stopped early): its

@@ -118,6 +118,26 @@ def test_blown_up_simulation_is_invalid_never_a_pass(monkeypatch):
     assert run.verdict.to_json()["highest_passed_g"] is None
 
 
+def test_a_unit_that_slides_off_the_sled_fails_and_is_no_blow_up():
+    """A pallet on an icy deck (kinetic 0.04) at 0.8 g lags the sled by (a - mu g) T^2 / 2 =
+    0.93 m over the 0.5 s dwell, then slides on at 3.73 m/s against mu g plus the sled's
+    braking (a quarter of the level): 3.73^2 / (2 x 2.35) = 2.96 m more. 3.9 m in all takes
+    its centre past the deck's edge, 2 m beyond the pallet's 0.6 m half-length: it falls off
+    the sled. That is a failed level, not an unphysical run (a body falling past the deck
+    would reach the blow-up speed limit)."""
+    a, mu_g, dwell = 0.8 * 9.81, 0.04 * 9.81, 0.5
+    lag = (a - mu_g) * dwell**2 / 2
+    speed = (a - mu_g) * dwell
+    assert lag + speed**2 / (2 * (mu_g + a / 4)) > 2.0 + 0.6
+    icy = dict(SMALL, friction={"sled_pallet": {"static": 0.05, "kinetic": 0.04}})
+    run = run_levels(LoadUnit.from_dict(icy), [0.8])
+    level = run.verdict.levels[0]
+    assert run.verdict.valid and level.valid
+    assert not level.passed
+    assert level.stopped_early == "pallet fell off the sled"
+    assert run.verdict.to_json()["highest_passed_g"] is None
+
+
 def test_non_finite_state_is_invalid(monkeypatch):
     real = bullet.BulletWorld.poses
 
