@@ -127,6 +127,13 @@ CASES = [
     Case("load: a 1e-9 m bundle", ["simulate", "L.toml"],
          {"L.toml": _bundle("length_m = 1e-9\nwidth_m = 1e-9\nheight_m = 1e-9\nmass_kg = 1.0")},
          needles=("L.toml", "bundle")),
+    Case("load: 1000 kg of bundles on a half pallet (it carries 500)", ["simulate", "L.toml"],
+         {"L.toml": LOAD.replace('preset = "EUR"', 'preset = "EPAL6"').replace(
+             '[bundle]\npreset = "PET6x1.5L"', '[bundle]\npreset = "PET6x1.5L"\nmass_kg = 83.4')},
+         needles=("L.toml", "bundle.mass_kg", "500 kg")),
+    Case("load: a pallet said to carry 1e9 kg", ["simulate", "L.toml"],
+         {"L.toml": LOAD.replace('preset = "EUR"', 'preset = "EUR"\nsafe_load_kg = 1e9')},
+         needles=("L.toml", "pallet.safe_load_kg")),
     Case("load: unknown key", ["simulate", "L.toml"],
          {"L.toml": LOAD.replace("[stack]", "[stack]\nlayrs = 2")}, needles=("L.toml", "layrs")),
     Case("wrap: negative tension", ["simulate", "L.toml", "--wrap", "W.toml"],
