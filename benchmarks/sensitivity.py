@@ -1,6 +1,7 @@
-"""How much the verdicts lean on four assumptions docs/materials.md marks [A]: the examples'
-friction, Kraft's glued seam, LLDPE's applied stiffness, and the web's cross-direction share of
-its machine-direction law (`cd_ratio`, which the panels between the rings have).
+"""How much the verdicts lean on the assumptions docs/materials.md marks [A]: the examples'
+friction, Kraft's glued seam, LLDPE's applied stiffness, the web's cross-direction share of
+its machine-direction law (`cd_ratio`, which the panels between the rings have), and the
+pulse's shape where no source gives it (the ramp to the level, the sled's braking after it).
 
 The programs are the answers that matter: on Kraft, the least web of `recommend`'s space (one
 bottom wrap, a touching spiral, one top wrap), which it answers on the examples, here at half
@@ -11,15 +12,17 @@ sides along the motion, 16 h after wrapping (relaxed, as `recommend` judges), th
 sequence to 0.5 g on the nominal load. Variants: the examples' friction (nominal), the bench's
 default friction (the CTU Code's figures), the examples' pallet-bundle and bundle-bundle
 coefficients 0.05 and 0.10 lower (kinetic in the same ratio), a seam of 1000 N/m (the low end
-of P5's range) instead of 3000, LLDPE's stiffness halved and doubled, and either web's
-`cd_ratio` halved. Prints a Markdown
-table: the highest level passed and the margin at 0.5 g.
+of P5's range) instead of 3000, LLDPE's stiffness halved and doubled, either web's
+`cd_ratio` halved, and, for either web, the pulse ramped to its level in 0.02 or 0.15 s
+instead of 0.05 s and the sled braking at 0.125 or 0.5 of the level instead of 0.25. Prints a
+Markdown table: the highest level passed and the margin at 0.5 g.
 
     python -m benchmarks.sensitivity [--workers 2]
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import replace
 
 from benchmarks.tension_cap import (
@@ -31,17 +34,26 @@ from benchmarks.tension_cap import (
 )
 from wrapenv.design import ProgramSpace
 from wrapenv.load import Friction, FrictionPair, LoadUnit
+from wrapenv.profile import PulseProfile
 from wrapenv.wrap import WrapFormat
 
 EXAMPLES = ("examples/pet_2layer_columnar.toml", "examples/pet_3layer_columnar.toml")
 ORIENTATIONS = ("long", "short")
 LLDPE_PROGRAM = "examples/program_lldpe_default.toml"
+#: The pulse's variants: PulseProfile's ramp and braking, which no source gives [A].
+PULSES: dict[str, Callable[[float], PulseProfile]] = {
+    "ramp 0.02 s": lambda g: PulseProfile(g, ramp_s=0.02),
+    "ramp 0.15 s": lambda g: PulseProfile(g, ramp_s=0.15),
+    "braking 0.125 x the level": lambda g: PulseProfile(g, decel_ratio=0.125),
+    "braking 0.5 x the level": lambda g: PulseProfile(g, decel_ratio=0.5),
+}
 #: (material, variant): what each variant changes is in `variant`.
 VARIANTS = (("kraft", "nominal"), ("kraft", "CTU default friction"),
             ("kraft", "friction -0.05"), ("kraft", "friction -0.10"), ("kraft", "seam 1000 N/m"),
             ("kraft", "cross direction x 0.5"), ("lldpe", "nominal"),
             ("lldpe", "stiffness x 0.5"), ("lldpe", "stiffness x 2"),
-            ("lldpe", "cross direction x 0.5"))
+            ("lldpe", "cross direction x 0.5"),
+            *((m, v) for m in ("kraft", "lldpe") for v in PULSES))
 
 
 def _lower(friction: Friction, delta: float) -> Friction:
@@ -76,7 +88,7 @@ def _unit_and_wrap(load_path: str, material: str, variant: str) -> tuple[LoadUni
 def case(args: tuple[str, str, str, str]) -> str:
     load_path, material, variant, orientation = args
     load, wrap = _unit_and_wrap(load_path, material, variant)
-    row, _ = to_target(load_path, load, wrap, orientation)
+    row, _ = to_target(load_path, load, wrap, orientation, PULSES.get(variant, PulseProfile))
     return row.format(f"{material} | {variant} | {orientation}")
 
 

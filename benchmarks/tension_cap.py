@@ -22,7 +22,7 @@ from wrapenv.bench import run_levels
 from wrapenv.design import MIN_BOTTOM_WRAPS, MIN_TOP_WRAPS, TOP_OVERHANG_M, ProgramSpace
 from wrapenv.eumos import LevelVerdict, level_margin
 from wrapenv.load import LoadUnit
-from wrapenv.profile import eumos_levels
+from wrapenv.profile import PulseProfile, eumos_levels
 from wrapenv.program import Program
 from wrapenv.wrap import WrapFormat
 
@@ -41,13 +41,15 @@ def lightest(tension_n: float) -> Program:
                    top_overhang_m=TOP_OVERHANG_M, top_tension_n=tension_n)
 
 
-def to_target(load_path: str, load: LoadUnit, wrap: WrapFormat, orientation: str
+def to_target(load_path: str, load: LoadUnit, wrap: WrapFormat, orientation: str,
+              pulse: Callable[[float], PulseProfile] = PulseProfile
               ) -> tuple[str, LevelVerdict | None]:
-    """The EUMOS sequence to `TARGET_G`: the table's first cells (the load's name, then the
-    highest level passed and the margin at the target, `{}` where the caller's cells go) and
-    the target level's verdict (None if the unit failed before it)."""
-    verdict = run_levels(load, eumos_levels(TARGET_G), orientation=orientation,
-                         stop_at_failure=True, wrap=wrap).verdict
+    """The EUMOS sequence to `TARGET_G`, each level run as `pulse` makes it: the table's
+    first cells (the load's name, then the highest level passed and the margin at the target,
+    `{}` where the caller's cells go) and the target level's verdict (None if the unit failed
+    before it)."""
+    verdict = run_levels(load, [pulse(g) for g in eumos_levels(TARGET_G)],
+                         orientation=orientation, stop_at_failure=True, wrap=wrap).verdict
     last = {round(v.level_g, 2): v for v in verdict.levels}.get(TARGET_G)
     margin = f"{level_margin(last, verdict.load_height_m):.2f}" if last else "–"
     best = verdict.highest_passed_g
