@@ -5,8 +5,10 @@ from __future__ import annotations
 
 from dataclasses import replace
 
-from recommender.text import level_result
+from recommender.text import level_result, verdict_table
+from wrapenv.bench import BenchRun
 from wrapenv.eumos import LevelVerdict, Verdict
+from wrapenv.load import LoadUnit
 
 
 def level(passed: bool, valid: bool = True) -> LevelVerdict:
@@ -20,3 +22,13 @@ def test_each_level_reads_pass_fail_invalid_or_void():
     after_blow_up = Verdict(0.8, (good, replace(blown, level_g=0.4)))
     assert level_result(after_blow_up, good) == "VOID"
     assert level_result(after_blow_up, after_blow_up.levels[1]) == "INVALID"
+
+
+def test_a_level_that_ended_before_rest_says_why_on_its_line():
+    unit = LoadUnit.from_toml("examples/pet_3layer_columnar.toml")
+    fell = replace(level(False), criteria={"no_damage": False}, damage=("L3C1R3 fallen",),
+                   stopped_early="L3C1R3 fell off the sled")
+    table = verdict_table(unit, BenchRun(Verdict(1.134, (fell,)), ()), None)
+    row = table.splitlines()[-2]
+    assert row.lstrip().startswith("0.30 g  FAIL")
+    assert row.endswith("no_damage, L3C1R3 fell off the sled; 1 damaged: L3C1R3 fallen")
