@@ -310,6 +310,7 @@ def _propose_with_policy(args: argparse.Namespace, problem: Problem,
     """A trained policy's program for this unit, answered at once, then verified."""
     from recommender.policy import propose, read_meta
     from recommender.search import verify
+    from wrapenv.envs.random_units import outside
 
     if args.policy is None or not args.policy.is_file():
         where = "arguments" if args.policy is None else str(args.policy)
@@ -321,8 +322,13 @@ def _propose_with_policy(args: argparse.Namespace, problem: Problem,
                            "is given" if calibration else "with a calibration, and none is given")
                            + ": it observes this unit's uncertainty unlike in training; its "
                            "proposal is verified as given",))
-    wrap = propose(args.policy, LoadUnit.from_toml(args.load), args.material,
-                   problem.settings.target_g, calibration)
+    load = LoadUnit.from_toml(args.load)
+    unseen = outside(load)
+    if unseen:
+        warn("recommend", ("this unit lies outside the random units the policy was trained on ("
+                           + "; ".join(unseen) + "): its proposal is an extrapolation, verified "
+                           "as given",))
+    wrap = propose(args.policy, load, args.material, problem.settings.target_g, calibration)
     check = verify(problem, wrap, samples, workers=args.workers)
     mass = wrap.material_used_on(problem.layout).mass_kg
     margin = min(run.verdict.margin for run in check.runs.values())

@@ -495,6 +495,17 @@ def test_a_policy_used_with_a_calibration_it_was_not_trained_on_is_warned_about(
     assert "warning: the policy was trained without a calibration" in err
 
 
+def test_a_policy_asked_about_a_unit_unlike_its_training_units_is_warned_about(
+        tmp_path, capsys):
+    half = "examples/pet_3layer_half_pallet.toml"
+    policy = fixed_policy(half, 1.0, tmp_path / "heavy.zip")
+    main(["recommend", half, "--method", "ppo", "--policy", str(policy), "--samples", "1",
+          "--workers", "2", "--orientation", "long"])
+    err = capsys.readouterr().err
+    assert ("warning: this unit lies outside the random units the policy was trained on (a "
+            "0.8 x 0.6 m pallet, not the EUR pallet's 1.2 x 0.8)") in err
+
+
 def test_a_proposal_is_recommended_only_if_it_passes_every_sample():
     """A search recommends only programs that passed all their samples; a proposal, which no
     search stands behind, must pass every sample of its verification."""

@@ -24,6 +24,7 @@ from wrapenv.calibrated import CalibratedPair, Calibration
 from wrapenv.config import InputError
 from wrapenv.design import N_PARAMS
 from wrapenv.envs import OBS_NAMES, WrapBenchEnv, WrapBenchRandomEnv
+from wrapenv.envs.random_units import outside
 from wrapenv.load import Friction, FrictionPair, LoadUnit
 
 ENV_ID = "wrapenv/WrapBench-v2"
@@ -347,6 +348,27 @@ def test_random_units_take_a_calibration_as_the_fixed_env_does():
     assert drawn.bundle.corner_stiffness_n_per_m2 == pytest.approx(
         0.5 * plain.bundle.corner_stiffness_n_per_m2)
     env.close()
+
+
+def test_units_outside_the_random_distribution_say_how():
+    """What a policy trained on random units never saw: every drawn unit and the paper's
+    examples lie inside; the half pallet's unit is named by its pallet, a free explicit
+    stack of heavy bundles by each of those."""
+    env = WrapBenchRandomEnv(levels="target")
+    rng = np.random.default_rng(0)
+    assert all(outside(env.sample_unit(rng)) == () for _ in range(20))
+    env.close()
+    for name in ("pet_2layer_columnar", "pet_3layer_columnar", "pet_3layer_interlocked"):
+        assert outside(LoadUnit.from_toml(f"examples/{name}.toml")) == ()
+    assert outside(LoadUnit.from_toml("examples/pet_3layer_half_pallet.toml")) == (
+        "a 0.8 x 0.6 m pallet, not the EUR pallet's 1.2 x 0.8",)
+    odd = LoadUnit.from_dict({
+        "pallet": {"preset": "EUR"}, "stack": {"layers": 4, "pattern": "explicit",
+                                               "positions": [[0.0, 0.0]]},
+        "bundle": {"preset": "PET6x1.5L", "mass_kg": 20.0}})
+    assert outside(odd) == ("4 layers, not 1-3", "the explicit pattern, not columnar or "
+                            "interlocked", "bundle mass_kg 20, not 4-14",
+                            "no stop bar behind the pallet")
 
 
 def test_random_env_via_gym_make():

@@ -10,7 +10,7 @@ import numpy as np
 
 from wrapenv.calibrated import Calibration
 from wrapenv.config import InputError
-from wrapenv.load import PAIRS, Friction, LoadUnit
+from wrapenv.load import PAIRS, PALLET_PRESETS, Friction, LoadUnit
 
 RANDOM_LAYERS = (1, 3)
 RANDOM_BUNDLE_LENGTH_M = (0.2, 0.4)
@@ -21,6 +21,8 @@ RANDOM_PATTERNS = ("columnar", "interlocked")
 RANDOM_FRICTION_SPREAD = 0.15
 RANDOM_KINETIC_RATIO = 0.8
 RANDOM_MAX_TRIES = 100
+#: The pallet every random unit stands on.
+RANDOM_PALLET = "EUR"
 
 
 def base_friction(calibration: Calibration | None) -> Friction:
@@ -35,7 +37,7 @@ def sample_unit(rng: np.random.Generator, base_friction: Friction) -> LoadUnit:
     for _ in range(RANDOM_MAX_TRIES):
         data: dict[str, Any] = {
             "name": "random unit",
-            "pallet": {"preset": "EUR"},
+            "pallet": {"preset": RANDOM_PALLET},
             "bundle": {
                 "length_m": round(float(rng.uniform(*RANDOM_BUNDLE_LENGTH_M)), 3),
                 "width_m": round(float(rng.uniform(*RANDOM_BUNDLE_WIDTH_M)), 3),
@@ -63,3 +65,27 @@ def sample_unit(rng: np.random.Generator, base_friction: Friction) -> LoadUnit:
         except InputError:
             continue
     raise RuntimeError(f"no valid load unit in {RANDOM_MAX_TRIES} draws")
+
+
+def outside(unit: LoadUnit) -> tuple[str, ...]:
+    """How `unit` lies outside the distribution (one phrase per feature, none when inside): a
+    policy trained on it proposes for such a unit by extrapolation."""
+    p, b, s = unit.pallet, unit.bundle, unit.stack
+    eur = PALLET_PRESETS[RANDOM_PALLET]
+    out = []
+    if (p.length_m, p.width_m, p.height_m) != (eur.length_m, eur.width_m, eur.height_m):
+        out.append(f"a {p.length_m:g} x {p.width_m:g} m pallet, not the {RANDOM_PALLET} "
+                   f"pallet's {eur.length_m:g} x {eur.width_m:g}")
+    if not RANDOM_LAYERS[0] <= s.layers <= RANDOM_LAYERS[1]:
+        out.append(f"{s.layers} layers, not {RANDOM_LAYERS[0]}-{RANDOM_LAYERS[1]}")
+    if s.pattern not in RANDOM_PATTERNS:
+        out.append(f"the {s.pattern} pattern, not {' or '.join(RANDOM_PATTERNS)}")
+    ranges = {"length_m": RANDOM_BUNDLE_LENGTH_M, "width_m": RANDOM_BUNDLE_WIDTH_M,
+              "height_m": RANDOM_BUNDLE_HEIGHT_M, "mass_kg": RANDOM_BUNDLE_MASS_KG}
+    for key, (low, high) in ranges.items():
+        value = getattr(b, key)
+        if not low <= value <= high:
+            out.append(f"bundle {key} {value:g}, not {low:g}-{high:g}")
+    if not unit.pallet_stopper:
+        out.append("no stop bar behind the pallet")
+    return tuple(out)
