@@ -17,7 +17,7 @@ from pathlib import Path
 from typing import Any
 
 from recommender.search import Trial
-from recommender.text import level_result, sequence_text, step_cells
+from recommender.text import TIGHT_WRAP_HINT, level_result, sequence_text, step_cells, wrapped
 from recommender.uncertainty import PassProbability
 from wrapenv import __version__
 from wrapenv.bench import BenchRun
@@ -210,7 +210,7 @@ def _levels_section(t: OrientationRun) -> str:
                                    if v.sequence == "cumulative" and len(v.levels) > 1 else "")
     summary = (f"highest level passed: {_highest(t)}{target}; {sequence}"
                + ("" if v.valid else "; the simulation became unphysical (INVALID rows never "
-                                     "pass)"))
+                                     f"pass{TIGHT_WRAP_HINT if wrapped(v) else ''})"))
     return (f'<section class="levels"><h3>{_t(_side(t))}</h3>'
             + _table(head, [_level_row(v, level, criteria, h) for level in v.levels], "levels")
             + f"<p>{summary}</p></section>\n")

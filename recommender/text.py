@@ -27,6 +27,16 @@ def level_result(verdict: Verdict, v: LevelVerdict) -> str:
     return "INVALID" if not v.valid else ("FAIL" if not v.passed else "VOID")
 
 
+#: Why a wrapped unit's run most likely blew up (README, "What it cannot hold").
+TIGHT_WRAP_HINT = ("; on a wrapped unit most often a wrap squeezing light bundles far harder "
+                   "than they weigh: try a gentler tension")
+
+
+def wrapped(verdict: Verdict) -> bool:
+    """Whether the levels were run on a wrapped unit."""
+    return any(level.wrap is not None for level in verdict.levels)
+
+
 def _row(verdict: Verdict, v: LevelVerdict, height_m: float) -> str:
     result = level_result(verdict, v)
     failed = [k for k, ok in v.criteria.items() if not ok]
@@ -78,7 +88,8 @@ def verdict_table(load: LoadUnit, run: BenchRun, orientation: str | None) -> str
         lines.append(f"wrap torn at: {', '.join(torn)}")
     best = v.highest_passed_g
     lines.append(f"highest level passed: {'none' if best is None else f'{best:.2f} g'}"
-                 + ("" if v.valid else "  (simulation became unphysical: see INVALID rows)"))
+                 + ("" if v.valid else f"  (simulation became unphysical: see INVALID rows"
+                                       f"{TIGHT_WRAP_HINT if wrapped(v) else ''})"))
     return "\n".join(lines)
 
 

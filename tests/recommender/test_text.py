@@ -5,10 +5,11 @@ from __future__ import annotations
 
 from dataclasses import replace
 
-from recommender.text import level_result, verdict_table
+from recommender.text import TIGHT_WRAP_HINT, level_result, verdict_table
 from wrapenv.bench import BenchRun
 from wrapenv.eumos import LevelVerdict, Verdict
 from wrapenv.load import LoadUnit
+from wrapenv.wrap_report import WrapReport
 
 
 def level(passed: bool, valid: bool = True) -> LevelVerdict:
@@ -32,3 +33,14 @@ def test_a_level_that_ended_before_rest_says_why_on_its_line():
     row = table.splitlines()[-2]
     assert row.lstrip().startswith("0.30 g  FAIL")
     assert row.endswith("no_damage, L3C1R3 fell off the sled; 1 damaged: L3C1R3 fallen")
+
+
+def test_a_wrapped_run_that_blew_up_points_at_the_wrap_s_squeeze():
+    """README, "What it cannot hold": light bundles under a tight wrap blow the bench up."""
+    unit = LoadUnit.from_toml("examples/pet_3layer_columnar.toml")
+    blown = replace(level(False, valid=False), invalid_reason="a body exceeded 6.4 m/s")
+    wrapped = replace(blown, wrap=WrapReport((), 0.5, 0.0))
+    for v, hinted in ((blown, False), (wrapped, True)):
+        last = verdict_table(unit, BenchRun(Verdict(1.134, (v,)), ()), None).splitlines()[-1]
+        assert "simulation became unphysical" in last
+        assert (TIGHT_WRAP_HINT in last) == hinted
