@@ -310,7 +310,7 @@ def _propose_with_policy(args: argparse.Namespace, problem: Problem,
     """A trained policy's program for this unit, answered at once, then verified."""
     from recommender.policy import propose, read_meta
     from recommender.search import verify
-    from wrapenv.envs.random_units import outside
+    from wrapenv.envs.random_units import base_friction, outside
 
     if args.policy is None or not args.policy.is_file():
         where = "arguments" if args.policy is None else str(args.policy)
@@ -323,7 +323,7 @@ def _propose_with_policy(args: argparse.Namespace, problem: Problem,
                            + ": it observes this unit's uncertainty unlike in training; its "
                            "proposal is verified as given",))
     load = LoadUnit.from_toml(args.load)
-    unseen = outside(load)
+    unseen = outside(load, base_friction(calibration))
     if unseen:
         warn("recommend", ("this unit lies outside the random units the policy was trained on ("
                            + "; ".join(unseen) + "): its proposal is an extrapolation, verified "

@@ -503,7 +503,8 @@ def test_a_policy_asked_about_a_unit_unlike_its_training_units_is_warned_about(
           "--workers", "2", "--orientation", "long"])
     err = capsys.readouterr().err
     assert ("warning: this unit lies outside the random units the policy was trained on (a "
-            "0.8 x 0.6 m pallet, not the EUR pallet's 1.2 x 0.8)") in err
+            "0.8 x 0.6 m pallet, not the EUR pallet's 1.2 x 0.8; pallet_bundle static 0.5, not "
+            "0.255-0.345; ") in err
 
 
 def test_a_proposal_is_recommended_only_if_it_passes_every_sample():

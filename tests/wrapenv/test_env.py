@@ -352,15 +352,23 @@ def test_random_units_take_a_calibration_as_the_fixed_env_does():
 
 def test_units_outside_the_random_distribution_say_how():
     """What a policy trained on random units never saw: every drawn unit and the paper's
-    examples lie inside; the half pallet's unit is named by its pallet, a free explicit
-    stack of heavy bundles by each of those."""
+    units at the bench's default friction lie inside; the half-pallet example is named by its
+    pallet and by the examples' friction (pallet-bundle 0.50 where the units draw 0.30 +- 15 %);
+    a free explicit stack of heavy bundles by each of those."""
     env = WrapBenchRandomEnv(levels="target")
     rng = np.random.default_rng(0)
     assert all(outside(env.sample_unit(rng)) == () for _ in range(20))
     env.close()
     for name in ("pet_2layer_columnar", "pet_3layer_columnar", "pet_3layer_interlocked"):
-        assert outside(LoadUnit.from_toml(f"examples/{name}.toml")) == ()
-    assert outside(LoadUnit.from_toml("examples/pet_3layer_half_pallet.toml")) == (
+        unit = LoadUnit.from_toml(f"examples/{name}.toml")
+        assert outside(unit.with_friction(Friction())) == ()
+    half = LoadUnit.from_toml("examples/pet_3layer_half_pallet.toml")
+    assert outside(half) == (
+        "a 0.8 x 0.6 m pallet, not the EUR pallet's 1.2 x 0.8",
+        "pallet_bundle static 0.5, not 0.255-0.345", "pallet_bundle kinetic 0.42, not 0.204-0.276",
+        "bundle_bundle static 0.4, not 0.255-0.345", "bundle_bundle kinetic 0.33, not 0.204-0.276")
+    # units drawn about the examples' friction (a calibration's, say) take theirs in
+    assert outside(half, base=half.friction) == (
         "a 0.8 x 0.6 m pallet, not the EUR pallet's 1.2 x 0.8",)
     odd = LoadUnit.from_dict({
         "pallet": {"preset": "EUR"}, "stack": {"layers": 4, "pattern": "explicit",

@@ -23,13 +23,15 @@ RANDOM_KINETIC_RATIO = 0.8
 RANDOM_MAX_TRIES = 100
 #: The pallet every random unit stands on.
 RANDOM_PALLET = "EUR"
+#: The friction units are drawn about without a calibration: the bench's defaults.
+DEFAULT_BASE = Friction()
 
 
 def base_friction(calibration: Calibration | None) -> Friction:
     """The friction random units spread about: the defaults, with the calibrated pairs in
     place as the bench takes them (`Calibration.friction_over`: a pair that never slipped is
     only bounded)."""
-    return Friction() if calibration is None else calibration.friction_over(Friction())
+    return DEFAULT_BASE if calibration is None else calibration.friction_over(DEFAULT_BASE)
 
 
 def sample_unit(rng: np.random.Generator, base_friction: Friction) -> LoadUnit:
@@ -67,9 +69,9 @@ def sample_unit(rng: np.random.Generator, base_friction: Friction) -> LoadUnit:
     raise RuntimeError(f"no valid load unit in {RANDOM_MAX_TRIES} draws")
 
 
-def outside(unit: LoadUnit) -> tuple[str, ...]:
-    """How `unit` lies outside the distribution (one phrase per feature, none when inside): a
-    policy trained on it proposes for such a unit by extrapolation."""
+def outside(unit: LoadUnit, base: Friction = DEFAULT_BASE) -> tuple[str, ...]:
+    """How `unit` lies outside the distribution about `base` friction (one phrase per feature,
+    none when inside): a policy trained on it proposes for such a unit by extrapolation."""
     p, b, s = unit.pallet, unit.bundle, unit.stack
     eur = PALLET_PRESETS[RANDOM_PALLET]
     out = []
@@ -88,4 +90,21 @@ def outside(unit: LoadUnit) -> tuple[str, ...]:
             out.append(f"bundle {key} {value:g}, not {low:g}-{high:g}")
     if not unit.pallet_stopper:
         out.append("no stop bar behind the pallet")
+    return tuple(out) + _friction_outside(unit.friction, base)
+
+
+def _friction_outside(friction: Friction, base: Friction) -> tuple[str, ...]:
+    """Each coefficient outside the spread the units draw about `base` (kinetic: its share of
+    the drawn static), to the 3 decimals they are drawn with."""
+    out = []
+    for pair in PAIRS:
+        static = base.pair(pair).static
+        ranges = {"static": (static * (1 - RANDOM_FRICTION_SPREAD),
+                             static * (1 + RANDOM_FRICTION_SPREAD))}
+        ranges["kinetic"] = (RANDOM_KINETIC_RATIO * ranges["static"][0],
+                             RANDOM_KINETIC_RATIO * ranges["static"][1])
+        for kind, (low, high) in ranges.items():
+            value = getattr(friction.pair(pair), kind)
+            if not low - 5e-4 <= value <= high + 5e-4:
+                out.append(f"{pair} {kind} {value:g}, not {low:.3f}-{high:.3f}")
     return tuple(out)
