@@ -232,8 +232,9 @@ def train(settings: TrainSettings, out_dir: Path, resume: bool = False) -> Path:
         raise InputError(str(checkpoints), "--resume", "no checkpoint to resume from")
     done = start[1] if start else 0
     meta = policy_meta(settings)
+    trusted = _trusted_objects() if start else {}
     if start:
-        _check_resumable(start[0], meta)   # before any env process starts
+        _check_resumable(start[0], meta, trusted)   # before any env process starts
     # The policy is a small MLP: one thread avoids oversubscribing the cores the env workers
     # simulate on (and thread start-up costs more than it saves on a 64-unit layer).
     threads = torch.get_num_threads()
@@ -247,7 +248,7 @@ def train(settings: TrainSettings, out_dir: Path, resume: bool = False) -> Path:
     )
     log = EpisodeLog(out_dir / LOG_FILE, kept=done if start else None)
     try:
-        model = (_load(start[0], _trusted_objects(), vec_env) if start else
+        model = (_load(start[0], trusted, vec_env) if start else
                  PPO("MlpPolicy", vec_env, n_steps=settings.n_steps,
                      batch_size=settings.batch_size, learning_rate=settings.learning_rate,
                      seed=settings.seed, device="cpu", verbose=0))
@@ -401,22 +402,25 @@ def _check_sizes(path: Path, data: dict[str, Any]) -> None:
 def load_policy(policy_path: Path, material: str | None = None) -> PPO:
     """The trained policy, on the CPU, if it was trained for this bench (and `material`)."""
     path = Path(policy_path)
-    _check_meta(path, read_meta(path), material)
-    return _load(path, _trusted_objects())
+    trusted = _trusted_objects()
+    _check_meta(path, read_meta(path), material, trusted)
+    return _load(path, trusted)
 
 
-def _check_resumable(path: Path, meta: dict[str, Any]) -> None:
+def _check_resumable(path: Path, meta: dict[str, Any], trusted: dict[str, Any]) -> None:
     """A run's checkpoint, if it was trained as `meta` says, or a one-line error."""
     found = read_meta(path)
-    _check_meta(path, found, meta["material"])
+    _check_meta(path, found, meta["material"], trusted)
     for key in ("target_g", "calibrated"):
         if found.get(key) != meta[key]:
             raise InputError(str(path), key, f"the run was trained with {key} "
                              f"{found.get(key)!r}, not {meta[key]!r}: resume it as it was started")
 
 
-def _check_meta(path: Path, meta: dict[str, Any], material: str | None) -> None:
-    """A policy file trained for this bench (and `material`), or a one-line error."""
+def _check_meta(path: Path, meta: dict[str, Any], material: str | None,
+                trusted: dict[str, Any]) -> None:
+    """A policy file trained for this bench (and `material`), pickling nothing but the
+    `trusted` entries, or a one-line error."""
     if meta.get("observation") != list(OBS_NAMES) or meta.get("action") != list(NAMES):
         raise InputError(str(path), "observation", f"the policy was trained on "
                          f"{meta.get('env_id', 'another env')}, which observes or acts otherwise"
@@ -427,7 +431,7 @@ def _check_meta(path: Path, meta: dict[str, Any], material: str | None) -> None:
     if material is not None and meta.get("material") != material:
         raise InputError(str(path), "material", f"the policy was trained for "
                          f"{meta.get('material')!r}, not {material!r}")
-    unknown = set(meta["_pickled"]) - set(_trusted_objects())
+    unknown = set(meta["_pickled"]) - set(trusted)
     if unknown:
         raise InputError(str(path), "policy", f"holds pickled entries {sorted(unknown)}, which "
                                               "are not loaded")
