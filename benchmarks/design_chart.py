@@ -1,4 +1,4 @@
-"""The README's design chart: what a wrapping program does to the 2- and 3-layer examples.
+"""The design chart of docs/wrap.md: what a wrapping program does to the 2- and 3-layer examples.
 
 For Kraft paper and LLDPE film, every combination of wraps (1 to 6) and tension (three values
 per material) is run as a machine program: `n` bottom wraps, a spiral up at the overlap that

@@ -3,8 +3,9 @@
 `tests/calibration/test_whole_unit.py` specifies what held on every draw of its unit (2 x 2
 bundles a layer, takes at 0.35 and 0.45 g, friction drawn with 10 % jitter and hidden, budget
 150) and pins one written and one refused draw. This prints each draw's outcome, which its
-docstring and the README summarise: written or refused (and why), simulations, bundle-bundle's
-fitted coefficients against the truth, and, for a written fit, the third level's prediction.
+docstring and docs/calibration.md summarise: written or refused (and why), simulations,
+bundle-bundle's fitted coefficients against the truth, and, for a written fit, the third
+level's prediction.
 
     python -m benchmarks.whole_unit_draws [--seed 0 1 2 3 4 5]
 """

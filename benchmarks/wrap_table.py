@@ -1,4 +1,5 @@
-"""The README's wrap table: the 2- and 3-layer examples unwrapped, in Kraft paper and in LLDPE.
+"""The wrap table of docs/wrap.md: the 2- and 3-layer examples unwrapped, in Kraft paper and in
+LLDPE.
 
 Each unit runs the EUMOS sequence from 0.2 g up to 0.8 g (the road rule forward), stopping at
 the first failure, as `wrapbench simulate LOAD --wrap WRAP --eumos --target 0.8` does, with the

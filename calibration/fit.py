@@ -57,15 +57,15 @@ RESOLVED_LOG2_SCALE_STD = math.log2(1.2)
 #: shift. The surrogate's local covariance cannot see that a threshold's response is steep on
 #: one side and flat on the other: the 2-layer unit with a 0.30 g take reported bundle-bundle's
 #: at +-0.014 and +-0.019 while 0.067 and 0.070 off, which the probe 0.075 lower catches
-#: (README, "Calibration", issue 13).
+#: (docs/calibration.md, issue 13).
 PROBE_STATIC = 3 * RESOLVED_STATIC_STD
 #: The surrogate's fitted values are replayed this many times per recording (each settling a
 #: little longer, `replay.resettled`): their mean is the prediction, their scatter the part of
 #: the residual no calibration can remove (`calibration.acceptance`). The 2-layer columnar
 #: unit's true values were refused in 22 % of draws of 3 replays, 3 % of 6 on the earlier
 #: machines' bench; on today's, whose 0.45 g take is an outcome one replay in 24 reproduces,
-#: in 80 % and 52 % (`bench_calibrate --truth 24`, `acceptance_power`: README, "When a fit is
-#: refused"). The descents get one.
+#: in 80 % and 52 % (`bench_calibrate --truth 24`, `acceptance_power`: docs/calibration.md,
+#: "When a fit is refused"). The descents get one.
 FINAL_REPLAYS = 6
 #: A recording its final replays leave unexplained is replayed this many times in all before
 #: the fit is refused (`_replayed_more`): a take near a threshold can be an outcome the bench
@@ -92,7 +92,7 @@ class FitSettings:
     sim: SimSettings = SimSettings()
     #: Wrap scales measured elsewhere (name, value), held at their value instead of fitted: one
     #: wrapped take constrains the film's stiffness only together with its laid tension and the
-    #: load's give, in series with it (README, "Calibration").
+    #: load's give, in series with it (docs/calibration.md).
     known: tuple[tuple[str, float], ...] = ()
 
 

@@ -165,7 +165,7 @@ def advice_scale(name: str, scale: float, std: float, paper: bool) -> str:
     the true friction, the LLDPE take gave stiffness 3.9 x, tension 0.6 x and give 0.3 x for the
     truth's 1.3, 1 and 1, and predicted the held-out take within 5 %; with the tension and the
     give known, +15 % and +14 % over two fit seeds; a second wrapped level instead, +13 to +120 %
-    over three (README "Calibration").
+    over three (docs/calibration.md).
     What is measured elsewhere is given as known (`calibrate --known`)."""
     hardly = "the recorded motion hardly depends on it"
     known = "give it as known (--known)"

@@ -147,8 +147,8 @@ def profile(fit: SurrogateFit, index: int, value: float) -> np.ndarray | None:
     where the emulator expects the recordings best explained: the best the other parameters can
     do for that value (a profile), so a claim can be checked against the recordings without the
     others' errors counting against it. The emulator is the last whose box holds the value: a
-    smaller box's, extrapolated, bent the 2-layer unit's profile the wrong way (README,
-    "Calibration"). None where no local stage's box holds it."""
+    smaller box's, extrapolated, bent the 2-layer unit's profile the wrong way
+    (docs/calibration.md). None where no local stage's box holds it."""
     for stage in reversed(fit.stages):
         if stage.emulator is None:
             continue
@@ -311,7 +311,7 @@ def _settled(cov: np.ndarray, stages: Sequence[Stage]) -> np.ndarray:
     deviations says the estimate has not settled to that precision (an emulator's bend smooths
     a threshold's kink, and each smaller box sees it elsewhere). The 2-layer unit with a 0.30 g
     take, seed 2 at 300 simulations, reported bundle-bundle's static coefficient at +-0.026
-    while 0.082 off; its last stage's move makes that +-0.050 (README, "Calibration", issue
+    while 0.082 off; its last stage's move makes that +-0.050 (docs/calibration.md, issue
     13). The move from the global stage does not count: rejection sampling's mean is coarse by
     design."""
     if len(stages) < 3:

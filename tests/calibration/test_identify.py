@@ -149,8 +149,8 @@ def test_advice_on_an_unresolved_wrap_scale_gives_the_reason_of_its_web():
     """Paper is ~160 x stiffer than film: behind paper the load's give decides the motion, so
     the paper's stiffness hardly shows; a film's stiffness decides it, but an unresolved one is
     constrained only together with the laid tension and the give in series with it (fitted
-    with the true friction: stiffness 3.9 x, tension 0.6 x, give 0.3 x for 1.3, 1, 1; README),
-    so the advice names what to measure and give as known."""
+    with the true friction: stiffness 3.9 x, tension 0.6 x, give 0.3 x for 1.3, 1, 1;
+    docs/calibration.md), so the advice names what to measure and give as known."""
     paper = advice_scale("stiffness", 2.0, 1.0, paper=True)
     film = advice_scale("stiffness", 2.0, 1.0, paper=False)
     assert "hardly depends" in paper and "load-side compliance" in paper

@@ -55,7 +55,7 @@ BUDGET = 150
 #: The draws: one whose fit is written (its static coefficient not pinned), one refused.
 WRITTEN, REFUSED = 1, 4
 #: Probes come on top of the budget: a resolved static coefficient is replayed shifted down and
-#: up, FINAL_REPLAYS times per bare take, and as often again refitted (README, "Calibration");
+#: up, FINAL_REPLAYS times per bare take, and as often again refitted (docs/calibration.md);
 #: so do the replays of a take the final ones, or a probe's, leave unexplained, up to
 #: UNEXPLAINED_REPLAYS.
 MOST_SIMULATIONS = BUDGET + (5 * UNEXPLAINED_REPLAYS - FINAL_REPLAYS) * len(FITTED)
