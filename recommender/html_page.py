@@ -201,7 +201,7 @@ def _highest(t: OrientationRun) -> str:
 def _levels_section(t: OrientationRun) -> str:
     v = t.run.verdict
     h, criteria = v.load_height_m, _criteria(v)
-    head = (["Level"] + [f"{c.label}<br><small>limit {c.describe(h, '≤')}</small>"
+    head = (["Level"] + [f"{_t(c.label)}<br><small>limit {_t(c.describe(h, '≤'))}</small>"
                          for c in criteria]
             + ["Damage<br><small>limit none</small>", "Pallet slip", "Wrap (peak force)",
                "Result"])

@@ -121,6 +121,13 @@ def test_every_user_string_is_escaped_and_bounded():
         text) + 2000, "a 100 kB name does not bury the page"
 
 
+def test_every_angle_bracket_of_the_page_opens_a_tag():
+    """Text that reads "< 40 mm" is written as &lt;: a raw "<" is a parse error in HTML, which
+    browsers forgive and validators, archivers and converters do not."""
+    text = render(page())
+    assert re.findall(r"<(?![A-Za-z/!])", text) == []
+
+
 def test_the_level_table_gives_each_eumos_criterion_its_figure_limit_and_verdict():
     parsed = Parsed(render(page()))
     head, *rows = parsed.table("levels")
