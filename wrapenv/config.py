@@ -273,14 +273,9 @@ def printable(text: str, limit: int = 200) -> str:
     return safe[:keep // 2] + note + safe[len(safe) - (keep - keep // 2):]
 
 
-def write_result(path: str | Path, data: dict[str, Any]) -> None:
-    """Write a command's JSON result (atomically), stamped with the version of the bench that
-    produced it: a verdict on file can be traced to the model that gave it."""
-    write_atomic(path, result_json(data))
-
-
 def result_json(data: dict[str, Any]) -> bytes:
-    """A command's JSON result as `write_result` writes it. Strict JSON: a NaN or infinity
+    """A command's JSON result, stamped with the version of the bench that produced it (a
+    verdict on file can be traced to the model that gave it). Strict JSON: a NaN or infinity
     (no JSON reader need accept one) is a bug here, not a value to write."""
     stamped = {"wrapbench_version": __version__, **data}
     return (json.dumps(stamped, indent=2, allow_nan=False) + "\n").encode()
