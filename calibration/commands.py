@@ -500,8 +500,14 @@ def _validation_summary(check: Validation) -> str:
     return "\n".join(lines)
 
 
+def _signed_pct(value: float) -> str:
+    """A signed whole percentage, without the "-0" of a small negative error."""
+    text = f"{value:+.0f}"
+    return "0" if text in ("+0", "-0") else text
+
+
 def _validation_row(name: str, c: Check) -> str:
-    pct = f" ({c.error_pct:+.0f} %)" if c.error_pct is not None else ""
+    pct = f" ({_signed_pct(c.error_pct)} %)" if c.error_pct is not None else ""
     return (f"  {name:10s}  {1e3 * c.recorded_m:8.1f}  {1e3 * c.predicted_m:8.1f} ± "
             f"{1e3 * c.spread_m:5.1f}  {1e3 * c.error_m:+7.1f}{pct:8s}  "
             f"{1e3 * c.uncertain_m:8.1f} ± {1e3 * c.uncertain_spread_m:5.1f}")
