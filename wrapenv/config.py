@@ -61,7 +61,14 @@ def read_csv(path: str | Path) -> tuple[list[str], list[tuple[int, list[str]]]]:
         raise InputError(str(path), "", "cannot read file (not UTF-8 text)") from None
     if not rows:
         raise InputError(str(path), "", "empty file")
-    return [h.strip() for h in rows[0][1]], rows[1:]
+    header = [h.strip() for h in rows[0][1]]
+    for sep, name in ((";", "';'"), ("\t", "tabs")):
+        if len(header) == 1 and sep in header[0]:
+            raise InputError(str(path), f"line {rows[0][0]}",
+                             f"columns separated by {name}: the bench reads comma-separated "
+                             "values with '.' for decimals (a spreadsheet saving CSV in a "
+                             "European locale writes ';' and ',')")
+    return header, rows[1:]
 
 
 def read_json(path: str | Path) -> dict[str, Any]:

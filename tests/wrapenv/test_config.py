@@ -140,6 +140,9 @@ def test_csv_rows_carry_the_line_they_end_on(tmp_path):
     ("", ["empty file"]),
     ("a,b\n" + "x" * 200_000 + ",1\n", ["line 2", "malformed CSV", "field larger"]),
     (b"t_s\n\xff\xfe".decode("latin-1"), ["not UTF-8 text"]),
+    # a spreadsheet's export in a European locale: ';' between columns, ',' for decimals
+    ("t_s;accel_mps2\n0,0;0,0\n0,1;2,5\n", ["line 1", "separated by ';'", "comma-separated"]),
+    ("t_s\taccel_mps2\n0.0\t0.0\n", ["line 1", "separated by tabs", "comma-separated"]),
 ])
 def test_a_csv_that_cannot_be_read_names_the_file_and_line(text, needles, tmp_path):
     path = tmp_path / "p.csv"
