@@ -63,6 +63,8 @@ def run_simulate(args: argparse.Namespace) -> int:
         raise InputError("arguments", "--tension-map", "needs --wrap (an unwrapped unit has "
                                                        "no envelope to map)")
     levels = _levels(args)
+    warn("simulate", tuple(w for p in levels if isinstance(p, MeasuredProfile)
+                           for w in p.warnings()))
     if laid is not None:
         warn("simulate", laid.warnings())
     limits = criteria_limits(args)

@@ -87,6 +87,20 @@ class PulseProfile:
         return np.where((t < 0) | (t >= t4), 0.0, out)
 
 
+#: A measured sled peaking below this is unlike any bench test (EUMOS 40509 starts at 0.2 g): an
+#: acceleration column written in g instead of m/s² reads about ten times too low.
+LOW_PEAK_G = 0.15
+
+
+def low_peak_warning(source: str, peak_mps2: float) -> str:
+    """Why a measured profile's peak looks like a column in g ("" when it does not)."""
+    if peak_mps2 >= LOW_PEAK_G * G:
+        return ""
+    return (f"{source}: accel_mps2 peaks at {peak_mps2:.2f} m/s² ({peak_mps2 / G:.3f} g), below "
+            f"any bench level (EUMOS 40509 starts at 0.2 g): is the column in g? It must be "
+            f"in m/s²")
+
+
 @dataclass(frozen=True)
 class MeasuredProfile:
     """A sled acceleration recorded on a bench (`profile.csv`), sampled at `t_s`."""
@@ -106,6 +120,10 @@ class MeasuredProfile:
     @property
     def duration_s(self) -> float:
         return float(self.t_s[-1] - self.t_s[0])
+
+    def warnings(self) -> tuple[str, ...]:
+        """What the file holds that a bench test hardly does (`low_peak_warning`)."""
+        return tuple(w for w in (low_peak_warning(self.source, self.peak_mps2),) if w)
 
     def accel(self, t: float | np.ndarray) -> np.ndarray:
         t = np.asarray(t, dtype=float) + self.t_s[0]

@@ -214,6 +214,22 @@ def test_calibrate_that_does_not_converge_writes_nothing(slide_dir, tmp_path, ca
     assert list(out.iterdir()) == []
 
 
+def test_calibrate_warns_of_a_profile_that_looks_written_in_g(slide_dir, tmp_path, capsys):
+    """The recording's acceleration column divided by g, as a lab exporting in g would write
+    it: the fit goes on with the file as written, and the user is told why it looks wrong."""
+    rec = tmp_path / "rec"
+    shutil.copytree(slide_dir, rec)
+    lines = (rec / "profile.csv").read_text().splitlines()
+    column = lines[0].split(",").index("accel_mps2")
+    rows = [line.split(",") for line in lines[1:]]
+    for row in rows:
+        row[column] = repr(float(row[column]) / 9.81)
+    (rec / "profile.csv").write_text("\n".join([lines[0], *(",".join(r) for r in rows)]) + "\n")
+    main(["calibrate", str(rec), "--out", str(tmp_path / "cal.json"), "--budget", "10"])
+    warnings = [line for line in capsys.readouterr().err.splitlines() if "in g?" in line]
+    assert len(warnings) == 1 and str(rec / "profile.csv") in warnings[0], warnings
+
+
 def test_calibrate_refuses_a_budget_too_small_for_the_recordings(slide_dir, tmp_path, capsys):
     """Two takes of the sliding pair: 2 parameters, each stage needs 2 + 3 replays of both
     takes after 3 final replays of each, 16 simulations (`min_budget`): 12 is refused at once,

@@ -205,6 +205,18 @@ def test_profile_csv_with_time_and_acceleration_is_read(tmp_path):
     assert profile.source == str(path)
 
 
+def test_a_profile_peaking_below_any_bench_level_is_suspected_to_be_in_g(tmp_path):
+    """A 0.5 g test exported in g reads 0.5 m/s², 0.051 g: the file is taken as written, and
+    the user is told why it looks wrong. A real 0.2 g test (1.96 m/s²) raises nothing."""
+    in_g = MeasuredProfile.from_csv(write_csv(tmp_path, "t_s,accel_mps2\n0,0\n0.1,0.5\n0.6,0\n"))
+    (warning,) = in_g.warnings()
+    assert warning.startswith(str(tmp_path / "profile.csv"))
+    assert "0.50 m/s² (0.051 g)" in warning and "in g?" in warning
+    real = MeasuredProfile.from_csv(write_csv(tmp_path, "t_s,accel_mps2\n0,0\n0.1,1.962\n0.6,0\n",
+                                              "real.csv"))
+    assert real.warnings() == ()
+
+
 def test_profile_csv_with_velocity_and_position_columns_is_read(tmp_path):
     path = write_csv(tmp_path, "t_s,accel_mps2,vel_mps,pos_m\n"
                                "0.0,0.0,0.0,0.0\n0.5,3.0,0.75,0.19\n1.0,-1.0,1.25,0.7\n")
