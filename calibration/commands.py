@@ -17,7 +17,6 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-import numpy as np
 from tqdm import tqdm
 
 from wrapenv.config import (
@@ -29,7 +28,7 @@ from wrapenv.config import (
     write_together,
 )
 from wrapenv.load import Friction, LoadUnit
-from wrapenv.profile import low_peak_warning
+from wrapenv.profile import profile_warnings
 from wrapenv.wrap import WrapFormat
 
 if TYPE_CHECKING:   # imported where used: the CLI starts without the fitting's modules
@@ -270,8 +269,8 @@ def _observations(recordings: list, retrack: bool) -> list:
 
     observations = []
     for rec in recordings:
-        if warning := low_peak_warning(str(rec.folder / "profile.csv"),
-                                       float(np.max(rec.profile.accel_mps2))):
+        for warning in profile_warnings(str(rec.folder / "profile.csv"),
+                                        rec.profile.accel_mps2):
             sys.stderr.write(f"wrapbench calibrate: warning: {printable(warning)}\n")
         csv = rec.folder / "trajectories.csv"
         if csv.exists() and not retrack:

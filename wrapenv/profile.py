@@ -92,13 +92,25 @@ class PulseProfile:
 LOW_PEAK_G = 0.15
 
 
-def low_peak_warning(source: str, peak_mps2: float) -> str:
-    """Why a measured profile's peak looks like a column in g ("" when it does not)."""
-    if peak_mps2 >= LOW_PEAK_G * G:
-        return ""
-    return (f"{source}: accel_mps2 peaks at {peak_mps2:.2f} m/s² ({peak_mps2 / G:.3f} g), below "
-            f"any bench level (EUMOS 40509 starts at 0.2 g): is the column in g? It must be "
-            f"in m/s²")
+def profile_warnings(source: str, accel_mps2: np.ndarray) -> tuple[str, ...]:
+    """What a measured profile holds that a bench test hardly does, each a sentence naming
+    `source`: a peak below any bench level (a column in g?), or a deceleration stronger than
+    the forward pulse (an accelerometer mounted the other way round, or a bench that tests by
+    braking, whose level the forward peak does not give and whose load the stop bar behind
+    the pallet does not hold)."""
+    forward, backward = float(np.max(accel_mps2)), float(-np.min(accel_mps2))
+    out = []
+    if backward > forward:
+        out.append(f"{source}: accel_mps2 brakes harder ({backward:.2f} m/s², "
+                   f"{backward / G:.3f} g) than it accelerates ({forward:.2f} m/s²): the bench "
+                   "takes +x as the sled's direction of travel and reports the forward peak "
+                   "as the level; if the accelerometer is mounted the other way round, negate "
+                   "the column")
+    elif forward < LOW_PEAK_G * G:
+        out.append(f"{source}: accel_mps2 peaks at {forward:.2f} m/s² ({forward / G:.3f} g), "
+                   "below any bench level (EUMOS 40509 starts at 0.2 g): is the column in g? "
+                   "It must be in m/s²")
+    return tuple(out)
 
 
 @dataclass(frozen=True)
@@ -122,8 +134,8 @@ class MeasuredProfile:
         return float(self.t_s[-1] - self.t_s[0])
 
     def warnings(self) -> tuple[str, ...]:
-        """What the file holds that a bench test hardly does (`low_peak_warning`)."""
-        return tuple(w for w in (low_peak_warning(self.source, self.peak_mps2),) if w)
+        """What the file holds that a bench test hardly does (`profile_warnings`)."""
+        return profile_warnings(self.source, self.accel_mps2)
 
     def accel(self, t: float | np.ndarray) -> np.ndarray:
         t = np.asarray(t, dtype=float) + self.t_s[0]

@@ -217,6 +217,17 @@ def test_a_profile_peaking_below_any_bench_level_is_suspected_to_be_in_g(tmp_pat
     assert real.warnings() == ()
 
 
+def test_a_profile_that_brakes_harder_than_it_accelerates_is_questioned(tmp_path):
+    """An accelerometer mounted the other way round turns a 0.5 g pulse into -4.9 m/s² and the
+    gentle stop into the forward peak (1.2 m/s², reported as the level): the user is told."""
+    path = write_csv(tmp_path, "t_s,accel_mps2\n0,0\n0.1,-4.9\n0.6,-4.9\n0.7,1.2\n2.7,1.2\n"
+                               "2.8,0\n")
+    (warning,) = MeasuredProfile.from_csv(path).warnings()
+    assert warning.startswith(str(path))
+    assert "brakes harder (4.90 m/s², 0.499 g) than it accelerates (1.20 m/s²)" in warning
+    assert "negate the column" in warning
+
+
 def test_profile_csv_with_velocity_and_position_columns_is_read(tmp_path):
     path = write_csv(tmp_path, "t_s,accel_mps2,vel_mps,pos_m\n"
                                "0.0,0.0,0.0,0.0\n0.5,3.0,0.75,0.19\n1.0,-1.0,1.25,0.7\n")
