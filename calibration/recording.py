@@ -41,6 +41,10 @@ FPS_TOLERANCE = 1e-3
 MAX_PROFILE_S = 120.0
 #: Slack on time comparisons: the profile may end this much before the last frame's time.
 TIME_SLACK_S = 1e-6
+#: The pallet's length on the video, as a share of the frame's width, outside which the
+#: camera's scale is a unit slip (pixels per millimetre or centimetre given as per metre):
+#: the issue's recordings show it over about a quarter of the frame.
+PALLET_SHARE_OF_FRAME = (0.02, 3.0)
 
 
 @dataclass(frozen=True, eq=False)
@@ -141,7 +145,8 @@ class Recording:
                 raise InputError(str(setup_path), setup.template_field,
                                  f"{setup.template} is missing or not an image")
         video = _find_video(folder)
-        frames = _check_video(video, setup.fps, str(setup_path))
+        frames, width_px = _check_video(video, setup.fps, str(setup_path))
+        _check_scale(setup.px_per_m, load.layout().pallet_size_m[0], width_px, str(setup_path))
         profile_path = folder / PROFILE
         profile = SledProfile.read(profile_path)
         _check_covers(profile, (frames - 1) / setup.fps, str(profile_path))
@@ -167,11 +172,12 @@ def _find_video(folder: Path) -> Path:
     raise InputError(str(folder / VIDEOS[0]), "", f"missing (neither {' nor '.join(VIDEOS)})")
 
 
-def _check_video(path: Path, fps: float, setup_src: str) -> int:
-    """The number of frames, after checking that they decode and run at `fps`."""
+def _check_video(path: Path, fps: float, setup_src: str) -> tuple[int, int]:
+    """The number of frames and their width (px), after checking that they decode and run at
+    `fps`."""
     cap = open_video(path)
     try:
-        ok, _ = cap.read()
+        ok, frame = cap.read()
         frames = int(cap.get(cv2.CAP_PROP_FRAME_COUNT))
         container_fps = float(cap.get(cv2.CAP_PROP_FPS))
     finally:
@@ -183,7 +189,18 @@ def _check_video(path: Path, fps: float, setup_src: str) -> int:
     if abs(container_fps - fps) > FPS_TOLERANCE * fps:
         raise InputError(setup_src, "recording.fps", f"{fps} does not match the video's"
                          f" {container_fps:g} fps")
-    return frames
+    return frames, int(frame.shape[1])
+
+
+def _check_scale(px_per_m: float, pallet_m: float, width_px: int, setup_src: str) -> None:
+    """The pallet must span a plausible share of the frame at the stated scale."""
+    share = px_per_m * pallet_m / width_px
+    low, high = PALLET_SHARE_OF_FRAME
+    if not low <= share <= high:
+        raise InputError(setup_src, "camera.px_per_m",
+                         f"at {px_per_m:g} px/m the {pallet_m:g} m pallet spans "
+                         f"{px_per_m * pallet_m:.3g} px of the video's {width_px} px: is the "
+                         "scale per millimetre or per centimetre? It must be pixels per metre")
 
 
 def _check_covers(profile: SledProfile, last_frame_s: float, src: str) -> None:

@@ -91,6 +91,17 @@ def _nan_in_profile(folder: Path) -> None:
     path.write_text("\n".join(lines) + "\n")
 
 
+def _px_per_m_times(factor: float) -> Callable[[Path], None]:
+    """The camera's scale given in other units: per millimetre (1e-3) or per centimetre."""
+    def change(folder: Path) -> None:
+        path = folder / "setup.toml"
+        lines = path.read_text().splitlines()
+        lines = [f"px_per_m = {factor * float(line.split('=')[1])}"
+                 if line.startswith("px_per_m =") else line for line in lines]
+        path.write_text("\n".join(lines) + "\n")
+    return change
+
+
 def _placement_edit(index: int, key: str, value: str) -> Callable[[Path], None]:
     """Change one key of the index-th [[markers.placement]]."""
     def change(folder: Path) -> None:
@@ -110,6 +121,9 @@ CASES = {
                             "recording.fps"),
     "px_per_m infinite": (_edit("setup.toml", "px_per_m = ", "px_per_m = inf #"), "setup.toml",
                           "camera.px_per_m"),
+    # the pallet would span a fraction of a pixel, or 10 frames: a unit slip, named as such
+    "px_per_m given per millimetre": (_px_per_m_times(1e-3), "setup.toml", "camera.px_per_m"),
+    "px_per_m 100 x too large": (_px_per_m_times(100.0), "setup.toml", "camera.px_per_m"),
     "origin not finite": (_edit("setup.toml", "origin_px = [", "origin_px = [nan, "),
                           "setup.toml", "camera.origin_px"),
     "camera missing": (_edit("setup.toml", "[camera]", "[kamera]"), "setup.toml", "camera"),
