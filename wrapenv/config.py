@@ -140,7 +140,11 @@ class Table:
         positive: bool = False,
         minimum: float | None = None,
         maximum: float | None = None,
+        hint: str = "",
     ) -> float:
+        """A finite number within the bounds; `hint` says what a value above `maximum` most
+        likely is (by default, for a key in metres or kilograms, a value in millimetres or
+        grams if it fits the bounds as one)."""
         value = self._get(key, _REQUIRED if default is None else default)
         if isinstance(value, bool) or not isinstance(value, int | float):
             raise self.error(key, f"must be a number (got {value!r})")
@@ -152,7 +156,8 @@ class Table:
         if minimum is not None and value < minimum:
             raise self.error(key, f"must be >= {minimum} (got {value})")
         if maximum is not None and value > maximum:
-            raise self.error(key, f"must be <= {maximum} (got {value})")
+            raise self.error(key, f"must be <= {maximum} (got {value})"
+                             + (f": {hint}" if hint else _unit_slip(key, value, maximum)))
         return value
 
     def integer(self, key: str, default: Any = None, *, minimum: int | None = None) -> int:
@@ -286,6 +291,19 @@ def result_json(data: dict[str, Any]) -> bytes:
     (no JSON reader need accept one) is a bug here, not a value to write."""
     stamped = {"wrapbench_version": __version__, **data}
     return (json.dumps(stamped, indent=2, allow_nan=False) + "\n").encode()
+
+
+#: Units a value too large may have been written in, by the key's unit suffix: (factor, unit
+#: written, unit meant).
+_UNIT_SLIPS = {"_m": (1000.0, "millimetres", "metres"), "_kg": (1000.0, "grams", "kilograms")}
+
+
+def _unit_slip(key: str, value: float, maximum: float) -> str:
+    """": millimetres? <key> is in metres" when `value` read in that unit fits `maximum`."""
+    for suffix, (factor, written, meant) in _UNIT_SLIPS.items():
+        if key.endswith(suffix) and value / factor <= maximum:
+            return f": {written}? {key} is in {meant}"
+    return ""
 
 
 def is_finite_number(value: Any) -> bool:

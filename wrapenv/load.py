@@ -14,7 +14,13 @@ from typing import Any, Literal, cast
 import tomli_w
 
 from wrapenv.config import InputError, Table, is_finite_number, read_toml
-from wrapenv.load_checks import BUNDLE_GAP_M, check_unit, fit, footprints_overlap
+from wrapenv.load_checks import (
+    BUNDLE_GAP_M,
+    MAX_LOAD_HEIGHT_M,
+    check_unit,
+    fit,
+    footprints_overlap,
+)
 
 Pattern = Literal["columnar", "interlocked", "explicit"]
 PATTERNS: tuple[str, ...] = ("columnar", "interlocked", "explicit")
@@ -77,6 +83,14 @@ PALLET_PRESETS = {
 #: wooden pallet in transport, the Euro pallet's with a compact load spread evenly over the
 #: whole deck (docs/materials.md, U0); a larger figure is a typo, not a pallet.
 MAX_SAFE_LOAD_KG = 2000.0
+#: What a friction figure above 2 most likely is.
+COEFFICIENT_HINT = ("a coefficient (the tangent of the slide angle: 0.45 for 24°), not a "
+                    "percentage or an angle")
+#: The largest a pallet's or a bundle's box can be: no side beyond the tallest unit a trailer
+#: takes, no mass beyond what the strongest pallet carries. Beyond them a figure is a unit slip
+#: (millimetres, grams), which the error then names.
+BOX_LIMITS = {"length_m": MAX_LOAD_HEIGHT_M, "width_m": MAX_LOAD_HEIGHT_M,
+              "height_m": MAX_LOAD_HEIGHT_M, "mass_kg": MAX_SAFE_LOAD_KG}
 #: Six 1.5 L PET bottles in shrink film, 3 x 2 bottles of ~90 mm diameter and ~330 mm height:
 #: 6 x (1.5 kg water + ~50 g PET and cap); give as above.
 BUNDLE_PRESETS = {"PET6x1.5L": Bundle(0.28, 0.19, 0.33, 9.3, PET_CORNER_STIFFNESS_N_PER_M2,
@@ -267,7 +281,7 @@ def _sized(t: Table, kind: type, presets: dict, done: bool = True) -> Any:
     values = {}
     for key in ("length_m", "width_m", "height_m", "mass_kg"):
         default = getattr(base, key) if base is not None else None
-        values[key] = t.number(key, default, positive=True)
+        values[key] = t.number(key, default, positive=True, maximum=BOX_LIMITS[key])
     if done:
         t.done()
     return kind(**values) if base is None else replace(base, **values)
@@ -323,8 +337,8 @@ def _friction(t: Table) -> Friction:
         if not t.has(name):
             continue
         p = t.table(name)
-        static = p.number("static", positive=True, maximum=2.0)
-        kinetic = p.number("kinetic", positive=True, maximum=2.0)
+        static = p.number("static", positive=True, maximum=2.0, hint=COEFFICIENT_HINT)
+        kinetic = p.number("kinetic", positive=True, maximum=2.0, hint=COEFFICIENT_HINT)
         p.done()
         if kinetic > static:
             raise InputError(t.source, p.field("kinetic"),

@@ -96,8 +96,10 @@ def program_from_table(t: Table, material: Material, web_width_m: float) -> Prog
 def _overlap(t: Table, key: str) -> float:
     value = t.number(key, minimum=MIN_OVERLAP)
     if value >= 1.0:
+        percent = (f": a fraction of the web ({value / 100:g} for {value:g} %)"
+                   if value <= 100 else "")
         raise t.error(key, f"must be < 1: at an overlap of 1 the carriage never rises "
-                      f"(got {value})")
+                      f"(got {value}){percent}")
     return value
 
 

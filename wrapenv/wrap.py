@@ -61,6 +61,9 @@ UNHELD_HEAD = ("program.bottom_wraps = 0: nothing holds the web's head (paper do
                " clamp lets go after the first revolution); the bench judges it as if held")
 #: Height step at which a program's layers are checked for a web that does not close.
 OPEN_STEP_M = 0.005
+#: A tension under this share of the web's yield force holds nothing (the search's least is 5 %,
+#: machines pull at up to half): most likely a figure in kilonewtons.
+SLACK_TENSION_FRACTION = 0.01
 
 
 @dataclass(frozen=True)
@@ -149,17 +152,37 @@ class WrapFormat:
                                  f" the load ({load_height_m:.3f} m)")
 
     def warnings(self) -> tuple[str, ...]:
-        """What the file asks that no machine lays or the bench cannot judge: paper bands
-        narrower than the web (only a rope of film is narrower, and paper is not roped); a paper
-        program without a bottom wrap, whose head nothing holds; a program whose web does not
-        close round the load at some height (wrapenv.design)."""
+        """What the file asks that no machine lays or the bench cannot judge: a tension too
+        slack to hold anything (a figure in kilonewtons?); paper bands narrower than the web
+        (only a rope of film is narrower, and paper is not roped); a paper program without a
+        bottom wrap, whose head nothing holds; a program whose web does not close round the
+        load at some height (wrapenv.design)."""
+        slack = self._slack_tensions()
         if self.program is not None:
-            return self._program_warnings(self.program)
+            return slack + self._program_warnings(self.program)
         if self.material.kind != "paper":
-            return ()
-        return tuple(f"band[{i}] is {b.height_m:.3f} m tall, narrower than the {self.web_width_m}"
-                     " m web: no machine lays it (material is costed as full-width revolutions)"
-                     for i, b in enumerate(self.bands) if b.height_m < self.web_width_m - 1e-9)
+            return slack
+        return slack + tuple(
+            f"band[{i}] is {b.height_m:.3f} m tall, narrower than the {self.web_width_m} m web: "
+            "no machine lays it (material is costed as full-width revolutions)"
+            for i, b in enumerate(self.bands) if b.height_m < self.web_width_m - 1e-9)
+
+    def _slack_tensions(self) -> tuple[str, ...]:
+        """A warning for each tension under `SLACK_TENSION_FRACTION` of the web's yield force."""
+        yield_n = self.material.yield_force_n_per_m * self.web_width_m
+        if self.program is not None:
+            p = self.program
+            named = [("program.bottom_tension_n", p.bottom_tension_n),
+                     ("program.middle_tension_n", p.middle_tension_n),
+                     ("program.top_tension_n", p.top_tension_n),
+                     *((f"program.reinforcement[{i}].tension_n", r.tension_n)
+                       for i, r in enumerate(p.reinforcements))]
+        else:
+            named = [(f"band[{i}].tension_n", b.tension_n) for i, b in enumerate(self.bands)]
+        share = f"{100 * SLACK_TENSION_FRACTION:g} %"
+        return tuple(f"{key} is {value:g} N, under {share} of the web's yield force "
+                     f"({yield_n:.0f} N): kilonewtons? Tensions are in newtons"
+                     for key, value in named if value < SLACK_TENSION_FRACTION * yield_n)
 
     def _program_warnings(self, program: Program) -> tuple[str, ...]:
         out = [UNHELD_HEAD] if self.material.kind == "paper" and program.bottom_wraps == 0 else []

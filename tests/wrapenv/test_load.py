@@ -524,6 +524,30 @@ def test_to_toml_reads_back_equal_whatever_the_name(name):
     assert LoadUnit.from_dict(tomllib.loads(unit.to_toml())) == unit
 
 
+# --- unit slips: a figure in the wrong unit is refused, and the unit named -------------------
+
+@pytest.mark.parametrize("edits, field, says", [
+    ({"bundle.height_m": 330.0}, "bundle.height_m", "millimetres? height_m is in metres"),
+    ({"pallet.length_m": 1200.0}, "pallet.length_m", "millimetres? length_m is in metres"),
+    ({"bundle.mass_kg": 9300.0}, "bundle.mass_kg", "grams? mass_kg is in kilograms"),
+    ({"friction.sled_pallet.static": 45.0}, "friction.sled_pallet.static",
+     "a coefficient (the tangent of the slide angle: 0.45 for 24°), not a percentage"),
+])
+def test_a_figure_in_the_wrong_unit_is_named_as_such(load_file, edits, field, says,
+                                                     assert_input_error):
+    with pytest.raises(InputError) as err:
+        LoadUnit.from_toml(path := load_file(edits))
+    assert_input_error(err.value, str(path), field)
+    assert says in err.value.message, err.value.message
+
+
+def test_a_figure_too_large_in_any_unit_gets_no_guess(load_file):
+    """5000 m is 5 m in millimetres, still no bundle: the error gives only the limit."""
+    with pytest.raises(InputError) as err:
+        LoadUnit.from_toml(load_file({"bundle.height_m": 5000.0}))
+    assert err.value.message == "must be <= 3.0 (got 5000.0)"
+
+
 # --- impossible units: the limits of docs/materials.md, section 6 -----------------------------
 
 def test_a_unit_too_tall_for_a_trailer_names_the_limit_and_its_source(load_file):

@@ -427,6 +427,38 @@ def test_bad_program_is_rejected_with_one_line_naming_file_and_field(
     assert_input_error(info.value, str(path), field)
 
 
+@pytest.mark.parametrize("changes, field, says", [
+    ({"program.up_overlap": 50.0}, "program.up_overlap", "a fraction of the web (0.5 for 50 %)"),
+    ({"web_width_m": 500.0}, "web_width_m", "millimetres? web_width_m is in metres"),
+])
+def test_a_program_figure_in_the_wrong_unit_is_named_as_such(changes, field, says, wrap_file,
+                                                             assert_input_error):
+    path = wrap_file(changes, program=True)
+    with pytest.raises(InputError) as info:
+        WrapFormat.from_toml(path, load_height_m=0.804)
+    assert_input_error(info.value, str(path), field)
+    assert info.value.message.endswith(says), info.value.message
+
+
+def test_a_tension_too_slack_to_hold_anything_is_warned_about(wrap_file):
+    """0.8 for 800 N (kilonewtons): Kraft's 0.5 m web yields at 4e5 N/m x 0.008 x 0.5 m =
+    1600 N, and 0.8 N is under 1 % of it. The search's least tension, 5 %, is not warned of."""
+    slack = WrapFormat.from_toml(wrap_file({"program.bottom_tension_n": 0.8,
+                                            "program.reinforcement": [
+                                                {"from_m": 0.4, "wraps": 2, "tension_n": 0.3}]},
+                                           program=True), load_height_m=0.804)
+    assert slack.warnings()[:2] == (
+        "program.bottom_tension_n is 0.8 N, under 1 % of the web's yield force (1600 N): "
+        "kilonewtons? Tensions are in newtons",
+        "program.reinforcement[0].tension_n is 0.3 N, under 1 % of the web's yield force "
+        "(1600 N): kilonewtons? Tensions are in newtons")
+    least = WrapFormat.from_toml(wrap_file({"program.bottom_tension_n": 80.0}, program=True),
+                                 load_height_m=0.804)
+    assert not any("kilonewtons" in w for w in least.warnings())
+    bands = WrapFormat.from_toml(wrap_file({"band.0.tension_n": 0.5}), load_height_m=0.804)
+    assert bands.warnings()[0].startswith("band[0].tension_n is 0.5 N, under 1 %")
+
+
 def test_film_may_be_roped_and_pre_stretched(wrap_file):
     path = wrap_file({"material": "lldpe", "program.roping": True, "program.prestretch": 3.0,
                       "program.bottom_tension_n": 90.0, "program.middle_tension_n": 70.0,
