@@ -33,6 +33,14 @@ def _level_ok(level_g: float) -> bool:
     return math.isfinite(level_g) and 0 < level_g * G <= BENCH_MAX_ACCEL_MPS2 + 1e-9
 
 
+def _level_range(level_g: float) -> str:
+    """Why a level is refused, and, for one the bench reaches in m/s², that it reads as m/s²."""
+    text = f"must be in (0, {MAX_LEVEL_TEXT}] g, the bench's 10 m/s² (got {level_g})"
+    if math.isfinite(level_g) and 1 < level_g <= BENCH_MAX_ACCEL_MPS2 + 1e-9:
+        text += f": m/s²? Levels are in g ({level_g:g} m/s² is {level_g / G:.2f} g)"
+    return text
+
+
 @dataclass(frozen=True)
 class PulseProfile:
     """The bench pulse for one test level."""
@@ -48,9 +56,7 @@ class PulseProfile:
 
     def __post_init__(self) -> None:
         if not _level_ok(self.level_g):
-            raise InputError("profile", "level_g",
-                             f"must be in (0, {MAX_LEVEL_TEXT}] g, the bench's 10 m/s² "
-                             f"(got {self.level_g})")
+            raise InputError("profile", "level_g", _level_range(self.level_g))
         if not (math.isfinite(self.dwell_s) and self.dwell_s >= MIN_DWELL_S):
             raise InputError("profile", "dwell_s", f"must be >= {MIN_DWELL_S} s (EUMOS 40509)")
         if not (math.isfinite(self.ramp_s) and 0 <= self.ramp_s <= self.dwell_s):
@@ -189,9 +195,7 @@ def eumos_levels(target_g: float = 0.5, start_g: float | None = None) -> list[fl
     if start_g is None:
         start_g = min(START_G, target_g) if math.isfinite(target_g) else START_G
     if not _level_ok(target_g):
-        raise InputError("test sequence", "target_g",
-                         f"must be in (0, {MAX_LEVEL_TEXT}] g, the bench's 10 m/s² "
-                         f"(got {target_g})")
+        raise InputError("test sequence", "target_g", _level_range(target_g))
     if not (math.isfinite(start_g) and 0 < start_g <= target_g + 1e-9):
         raise InputError("test sequence", "start_g", f"must be in (0, target] (got {start_g})")
     n = math.floor((target_g - start_g) / LEVEL_STEP_G + 1e-9)

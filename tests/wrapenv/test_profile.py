@@ -114,6 +114,15 @@ def test_level_range_quoted_in_the_message_is_accepted():
     PulseProfile(upper)
 
 
+def test_a_level_given_in_mps2_is_named_as_such():
+    """4.9 is no level in g, but 0.5 g in m/s²; 12 is neither, and gets no guess."""
+    with pytest.raises(InputError, match=r"\(got 4\.9\): m/s²\? Levels are in g "
+                                         r"\(4\.9 m/s² is 0\.50 g\)$"):
+        PulseProfile(4.9)
+    with pytest.raises(InputError, match=r"\(got 12\.0\)$"):
+        eumos_levels(12.0)
+
+
 @pytest.mark.parametrize("dwell", [0.0, 0.1, 0.299, -1.0])
 def test_dwell_shorter_than_eumos_minimum_is_rejected(dwell, assert_input_error):
     with pytest.raises(InputError) as info:
