@@ -222,6 +222,18 @@ def test_bad_hours_or_layer_shift_limit_exits_2_naming_the_flag(argv, field, loa
     assert field in err and not out.exists()
 
 
+@pytest.mark.parametrize("argv, says", [
+    (["simulate", "LOAD", "--level", "0.2", "--layer-shift-limit-pct", "0.02"],
+     "(got 0.02): a fraction? The flag is in percent (vendors quote 2)"),
+    (["recommend", "LOAD", "--margin", "20"], "(got 20.0): a fraction (0.2 for 20 %)"),
+])
+def test_a_fraction_given_for_a_percentage_or_the_other_way_is_named(argv, says, load_file,
+                                                                     capsys):
+    path = str(load_file())
+    assert run([path if a == "LOAD" else a for a in argv]) == 2
+    assert one_line(capsys.readouterr().err).endswith(says)
+
+
 def test_a_single_level_is_not_described_as_a_sequence(load_file, capsys):
     assert run(["simulate", str(load_file(base=TINY_LOAD)), "--level", "0.2"]) == 0
     printed = capsys.readouterr().out
