@@ -140,6 +140,9 @@ def run_synth(args: argparse.Namespace) -> int:
                         ("--tension-scale", args.tension_scale)):
         if not (math.isfinite(value) and value > 0):
             raise InputError("arguments", flag, f"must be > 0 (got {value})")
+        if wrap is None and value != 1.0:
+            raise InputError("arguments", flag, "needs --wrap (an unwrapped unit has no web "
+                             f"to scale; got {value:g})")
     t0 = time.perf_counter()
     try:
         with _frame_bar() as progress:

@@ -79,6 +79,7 @@ def test_track_writes_into_the_recording_by_default(recording_dir, tmp_path, cap
     (["--fps", "100000"], ["--fps", "<= 1000"]),
     (["--friction-jitter", "1.5"], ["--friction-jitter"]),
     (["--stiffness-scale", "nan"], ["--stiffness-scale"]),
+    (["--tension-scale", "1.3"], ["--tension-scale", "needs --wrap"]),   # the load is unwrapped
     (["--level", "3"], ["--level", "1.019"]),
 ])
 def test_synth_rejects_bad_arguments_and_writes_nothing(args, needles, tmp_path, load_path,
