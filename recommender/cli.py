@@ -105,7 +105,12 @@ def _add_recommend_problem(rec: argparse.ArgumentParser) -> None:
     rec.add_argument("load", type=Path, nargs="?", default=EXAMPLE_LOAD,
                      help="LOAD.toml (default: the bundled 2-layer example)")
     rec.add_argument("--calibration", type=Path, help="CAL.json (friction and its uncertainty)")
-    rec.add_argument("--material", default="kraft", help="kraft (default) or lldpe")
+    rec.add_argument("--material", default=None,
+                     help="kraft (default) or lldpe, on a 0.5 m web and the default machine")
+    rec.add_argument("--web", type=Path, metavar="WRAP.toml",
+                     help="the web and machine of this WRAP.toml instead: its material (a named "
+                          "card or a [material] table), web_width_m and [machine]; its program "
+                          "or bands are not read")
     rec.add_argument("--target", type=level_g, default=0.5, metavar="G", help="default 0.5 g")
     rec.add_argument("--method", choices=("cmaes", "ppo"), default="cmaes",
                      help="cmaes: robust search (default); ppo: a trained policy's proposal, "

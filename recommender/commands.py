@@ -38,7 +38,7 @@ from wrapenv.eumos import EUMOS_LIMITS, Limits
 from wrapenv.load import Layout, LoadUnit
 from wrapenv.material import MATERIALS
 from wrapenv.profile import PulseProfile
-from wrapenv.wrap import WrapFormat
+from wrapenv.wrap import Web, WrapFormat
 
 #: Robust passes tried, lightest first, until one passes the whole EUMOS sequence.
 VERIFY_CANDIDATES = 3
@@ -66,6 +66,16 @@ def _material(key: str) -> None:
     if key not in MATERIALS:
         raise InputError("arguments", "--material",
                          f"must be one of {', '.join(map(repr, MATERIALS))} (got {key!r})")
+
+
+def _web(args: argparse.Namespace) -> Web:
+    """The web a program is sought for: a named card on the default web, or a WRAP.toml's."""
+    if args.web is None:
+        return Web.named(args.material or "kraft")
+    if args.material is not None:
+        raise InputError("arguments", "--material", "cannot be combined with --web (the web's "
+                         "file names its material)")
+    return Web.from_toml(args.web)
 
 
 def warn(command: str, messages: tuple[str, ...]) -> None:
@@ -130,8 +140,7 @@ def _settings(args: argparse.Namespace) -> SearchSettings:
     if not cycle_weight >= 0:
         raise InputError("arguments", "--cycle-weight", f"must be >= 0 (got {cycle_weight})")
     check_hours(args.hours_since_wrapping)
-    _material(args.material)
-    return SearchSettings(targets=_targets(args), material=args.material, samples=args.samples,
+    return SearchSettings(targets=_targets(args), web=_web(args), samples=args.samples,
                           margin_goal=margin, max_candidates=budget, seed=args.seed,
                           workers=args.workers, popsize=min(8, budget),
                           backend=args.backend, ray_address=args.ray_address,
@@ -186,7 +195,10 @@ def _check_flags(args: argparse.Namespace) -> None:
               ("--resume", args.resume and args.method == "ppo",
                "resumes a search; --method ppo does not search"),
               ("--checkpoint", args.checkpoint is not None and args.method == "ppo",
-               "keeps a search's state; --method ppo does not search")]
+               "keeps a search's state; --method ppo does not search"),
+              ("--web", args.web is not None and args.method == "ppo",
+               "a policy proposes for the card and the 0.5 m web it was trained on "
+               "(--material); search for another web with --method cmaes")]
     unused += [(flag, getattr(args, name) is not None and args.method == "ppo",
                 "steers a search; --method ppo does not search")
                for flag, name in SEARCH_FLAGS.items()]
@@ -196,7 +208,7 @@ def _check_flags(args: argparse.Namespace) -> None:
 
 
 def _check_outputs(args: argparse.Namespace) -> Path | None:
-    inputs = [p for p in (args.load, args.calibration, args.policy) if p]
+    inputs = [p for p in (args.load, args.calibration, args.policy, args.web) if p]
     check_output(args.json, "--json", inputs=inputs)
     check_output(args.wrap_out, "--wrap-out", inputs=inputs)
     checkpoint = _checkpoint(args)
@@ -337,7 +349,8 @@ def _propose_with_policy(args: argparse.Namespace, problem: Problem,
         warn("recommend", ("this unit lies outside the random units the policy was trained on ("
                            + "; ".join(unseen) + "): its proposal is an extrapolation, verified "
                            "as given",))
-    wrap = propose(args.policy, load, args.material, problem.settings.target_g, calibration)
+    wrap = propose(args.policy, load, problem.settings.web.material_key,
+                   problem.settings.target_g, calibration)
     check = verify(problem, wrap, samples, workers=args.workers)
     mass = wrap.material_used_on(problem.layout).mass_kg
     margin = min(run.verdict.margin for run in check.runs.values())

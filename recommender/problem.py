@@ -23,7 +23,7 @@ from wrapenv.design import INTEGER_INDICES, ProgramSpace
 from wrapenv.eumos import EUMOS_LIMITS, Limits
 from wrapenv.load import Layout, LoadUnit
 from wrapenv.profile import PulseProfile
-from wrapenv.wrap import WrapFormat
+from wrapenv.wrap import Web, WrapFormat
 
 #: Objective penalty per unit of margin shortfall (below the margin goal): a tenth of margin is
 #: worth the web of one machine-default program.
@@ -46,7 +46,8 @@ BOTH_SIDES = (("long", 0.5), ("short", 0.5))
 class SearchSettings:
     #: (orientation, target level in g) pairs every candidate must pass.
     targets: tuple[tuple[str, float], ...] = BOTH_SIDES
-    material: str = "kraft"
+    #: The web a program is sought for (card, width, machine).
+    web: Web = Web.named("kraft")
     samples: int = 3               # K robust samples per candidate
     margin_goal: float = 0.2       # wanted margin of the worst sample (0.2: 80 % of each limit)
     popsize: int = 8
@@ -81,7 +82,7 @@ class SearchSettings:
 
     def identity(self) -> dict[str, Any]:
         """What makes two searches the same search (a checkpoint must match it)."""
-        return {"targets": [list(t) for t in self.targets], "material": self.material,
+        return {"targets": [list(t) for t in self.targets], "material": self.web.identity(),
                 "hours_since_wrapping": self.hours_since_wrapping, "samples": self.samples,
                 "margin_goal": self.margin_goal, "popsize": self.popsize,
                 "sigma0": self.sigma0, "seed": self.seed, "max_cycle_s": _json_float(
@@ -114,7 +115,7 @@ class Problem:
         for _, target in settings.targets:
             PulseProfile(target)  # validates every target against the bench
         layout = load.layout()
-        space = ProgramSpace.for_layout(layout, settings.material)
+        space = ProgramSpace.for_layout(layout, settings.web)
         reference = space.reference_mass_kg(layout)
         heaviest = space.wrap(space.high).material_used_on(layout).mass_kg / reference
         uncertainty = Uncertainty.of(calibration, settings.hours_since_wrapping)

@@ -23,7 +23,9 @@ and folds over: with a bottom and a top wrap the web closes round the load at ev
 spiral lays at least one layer where its helix is complete, and its ends lie under the parked
 wraps), so no part of the load is held by part of a turn, which the bench would average round
 the load (`wrapenv.program`) although it presses on some faces only. No spiral down (a higher
-overlap lays the same layers in one pass); the machine's speed.
+overlap lays the same layers in one pass); the web (its card and width) and the machine's
+speeds, which are the space's `Web`: a named card on the 0.5 m web and the default machine, or
+those of a WRAP.toml (`recommend --web`).
 """
 
 from __future__ import annotations
@@ -36,9 +38,8 @@ from wrapenv.config import InputError
 from wrapenv.load import Layout
 from wrapenv.material import MATERIALS, Material
 from wrapenv.program import Program, Reinforcement
-from wrapenv.wrap import WrapFormat
+from wrapenv.wrap import Web, WrapFormat
 
-WEB_WIDTH_M = 0.5
 MAX_WRAPS = 6
 #: A program's first revolution is parked: it holds the web's head; with a top wrap too, the
 #: web closes round the load at every height (see the module docstring).
@@ -65,23 +66,34 @@ N_PARAMS = len(NAMES)
 
 @dataclass(frozen=True)
 class ProgramSpace:
-    """Programs for one load unit and one material, as vectors of `NAMES` values."""
+    """Programs for one load unit and one web (a card, its width, the machine), as vectors of
+    `NAMES` values."""
 
-    material_key: str
+    web: Web
     load_height_m: float
-    web_width_m: float = WEB_WIDTH_M
 
     @classmethod
-    def for_layout(cls, layout: Layout, material_key: str) -> ProgramSpace:
-        if material_key not in MATERIALS:
-            raise InputError("arguments", "material",
-                             f"must be one of {', '.join(map(repr, MATERIALS))} "
-                             f"(got {material_key!r})")
-        return cls(material_key, layout.load_height_m)
+    def for_layout(cls, layout: Layout, web: Web | str) -> ProgramSpace:
+        """The space of a unit for a web, or for a named card on the default web."""
+        if isinstance(web, str):
+            if web not in MATERIALS:
+                raise InputError("arguments", "material",
+                                 f"must be one of {', '.join(map(repr, MATERIALS))} "
+                                 f"(got {web!r})")
+            web = Web.named(web)
+        return cls(web, layout.load_height_m)
 
     @property
     def material(self) -> Material:
-        return MATERIALS[self.material_key]
+        return self.web.material
+
+    @property
+    def material_key(self) -> str:
+        return self.web.material_key
+
+    @property
+    def web_width_m(self) -> float:
+        return self.web.width_m
 
     @property
     def tension_range_n(self) -> tuple[float, float]:
@@ -121,7 +133,7 @@ class ProgramSpace:
 
     def laid(self, program: Program) -> WrapFormat:
         return WrapFormat.from_program(self.material, self.web_width_m, program,
-                                       self.load_height_m, self.material_key)
+                                       self.load_height_m, self.material_key, self.web.machine)
 
     def decode(self, action: np.ndarray) -> WrapFormat:
         """The wrap of a policy's action in [-1, 1]^9 (clipped; NaN raises `ValueError`)."""

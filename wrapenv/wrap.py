@@ -50,10 +50,12 @@ from wrapenv.program_table import (
 )
 
 __all__ = ["DEFAULT_TENSION_N", "MATERIALS", "Band", "Material", "MaterialUsed", "Program",
-           "WrapFormat", "program_to_dict"]
+           "Web", "WrapFormat", "program_to_dict"]
 
 #: Largest web width accepted; machine webs are 0.5 m, wide paper rolls about 1 m.
 MAX_WEB_WIDTH_M = 2.0
+#: The web most spiral wrappers run (docs/materials.md, section 4).
+DEFAULT_WEB_WIDTH_M = 0.5
 #: The warning for a paper program with no bottom wrap: the clamp lets the web's head go after
 #: the first revolution and paper does not cling, so a travelling first revolution leaves the
 #: head free. The bench does not model a free head: it judges the web as if held.
@@ -75,6 +77,44 @@ class MaterialUsed:
     web_length_m: float    # web laid, metres: area / web width
     roll_length_m: float   # web taken from the roll: laid / (1 + pre-stretch) for film
     revolutions: float
+
+
+@dataclass(frozen=True)
+class Web:
+    """The web a machine runs, for which a program is sought: its card, its width, and the
+    machine's settings that time a cycle."""
+
+    material: Material
+    material_key: str = "custom"   # a card of MATERIALS by name, or "custom"
+    width_m: float = DEFAULT_WEB_WIDTH_M
+    machine: Machine = Machine()
+
+    @classmethod
+    def named(cls, key: str) -> Web:
+        """A named card on the default web and machine."""
+        if key not in MATERIALS:
+            raise InputError("arguments", "--material",
+                             f"must be one of {', '.join(map(repr, MATERIALS))} (got {key!r})")
+        return cls(MATERIALS[key], key)
+
+    @classmethod
+    def from_toml(cls, path: str | Path) -> Web:
+        """The web of a WRAP.toml: `material` or a `[material]` table, `web_width_m` and an
+        optional `[machine]`; a program or bands it holds are not read (the file may be the
+        program a machine runs today)."""
+        top = Table(read_toml(path), str(path))
+        web = _web(top)
+        top.ignore("program", "band")
+        top.done()
+        return web
+
+    def identity(self) -> str | dict[str, Any]:
+        """What tells two webs apart in a search's checkpoint: a named card's name on the
+        default web and machine, else everything."""
+        if self.material_key in MATERIALS and self == Web.named(self.material_key):
+            return self.material_key
+        return {"material": asdict(self.material), "material_key": self.material_key,
+                "width_m": self.width_m, "machine": asdict(self.machine)}
 
 
 @dataclass(frozen=True)
@@ -116,9 +156,9 @@ class WrapFormat:
         ``[[band]]`` tables from 0 in file order. With `load_height_m`, also `check_fits`; a
         program needs it (its top wraps are placed from the load's top)."""
         top = Table(data, source)
-        key, material = _material(top)
-        web = top.number("web_width_m", positive=True, maximum=MAX_WEB_WIDTH_M)
-        machine = machine_from_table(top.table("machine"))
+        the_web = _web(top)
+        key, material, web, machine = (the_web.material_key, the_web.material, the_web.width_m,
+                                       the_web.machine)
         if top.has("program"):
             if top.has("band"):
                 raise top.error("program", "a WRAP.toml holds either [program] or [[band]]s, "
@@ -225,6 +265,8 @@ class WrapFormat:
         out: dict[str, Any] = {"material": self._material_entry(),
                                "web_width_m": self.web_width_m,
                                "bands": [_band_dict(b, rounded=True) for b in self.bands]}
+        if self.machine != Machine():
+            out["machine"] = asdict(self.machine)
         if self.program is not None:
             out["program"] = program_to_dict(self.program)
         return out
@@ -333,6 +375,13 @@ def _band_dict(band: Band, rounded: bool = False) -> dict[str, Any]:
 def _whole(x: float) -> float | int:
     """Whole layer counts written as integers, so a band form reads back as written."""
     return int(x) if float(x).is_integer() else x
+
+
+def _web(top: Table) -> Web:
+    """A WRAP.toml's card, web width and machine."""
+    key, material = _material(top)
+    width = top.number("web_width_m", positive=True, maximum=MAX_WEB_WIDTH_M)
+    return Web(material, key, width, machine_from_table(top.table("machine")))
 
 
 def _material(top: Table) -> tuple[str, Material]:

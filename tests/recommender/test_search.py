@@ -38,7 +38,8 @@ from wrapenv.config import InputError
 from wrapenv.design import N_PARAMS
 from wrapenv.eumos import LAYER_SHIFT, Limits
 from wrapenv.load import LoadUnit
-from wrapenv.wrap import WrapFormat
+from wrapenv.material import MATERIALS
+from wrapenv.wrap import Web, WrapFormat
 
 #: One layer of four PET bundles: each bench run takes a fraction of a second.
 SMALL = {
@@ -331,10 +332,13 @@ def test_a_sample_is_as_strong_as_its_weakest_orientation():
     assert weakest([long, short], stop_when_decided=True).margin == -0.2
 
 
-@pytest.mark.parametrize("other", [{"material": "lldpe"}, {"targets": (("long", 0.6),)},
-                                   {"seed": 3}, {"hours_since_wrapping": 16.0},
-                                   {"screen": None}, {"screen_samples": 2}])
-def test_resume_refuses_another_search_s_checkpoint(small_load, tmp_path, other,
+@pytest.mark.parametrize("other, field", [
+    ({"web": Web.named("lldpe")}, "material"),
+    ({"web": Web(MATERIALS["kraft"], "kraft", 0.75)}, "material"),   # the same card, wider
+    ({"targets": (("long", 0.6),)}, "targets"), ({"seed": 3}, "seed"),
+    ({"hours_since_wrapping": 16.0}, "hours_since_wrapping"), ({"screen": None}, "screen"),
+    ({"screen_samples": 2}, "screen_samples")])
+def test_resume_refuses_another_search_s_checkpoint(small_load, tmp_path, other, field,
                                                     assert_input_error):
     ckpt = tmp_path / "search.json"
     one = SearchSettings(**{**FAST.__dict__, "max_candidates": 4})
@@ -343,7 +347,7 @@ def test_resume_refuses_another_search_s_checkpoint(small_load, tmp_path, other,
     mine = SearchSettings(**{**FAST.__dict__, **other})
     with pytest.raises(InputError) as info:
         RobustSearch(Problem.build(small_load, mine), ckpt).resume()
-    assert_input_error(info.value, str(ckpt), f"problem.{next(iter(other))}")
+    assert_input_error(info.value, str(ckpt), f"problem.{field}")
 
 
 def test_resume_refuses_a_file_that_is_no_checkpoint(small_load, tmp_path):
@@ -419,6 +423,71 @@ def test_recommend_writes_the_contract_json_and_a_wrap_simulate_accepts(load_fil
         result["material_used"]["mass_kg"])
     assert not list(tmp_path.glob("*checkpoint*")), "the checkpoint goes when the search ends"
     assert main(["simulate", str(load), "--wrap", str(wrap), "--level", "0.5"]) == 0
+
+
+#: A plant's own paper on a 0.75 m web and a machine at 10 rpm, as a WRAP.toml holds them (its
+#: program, the one the machine runs today, is not read by --web).
+OWN_WEB = """web_width_m = 0.75
+[material]
+name = "our kraft"
+kind = "paper"
+grammage_kg_m2 = 0.1
+stiffness_n_per_m = 450000.0
+yield_strain = 0.008
+break_strain = 0.06
+[machine]
+rpm = 10.0
+[program]
+bottom_wraps = 3
+bottom_tension_n = 900.0
+up_overlap = 0.5
+middle_tension_n = 900.0
+top_wraps = 3
+top_tension_n = 900.0
+"""
+
+
+def test_recommend_answers_for_the_web_and_machine_of_a_wrap_file(load_file, tmp_path, capsys):
+    """--web: the answer is a program for that card, width and machine (tensions from 5 % of
+    its 4.5e5 x 0.008 x 0.75 = 2700 N yield force, 0.75 m a revolution, timed at 10 rpm), and
+    the WRAP.toml it writes keeps all three."""
+    load, web = load_file(base=SMALL), tmp_path / "ours.toml"
+    web.write_text(OWN_WEB)
+    out, wrap = tmp_path / "rec.json", tmp_path / "rec_wrap.toml"
+    assert main(["recommend", str(load), "--web", str(web), "--orientation", "long",
+                 "--budget", "8", "--samples", "2", "--workers", "2", "--json", str(out),
+                 "--wrap-out", str(wrap)]) == 0
+    assert "wrapping program: our kraft, web 0.75 m, 10 rpm" in capsys.readouterr().out
+    result = json.loads(out.read_text())
+    assert result["format"]["web_width_m"] == 0.75
+    assert result["format"]["material"]["name"] == "our kraft"
+    assert result["format"]["machine"]["rpm"] == 10.0
+    assert min(result["program"][k] for k in ("bottom_tension_n", "middle_tension_n",
+                                              "top_tension_n")) >= 135.0
+    written = WrapFormat.from_toml(wrap, LoadUnit.from_toml(load).load_height_m)
+    assert (written.web_width_m, written.material.name, written.machine.rpm) == (
+        0.75, "our kraft", 10.0)
+
+
+@pytest.mark.parametrize("argv, says", [
+    (["--web", "WEB", "--material", "lldpe"], "cannot be combined with --web"),
+    (["--web", "WEB", "--method", "ppo", "--policy", "WEB"], "--method cmaes"),
+])
+def test_a_web_file_goes_with_a_search_alone(argv, says, load_file, tmp_path, capsys):
+    web = tmp_path / "ours.toml"
+    web.write_text(OWN_WEB)
+    code = main(["recommend", str(load_file(base=SMALL)),
+                 *(str(web) if a == "WEB" else a for a in argv)])
+    err = capsys.readouterr().err.strip()
+    assert code == 2 and "\n" not in err and says in err, err
+
+
+def test_a_bad_web_file_is_named_with_its_field(load_file, tmp_path, capsys):
+    web = tmp_path / "ours.toml"
+    web.write_text(OWN_WEB.replace("web_width_m = 0.75", "web_width_m = 750"))
+    assert main(["recommend", str(load_file(base=SMALL)), "--web", str(web)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith(f"wrapbench recommend: {web}: web_width_m: ") and "millimetres?" in err
 
 
 @pytest.mark.parametrize("argv, field", [

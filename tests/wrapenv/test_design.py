@@ -7,6 +7,9 @@ import pytest
 
 from wrapenv.design import MAX_WRAPS, N_PARAMS, ProgramSpace
 from wrapenv.load import LoadUnit
+from wrapenv.material import MATERIALS, Material
+from wrapenv.program import Machine
+from wrapenv.wrap import Web
 
 
 @pytest.fixture
@@ -27,11 +30,13 @@ def test_every_program_starts_with_a_parked_revolution_over_the_web_s_head(space
 
 
 @pytest.mark.parametrize("load_height_m", [0.3, 0.804, 1.6])
-def test_the_web_of_every_program_closes_round_the_load_at_every_height(load_height_m):
+@pytest.mark.parametrize("web_width_m", [0.5, 0.75])
+def test_the_web_of_every_program_closes_round_the_load_at_every_height(load_height_m,
+                                                                        web_width_m):
     """A bottom and a top wrap cover a spiral's ends; where its helix is complete a spiral lays
     at least one layer: no height is held by part of a turn. Checked on random programs,
     reinforcements included, every 5 mm from the sled to the load's top."""
-    space = ProgramSpace("kraft", load_height_m)
+    space = ProgramSpace(Web(MATERIALS["kraft"], "kraft", web_width_m), load_height_m)
     rng = np.random.default_rng(0)
     for _ in range(200):
         wrap = space.wrap(space.low + rng.random(N_PARAMS) * (space.high - space.low))
@@ -65,3 +70,17 @@ def test_a_program_is_given_as_an_operator_types_it(space):
         assert p.up_overlap * 100 == pytest.approx(round(p.up_overlap * 100), abs=1e-9)
         assert all(r.from_m * 1000 == pytest.approx(round(r.from_m * 1000), abs=1e-9)
                    for r in p.reinforcements)
+
+
+def test_a_machine_s_own_web_sets_the_tensions_the_width_laid_and_the_cycle():
+    """A 0.75 m web of a stiffer paper on a machine at 10 rpm: tensions span 5-50 % of its
+    yield force (4.5e5 N/m x 0.008 x 0.75 m = 2700 N: 135-1350 N), each revolution lays 0.75 m,
+    and the cycle is timed at the machine's speed."""
+    card = Material("our kraft", 0.1, 4.5e5, 0.008, 0.06, 0.1, 0.5, kind="paper")
+    web = Web(card, "custom", 0.75, Machine(rpm=10.0))
+    load = LoadUnit.from_toml("examples/pet_2layer_columnar.toml")
+    space = ProgramSpace.for_layout(load.layout(), web)
+    assert space.tension_range_n == pytest.approx((135.0, 1350.0))
+    wrap = space.wrap(space.low)
+    assert wrap.web_width_m == 0.75 and wrap.material == card and wrap.machine.rpm == 10.0
+    assert wrap.passes[0].start_m == 0.0 and wrap.bands[0].to_m == pytest.approx(0.75)

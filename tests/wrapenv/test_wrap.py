@@ -13,12 +13,13 @@ import pytest
 
 from wrapenv.config import InputError
 from wrapenv.load import LoadUnit
-from wrapenv.program import Outline
+from wrapenv.program import Machine, Outline
 from wrapenv.wrap import (
     DEFAULT_TENSION_N,
     MATERIALS,
     Band,
     Material,
+    Web,
     WrapFormat,
 )
 
@@ -476,3 +477,29 @@ def test_bottom_wraps_above_the_top_ones_are_refused(program_data):
     with pytest.raises(InputError, match=r"program.bottom_from_m: 0.7 m is above where the top "
                                          r"wraps are laid \(0.354 m"):
         WrapFormat.from_dict(data, "wrap.toml", load_height_m=0.804)
+
+
+# --- the web a program is sought for (recommend --web) ---------------------------------------
+
+def test_a_web_is_read_from_the_wrap_file_a_machine_runs_today(tmp_path):
+    """Its card, width and machine; the program in it is the one being replaced, not read."""
+    path = tmp_path / "today.toml"
+    path.write_text((EXAMPLES / "program_lldpe_default.toml").read_text()
+                    + "\n[machine]\nrpm = 9.0\n")
+    web = Web.from_toml(path)
+    assert web == Web(MATERIALS["lldpe"], "lldpe", 0.5, Machine(rpm=9.0))
+
+
+def test_a_web_file_with_a_typo_is_refused_naming_the_key(tmp_path, assert_input_error):
+    path = tmp_path / "web.toml"
+    path.write_text('material = "kraft"\nweb_widht_m = 0.75\n')
+    with pytest.raises(InputError) as info:
+        Web.from_toml(path)
+    assert_input_error(info.value, str(path), "web_width_m")
+
+
+def test_a_named_card_on_the_default_web_is_known_by_its_name_in_a_checkpoint():
+    assert Web.named("kraft").identity() == "kraft"
+    wider = Web(MATERIALS["kraft"], "kraft", 0.75).identity()
+    assert isinstance(wider, dict) and wider["width_m"] == 0.75
+    json.dumps(wider)   # a checkpoint holds it as JSON
