@@ -503,3 +503,9 @@ def test_a_named_card_on_the_default_web_is_known_by_its_name_in_a_checkpoint():
     wider = Web(MATERIALS["kraft"], "kraft", 0.75).identity()
     assert isinstance(wider, dict) and wider["width_m"] == 0.75
     json.dumps(wider)   # a checkpoint holds it as JSON
+
+
+def test_the_example_web_file_is_a_web():
+    web = Web.from_toml(EXAMPLES / "web_paper_0.75m.toml")
+    assert (web.width_m, web.material.kind, web.material_key, web.machine.rpm) == (
+        0.75, "paper", "custom", 10.0)
