@@ -71,6 +71,7 @@ def _material(key: str) -> None:
 def _web(args: argparse.Namespace) -> Web:
     """The web a program is sought for: a named card on the default web, or a WRAP.toml's."""
     if args.web is None:
+        _material(args.material or "kraft")
         return Web.named(args.material or "kraft")
     if args.material is not None:
         raise InputError("arguments", "--material", "cannot be combined with --web (the web's "

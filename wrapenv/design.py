@@ -34,9 +34,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from wrapenv.config import InputError
 from wrapenv.load import Layout
-from wrapenv.material import MATERIALS, Material
+from wrapenv.material import Material
 from wrapenv.program import Program, Reinforcement
 from wrapenv.wrap import Web, WrapFormat
 
@@ -75,13 +74,7 @@ class ProgramSpace:
     @classmethod
     def for_layout(cls, layout: Layout, web: Web | str) -> ProgramSpace:
         """The space of a unit for a web, or for a named card on the default web."""
-        if isinstance(web, str):
-            if web not in MATERIALS:
-                raise InputError("arguments", "material",
-                                 f"must be one of {', '.join(map(repr, MATERIALS))} "
-                                 f"(got {web!r})")
-            web = Web.named(web)
-        return cls(web, layout.load_height_m)
+        return cls(Web.named(web) if isinstance(web, str) else web, layout.load_height_m)
 
     @property
     def material(self) -> Material:

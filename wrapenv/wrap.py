@@ -93,7 +93,7 @@ class Web:
     def named(cls, key: str) -> Web:
         """A named card on the default web and machine."""
         if key not in MATERIALS:
-            raise InputError("arguments", "--material",
+            raise InputError("arguments", "material",
                              f"must be one of {', '.join(map(repr, MATERIALS))} (got {key!r})")
         return cls(MATERIALS[key], key)
 
