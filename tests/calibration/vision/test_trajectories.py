@@ -30,6 +30,11 @@ def test_round_trip(tmp_path: Path) -> None:
     ("t_s,object,x_m,z_m,angle_rad\n0,sled,abc,2,0\n", "line 2: x_m"),
     ("t_s,object,x_m,z_m,angle_rad\n0,sled,nan,2,0\n", "line 2: x_m"),
     ("t_s,object,x_m,z_m,angle_rad\n0,sled,0,0,0\n0,sled,0,0,0\n", "object sled"),
+    # another tracker's file in millimetres and degrees: the unit is named
+    ("t_s,object,x_m,z_m,angle_rad\n0,pallet,-1250.0,72.0,0\n",
+     r"line 2: x_m: -1250 m .*millimetres\? Positions are in metres"),
+    ("t_s,object,x_m,z_m,angle_rad\n0,L2C1R1,0.1,0.6,45\n",
+     r"line 2: angle_rad: 45 rad, more than a whole turn: degrees\?"),
 ])
 def test_bad_files_name_the_place(tmp_path: Path, text: str, where: str) -> None:
     path = tmp_path / "bad.csv"
