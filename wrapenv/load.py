@@ -105,6 +105,11 @@ class FrictionPair:
     kinetic: float
 
 
+#: The kinetic share of a static coefficient the CTU Code advises where only the static one is
+#: known (the defaults below follow it).
+KINETIC_SHARE = 0.75
+
+
 @dataclass(frozen=True)
 class Friction:
     """Per contact pair coefficients. Defaults (static from the CTU Code, appendix 2, and
@@ -336,8 +341,14 @@ def _friction(t: Table) -> Friction:
     for name in PAIRS:
         if not t.has(name):
             continue
+        if is_finite_number(t.data[name]):
+            raise t.error(name, f"must be a table {{ static = ..., kinetic = ... }} (got "
+                          f"{t.data[name]!r}: a single coefficient is a static one; "
+                          f"{_kinetic_advice(float(t.data[name]))})")
         p = t.table(name)
         static = p.number("static", positive=True, maximum=2.0, hint=COEFFICIENT_HINT)
+        if not p.has("kinetic"):
+            raise p.error("kinetic", f"missing ({_kinetic_advice(static)})")
         kinetic = p.number("kinetic", positive=True, maximum=2.0, hint=COEFFICIENT_HINT)
         p.done()
         if kinetic > static:
@@ -346,6 +357,12 @@ def _friction(t: Table) -> Friction:
         pairs[name] = FrictionPair(static, kinetic)
     t.done()
     return replace(Friction(), **pairs)
+
+
+def _kinetic_advice(static: float) -> str:
+    """What to give as the kinetic coefficient when only the static one is known."""
+    return (f"where only the static coefficient is known, the CTU Code advises kinetic = "
+            f"{KINETIC_SHARE} x static: kinetic = {KINETIC_SHARE * static:.2f}")
 
 
 def _grid(length: float, size: float) -> list[float]:

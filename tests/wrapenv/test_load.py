@@ -541,6 +541,24 @@ def test_a_figure_in_the_wrong_unit_is_named_as_such(load_file, edits, field, sa
     assert says in err.value.message, err.value.message
 
 
+@pytest.mark.parametrize("text, field", [
+    ("sled_pallet = 0.45", "friction.sled_pallet"),
+    ("sled_pallet = { static = 0.45 }", "friction.sled_pallet.kinetic"),
+])
+def test_a_pair_given_only_its_static_coefficient_is_told_the_ctu_code_s_kinetic_one(
+        load_file, text, field, assert_input_error):
+    """The CTU Code's tables give one coefficient; it advises kinetic = 0.75 x static, which the
+    error works out (0.75 x 0.45 = 0.3375) rather than assume it silently."""
+    base = (EXAMPLES / "pet_2layer_columnar.toml").read_text()
+    line = "sled_pallet   = { static = 0.45, kinetic = 0.40 }"
+    assert line in base
+    path = load_file(text=base.replace(line, text))
+    with pytest.raises(InputError) as err:
+        LoadUnit.from_toml(path)
+    assert_input_error(err.value, str(path), field)
+    assert err.value.message.endswith("kinetic = 0.75 x static: kinetic = 0.34)")
+
+
 def test_a_figure_too_large_in_any_unit_gets_no_guess(load_file):
     """5000 m is 5 m in millimetres, still no bundle: the error gives only the limit."""
     with pytest.raises(InputError) as err:
