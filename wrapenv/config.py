@@ -161,7 +161,10 @@ class Table:
         return value
 
     def integer(self, key: str, default: Any = None, *, minimum: int | None = None) -> int:
+        """A whole number; one written with a decimal point (3.0, a float to TOML) is taken."""
         value = self._get(key, _REQUIRED if default is None else default)
+        if isinstance(value, float) and value.is_integer():
+            value = int(value)
         if isinstance(value, bool) or not isinstance(value, int):
             raise self.error(key, f"must be a whole number (got {value!r})")
         if minimum is not None and value < minimum:

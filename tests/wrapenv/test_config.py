@@ -10,6 +10,7 @@ import pytest
 
 from wrapenv.config import (
     InputError,
+    Table,
     check_output,
     check_output_folder,
     printable,
@@ -156,3 +157,13 @@ def test_a_csv_that_cannot_be_read_names_the_file_and_line(text, needles, tmp_pa
 def test_a_missing_csv_is_named_like_any_missing_input(tmp_path):
     with pytest.raises(InputError, match=r"cannot read file \(No such file or directory\)$"):
         read_csv(tmp_path / "nope.csv")
+
+
+def test_a_whole_number_written_with_a_decimal_point_is_taken_as_one():
+    """TOML reads 3.0 as a float; a count written so is still 3 (3.5 is not a count)."""
+    table = Table({"wraps": 3.0, "layers": 3.5, "flag": True}, "f.toml")
+    assert table.integer("wraps") == 3 and isinstance(table.integer("wraps"), int)
+    with pytest.raises(InputError, match=r"layers: must be a whole number \(got 3\.5\)"):
+        table.integer("layers")
+    with pytest.raises(InputError, match="flag: must be a whole number"):
+        table.integer("flag")
