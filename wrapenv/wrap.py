@@ -156,27 +156,25 @@ class WrapFormat:
         ``[[band]]`` tables from 0 in file order. With `load_height_m`, also `check_fits`; a
         program needs it (its top wraps are placed from the load's top)."""
         top = Table(data, source)
-        the_web = _web(top)
-        key, material, web, machine = (the_web.material_key, the_web.material, the_web.width_m,
-                                       the_web.machine)
+        web = _web(top)
         if top.has("program"):
             if top.has("band"):
                 raise top.error("program", "a WRAP.toml holds either [program] or [[band]]s, "
                                            "not both")
-            program = program_from_table(top.table("program"), material, web)
+            program = program_from_table(top.table("program"), web.material, web.width_m)
             top.done()
             if load_height_m is None:
                 raise ValueError("a wrapping program needs the load's height to be laid")
-            check_program_fits(program, load_height_m, web, source)
-            return cls.from_program(material, web, program, load_height_m, key, machine)
+            check_program_fits(program, load_height_m, web.width_m, source)
+            return cls.from_program(web.material, web.width_m, program, load_height_m,
+                                    web.material_key, web.machine)
         raw = top.array("band")
         if not raw:
             raise top.error("band", "must list at least one [[band]]")
-        bands = tuple(
-            _band(Table(item, source, f"band[{i}]"), material, web) for i, item in enumerate(raw)
-        )
+        bands = tuple(_band(Table(item, source, f"band[{i}]"), web.material, web.width_m)
+                      for i, item in enumerate(raw))
         top.done()
-        wrap = cls(material, web, bands, key, machine=machine)
+        wrap = cls(web.material, web.width_m, bands, web.material_key, machine=web.machine)
         if load_height_m is not None:
             wrap.check_fits(load_height_m, source)
         return wrap
