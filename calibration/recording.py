@@ -146,7 +146,7 @@ class Recording:
                                  f"{setup.template} is missing or not an image")
         video = _find_video(folder)
         frames, width_px = _check_video(video, setup.fps, str(setup_path))
-        _check_scale(setup.px_per_m, load.layout().pallet_size_m[0], width_px, str(setup_path))
+        _check_scale(setup.px_per_m, load.pallet.length_m, width_px, str(setup_path))
         profile_path = folder / PROFILE
         profile = SledProfile.read(profile_path)
         _check_covers(profile, (frames - 1) / setup.fps, str(profile_path))

@@ -36,7 +36,6 @@ from wrapenv.config import (
 )
 from wrapenv.eumos import EUMOS_LIMITS, Limits
 from wrapenv.load import Layout, LoadUnit
-from wrapenv.material import MATERIALS
 from wrapenv.profile import PulseProfile
 from wrapenv.wrap import Web, WrapFormat
 
@@ -62,17 +61,18 @@ def _target(target_g: float, flag: str = "--target") -> None:
         raise InputError("arguments", flag, exc.message) from None
 
 
-def _material(key: str) -> None:
-    if key not in MATERIALS:
-        raise InputError("arguments", "--material",
-                         f"must be one of {', '.join(map(repr, MATERIALS))} (got {key!r})")
+def _material(key: str) -> Web:
+    """A named card on the default web, or a usage error naming --material."""
+    try:
+        return Web.named(key)
+    except InputError as exc:
+        raise as_flag(exc) from None
 
 
 def _web(args: argparse.Namespace) -> Web:
     """The web a program is sought for: a named card on the default web, or a WRAP.toml's."""
     if args.web is None:
-        _material(args.material or "kraft")
-        return Web.named(args.material or "kraft")
+        return _material(args.material or "kraft")
     if args.material is not None:
         raise InputError("arguments", "--material", "cannot be combined with --web (the web's "
                          "file names its material)")
