@@ -40,7 +40,7 @@ from calibration.vision.objects import (
     bundles,
     match_template,
     sled_and_pallet,
-    sled_start_m,
+    sled_marker_centre,
 )
 from calibration.vision.roi import ROI_MARGIN_M, PixelMap, predict_roi, unit_extent_m
 from calibration.vision.tracking import (
@@ -58,6 +58,17 @@ from wrapenv.config import InputError
 from wrapenv.scene import SLED_DECK_M
 
 DEFAULT_TRACKER = "ncc+flow"
+
+#: How far the sled's markers may put the sled in frame 0 from where profile.csv's start and
+#: setup.toml's camera.origin_px put it: beyond the first a warning, beyond the second the
+#: origin is wrong (every absolute position would be as far off) [A]: markers locate to a pixel
+#: or two (the synthetic recordings: within 0.2 mm), a pixel clicked as the origin to a few.
+ORIGIN_WARN_M, ORIGIN_LIMIT_M = 0.02, 0.05
+#: How far the sled followed on the video may depart from profile.csv's path, in metres and as
+#: a share of the sled's travel (the larger) [A]: tracking is good to a millimetre, a position
+#: integrated from an accelerometer drifts by centimetres; frames lost inside a video, a video
+#: rescaled or re-timed, or the sled followed onto something else depart by decimetres to metres.
+SLED_PATH_LIMIT_M, SLED_PATH_LIMIT_SHARE = 0.10, 0.05
 
 Progress = Callable[[int, int], None]
 
@@ -269,6 +280,7 @@ class _Run:
                                  "pos_m or setup.toml's camera); no object tracked there")
         self.warnings += poses.warnings()
         paths = poses.paths(self.pixmap, self.rec.fps)
+        self._check_sled_path(paths)
         if markers is not None:
             paths.update(markers.paths(frames, self.rec.fps))
         half = {o.name: 0.5 * min(o.size_px) / self.pixmap.px_per_m for o in objects}
@@ -282,7 +294,10 @@ class _Run:
         spec = self.rec.markers
         if self.detector is not None and spec is not None:
             sled = {p.id: p.offset_m for p in spec.placements if p.object == "sled"}
-            sled_x0 = sled_start_m(self.view, found, sled, self.warnings)
+            centre = sled_marker_centre(self.view, found, sled, self.warnings)
+            if centre is not None:
+                self._check_origin(*centre)
+                sled_x0 = centre[0]
         objects = sled_and_pallet(self.view, sled_x0)
         if self.rec.wrap is None:
             matches = (match_template(self.view, first, self.rec.template)
@@ -293,6 +308,45 @@ class _Run:
                                  "markers, and setup.toml places none on its bundles: no "
                                  "layer is tracked")
         return objects
+
+    def _check_origin(self, x_m: float, z_m: float) -> None:
+        """The sled's centre by its markers against where profile.csv's start and
+        camera.origin_px put it in frame 0; the origin that would agree is named."""
+        dx = x_m - self.view.sled_x0_m
+        dz = z_m + SLED_DECK_M / 2
+        if math.hypot(dx, dz) <= ORIGIN_WARN_M:
+            return
+        (u0, v0), s = self.rec.origin_px, self.pixmap.px_per_m
+        text = (f"the sled's markers put the sled {1000 * dx:+.0f} mm along x and "
+                f"{1000 * dz:+.0f} mm along z from where profile.csv's start and camera.origin_px "
+                f"{list(self.rec.origin_px)} put it in frame 0; origin_px = "
+                f"[{u0 + s * dx:.0f}, {v0 - s * dz:.0f}] would agree (or the markers' offset_m "
+                "are wrong)")
+        if math.hypot(dx, dz) > ORIGIN_LIMIT_M:
+            raise InputError(str(self.rec.folder / "setup.toml"), "camera.origin_px", text)
+        self.warnings.append(text)
+
+    def _check_sled_path(self, paths: dict[str, ObjectPath]) -> None:
+        """The sled followed on the video against profile.csv's path from the same start: they
+        part when frames are lost inside the video (every later frame is then stamped too
+        early), when the video was rescaled or re-timed, or the camera's scale is wrong."""
+        sled = paths.get("sled")
+        if sled is None or len(sled.t_s) < 2:
+            return
+        pos = self.rec.profile.position_m(sled.t_s)
+        departure = np.abs((sled.x_m - sled.x_m[0]) - (pos - pos[0]))
+        limit = max(SLED_PATH_LIMIT_M, SLED_PATH_LIMIT_SHARE * float(np.ptp(pos)))
+        if departure.max() <= limit:
+            return
+        k = int(np.argmax(departure > limit))
+        lost = (f" (it decodes {self.video.decoded} of the {self.video.stated} frames its "
+                "container states)" if self.video.truncated else "")
+        raise InputError(str(self.rec.video), "frames",
+                         f"the sled followed on the video departs from profile.csv's path by "
+                         f"{1000 * departure[k]:.0f} mm from t = {sled.t_s[k]:.2f} s (up to "
+                         f"{1000 * departure.max():.0f} mm): frames lost or re-timed inside the "
+                         f"video{lost}, a rescaled video, or setup.toml's camera.px_per_m or "
+                         "profile.csv's pos_m wrong")
 
     def _check_marker_size(self, found: dict[int, np.ndarray]) -> None:
         """markers.size_m against the sides of the placed markers ArUco finds in frame 0."""

@@ -17,7 +17,6 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from calibration.vision.roi import PixelMap
 from calibration.vision.tracking import Frame
 
 #: Relative disagreement of the markers' scale with setup.toml's px_per_m that gets a warning.
@@ -128,17 +127,6 @@ class ObjectPose:
     x_m: float
     z_m: float
     angle_rad: float
-
-
-def object_pose(observations: Sequence[tuple[np.ndarray, tuple[float, float]]],
-                pixmap: PixelMap) -> ObjectPose:
-    """An object's pose from its markers' ArUco corners and placement offsets (marker centre
-    minus object centre, object frame at rest); see `rigid_pose`. One marker's rotation is the
-    mean direction of its edges."""
-    angles = np.array([angle_rad(c) for c, _ in observations])
-    theta = float(np.arctan2(np.sin(angles).mean(), np.cos(angles).mean()))
-    centres = [tuple(pixmap.to_world(*centre_px(c))) for c, _ in observations]
-    return rigid_pose(centres, [o for _, o in observations], theta)
 
 
 def rigid_pose(centres_m: Sequence[tuple[float, float]], offsets_m: Sequence[tuple[float, float]],

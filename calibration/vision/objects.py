@@ -16,7 +16,7 @@ import cv2
 import numpy as np
 
 from calibration.vision.detection import Detection, find_template
-from calibration.vision.markers import baseline_scale, object_pose, scale_warning
+from calibration.vision.markers import baseline_scale, centre_px, scale_warning
 from calibration.vision.roi import ROI_MARGIN_M, PixelMap, predict_roi, unit_extent_m
 from calibration.vision.tracking import Frame
 from wrapenv.config import InputError
@@ -71,23 +71,30 @@ def sled_and_pallet(view: View, sled_x0_m: float) -> list[TrackedObject]:
                           box_size(s * (px - inset), s * (pz - inset)))]
 
 
-def sled_start_m(view: View, found: dict[int, np.ndarray],
-                 sled_offsets_m: dict[int, tuple[float, float]], warnings: list[str]) -> float:
-    """The sled's x at frame 0: from its markers (`found`: ArUco's corners by id) when they are
-    seen, else the profile's; the distance between two of them checks setup.toml's scale (it
-    needs no marker size), and a warning says when it cannot."""
+def sled_marker_centre(view: View, found: dict[int, np.ndarray],
+                       sled_offsets_m: dict[int, tuple[float, float]],
+                       warnings: list[str]) -> tuple[float, float] | None:
+    """The sled's centre (x, z) in frame 0 from its markers (`found`: ArUco's corners by id),
+    None when none is seen (the sled then starts where the profile puts it); the distance
+    between two of them checks setup.toml's scale (it needs no marker size), and a warning says
+    when it cannot. The sled runs level on its rails: its markers' centres less their offsets,
+    with no rotation estimated (one small marker's own angle, a few degrees off, would move the
+    centre 0.7 m away by centimetres)."""
     seen = {i: (found[i], offset) for i, offset in sled_offsets_m.items() if i in found}
     if not seen:
         warnings.append("sled markers not found in frame 0: the sled starts where profile.csv "
                         "puts it and setup.toml's camera.px_per_m is not cross-checked")
-        return view.sled_x0_m
+        return None
     if len(seen) == 1:
         warnings.append(f"only one sled marker ({next(iter(seen))}) seen in frame 0: "
                         "setup.toml's camera.px_per_m is not cross-checked")
     scale = scale_warning(baseline_scale(found, sled_offsets_m), view.pixmap.px_per_m)
     if scale:
         warnings.append(scale)
-    return object_pose(list(seen.values()), view.pixmap).x_m
+    centres = [view.pixmap.to_world(*centre_px(corners)) for corners, _ in seen.values()]
+    x, z = np.mean([(float(c[0]) - o[0], float(c[1]) - o[1])
+                    for c, (_, o) in zip(centres, seen.values(), strict=True)], axis=0)
+    return float(x), float(z)
 
 
 def front_row(layout: Layout) -> dict[str, tuple[float, float, float, float]]:

@@ -7,7 +7,6 @@ from calibration.vision.markers import (
     MarkerDetector,
     angle_rad,
     baseline_scale,
-    object_pose,
     rigid_pose,
     scale_warning,
 )
@@ -42,18 +41,6 @@ def test_marker_centre_angle_and_side() -> None:
     # marker pixel (c, r) covers [c - 0.5, c + 0.5]: a 40 px tile's centre is at 19.5
     assert np.allclose(corners.mean(axis=0), (300.0, 200.0), atol=0.3)
     assert abs(angle_rad(corners) - 0.1) < 0.01
-
-
-def test_object_pose_subtracts_the_rotated_offset() -> None:
-    """A marker 0.1 m right of its object's centre, object turned 90 degrees CCW: the marker is
-    then 0.1 m above the centre."""
-    u, v = PIXMAP.to_px(1.0, 0.6)
-    side = 10.0
-    square = np.array([[-1, -1], [1, -1], [1, 1], [-1, 1]], float) * side / 2
-    turned = square @ np.array([[0.0, 1.0], [-1.0, 0.0]]).T  # 90 deg CCW in world terms
-    pose = object_pose([(turned + (u, v), (0.1, 0.0))], PIXMAP)
-    assert abs(pose.angle_rad - np.pi / 2) < 1e-9
-    assert abs(pose.x_m - 1.0) < 1e-9 and abs(pose.z_m - 0.5) < 1e-9
 
 
 def test_rigid_pose_takes_the_rotation_from_two_markers() -> None:

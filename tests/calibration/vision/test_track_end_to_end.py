@@ -17,6 +17,7 @@ import cv2
 import numpy as np
 import pytest
 
+from calibration.filming import write_video
 from calibration.recording import Recording, SledProfile, Truth
 from calibration.synth import synthesize
 from calibration.track import track
@@ -229,6 +230,82 @@ def test_unit_outside_the_image_in_frame_0_names_the_camera_origin(
     with pytest.raises(InputError) as err:
         track(Recording.read(folder))
     assert_input_error(err.value, str(setup), "camera.origin_px")
+
+
+def _shift_origin(folder: Path, du_px: float, dv_px: float) -> tuple[float, float]:
+    """setup.toml's camera.origin_px moved by (du, dv) pixels; the origin it had."""
+    setup = folder / "setup.toml"
+    u0, v0 = Recording.read(folder).origin_px
+    setup.write_text(re.sub(r"origin_px = \[.*\]", f"origin_px = [{u0 + du_px}, {v0 + dv_px}]",
+                            setup.read_text()))
+    return u0, v0
+
+
+@pytest.mark.parametrize("du_px, dv_px", [(20.0, 0.0), (0.0, -20.0)])
+def test_origin_the_sled_markers_contradict_is_refused_with_the_one_they_agree_with(
+        du_px: float, dv_px: float, recording_dir: Path, tmp_path: Path,
+        assert_input_error) -> None:
+    """20 px at 240 px/m: every absolute position would be 83 mm off (the sled ahead of or
+    below where its profile and the camera put it). The markers name the origin that agrees:
+    the one the recording was made with."""
+    folder = tmp_path / "origin"
+    shutil.copytree(recording_dir, folder)
+    u0, v0 = _shift_origin(folder, du_px, dv_px)
+    with pytest.raises(InputError) as err:
+        track(Recording.read(folder))
+    assert_input_error(err.value, str(folder / "setup.toml"), "camera.origin_px")
+    assert _origin_that_agrees(str(err.value)) == pytest.approx((u0, v0), abs=1.0)
+
+
+def _origin_that_agrees(text: str) -> tuple[float, float]:
+    found = re.search(r"origin_px = \[(\S+), (\S+)\] would agree", text)
+    assert found, text
+    return float(found[1]), float(found[2])
+
+
+def test_origin_a_few_pixels_off_is_a_warning(recording_dir: Path, tmp_path: Path) -> None:
+    """6 px (25 mm): tracked, and said, with the origin that agrees."""
+    folder = tmp_path / "origin"
+    shutil.copytree(recording_dir, folder)
+    u0, v0 = _shift_origin(folder, 6.0, 0.0)
+    warnings = [w for w in track(Recording.read(folder)).warnings if "origin_px" in w]
+    assert len(warnings) == 1 and warnings[0].startswith(
+        "the sled's markers put the sled -25 mm along x"), warnings
+    assert f"camera.origin_px [{u0 + 6.0}, {v0}] put it in frame 0" in warnings[0]
+    assert _origin_that_agrees(warnings[0]) == pytest.approx((u0, v0), abs=1.0)
+
+
+def _rewrite_video(video: Path, edit) -> None:
+    """The video re-encoded as synth encodes it, its frames passed through `edit`."""
+    cap = cv2.VideoCapture(str(video))
+    fps = cap.get(cv2.CAP_PROP_FPS)
+    frames = []
+    while (got := cap.read())[0]:
+        frames.append(cv2.cvtColor(got[1], cv2.COLOR_BGR2RGB))
+    cap.release()
+    frames = edit(frames)
+    height, width = frames[0].shape[:2]
+    write_video(video, frames, fps, (width, height))
+
+
+@pytest.mark.parametrize("edit", [
+    pytest.param(lambda frames: frames[:8] + frames[12:], id="4 frames lost inside"),
+    pytest.param(lambda frames: [cv2.resize(f, None, fx=1.25, fy=1.25) for f in frames],
+                 id="rescaled 1.25 x"),
+])
+def test_video_whose_sled_parts_from_the_profile_is_refused(
+        edit, recording_dir: Path, tmp_path: Path, assert_input_error) -> None:
+    """Frames lost inside a video stamp every later frame too early, a rescaled video makes
+    every metre 1.25 m: tracked, either wrote paths decimetres to metres off, exit 0. The sled
+    followed on the video against profile.csv's path shows it."""
+    folder = tmp_path / "edited"
+    shutil.copytree(recording_dir, folder)
+    rec = Recording.read(folder)
+    _rewrite_video(rec.video, edit)
+    with pytest.raises(InputError) as err:
+        track(Recording.read(folder))
+    assert_input_error(err.value, str(rec.video), "frames")
+    assert "departs from profile.csv's path" in str(err.value)
 
 
 def test_unit_leaving_the_view_is_lost_there_with_one_warning(recording_dir: Path,
