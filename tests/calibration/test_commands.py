@@ -273,6 +273,28 @@ def test_calibrate_refuses_too_short_trajectories(slide_dir, tmp_path, capsys):
     assert not cal.exists()
 
 
+@pytest.mark.parametrize("edit, needles", [
+    (lambda row: row.replace(",L1C1R1,", ",L2C1R1,"), ["object L2C1R1", "not an object"]),
+    (lambda row: row.replace(",L1C1R1,", ",l1c1r1,"), ["object l1c1r1", "a typo"]),
+    (lambda row: f"{1000 * float(row.split(',')[0]):.3f}," + row.split(",", 1)[1],
+     ["t_s", "outside profile.csv's", "milliseconds?"]),
+], ids=["another load's bundle", "lower case", "milliseconds"])
+def test_calibrate_refuses_trajectories_the_recording_cannot_have(edit, needles, slide_dir,
+                                                                  tmp_path, capsys):
+    """A bundle the load lacks used to be dropped unseen, and times in milliseconds fitted as
+    seconds: both wrote a calibration."""
+    rec = tmp_path / "rec"
+    shutil.copytree(slide_dir, rec)
+    csv_path = rec / "trajectories.csv"
+    assert main(["track", str(rec)]) == 0
+    header, *rows = csv_path.read_text().splitlines()
+    csv_path.write_text("\n".join([header, *map(edit, rows)]) + "\n")
+    cal = tmp_path / "cal.json"
+    assert main(["calibrate", str(rec), "--out", str(cal)]) == 2
+    _one_line_error(capsys, str(csv_path), *needles)
+    assert not cal.exists()
+
+
 @pytest.mark.parametrize("args, needle", [(["--budget", "5"], "--budget"),
                                           (["--workers", "0"], "--workers"),
                                           (["--max-residual-mm", "nan"], "--max-residual-mm"),
