@@ -26,6 +26,7 @@ from calibration.camera_setup import SETUP, MarkerSpec, Setup, check_markers, ex
 from calibration.vision.video import open_video
 from wrapenv.config import InputError, read_csv, read_json, read_toml, write_atomic
 from wrapenv.load import LoadUnit
+from wrapenv.profile import MAX_PROFILE_S
 from wrapenv.render import SideCamera
 from wrapenv.wrap import WrapFormat
 
@@ -36,9 +37,6 @@ PROFILE_COLUMNS = ("t_s", "accel_mps2", "vel_mps", "pos_m")
 TRACK_KEYS = ("t_s", "x_m", "z_m", "angle_rad")
 #: Relative tolerance between setup.toml's fps and the container's (containers store rationals).
 FPS_TOLERANCE = 1e-3
-#: Longest profile (s) [A]: a test is a pulse and a few seconds of run-out (the source paper's
-#: recordings last 8 to 10 s); longer is a unit mistake, such as t_s in milliseconds.
-MAX_PROFILE_S = 120.0
 #: Slack on time comparisons: the profile may end this much before the last frame's time.
 TIME_SLACK_S = 1e-6
 #: The pallet's length on the video, as a share of the frame's width, outside which the
@@ -163,6 +161,9 @@ class Recording:
         """The side camera of this recording (`SideCamera.project` gives pixels)."""
         return SideCamera(width, height, self.px_per_m, self.origin_px)
 
+    def object_names(self) -> set[str]:
+        """What trajectories of this recording may name: the sled, the pallet, the bundles."""
+        return {"sled", "pallet"} | {b.name for b in self.load.layout().bundles}
 
 
 def _find_video(folder: Path) -> Path:

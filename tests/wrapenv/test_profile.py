@@ -311,6 +311,14 @@ def test_bad_profile_csv_is_rejected_naming_file_and_field(text, field, tmp_path
     assert_input_error(info.value, str(path), field)
 
 
+def test_a_logger_left_running_a_minute_is_a_measured_profile(tmp_path):
+    """simulate --profile took 30 s, a recording's profile (`track`, `calibrate`) 120 s: the
+    same file was refused by one command and taken by the other two. One bound now."""
+    lines = ["t_s,accel_mps2", "0,0", "0.5,4.9", "1.0,0"] + [f"{t},0" for t in range(2, 61)]
+    path = write_csv(tmp_path, "\n".join(lines) + "\n")
+    assert MeasuredProfile.from_csv(path).t_s[-1] == 60
+
+
 def test_missing_profile_csv_is_rejected_naming_the_file(tmp_path, assert_input_error):
     path = tmp_path / "no_profile.csv"
     with pytest.raises(InputError, match="cannot read") as info:
