@@ -136,6 +136,10 @@ class Calibration:
         # how the fit went and how it was checked: for people, the bench does not need them
         top.ignore(*DIAGNOSTICS)
         top.done()
+        if not (pairs or top.has("wrap")):
+            # all defaults: the load's own friction and wrap, which the user meant to replace
+            raise InputError(source, "friction",
+                             "no friction pair and no wrap table: the file calibrates nothing")
         return cls(pairs, stiffness, tension, *stds, *give, known)
 
 

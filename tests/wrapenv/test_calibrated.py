@@ -87,10 +87,21 @@ def test_std_and_identified_are_optional_with_documented_defaults():
 
 
 def test_empty_calibration_changes_nothing():
-    cal = Calibration.from_dict({})
+    cal = Calibration()
     assert cal.friction == {}
     assert (cal.stiffness_scale, cal.tension_scale) == (1.0, 1.0)
     assert cal.apply(load()) == load()
+
+
+@pytest.mark.parametrize("data", [{}, {"friction": {}}, {"residual_rms_m": 0.001}])
+def test_a_file_that_calibrates_nothing_is_refused(data, tmp_path, assert_input_error):
+    """`{}` used to be read as the load's own friction and wrap: a run the user believed
+    calibrated, said nowhere to be otherwise."""
+    path = write_json(tmp_path, data)
+    with pytest.raises(InputError) as info:
+        Calibration.from_json(path)
+    assert_input_error(info.value, str(path), "friction")
+    assert "calibrates nothing" in str(info.value)
 
 
 def test_apply_replaces_every_calibrated_pair():
