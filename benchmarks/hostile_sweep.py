@@ -146,6 +146,8 @@ CASES = [
     Case("CAL.json with a key given twice", ["simulate", "L.toml", "--calibration", "c.json"],
          {"L.toml": LOAD, "c.json": '{"friction": {}, "friction": {}}'},
          needles=("c.json", "friction")),
+    Case("CAL.json that calibrates nothing", ["simulate", "L.toml", "--calibration", "c.json"],
+         {"L.toml": LOAD, "c.json": "{}"}, needles=("c.json", "calibrates nothing")),
     Case("CAL.json truncated", ["simulate", "L.toml", "--calibration", "c.json"],
          {"L.toml": LOAD, "c.json": '{"friction": {"sled_pallet": {"static": 0.4'},
          needles=("c.json",)),
