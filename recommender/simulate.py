@@ -13,7 +13,7 @@ from tqdm import tqdm
 
 from recommender.commands import as_flag, check_hours, criteria_limits, warn, wrap_json
 from recommender.html_report import check_report_folder, simulate_page, write_report
-from recommender.text import program_text, verdict_table
+from recommender.text import program_text, rerun_note, verdict_table
 from wrapenv.bench import run_levels
 from wrapenv.calibrated import Calibration
 from wrapenv.config import InputError, check_distinct, check_output, result_json, write_together
@@ -73,7 +73,8 @@ def run_simulate(args: argparse.Namespace) -> int:
               disable=None) as bar:
         run = run_levels(load, levels, orientation=args.orientation, stop_at_failure=stop,
                          wrap=wrap, fresh=args.fresh, limits=limits,
-                         on_level=lambda v: _level_done(bar, v))
+                         on_level=lambda v: _level_done(bar, v),
+                         on_rerun=lambda iterations: _rerun(bar, iterations))
     print(verdict_table(load, run, args.orientation))
     if laid is not None:
         print(program_text(laid, layout))
@@ -85,6 +86,8 @@ def run_simulate(args: argparse.Namespace) -> int:
     files = {}
     if args.json:
         out = run.verdict.to_json()
+        if rerun_note(run):
+            out["solver_iterations"] = run.solver_iterations
         if wrap is not None and laid is not None:
             out.update(wrap_json(wrap, laid, layout))
             out["hours_since_wrapping"] = args.hours_since_wrapping
@@ -99,6 +102,12 @@ def run_simulate(args: argparse.Namespace) -> int:
         files[Path(args.tension_map)] = plot_tension_map(run, layout, title=load.name)
     write_together(files)
     return 0 if run.verdict.passed else 1
+
+
+def _rerun(bar: Any, iterations: int) -> None:
+    """Progress starts again: the squeezed stack crept, the levels run with more iterations."""
+    bar.reset()
+    bar.set_description(f"levels ({iterations} solver iterations)")
 
 
 def _level_done(bar: Any, verdict: LevelVerdict) -> None:

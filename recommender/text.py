@@ -3,7 +3,7 @@ operator enters it, with the web it lays and the time it takes."""
 
 from __future__ import annotations
 
-from wrapenv.bench import BenchRun
+from wrapenv.bench import BenchRun, SimSettings
 from wrapenv.config import printable
 from wrapenv.eumos import EUMOS_CRITERIA, LevelVerdict, Verdict
 from wrapenv.load import Layout, LoadUnit
@@ -90,7 +90,18 @@ def verdict_table(load: LoadUnit, run: BenchRun, orientation: str | None) -> str
     lines.append(f"highest level passed: {'none' if best is None else f'{best:.2f} g'}"
                  + ("" if v.valid else f"  (simulation became unphysical: see INVALID rows"
                                        f"{TIGHT_WRAP_HINT if wrapped(v) else ''})"))
+    if rerun := rerun_note(run):
+        lines.append(rerun)
     return "\n".join(lines)
+
+
+def rerun_note(run: BenchRun) -> str:
+    """A line when the run had to be made again with more solver iterations ("" if not)."""
+    default = SimSettings().wrapped_solver_iterations
+    if run.solver_iterations <= default or not wrapped(run.verdict):
+        return ""
+    return (f"solved with {run.solver_iterations} solver iterations: at {default} the squeezed "
+            "stack crept on under static friction (a wrap many times the bundles' weight)")
 
 
 def _carriage(p: Pass, wrap: WrapFormat, load_height_m: float) -> str:
