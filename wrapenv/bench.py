@@ -30,6 +30,10 @@ from wrapenv.wrap import WrapFormat
 from wrapenv.wrap_physics import WrapNet
 
 PENETRATION_LIMIT_M = 0.02   # deeper overlap than this means the solver lost the contact
+#: A body that moved farther than this share of its smallest side while the unit was stacked
+#: and wrapped, before the sled moved, was flung by forces no pallet knows (a wrap's squeeze
+#: on bundles of a few grams): settling and a wrap's squeeze move bodies by millimetres.
+SETTLED_MOVE_SHARE = 1 / 3
 
 
 @dataclass(frozen=True)
@@ -319,6 +323,8 @@ class _Run:
         self.invalid = ""
         self.stopped_early = ""
         self.not_at_rest = ""
+        #: Whether this level began with the unit stacked (and wrapped) on the still sled.
+        self.settled = False
         self.reference: np.ndarray | None = None  # bundle centres in the pallet frame at t = 0
         self.origin_m = origin_m  # ... when the unit was first put on the sled (None: t = 0)
         self.bottom_z = np.array([b.centre_m[2] - b.size_m[2] / 2 for b in layout.bundles])
@@ -342,6 +348,21 @@ class _Run:
             depth = self.world.max_penetration_m()
             if depth > PENETRATION_LIMIT_M:
                 self.invalid = f"bodies interpenetrate by {depth * 1000:.0f} mm"
+
+    def _came_apart(self, pos: np.ndarray) -> str:
+        """Which body moved past `SETTLED_MOVE_SHARE` of its smallest side from where it was
+        stacked while the unit settled and was wrapped ("" if none): what flung it has no
+        counterpart on a real pallet, so the level is no test (it used to be judged, bundles
+        fallen before the sled moved, as a valid failure)."""
+        bodies = [self.scene.bodies[w] for w in self.dynamic]
+        stacked = np.array([b.start_centre_m for b in bodies])
+        moved = np.linalg.norm(pos - stacked, axis=1) / np.array([min(b.size_m) for b in bodies])
+        worst = int(np.argmax(moved))
+        if moved[worst] <= SETTLED_MOVE_SHARE:
+            return ""
+        distance = np.linalg.norm(pos[worst] - stacked[worst])
+        return (f"the unit came apart before the sled moved ({bodies[worst].name} moved "
+                f"{1000 * distance:.0f} mm while it was stacked and wrapped)")
 
     def _off_the_sled(self, pos: np.ndarray) -> str:
         """Which body has gone over the edge of the sled's deck ("" if none): its centre below
@@ -401,6 +422,7 @@ class _Run:
 
     def execute(self, settle: bool = True) -> Trace:
         """Run the level (after settling and wrapping a fresh unit: `settle`)."""
+        self.settled = settle
         if settle:
             self._settle()
         step: int | None = 0
@@ -427,6 +449,10 @@ class _Run:
         if not sample:
             return step
         self.samples.append((step * self.s.timestep_s, float(self.accel[step]), pos, rot))
+        if step == 0 and self.settled:
+            self.invalid = self._came_apart(pos)
+            if self.invalid:
+                return None
         self.stopped_early = self._off_the_sled(pos)
         if self.stopped_early:
             return None

@@ -160,7 +160,8 @@ class Table:
                              + (f": {hint}" if hint else _unit_slip(key, value, maximum)))
         return value
 
-    def integer(self, key: str, default: Any = None, *, minimum: int | None = None) -> int:
+    def integer(self, key: str, default: Any = None, *, minimum: int | None = None,
+                maximum: int | None = None) -> int:
         """A whole number; one written with a decimal point (3.0, a float to TOML) is taken."""
         value = self._get(key, _REQUIRED if default is None else default)
         if isinstance(value, float) and value.is_integer():
@@ -169,6 +170,8 @@ class Table:
             raise self.error(key, f"must be a whole number (got {value!r})")
         if minimum is not None and value < minimum:
             raise self.error(key, f"must be >= {minimum} (got {value})")
+        if maximum is not None and value > maximum:
+            raise self.error(key, f"must be <= {maximum} (got {value})")
         return value
 
     def choice(self, key: str, choices: Iterable[str], default: Any = None) -> str:

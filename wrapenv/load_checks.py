@@ -26,6 +26,11 @@ MAX_LOAD_HEIGHT_M = 3.0
 #: A bundle's smallest side [A]: below 5 cm a box is no bundle of goods, and the bench's
 #: contact tolerances (its 20 mm interpenetration limit) would be a large part of it.
 MIN_BUNDLE_SIDE_M = 0.05
+#: A bundle's least mass per volume [A]: the lightest goods shipped on pallets (packs of empty
+#: PET bottles, about 10 kg/m³; expanded polystyrene, 15) weigh more. Lighter is a unit slip
+#: (grams, a tonne given as kg), and the bench's contact solve cannot hold such boxes under a
+#: wrap (docs/bench.md, "What it cannot hold").
+MIN_BUNDLE_DENSITY_KG_M3 = 5.0
 #: Most bundles the bench simulates [A]: one rigid body each, stepped 240 times a second;
 #: a level's time grows with their number (docs/materials.md, section 6).
 MAX_BUNDLES = 500
@@ -59,6 +64,12 @@ def _check_limits(unit: LoadUnit, source: str) -> None:
             raise InputError(source, f"bundle.{key}",
                              f"must be >= {MIN_BUNDLE_SIDE_M} m, the smallest bundle the bench"
                              f" takes (got {getattr(b, key)})")
+    density = b.mass_kg / (b.length_m * b.width_m * b.height_m)
+    if density < MIN_BUNDLE_DENSITY_KG_M3:
+        raise InputError(source, "bundle.mass_kg",
+                         f"{b.mass_kg} kg in a {1000 * b.length_m * b.width_m * b.height_m:.1f}"
+                         f" L box is {density:.2g} kg/m³, lighter than any goods (packs of empty"
+                         f" bottles: about 10 kg/m³; at least {MIN_BUNDLE_DENSITY_KG_M3:g})")
     height = unit.load_height_m
     if height > MAX_LOAD_HEIGHT_M:
         # the field to change: the layers, unless one layer alone is too tall

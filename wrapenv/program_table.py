@@ -60,6 +60,11 @@ def check_program_fits(program: Program, load_height_m: float, web_width_m: floa
 
 #: Overlaps are fractions of the web; a spiral must rise (< 1), gaps up to a web wide (>= -1).
 MIN_OVERLAP = -1.0
+#: Most revolutions parked at one height (bottom, top, a reinforcement) [A]: three times the
+#: search's six; a wrapper's program lays a few. Thirty top wraps of 800 N needed four times
+#: the bench's solver iterations to rest (docs/bench.md); 100000 were a typo, costed 17 t of
+#: web and thrown apart by the bench (docs/materials.md, section 6).
+MAX_WRAPS = 20
 
 
 def program_from_table(t: Table, material: Material, web_width_m: float) -> Program:
@@ -67,12 +72,12 @@ def program_from_table(t: Table, material: Material, web_width_m: float) -> Prog
     that can be checked without the load; `check_program_fits` does the rest."""
     film = material.kind == "film"
     program = Program(
-        bottom_wraps=t.integer("bottom_wraps", minimum=0),
+        bottom_wraps=t.integer("bottom_wraps", minimum=0, maximum=MAX_WRAPS),
         bottom_from_m=t.number("bottom_from_m", 0.0, minimum=0.0),
         bottom_tension_n=check_tension(t, "bottom_tension_n", material, web_width_m),
         up_overlap=_overlap(t, "up_overlap"),
         middle_tension_n=check_tension(t, "middle_tension_n", material, web_width_m),
-        top_wraps=t.integer("top_wraps", minimum=0),
+        top_wraps=t.integer("top_wraps", minimum=0, maximum=MAX_WRAPS),
         top_overhang_m=_overhang(t, web_width_m),
         top_tension_n=check_tension(t, "top_tension_n", material, web_width_m),
         down_overlap=_overlap(t, "down_overlap") if t.has("down_overlap") else None,
@@ -113,7 +118,7 @@ def _overhang(t: Table, web_width_m: float) -> float:
 
 def _reinforcement(t: Table, material: Material, web_width_m: float) -> Reinforcement:
     r = Reinforcement(from_m=t.number("from_m", minimum=0.0),
-                      wraps=t.integer("wraps", minimum=1),
+                      wraps=t.integer("wraps", minimum=1, maximum=MAX_WRAPS),
                       tension_n=check_tension(t, "tension_n", material, web_width_m))
     t.done()
     return r

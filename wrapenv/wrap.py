@@ -395,12 +395,17 @@ def _material(top: Table) -> tuple[str, Material]:
     return key, MATERIALS[key]
 
 
+#: Most layers a [[band]] gives [A]: what a program of the most wraps lays at one height
+#: (bottom and reinforcement wraps of `MAX_WRAPS` each, a spiral's four), doubled.
+MAX_BAND_LAYERS = 100
+
+
 def _band(t: Table, material: Material, web_width_m: float) -> Band:
     from_m = t.number("from_m", minimum=0.0)
     to_m = t.number("to_m")
     if to_m <= from_m:
         raise t.error("to_m", f"must be above from_m ({from_m} m) (got {to_m})")
-    layers = t.integer("layers", minimum=1)
+    layers = t.integer("layers", minimum=1, maximum=MAX_BAND_LAYERS)
     tension = check_tension(t, "tension_n", material, web_width_m)
     t.done()
     return Band(from_m, to_m, layers, tension)

@@ -118,6 +118,22 @@ def test_blown_up_simulation_is_invalid_never_a_pass(monkeypatch):
     assert run.verdict.to_json()["highest_passed_g"] is None
 
 
+def test_a_unit_flung_apart_while_it_is_wrapped_is_invalid_not_a_failure():
+    """Bundles of 0.1 kg (5.7 kg/m³, as light as goods come) under the Kraft default's 800 N:
+    the squeeze flings them off the pallet while the wrap is laid, before the sled moves, and
+    the level is no test. Judged from where they landed, such a level was an energy blow-up
+    "during the run" here, and with 1 g bundles (now refused as a load) a valid failure, every
+    bundle fallen at t = 0. It says what happened, and when."""
+    load = LoadUnit.from_dict({
+        "name": "0.1 kg bundles", "pallet": {"preset": "EUR"},
+        "bundle": {"length_m": 0.28, "width_m": 0.19, "height_m": 0.33, "mass_kg": 0.1},
+        "stack": {"layers": 2, "pattern": "columnar"}})
+    wrap = WrapFormat.from_toml("examples/program_kraft_default.toml", load.load_height_m)
+    level = run_levels(load, [0.3], wrap=wrap).verdict.levels[0]
+    assert not level.valid and not level.passed
+    assert level.invalid_reason.startswith("the unit came apart before the sled moved")
+
+
 def test_a_unit_that_slides_off_the_sled_fails_and_is_no_blow_up():
     """A pallet on an icy deck (kinetic 0.04) at 0.8 g lags the sled by (a - mu g) T^2 / 2 =
     0.93 m over the 0.5 s dwell, then slides on at 3.73 m/s against mu g plus the sled's

@@ -434,6 +434,7 @@ BAD_LOADS = {
         {"bundle.length_m": 0.05, "bundle.width_m": 0.05, "bundle.height_m": 0.05,
          "bundle.mass_kg": 0.1}, "stack.layers"),
     "heavier than a pallet carries": ({"bundle.mass_kg": 50.0}, "bundle.mass_kg"),
+    "a 1 g bundle of 17.6 L (0.06 kg/m³)": ({"bundle.mass_kg": 0.001}, "bundle.mass_kg"),
     # An interlocked stack whose turned layer has its outer bundles' centres beyond the
     # outermost columns below: pallet 1.2 m, straight columns of 0.5 m reach x = 0.501 m,
     # turned bundles 0.1 m wide are centred up to x = 0.51 m.

@@ -289,6 +289,7 @@ BAD_WRAPS = {
     "negative layers": ({"band.1.layers": -1}, "band[1].layers"),
     "zero layers": ({"band.0.layers": 0}, "band[0].layers"),
     "boolean layers": ({"band.0.layers": True}, "band[0].layers"),
+    "a hundred thousand layers": ({"band.0.layers": 100000}, "band[0].layers"),
     "missing layers": ({"band.0.layers": None}, "band[0].layers"),
     "zero tension": ({"band.0.tension_n": 0.0}, "band[0].tension_n"),
     "negative tension": ({"band.1.tension_n": -10.0}, "band[1].tension_n"),
@@ -386,6 +387,12 @@ def test_missing_wrap_file_is_rejected_naming_the_file(tmp_path, assert_input_er
 BAD_PROGRAMS = {
     # id: (changes to BASE_PROGRAM of conftest, expected dotted field)
     "negative bottom wraps": ({"program.bottom_wraps": -1}, "program.bottom_wraps"),
+    # 100000 top wraps: 17 t of web laid, and a unit the bench flung apart (a user, 2026-11-26)
+    "a hundred thousand top wraps": ({"program.top_wraps": 100000}, "program.top_wraps"),
+    "more bottom wraps than a program lays": ({"program.bottom_wraps": 21},
+                                              "program.bottom_wraps"),
+    "reinforcement of a hundred wraps": ({"program.reinforcement": [
+        {"from_m": 0.3, "wraps": 100, "tension_n": 300.0}]}, "program.reinforcement[0].wraps"),
     "fractional top wraps": ({"program.top_wraps": 1.5}, "program.top_wraps"),
     "overlap of 1": ({"program.up_overlap": 1.0}, "program.up_overlap"),
     "overlap above 1": ({"program.down_overlap": 1.2}, "program.down_overlap"),
