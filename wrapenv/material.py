@@ -12,6 +12,15 @@ from wrapenv.config import Table
 
 #: Strains at or above this are typos (1000 %), not materials.
 MAX_STRAIN = 10.0
+#: A custom card's bounds [A] (docs/materials.md, "A custom card's bounds"), each past any web
+#: and short of the unit slip it catches: a grammage of 1 kg/m² is board (90 typed for
+#: 90 g/m²); a stiffness of 1e8 N/m is a steel strap's (3e9 typed, a modulus in Pa, for the
+#: modulus times the thickness); no web yields past 50 % and no paper stretches past 30 %
+#: before it breaks (0.8 typed for 0.8 %, 7 for 7 %).
+MAX_GRAMMAGE_KG_M2 = 1.0
+MAX_STIFFNESS_N_PER_M = 1e8
+MAX_YIELD_STRAIN = 0.5
+MAX_PAPER_BREAK_STRAIN = 0.3
 MATERIAL_KINDS = ("film", "paper")
 #: Highest film pre-stretch accepted: 400 %, the top of what powered pre-stretch reaches [S].
 MAX_PRESTRETCH = 4.0
@@ -181,13 +190,17 @@ DEFAULT_TENSION_N: dict[str, float] = {"kraft": 250.0, "lldpe": 70.0}
 
 def custom_material(t: Table) -> Material:
     name = t.string("name", "custom")
-    grammage = t.number("grammage_kg_m2", positive=True)
-    stiffness = t.number("stiffness_n_per_m", positive=True)
-    strains = {}
-    for key in ("yield_strain", "break_strain"):
-        strains[key] = t.number(key, positive=True)
-        if strains[key] >= MAX_STRAIN:
-            raise t.error(key, f"must be < {MAX_STRAIN} (got {strains[key]})")
+    kind = t.choice("kind", MATERIAL_KINDS, "film")
+    grammage = t.number("grammage_kg_m2", positive=True, maximum=MAX_GRAMMAGE_KG_M2,
+                        hint=_grams_hint(t))
+    stiffness = t.number("stiffness_n_per_m", positive=True, maximum=MAX_STIFFNESS_N_PER_M,
+                         hint="stiffer than a steel strap: a modulus in Pa? The card wants the "
+                              "modulus times the web's thickness (3 GPa x 130 µm = 4e5 N/m)")
+    top_break = MAX_PAPER_BREAK_STRAIN if kind == "paper" else None
+    strains = {key: t.number(key, positive=True, maximum=top, hint=_percent_hint(t, key))
+               for key, top in (("yield_strain", MAX_YIELD_STRAIN), ("break_strain", top_break))}
+    if strains["break_strain"] >= MAX_STRAIN:
+        raise t.error("break_strain", f"must be < {MAX_STRAIN} (got {strains['break_strain']})")
     if strains["break_strain"] <= strains["yield_strain"]:
         raise t.error("break_strain", f"must be above yield_strain ({strains['yield_strain']})"
                       f" (got {strains['break_strain']})")
@@ -196,7 +209,6 @@ def custom_material(t: Table) -> Material:
         raise t.error("hardening_ratio", f"must be < 1, a slope below the elastic one "
                       f"(got {hardening})")
     cd_ratio = t.number("cd_ratio", 0.5, positive=True, maximum=1.0)
-    kind = t.choice("kind", MATERIAL_KINDS, "film")
     relaxation = _relaxation(t.table("relaxation")) if t.has("relaxation") else NO_RELAXATION
     prestretch = (t.number("prestretch", minimum=0.0, maximum=MAX_PRESTRETCH)
                   if t.has("prestretch") else None)
@@ -207,6 +219,18 @@ def custom_material(t: Table) -> Material:
                         relaxation, **_failure_fields(t))
     t.done()
     return material
+
+
+def _grams_hint(t: Table) -> str:
+    value = t.data.get("grammage_kg_m2")
+    return (f"grams per m²? The card wants kilograms ({value:g} g/m² is {value / 1000:g} kg/m²)"
+            if isinstance(value, int | float) and 1 <= value <= 1000 else "")
+
+
+def _percent_hint(t: Table, key: str) -> str:
+    value = t.data.get(key)
+    return (f"a percentage? Strains are fractions ({value:g} % is {value / 100:g})"
+            if isinstance(value, int | float) and value >= 0.3 else "")
 
 
 def _relaxation(t: Table) -> Relaxation:

@@ -23,6 +23,8 @@ from wrapenv.wrap import WrapFormat
 CUSTOM: dict[str, Any] = {"grammage_kg_m2": 0.012, "stiffness_n_per_m": 3000.0,
                           "yield_strain": 0.1, "break_strain": 0.5}
 LOW_TENSION = {"band.0.tension_n": 100.0, "band.1.tension_n": 100.0}
+#: The same as a paper: paper breaks before 30 % (`MAX_PAPER_BREAK_STRAIN`).
+CUSTOM_PAPER: dict[str, Any] = {**CUSTOM, "kind": "paper", "break_strain": 0.2}
 
 
 def test_kraft_is_paper_130_um_thick_sliding_at_0_4_with_a_glued_tail():
@@ -43,7 +45,7 @@ def test_a_custom_card_without_the_fields_gets_the_documented_defaults(wrap_data
     assert film.thickness == pytest.approx(0.012 / DENSITY_KG_M3["film"])
     assert film.clings
     assert film.seam_strength == pytest.approx(film.break_force_n_per_m)
-    paper = WrapFormat.from_dict(wrap_data({"material": {**CUSTOM, "kind": "paper"},
+    paper = WrapFormat.from_dict(wrap_data({"material": {**CUSTOM_PAPER},
                                             **LOW_TENSION})).material
     assert paper.thickness == pytest.approx(0.012 / DENSITY_KG_M3["paper"])
     assert not paper.clings and paper.interlayer_mu == PAPER_INTERLAYER_FRICTION
@@ -52,7 +54,7 @@ def test_a_custom_card_without_the_fields_gets_the_documented_defaults(wrap_data
 
 
 def test_a_custom_card_takes_the_fields_given_and_writes_them_back(wrap_data):
-    table = {**CUSTOM, "kind": "paper", "thickness_m": 2e-4, "interlayer_friction": 0.6,
+    table = {**CUSTOM_PAPER, "thickness_m": 2e-4, "interlayer_friction": 0.6,
              "seam_strength_n_per_m": 150.0}
     wrap = WrapFormat.from_dict(wrap_data({"material": table, **LOW_TENSION}))
     card = wrap.material
@@ -92,7 +94,7 @@ def test_a_card_s_look_is_its_kind_s_so_a_custom_paper_is_drawn_as_paper(wrap_da
     declares, whatever its name says ("film" named like paper is drawn as film)."""
     assert set(LOOKS) == set(MATERIAL_KINDS)
     assert MATERIALS["kraft"].look == LOOKS["paper"] and MATERIALS["lldpe"].look == LOOKS["film"]
-    paper = {"material": {**CUSTOM, "kind": "paper", "name": "brown wrap"}, **LOW_TENSION}
+    paper = {"material": {**CUSTOM_PAPER, "name": "brown wrap"}, **LOW_TENSION}
     film = {"material": {**CUSTOM, "kind": "film", "name": "kraft-coloured paper film"},
             **LOW_TENSION}
     assert WrapFormat.from_dict(wrap_data(paper)).material.look == LOOKS["paper"]

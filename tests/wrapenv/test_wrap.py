@@ -321,8 +321,8 @@ BAD_WRAPS = {
         "material.relaxation.terms[0]"),
     "custom relaxation above 1": ({"material": {**CUSTOM, "relaxation": {"plateau": 1.5}}},
                                   "material.relaxation.plateau"),
-    "custom paper pre-stretched": ({"material": {**CUSTOM, "kind": "paper", "prestretch": 1.0}},
-                                   "material.prestretch"),
+    "custom paper pre-stretched": ({"material": {**CUSTOM, "kind": "paper", "break_strain": 0.2,
+                                                 "prestretch": 1.0}}, "material.prestretch"),
     # The custom film breaks at 300 + 0.1 x 3000 x 0.4 = 420 N/m, 210 N on a 0.5 m web.
     "tension above a custom material's break force": (
         {"material": dict(CUSTOM), "band.0.tension_n": 200.0}, "band[1].tension_n"),
@@ -433,6 +433,26 @@ def test_bad_program_is_rejected_with_one_line_naming_file_and_field(
     with pytest.raises(InputError) as info:
         WrapFormat.from_toml(path, load_height_m=0.804)
     assert_input_error(info.value, str(path), field)
+
+
+@pytest.mark.parametrize("changes, field, says", [
+    ({"grammage_kg_m2": 90.0}, "material.grammage_kg_m2",
+     "grams per m²? The card wants kilograms (90 g/m² is 0.09 kg/m²)"),
+    ({"stiffness_n_per_m": 3e9}, "material.stiffness_n_per_m", "(3 GPa x 130 µm = 4e5 N/m)"),
+    ({"yield_strain": 0.8, "break_strain": 7.0}, "material.yield_strain",
+     "Strains are fractions (0.8 % is 0.008)"),
+    ({"kind": "paper", "yield_strain": 0.008, "break_strain": 7.0}, "material.break_strain",
+     "Strains are fractions (7 % is 0.07)"),
+], ids=["grammage in g/m²", "a modulus for a stiffness", "strains in percent", "paper's break"])
+def test_a_custom_card_figure_in_the_wrong_unit_is_named_as_such(
+        changes, field, says, wrap_file, assert_input_error):
+    """Each was taken until 2026-11-26: 90 "kg/m²" of paper costed a 323 kg unit's web at
+    687 kg, and the only word on the others was a slack-tension warning."""
+    path = wrap_file({"material": {**CUSTOM, **changes}})
+    with pytest.raises(InputError) as info:
+        WrapFormat.from_toml(path, load_height_m=0.804)
+    assert_input_error(info.value, str(path), field)
+    assert info.value.message.endswith(says), info.value.message
 
 
 @pytest.mark.parametrize("changes, field, says", [
