@@ -49,7 +49,7 @@ def page(robustness: Robustness | None = None, **changes: Any) -> Page:
     failing = {**CRITERIA_OK, "elastic_10pct": False, "no_damage": False}
     run = BenchRun(Verdict(0.804, (level(0.3, 0.0118, 0.0089, 0.0088),
                                    level(0.4, 0.1234, 0.0350, 0.0390, failing,
-                                         ("L2C1R1 toppled",)))), ())
+                                         ("L2C1R1 toppled",)))), (), 50)
     wrap = WrapFormat.from_dict(
         {"material": {"name": "<b>paper</b>", "grammage_kg_m2": 0.09,
                       "stiffness_n_per_m": 40000.0, "yield_strain": 0.02, "break_strain": 0.06},

@@ -29,7 +29,7 @@ def test_a_level_that_ended_before_rest_says_why_on_its_line():
     unit = LoadUnit.from_toml("examples/pet_3layer_columnar.toml")
     fell = replace(level(False), criteria={"no_damage": False}, damage=("L3C1R3 fallen",),
                    stopped_early="L3C1R3 fell off the sled")
-    table = verdict_table(unit, BenchRun(Verdict(1.134, (fell,)), ()), None)
+    table = verdict_table(unit, BenchRun(Verdict(1.134, (fell,)), (), 20), None)
     row = table.splitlines()[-2]
     assert row.lstrip().startswith("0.30 g  FAIL")
     assert row.endswith("no_damage, L3C1R3 fell off the sled; 1 damaged: L3C1R3 fallen")
@@ -41,6 +41,6 @@ def test_a_wrapped_run_that_blew_up_points_at_the_wrap_s_squeeze():
     blown = replace(level(False, valid=False), invalid_reason="a body exceeded 6.4 m/s")
     wrapped = replace(blown, wrap=WrapReport((), 0.5, 0.0))
     for v, hinted in ((blown, False), (wrapped, True)):
-        last = verdict_table(unit, BenchRun(Verdict(1.134, (v,)), ()), None).splitlines()[-1]
+        last = verdict_table(unit, BenchRun(Verdict(1.134, (v,)), (), 20), None).splitlines()[-1]
         assert "simulation became unphysical" in last
         assert (TIGHT_WRAP_HINT in last) == hinted
