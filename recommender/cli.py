@@ -233,7 +233,14 @@ def run() -> int:
     """The `wrapbench` command: `main`, then, if it was interrupted, a Ctrl-C that comes while
     the process winds down (the interpreter joins the worker pool's threads at exit) ignored
     too. `main` itself restores its caller's handlers, as an in-process caller needs."""
-    code = main()
+    try:
+        code = main()
+    except BrokenPipeError:
+        # stdout's reader went away (`wrapbench simulate ... | head`): end as a Unix tool does
+        # on SIGPIPE, without a traceback; stdout goes to devnull so the exit's flush cannot
+        # raise again (Python's documented way, library/signal.html)
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 128 + signal.SIGPIPE
     if code in (128 + signal.SIGINT, 128 + signal.SIGTERM):
         signal.signal(signal.SIGINT, signal.SIG_IGN)
     return code

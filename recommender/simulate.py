@@ -13,7 +13,7 @@ from tqdm import tqdm
 
 from recommender.commands import as_flag, check_hours, criteria_limits, warn, wrap_json
 from recommender.html_report import check_report_folder, simulate_page, write_report
-from recommender.text import program_text, rerun_note, verdict_table
+from recommender.text import orientation_tested, program_text, rerun_note, verdict_table
 from wrapenv.bench import run_levels
 from wrapenv.calibrated import Calibration
 from wrapenv.config import InputError, check_distinct, check_output, result_json, write_together
@@ -85,7 +85,7 @@ def run_simulate(args: argparse.Namespace) -> int:
             stage, load, run, laid, wrap, args.orientation, args.hours_since_wrapping, given))
     files = {}
     if args.json:
-        out = run.verdict.to_json()
+        out = run.verdict.to_json() | {"orientation": orientation_tested(load, args.orientation)}
         if rerun_note(run):
             out["solver_iterations"] = run.solver_iterations
         if wrap is not None and laid is not None:

@@ -53,6 +53,14 @@ def _row(verdict: Verdict, v: LevelVerdict, height_m: float) -> str:
             f"  {_mm(v.pallet_slip_m)}  {note}{damage}")
 
 
+def orientation_tested(load: LoadUnit, orientation: str | None) -> str:
+    """Which side of the pallet faced the motion: "long" or "short" (a square pallet's is
+    "long"), as asked or as the load file lays the unit out (its length along x)."""
+    if orientation is not None:
+        return orientation
+    return "long" if load.pallet.length_m >= load.pallet.width_m else "short"
+
+
 def sequence_text(verdict: Verdict) -> str:
     """How the levels were run, in words: one level has no sequence to speak of."""
     if len(verdict.levels) == 1:
@@ -75,7 +83,8 @@ def verdict_table(load: LoadUnit, run: BenchRun, orientation: str | None) -> str
     lines = [
         f"{printable(load.name)}: {len(layout.bundles)} bundles, {load.stack.layers} layers "
         f"({load.stack.pattern}), load height {h:.3f} m, {load.mass_kg:.0f} kg",
-        f"sequence: {v.sequence} ({sequence_text(v)})",
+        f"sequence: {v.sequence} ({sequence_text(v)}); motion along the pallet's "
+        f"{orientation_tested(load, orientation)} side ({layout.pallet_size_m[0]:.3f} m)",
         f"limits: {limits}, no damage",
         "figures in mm (% of load height); permanent: during the level, then since the unit "
         "was put on the sled",

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import signal
 import subprocess
 import sys
 from importlib import metadata
@@ -287,6 +288,19 @@ def test_bad_input_as_a_separate_process_exits_2_without_traceback(load_file, tm
     assert written(tmp_path) == []
 
 
+def test_a_reader_that_stops_reading_ends_the_run_without_traceback(load_file, tmp_path):
+    """`wrapbench simulate ... | head -2`: head closes the pipe, and the run used to end in a
+    BrokenPipeError's traceback. It ends as a Unix tool does on SIGPIPE."""
+    path = load_file(base=TINY_LOAD)
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "recommender.cli", "simulate", str(path), "--level", "0.2"],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, cwd=tmp_path)
+    proc.stdout.close()     # the reader is gone before the table is printed
+    _, err = proc.communicate(timeout=120)
+    assert proc.returncode == 128 + signal.SIGPIPE
+    assert err == b""
+
+
 def test_version_is_the_installed_distribution_s(capsys):
     with pytest.raises(SystemExit) as stop:
         main(["--version"])
@@ -317,6 +331,7 @@ def test_passing_level_exits_0_and_writes_the_contract_json_and_a_png(load_file,
 
     verdict = json.loads(out_json.read_text())
     assert {"valid", "load_height_m", "levels", "highest_passed_g"} <= set(verdict)
+    assert verdict["orientation"] == "long"     # as the file lays it out: length along x
     assert verdict["wrapbench_version"] == metadata.version("wrapbench")
     assert verdict["valid"] is True
     assert verdict["load_height_m"] == pytest.approx(0.144 + 0.33)
