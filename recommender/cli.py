@@ -78,7 +78,8 @@ def _add_simulate(sub: argparse._SubParsersAction) -> None:
     sim.add_argument("--eumos", action="store_true",
                      help="EUMOS sequence from --start up to --target, stopping at the first "
                           "failure (the default when no level or profile is given)")
-    sim.add_argument("--target", type=level_g, default=0.5, metavar="G", help="default 0.5 g")
+    sim.add_argument("--target", type=level_g, metavar="G",
+                     help="last level of the EUMOS sequence (default 0.5 g)")
     sim.add_argument("--start", type=level_g, metavar="G",
                      help="first level (default 0.2 g, or the target when it is lower)")
     sim.add_argument("--profile", type=Path, help="drive the sled by a measured profile.csv")

@@ -29,12 +29,19 @@ def _levels(args: argparse.Namespace) -> list[Any]:
         raise InputError("arguments", "--profile", "cannot be combined with --level or --eumos")
     if args.level and args.eumos:
         raise InputError("arguments", "--level", "cannot be combined with --eumos")
+    for flag, value in (("--target", args.target), ("--start", args.start)):
+        if value is not None and (args.level or args.profile):
+            # it used to be ignored: the run looked like the sequence the user asked for
+            raise InputError("arguments", flag, "sets the EUMOS sequence; with --level or "
+                                                "--profile the levels run are those given")
     if args.profile:
         return [MeasuredProfile.from_csv(args.profile)]
     try:
         if args.level:
             return [PulseProfile(g) for g in args.level]  # every level checked before running
-        return [PulseProfile(g) for g in eumos_levels(args.target, args.start)]
+        levels = (eumos_levels(start_g=args.start) if args.target is None
+                  else eumos_levels(args.target, args.start))
+        return [PulseProfile(g) for g in levels]
     except InputError as exc:
         raise as_flag(exc) from None
 
@@ -50,6 +57,9 @@ def run_simulate(args: argparse.Namespace) -> int:
         if wrap is not None:
             wrap = wrap.scaled(calibration.stiffness_scale, calibration.tension_scale)
     check_hours(args.hours_since_wrapping)
+    if args.hours_since_wrapping and wrap is None:
+        raise InputError("arguments", "--hours-since-wrapping", "needs --wrap (an unwrapped "
+                         "unit has no wrap tension to relax)")
     if wrap is not None:
         wrap = wrap.relaxed(args.hours_since_wrapping)
     inputs = [p for p in (args.load, args.wrap, args.calibration, args.profile) if p]

@@ -210,6 +210,18 @@ def test_usage_error_exits_2_with_one_line(argv, load_file, capsys):
 
 
 @pytest.mark.parametrize("argv, field", [
+    (["--level", "0.2", "--target", "0.9"], "--target"),
+    (["--level", "0.2", "--start", "0.6"], "--start"),
+    (["--level", "0.2", "--hours-since-wrapping", "16"], "--hours-since-wrapping"),
+], ids=["target with levels", "start with levels", "hours without a wrap"])
+def test_a_flag_the_run_would_ignore_is_refused(argv, field, load_file, capsys):
+    """Each used to be ignored without a word: the run looked like the one asked for."""
+    assert run(["simulate", str(load_file()), *argv]) == 2
+    err = one_line(capsys.readouterr().err)
+    assert field in err
+
+
+@pytest.mark.parametrize("argv, field", [
     (["--hours-since-wrapping", "-1"], "--hours-since-wrapping"),
     (["--layer-shift-limit-pct", "0"], "--layer-shift-limit-pct"),
     (["--layer-shift-limit-pct", "101"], "--layer-shift-limit-pct"),
