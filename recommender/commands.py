@@ -23,7 +23,14 @@ from recommender.html_report import (
     recommend_page,
     write_report,
 )
-from recommender.search import Evaluation, Problem, SearchSettings, SearchState, Verification
+from recommender.search import (
+    TIGHT_PROGRAMS,
+    Evaluation,
+    Problem,
+    SearchSettings,
+    SearchState,
+    Verification,
+)
 from recommender.text import program_text, verdict_table
 from wrapenv.calibrated import Calibration
 from wrapenv.config import (
@@ -125,10 +132,13 @@ def _settings(args: argparse.Namespace) -> SearchSettings:
     budget: int = SearchSettings.max_candidates if given["budget"] is None else given["budget"]
     cycle_weight = (SearchSettings.cycle_weight if given["cycle_weight"] is None
                     else given["cycle_weight"])
-    for flag, value, low in (("--samples", args.samples, 1), ("--budget", budget, 2),
+    for flag, value, low in (("--samples", args.samples, 1),
+                             ("--budget", budget, len(TIGHT_PROGRAMS)),
                              ("--workers", args.workers, 1)):
         if value < low:
-            raise InputError("arguments", flag, f"must be >= {low} (got {value})")
+            why = (": the first generation tries the lightest program at three tensions"
+                   if flag == "--budget" else "")
+            raise InputError("arguments", flag, f"must be >= {low} (got {value}){why}")
     most = MAX_WORKERS_PER_CORE * (os.cpu_count() or 1) if args.backend == "process" else 4096
     if args.workers > most:
         raise InputError("arguments", "--workers", f"must be <= {most} on the {args.backend} "

@@ -68,7 +68,7 @@ def test_ray_backend_without_ray_installed_says_how_to_install(monkeypatch, caps
     with pytest.raises(InputError, match=r"pip install \.\[ray\]"):
         RayExecutor(1)
     monkeypatch.chdir(tmp_path)
-    assert main(["recommend", "--backend", "ray", "--budget", "2", "--samples", "1"]) == 2
+    assert main(["recommend", "--backend", "ray", "--budget", "3", "--samples", "1"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "pip install .[ray]" in err[0]
     assert list(tmp_path.iterdir()) == []

@@ -495,6 +495,9 @@ def test_a_bad_web_file_is_named_with_its_field(load_file, tmp_path, capsys):
     (["--target", "1.5"], "--target"),
     (["--samples", "0"], "--samples"),
     (["--workers", "0"], "--workers"),
+    # fewer than the lightest programs the first generation tries: CMA-ES dropped one, and
+    # its UserWarning reached the user
+    (["--budget", "2"], "--budget"),
     (["--margin", "1.5"], "--margin"),
     (["--resume"], "--resume"),
     (["--max-cycle-s", "0"], "--max-cycle-s"),
