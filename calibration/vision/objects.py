@@ -109,7 +109,7 @@ def bundles(view: View, matches: list[Detection] | None,
     position no match comes near (or every position, with no template: `matches` None) starts
     from the layout, with a warning when there were matches to use."""
     s, inset = view.pixmap.px_per_m, 2 * INSET_M
-    objects = []
+    objects, unmatched = [], []
     for name, (bx, bz, length, height) in front_row(view.layout).items():
         u, v = view.pixmap.to_px(bx + view.sled_x0_m, bz)
         radius = MATCH_RADIUS * s * min(length, height)
@@ -118,11 +118,28 @@ def bundles(view: View, matches: list[Detection] | None,
             best = max(near, key=lambda d: d.score)
             u, v = best.u, best.v
         elif matches is not None:
+            unmatched.append(name)
             warnings.append(f"{name}: no template match near its layout position in frame 0; "
                             "started from the layout")
         objects.append(TrackedObject(name, (float(u), float(v)),
                                      box_size(s * (length - inset), s * (height - inset))))
+    if matches is not None:
+        warnings.extend(_missing_layers(view.layout, unmatched))
     return objects
+
+
+def _missing_layers(layout: Layout, unmatched: list[str]) -> list[str]:
+    """A warning for each layer none of whose front bundles matched while a layer below did:
+    load.toml most likely describes another unit than the one filmed (phantom bundles are
+    then followed over the background)."""
+    row = front_row(layout)
+    layers = sorted({int(name[1:name.index("C")]) for name in row})
+    empty = [k for k in layers
+             if all(n in unmatched for n in row if n.startswith(f"L{k}C"))]
+    matched_below = [k for k in empty if any(j < k and j not in empty for j in layers)]
+    return [f"layer {k}: none of its bundles matches the template in frame 0, though a layer "
+            f"below does: does load.toml (stack.layers = {max(layers)}, bundle.height_m = "
+            f"{layout.bundles[0].size_m[2]:g}) describe the unit filmed?" for k in matched_below]
 
 
 def match_template(view: View, first: Frame, path: Path) -> list[Detection]:

@@ -360,6 +360,20 @@ def test_truncated_video_loses_its_cut_frame_not_its_accuracy(two_layer: Recordi
     assert len(cut) == 1 and "cut short" in cut[0] and f"frames 0-{frames - 1}" in cut[0], cut
 
 
+def test_a_layer_the_video_does_not_show_is_named(slide_dir: Path, tmp_path: Path) -> None:
+    """load.toml says two layers, the video shows one: the second's bundles were followed over
+    the background with a warning per bundle, none saying what is wrong."""
+    folder = tmp_path / "two"
+    shutil.copytree(slide_dir, folder)
+    load = folder / "load.toml"
+    load.write_text(re.sub(r"(?m)^layers = 1", "layers = 2", load.read_text()))
+    warnings = track(Recording.read(folder)).warnings
+    assert [w for w in warnings if w.startswith("layer ")] == [
+        "layer 2: none of its bundles matches the template in frame 0, though a layer below "
+        "does: does load.toml (stack.layers = 2, bundle.height_m = 0.33) describe the unit "
+        "filmed?"]
+
+
 def test_unmatched_template_names_the_file(two_layer: Recording, tmp_path: Path) -> None:
     folder = _copy(two_layer, tmp_path)
     rng = np.random.default_rng(0)
