@@ -319,8 +319,10 @@ class RobustSearch:
     def _confirm(self, state: SearchState, pool: Executor, xs: np.ndarray, seeds: list[int],
                  screened: list[Evaluation]) -> list[Evaluation]:
         """The generation's screened passes that would replace the incumbent, confirmed at
-        the default fidelity in the same samples, best first, until one holds (the rest then
-        rank after it). A confirmation replaces the screened evaluation, pass or fail. Its
+        the default fidelity in the same samples, best first, until one holds that ranks before
+        every screened pass left (a confirmed pass short of the margin goal ranks after a
+        screened one that meets it: that one is confirmed too). A confirmation replaces the
+        screened evaluation, pass or fail. Its
         failing levels run to their end: a level stopped once decided scores about -1 (the
         displacement at the stop counts as permanent), and CMA-ES learns from the graded
         margin of a full run (2-layer LLDPE: without it the search found no pass)."""
@@ -333,8 +335,9 @@ class RobustSearch:
                     s.margin_goal):
                 break
             out[i] = self._simulate(pool, xs[i:i + 1], seeds, s.sim, DEFAULT)[0]
-            if out[i].robust_pass:
-                break
+            if out[i].robust_pass and (incumbent is None or out[i].rank(s.margin_goal)
+                                       < incumbent.rank(s.margin_goal)):
+                incumbent = out[i]
         return out
 
     def _record(self, state: SearchState, xs: np.ndarray, evaluations: list[Evaluation]) -> None:

@@ -281,6 +281,35 @@ def test_a_screened_pass_that_fails_its_confirmation_is_recorded_as_failed(small
     assert [f for g in saved for f in g["fidelity"]] == [e.fidelity for e in state.history]
 
 
+def test_a_confirmed_pass_short_of_the_margin_goal_does_not_end_the_confirmations(small_load):
+    """Screening passes the generation's candidates with room to spare; confirmed, the first
+    (the gentlest tension) passes short of the margin goal. The next, which meets it, is
+    confirmed too: it ranks before the first. The interlocked example answered nothing with
+    --budget 8 (a user, 2026-11-26): the lightest program at 80 N confirmed at margin 0.17 <
+    0.2 ended the confirmations, and 440 N (0.73, the answer with more budget) never was."""
+
+    class ShortOfTheGoal(RobustSearch):
+        def __init__(self, problem: Problem) -> None:
+            super().__init__(problem)
+            self.confirmed: list[float] = []
+
+        def _simulate(self, pool, xs, seeds, sim, fidelity):
+            if fidelity == SCREENING:
+                return [self._evaluation(x, [0.5] * len(seeds), [True] * len(seeds), fidelity)
+                        for x in xs]
+            margins = [0.1 if not self.confirmed else 0.5 for _ in xs]
+            self.confirmed.extend(margins)
+            return [self._evaluation(x, [m] * len(seeds), [True] * len(seeds), fidelity)
+                    for x, m in zip(xs, margins, strict=True)]
+
+    settings = replace(FAST, max_candidates=FAST.popsize)    # one generation
+    search = ShortOfTheGoal(Problem.build(small_load, settings))
+    state = search.run(search.start())
+    assert search.confirmed[:2] == [0.1, 0.5]
+    best = state.best(settings.margin_goal)
+    assert best is not None and best.margin >= settings.margin_goal
+
+
 def test_candidates_heavier_than_a_pass_with_the_margin_goal_are_not_simulated(small_load,
                                                                                tmp_path):
     """Once a confirmed pass meets the margin goal, a heavier candidate cannot become the
