@@ -267,7 +267,7 @@ def run_recommend(args: argparse.Namespace) -> int:
                          f"{checkpoint} (--resume continues it)")
         raise
     if chosen is None:
-        print(_nothing_passed(state.history, settings, args.samples))
+        print(_nothing_passed(state, settings, args.samples, samples))
         _forget(checkpoint)
         return 1
     best, check = chosen
@@ -292,10 +292,19 @@ def _forget(checkpoint: Path | None) -> None:
         checkpoint.unlink(missing_ok=True)
 
 
-def _nothing_passed(history: list[Evaluation], settings: SearchSettings, samples: int) -> str:
-    """Why no program is recommended: every candidate failed, or was over the cycle-time
-    limit and never simulated (nor were candidates heavier than a pass that later failed its
-    verification: they are not slow)."""
+def _nothing_passed(state: SearchState, settings: SearchSettings, samples: int,
+                    verification_samples: int) -> str:
+    """Why no program is recommended: the search's passes failed their verification, or every
+    candidate failed, or was over the cycle-time limit and never simulated (nor were
+    candidates heavier than a pass that later failed its verification: they are not slow)."""
+    history = state.history
+    passes = len(state.ranked(settings.margin_goal))
+    if passes:
+        tried = min(passes, VERIFY_CANDIDATES)
+        return (f"no program recommended: the {tried} lightest of the {passes} programs that "
+                f"passed the search's {samples} samples failed their verification (the whole "
+                f"EUMOS sequence, or one of {verification_samples} samples); more --samples "
+                f"(or --budget) make the search's passes sturdier")
     slow = [e for e in history if e.cycle_s > settings.max_cycle_s]
     if history and len(slow) == len(history):
         return (f"no program within the cycle-time limit of {settings.max_cycle_s:g} s: all "
@@ -327,12 +336,14 @@ def _run_search(search: Any, state: SearchState, settings: SearchSettings) -> Se
 def _verified(problem: Problem, state: SearchState, samples: int,
               workers: int) -> tuple[Evaluation, Verification] | None:
     """The lightest robust pass that also passes the whole EUMOS sequence in every orientation
-    (the search tried the target levels only)."""
+    (the search tried the target levels only) and every sample of its verification, as a
+    policy's proposal must: a pass of a few search samples may hold in them by chance (with
+    --samples 2 a program passing 3 of 8 verification samples was recommended, exit 0)."""
     from recommender.search import verify
 
     for candidate in state.ranked(problem.settings.margin_goal)[:VERIFY_CANDIDATES]:
         check = verify(problem, candidate.wrap, samples, workers=workers)
-        if check.passed:
+        if check.passed and check.probability.passed == check.probability.samples:
             return candidate, check
     return None
 
@@ -370,10 +381,9 @@ def _propose_with_policy(args: argparse.Namespace, problem: Problem,
 
 
 def _refused_proposal(problem: Problem, best: Evaluation, check: Verification) -> str:
-    """Why a policy's proposal is not recommended ("": it is). A search recommends only a
-    program within the cycle-time limit that passed every one of its samples, then the nominal
-    sequence; a proposal has no search behind it, so it must pass the nominal sequence and
-    every sample of its verification."""
+    """Why a policy's proposal is not recommended ("": it is). As a search's answer, it must
+    pass the nominal sequence and every sample of its verification, and a proposal has no
+    cycle-time limit behind it: that is checked here."""
     limit = problem.settings.max_cycle_s
     if best.cycle_s > limit:
         return f"takes {best.cycle_s:.0f} s, over the cycle-time limit of {limit:g} s"

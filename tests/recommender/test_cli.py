@@ -500,11 +500,40 @@ def test_nothing_passed_counts_only_slow_candidates_as_over_the_limit():
 
     from recommender.commands import _nothing_passed
 
-    settings = SimpleNamespace(max_cycle_s=40.0, targets=(("long", 0.5),))
+    settings = SimpleNamespace(max_cycle_s=40.0, targets=(("long", 0.5),), margin_goal=0.2)
     history = [SimpleNamespace(cycle_s=c, passed=p)
                for c, p in ((35.0, (False,)), (38.0, ()), (45.0, ()))]
-    text = _nothing_passed(history, settings, 3)   # type: ignore[arg-type]
+    state = SimpleNamespace(history=history, ranked=lambda goal: [])
+    text = _nothing_passed(state, settings, 3, 8)   # type: ignore[arg-type]
     assert text.endswith("after 3 candidates x 3 samples, 1 of them over the cycle-time limit")
+
+
+def test_a_search_pass_that_fails_a_verification_sample_is_not_recommended(monkeypatch):
+    """With --samples 2 the search's pass held in its two samples and in 3 of the 8 of its
+    verification, and was recommended, exit 0 (a user, 2026-11-26); a policy's proposal had to
+    pass all 8. A search's must now too: the next pass is verified, and if none holds, the
+    message says the search's passes failed their verification."""
+    from types import SimpleNamespace
+
+    from recommender import search
+    from recommender.commands import _nothing_passed, _verified
+
+    def verify(problem, wrap, samples, workers=1):
+        passed = {"fragile": 3, "sturdy": 8}[wrap]
+        return SimpleNamespace(passed=True, probability=SimpleNamespace(passed=passed,
+                                                                         samples=samples))
+
+    monkeypatch.setattr(search, "verify", verify)
+    problem = SimpleNamespace(settings=SimpleNamespace(margin_goal=0.2))
+    fragile, sturdy = SimpleNamespace(wrap="fragile"), SimpleNamespace(wrap="sturdy")
+    both = SimpleNamespace(ranked=lambda goal: [fragile, sturdy])
+    assert _verified(problem, both, 8, 1)[0] is sturdy    # type: ignore[arg-type,index]
+    alone = SimpleNamespace(ranked=lambda goal: [fragile], history=[fragile])
+    assert _verified(problem, alone, 8, 1) is None        # type: ignore[arg-type]
+    settings = SimpleNamespace(margin_goal=0.2, max_cycle_s=40.0, targets=(("long", 0.5),))
+    assert _nothing_passed(alone, settings, 2, 8).startswith(   # type: ignore[arg-type]
+        "no program recommended: the 1 lightest of the 1 programs that passed the search's 2 "
+        "samples failed their verification")
 
 
 @pytest.mark.parametrize("command, flags", [
