@@ -8,6 +8,7 @@ the domain's errors (which name domain fields) onto the flags a user typed.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import math
 import os
 import sys
@@ -483,6 +484,7 @@ def run_train(args: argparse.Namespace) -> int:
     calibration = _observable_calibration(args.calibration)
     if args.out.exists() and not args.out.is_dir():
         raise InputError(str(args.out), "--out", "exists and is not a folder")
+    made = not args.out.exists()
     try:
         args.out.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
@@ -502,12 +504,25 @@ def run_train(args: argparse.Namespace) -> int:
         if kept:
             exc.add_note(f"interrupted; no policy.zip written, the last checkpoint is {kept[0]} "
                          f"(--resume continues from it)")
-        elif (args.out / "log.csv").exists():
-            exc.add_note(f"interrupted before the first checkpoint: no policy written, "
-                         f"{args.out / 'log.csv'} holds the episodes so far")
+        else:
+            _forget_run(args.out, made)
+            exc.add_note("interrupted before the first checkpoint: nothing written (the same "
+                         "command starts the run again)")
         raise
     print(f"policy written to {path} (log: {args.out / 'log.csv'})")
     return 0
+
+
+def _forget_run(out: Path, made: bool) -> None:
+    """What a run interrupted before its first checkpoint wrote: its log and its empty
+    checkpoints/, and `out` itself if the run `made` it. Kept, the log made a folder that could
+    be neither resumed (no checkpoint) nor trained into again (an earlier run's log)."""
+    from recommender.policy import CHECKPOINT_DIR, LOG_FILE
+
+    (out / LOG_FILE).unlink(missing_ok=True)
+    for folder in (out / CHECKPOINT_DIR, out) if made else (out / CHECKPOINT_DIR,):
+        with contextlib.suppress(OSError):   # not empty: something else is there, kept
+            folder.rmdir()
 
 
 def _check_run_folder(out: Path, resume: bool) -> None:

@@ -476,13 +476,20 @@ def test_envs_interrupted_within_a_step_close_without_waiting_for_answers_alread
     assert vec.closed and not any(p.is_alive() for p in vec.processes)
 
 
-def test_a_training_interrupted_before_its_first_checkpoint_says_what_it_left(tmp_path,
-                                                                             monkeypatch, capsys):
+def test_a_training_interrupted_before_its_first_checkpoint_leaves_nothing(tmp_path,
+                                                                          monkeypatch, capsys):
+    """It left its log and an empty checkpoints/: a folder --resume refused (no checkpoint)
+    and a new run refused (an earlier run's log), so the user went in a circle (a user,
+    2026-11-26). Nothing to resume is kept, and the same command starts again."""
     def interrupted(settings: TrainSettings, out: Path, resume: bool = False) -> Path:
+        (out / "checkpoints").mkdir()
         (out / "log.csv").write_text(",".join(LOG_COLUMNS) + "\n")
         raise KeyboardInterrupt
 
     monkeypatch.setattr(recommender.policy, "train", interrupted)
-    assert main(["train", "--out", str(tmp_path / "run")]) == 130
-    err = capsys.readouterr().err.strip()
-    assert "\n" not in err and "before the first checkpoint" in err and "log.csv" in err
+    for out in (tmp_path / "run", tmp_path):     # a folder the run made, and one it was given
+        assert main(["train", "--out", str(out)]) == 130
+        err = capsys.readouterr().err.strip()
+        assert "\n" not in err and "before the first checkpoint: nothing written" in err
+        assert not (tmp_path / "run").exists() and list(tmp_path.iterdir()) == []
+    assert tmp_path.is_dir()
