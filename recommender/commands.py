@@ -361,7 +361,13 @@ def _propose_with_policy(args: argparse.Namespace, problem: Problem,
         raise InputError(where, "--policy", "a policy.zip from `wrapbench train` is needed "
                                             "with --method ppo")
     calibration = _observable_calibration(args.calibration)
-    if read_meta(args.policy).get("calibrated", False) != (calibration is not None):
+    meta = read_meta(args.policy)
+    trained_g, target_g = meta.get("target_g"), problem.settings.target_g
+    if isinstance(trained_g, int | float) and abs(trained_g - target_g) > 1e-9:
+        warn("recommend", (f"the policy was trained for {trained_g:g} g and is asked for "
+                           f"{target_g:g} g (the target is one of its observations): its "
+                           "proposal is an extrapolation, verified as given",))
+    if meta.get("calibrated", False) != (calibration is not None):
         warn("recommend", ("the policy was trained " + ("without a calibration, and --calibration "
                            "is given" if calibration else "with a calibration, and none is given")
                            + ": it observes this unit's uncertainty unlike in training; its "

@@ -596,6 +596,18 @@ def test_a_policy_used_with_a_calibration_it_was_not_trained_on_is_warned_about(
     assert "warning: the policy was trained without a calibration" in err
 
 
+def test_a_policy_asked_for_a_target_it_was_not_trained_for_is_warned_about(
+        load_file, tmp_path, capsys):
+    """The target is one of the policy's observations: asked for 0.3 g, one trained for 0.5 g
+    extrapolates, as for a unit unlike its training units (it used to say nothing)."""
+    load = load_file(base=SMALL)
+    policy = fixed_policy(load, 1.0, tmp_path / "heavy.zip")
+    main(["recommend", str(load), "--method", "ppo", "--policy", str(policy), "--samples", "1",
+          "--workers", "2", "--orientation", "long", "--target", "0.3"])
+    err = capsys.readouterr().err
+    assert "warning: the policy was trained for 0.5 g and is asked for 0.3 g" in err
+
+
 def test_a_policy_asked_about_a_unit_unlike_its_training_units_is_warned_about(
         tmp_path, capsys):
     half = "examples/pet_3layer_half_pallet.toml"
@@ -609,8 +621,7 @@ def test_a_policy_asked_about_a_unit_unlike_its_training_units_is_warned_about(
 
 
 def test_a_proposal_is_recommended_only_if_it_passes_every_sample():
-    """A search recommends only programs that passed all their samples; a proposal, which no
-    search stands behind, must pass every sample of its verification."""
+    """A proposal must pass every sample of its verification, as a search's answer must."""
     from recommender.commands import _refused_proposal
     from recommender.uncertainty import PassProbability
 

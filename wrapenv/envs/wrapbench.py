@@ -132,7 +132,9 @@ class WrapBenchEnv(gym.Env):
 
     ## Arguments
     `gymnasium.make("wrapenv/WrapBench-v2", **kwargs)`, all keyword-only and checked at
-    construction (`InputError`, a `ValueError`, for bad values; `TypeError` for wrong types):
+    construction: `InputError` (a `ValueError`) for a bad value of a number or a name, a string
+    given for a number included; `TypeError` for a `load`, `calibration` or `settings` of
+    another type:
 
     | argument          | default                           | meaning                              |
     |-------------------|-----------------------------------|--------------------------------------|
