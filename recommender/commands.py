@@ -389,8 +389,8 @@ def _propose_with_policy(args: argparse.Namespace, problem: Problem,
 
 def _refused_proposal(problem: Problem, best: Evaluation, check: Verification) -> str:
     """Why a policy's proposal is not recommended ("": it is). As a search's answer, it must
-    pass the nominal sequence and every sample of its verification, and a proposal has no
-    cycle-time limit behind it: that is checked here."""
+    pass the nominal sequence and every sample of its verification, within the cycle-time
+    limit (a search keeps that by never simulating a slower candidate)."""
     limit = problem.settings.max_cycle_s
     if best.cycle_s > limit:
         return f"takes {best.cycle_s:.0f} s, over the cycle-time limit of {limit:g} s"
