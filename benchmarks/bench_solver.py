@@ -30,7 +30,7 @@ from wrapenv.bench import SimSettings, run_levels
 from wrapenv.design import N_PARAMS, ProgramSpace
 from wrapenv.load import LoadUnit
 from wrapenv.profile import eumos_levels
-from wrapenv.program_table import MAX_WRAPS
+from wrapenv.program_table import MAX_WRAPS_AT_ONE_HEIGHT
 from wrapenv.wrap import WrapFormat
 
 CASES = (("examples/pet_3layer_columnar.toml", "examples/program_kraft_default.toml"),
@@ -72,7 +72,7 @@ def heavy(solves: list[str]) -> None:
     text = Path("examples/program_kraft_default.toml").read_text()
     wraps = {f"Kraft default, {n} top wraps": WrapFormat.from_dict(
         tomllib.loads(re.sub(r"(?m)^top_wraps = \d+", f"top_wraps = {n}", text)), "heavy",
-        height) for n in (3, 10, MAX_WRAPS)}
+        height) for n in (3, 10, MAX_WRAPS_AT_ONE_HEIGHT)}
     space = ProgramSpace.for_layout(load.layout(), "kraft")
     wraps["the search space's heaviest program"] = space.decode(np.ones(N_PARAMS))
     for name, wrap in wraps.items():

@@ -268,7 +268,7 @@ def _recordings(args: argparse.Namespace) -> tuple[list, list]:
 def _observations(recordings: list, retrack: bool) -> list:
     from calibration.replay import observe
     from calibration.track import track
-    from calibration.trajectories import Trajectories, check_recorded
+    from calibration.trajectories import Trajectories
 
     observations = []
     for rec in recordings:
@@ -278,7 +278,7 @@ def _observations(recordings: list, retrack: bool) -> list:
         csv = rec.folder / "trajectories.csv"
         if csv.exists() and not retrack:
             tracked = Trajectories.from_csv(csv)
-            check_recorded(tracked, rec.object_names(), float(rec.profile.t_s[-1]), str(csv))
+            rec.check_trajectories(tracked, str(csv))
             print(f"{printable(str(rec.folder))}: trajectories from {csv.name}")
         else:
             result = track(rec)

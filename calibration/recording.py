@@ -23,6 +23,7 @@ import cv2
 import numpy as np
 
 from calibration.camera_setup import SETUP, MarkerSpec, Setup, check_markers, exact
+from calibration.trajectories import Trajectories
 from calibration.vision.video import open_video
 from wrapenv.config import InputError, read_csv, read_json, read_toml, write_atomic
 from wrapenv.load import LoadUnit
@@ -39,6 +40,9 @@ TRACK_KEYS = ("t_s", "x_m", "z_m", "angle_rad")
 FPS_TOLERANCE = 1e-3
 #: Slack on time comparisons: the profile may end this much before the last frame's time.
 TIME_SLACK_S = 1e-6
+#: Slack on a trajectories file's times against the profile: written to microseconds, they
+#: may round past a profile that ends `TIME_SLACK_S` early.
+TRAJECTORY_SLACK_S = 1e-5
 #: The pallet's length on the video, as a share of the frame's width, outside which the
 #: camera's scale is a unit slip (pixels per millimetre or centimetre given as per metre):
 #: the issue's recordings show it over about a quarter of the frame.
@@ -161,9 +165,25 @@ class Recording:
         """The side camera of this recording (`SideCamera.project` gives pixels)."""
         return SideCamera(width, height, self.px_per_m, self.origin_px)
 
-    def object_names(self) -> set[str]:
-        """What trajectories of this recording may name: the sled, the pallet, the bundles."""
-        return {"sled", "pallet"} | {b.name for b in self.load.layout().bundles}
+    def check_trajectories(self, tracked: Trajectories, source: str) -> None:
+        """Trajectories read from `source` against this recording: objects it has (the sled,
+        the pallet, the load's bundles) at times within its profile. A name the load lacks
+        would otherwise be dropped unseen (a typo, another load's file), and times in
+        milliseconds fitted as seconds."""
+        names = {"sled", "pallet"} | {b.name for b in self.load.layout().bundles}
+        end_s = float(self.profile.t_s[-1])
+        for name, path in tracked.objects.items():
+            if name not in names:
+                bundles = sorted(names - {"sled", "pallet"})
+                raise InputError(source, f"object {name}",
+                                 "is not an object of the recording's load.toml (the sled, the "
+                                 f"pallet, bundles {bundles[0]} ... {bundles[-1]}): a typo, or "
+                                 "another load's file?")
+            if path.t_s[0] < -TRAJECTORY_SLACK_S or path.t_s[-1] > end_s + TRAJECTORY_SLACK_S:
+                raise InputError(source, f"object {name}: t_s",
+                                 f"runs from {path.t_s[0]:g} to {path.t_s[-1]:g} s, outside "
+                                 f"profile.csv's 0 to {end_s:g} s (milliseconds? t = 0 is the "
+                                 "video's first frame)")
 
 
 def _find_video(folder: Path) -> Path:

@@ -94,32 +94,6 @@ class Trajectories:
         return cls(objects)
 
 
-def check_recorded(tracked: Trajectories, names: set[str], end_s: float, source: str) -> None:
-    """A trajectories file against the recording it comes with: objects it has (`names`:
-    the sled, the pallet and the load's bundles) at times within its profile (0 to `end_s`).
-    A name the load lacks would otherwise be dropped unseen (a typo, another load's file), and
-    times in milliseconds fitted as seconds."""
-    for name, path in tracked.objects.items():
-        if name not in names:
-            raise InputError(source, f"object {name}",
-                             "is not an object of the recording's load.toml (the sled, the "
-                             f"pallet, {_name_range(names)}): a typo, or another load's file?")
-        if path.t_s[0] < -TIME_SLACK_S or path.t_s[-1] > end_s + TIME_SLACK_S:
-            raise InputError(source, f"object {name}: t_s",
-                             f"runs from {path.t_s[0]:g} to {path.t_s[-1]:g} s, outside "
-                             f"profile.csv's 0 to {end_s:g} s (milliseconds? t = 0 is the "
-                             "video's first frame)")
-
-
-#: Slack on comparing tracked times with a profile's (both written to microseconds).
-TIME_SLACK_S = 1e-5
-
-
-def _name_range(names: set[str]) -> str:
-    bundles = sorted(n for n in names if n not in ("sled", "pallet"))
-    return f"bundles {bundles[0]} ... {bundles[-1]}" if bundles else "no bundle"
-
-
 def _numbers(path: Path, line: int, row: list[str]) -> tuple[float, float, float, float]:
     values = []
     for key, cell in zip((HEADER[0], *HEADER[2:]), (row[0], *row[2:]), strict=True):

@@ -38,6 +38,7 @@ from wrapenv.config import (
     InputError,
     check_distinct,
     check_output,
+    fraction_hint,
     printable,
     result_json,
     write_together,
@@ -145,8 +146,8 @@ def _settings(args: argparse.Namespace) -> SearchSettings:
         raise InputError("arguments", "--workers", f"must be <= {most} on the {args.backend} "
                          f"backend (got {args.workers}): a simulation keeps a core busy")
     if not (0 <= margin < 1):
-        percent = f": a fraction ({margin / 100:g} for {margin:g} %)" if 1 <= margin <= 100 else ""
-        raise InputError("arguments", "--margin", f"must be in [0, 1) (got {margin}){percent}")
+        raise InputError("arguments", "--margin",
+                         f"must be in [0, 1) (got {margin}){fraction_hint(margin)}")
     if not args.max_cycle_s > 0:
         raise InputError("arguments", "--max-cycle-s", f"must be > 0 (got {args.max_cycle_s})")
     if not cycle_weight >= 0:

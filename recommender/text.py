@@ -3,7 +3,7 @@ operator enters it, with the web it lays and the time it takes."""
 
 from __future__ import annotations
 
-from wrapenv.bench import BenchRun, SimSettings
+from wrapenv.bench import BenchRun
 from wrapenv.config import printable
 from wrapenv.eumos import EUMOS_CRITERIA, LevelVerdict, Verdict
 from wrapenv.load import Layout, LoadUnit
@@ -106,10 +106,10 @@ def verdict_table(load: LoadUnit, run: BenchRun, orientation: str | None) -> str
 
 def rerun_note(run: BenchRun) -> str:
     """A line when the run had to be made again with more solver iterations ("" if not)."""
-    default = SimSettings().wrapped_solver_iterations
-    if run.solver_iterations <= default or not wrapped(run.verdict):
+    if not run.crept_at:
         return ""
-    return (f"solved with {run.solver_iterations} solver iterations: at {default} the squeezed "
+    tried = " and ".join(map(str, run.crept_at))
+    return (f"solved with {run.solver_iterations} solver iterations: at {tried} the squeezed "
             "stack crept on under static friction (a wrap many times the bundles' weight)")
 
 

@@ -131,6 +131,8 @@ class BenchRun:
     #: The solver iterations the run was made with (more than the settings' when a wrapped
     #: stack crept: `run_levels`).
     solver_iterations: int
+    #: The iterations of the runs made before it whose squeezed stack crept (none: the first).
+    crept_at: tuple[int, ...] = ()
 
 
 def run_level(layout: Layout, profile: Profile, settings: SimSettings = SimSettings(),
@@ -214,13 +216,15 @@ def run_levels(
     `SimSettings.max_wrapped_solver_iterations`; `BenchRun.solver_iterations` says how many
     the answer took; `on_rerun` hears of a run started again, with its iterations."""
     levels = tuple(levels)
+    crept: tuple[int, ...] = ()
     while True:
         run = _run_levels_once(load, levels, settings, orientation, stop_at_failure, wrap,
                                fresh, limits, on_level)
         doubled = 2 * settings.wrapped_solver_iterations
         if not (wrap is not None and _crept(run) and
                 doubled <= settings.max_wrapped_solver_iterations):
-            return run
+            return replace(run, crept_at=crept)
+        crept += (settings.wrapped_solver_iterations,)
         settings = replace(settings, wrapped_solver_iterations=doubled)
         if on_rerun is not None:
             on_rerun(doubled)

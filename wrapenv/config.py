@@ -312,6 +312,12 @@ def _unit_slip(key: str, value: float, maximum: float) -> str:
     return ""
 
 
+def fraction_hint(value: float, of: str = "") -> str:
+    """": a fraction (0.5 for 50 %)" (`of`: " of the web", say) for a fraction's value that
+    reads as a percentage (1 to 100), else ""."""
+    return f": a fraction{of} ({value / 100:g} for {value:g} %)" if 1 <= value <= 100 else ""
+
+
 def is_finite_number(value: Any) -> bool:
     """A finite int or float as a parsed file gives it (a bool is not a number, though
     Python counts it as one)."""

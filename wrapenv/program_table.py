@@ -9,7 +9,7 @@ from __future__ import annotations
 from dataclasses import asdict
 from typing import Any
 
-from wrapenv.config import InputError, Table
+from wrapenv.config import InputError, Table, fraction_hint
 from wrapenv.material import MAX_PRESTRETCH, Material, check_tension
 from wrapenv.program import Machine, Program, Reinforcement
 
@@ -61,10 +61,10 @@ def check_program_fits(program: Program, load_height_m: float, web_width_m: floa
 #: Overlaps are fractions of the web; a spiral must rise (< 1), gaps up to a web wide (>= -1).
 MIN_OVERLAP = -1.0
 #: Most revolutions parked at one height (bottom, top, a reinforcement) [A]: three times the
-#: search's six; a wrapper's program lays a few. Thirty top wraps of 800 N needed four times
-#: the bench's solver iterations to rest (docs/bench.md); 100000 were a typo, costed 17 t of
-#: web and thrown apart by the bench (docs/materials.md, section 6).
-MAX_WRAPS = 20
+#: search's six (`wrapenv.design.MAX_WRAPS`); a wrapper's program lays a few. Thirty top wraps
+#: of 800 N needed four times the bench's solver iterations to rest (docs/bench.md); 100000
+#: were a typo, costed 17 t of web and thrown apart by the bench (docs/materials.md, section 6).
+MAX_WRAPS_AT_ONE_HEIGHT = 20
 
 
 def program_from_table(t: Table, material: Material, web_width_m: float) -> Program:
@@ -72,12 +72,12 @@ def program_from_table(t: Table, material: Material, web_width_m: float) -> Prog
     that can be checked without the load; `check_program_fits` does the rest."""
     film = material.kind == "film"
     program = Program(
-        bottom_wraps=t.integer("bottom_wraps", minimum=0, maximum=MAX_WRAPS),
+        bottom_wraps=t.integer("bottom_wraps", minimum=0, maximum=MAX_WRAPS_AT_ONE_HEIGHT),
         bottom_from_m=t.number("bottom_from_m", 0.0, minimum=0.0),
         bottom_tension_n=check_tension(t, "bottom_tension_n", material, web_width_m),
         up_overlap=_overlap(t, "up_overlap"),
         middle_tension_n=check_tension(t, "middle_tension_n", material, web_width_m),
-        top_wraps=t.integer("top_wraps", minimum=0, maximum=MAX_WRAPS),
+        top_wraps=t.integer("top_wraps", minimum=0, maximum=MAX_WRAPS_AT_ONE_HEIGHT),
         top_overhang_m=_overhang(t, web_width_m),
         top_tension_n=check_tension(t, "top_tension_n", material, web_width_m),
         down_overlap=_overlap(t, "down_overlap") if t.has("down_overlap") else None,
@@ -101,10 +101,8 @@ def program_from_table(t: Table, material: Material, web_width_m: float) -> Prog
 def _overlap(t: Table, key: str) -> float:
     value = t.number(key, minimum=MIN_OVERLAP)
     if value >= 1.0:
-        percent = (f": a fraction of the web ({value / 100:g} for {value:g} %)"
-                   if value <= 100 else "")
         raise t.error(key, f"must be < 1: at an overlap of 1 the carriage never rises "
-                      f"(got {value}){percent}")
+                      f"(got {value}){fraction_hint(value, ' of the web')}")
     return value
 
 
@@ -118,7 +116,7 @@ def _overhang(t: Table, web_width_m: float) -> float:
 
 def _reinforcement(t: Table, material: Material, web_width_m: float) -> Reinforcement:
     r = Reinforcement(from_m=t.number("from_m", minimum=0.0),
-                      wraps=t.integer("wraps", minimum=1, maximum=MAX_WRAPS),
+                      wraps=t.integer("wraps", minimum=1, maximum=MAX_WRAPS_AT_ONE_HEIGHT),
                       tension_n=check_tension(t, "tension_n", material, web_width_m))
     t.done()
     return r

@@ -396,7 +396,7 @@ def _material(top: Table) -> tuple[str, Material]:
 
 
 #: Most layers a [[band]] gives [A]: what a program of the most wraps lays at one height
-#: (bottom and reinforcement wraps of `MAX_WRAPS` each, a spiral's four), doubled.
+#: (bottom and reinforcement wraps of `MAX_WRAPS_AT_ONE_HEIGHT` each, a spiral's four), doubled.
 MAX_BAND_LAYERS = 100
 
 

@@ -91,9 +91,8 @@ def sled_marker_centre(view: View, found: dict[int, np.ndarray],
     scale = scale_warning(baseline_scale(found, sled_offsets_m), view.pixmap.px_per_m)
     if scale:
         warnings.append(scale)
-    centres = [view.pixmap.to_world(*centre_px(corners)) for corners, _ in seen.values()]
-    x, z = np.mean([(float(c[0]) - o[0], float(c[1]) - o[1])
-                    for c, (_, o) in zip(centres, seen.values(), strict=True)], axis=0)
+    x, z = np.mean([np.subtract(view.pixmap.to_world(*centre_px(corners)), offset)
+                    for corners, offset in seen.values()], axis=0)
     return float(x), float(z)
 
 
@@ -133,10 +132,10 @@ def _missing_layers(layout: Layout, unmatched: list[str]) -> list[str]:
     load.toml most likely describes another unit than the one filmed (phantom bundles are
     then followed over the background)."""
     row = front_row(layout)
-    layers = sorted({int(name[1:name.index("C")]) for name in row})
-    empty = [k for k in layers
-             if all(n in unmatched for n in row if n.startswith(f"L{k}C"))]
-    matched_below = [k for k in empty if any(j < k and j not in empty for j in layers)]
+    front = [b for b in layout.bundles if b.name in row]
+    layers = sorted({b.layer for b in front})
+    empty = {k for k in layers if all(b.name in unmatched for b in front if b.layer == k)}
+    matched_below = [k for k in sorted(empty) if any(j < k for j in set(layers) - empty)]
     return [f"layer {k}: none of its bundles matches the template in frame 0, though a layer "
             f"below does: does load.toml (stack.layers = {max(layers)}, bundle.height_m = "
             f"{layout.bundles[0].size_m[2]:g}) describe the unit filmed?" for k in matched_below]
