@@ -22,6 +22,7 @@ runs).
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import io
 import json
@@ -237,17 +238,19 @@ def train(settings: TrainSettings, out_dir: Path, resume: bool = False) -> Path:
         _check_resumable(start[0], meta, trusted)   # before any env process starts
     # The policy is a small MLP: one thread avoids oversubscribing the cores the env workers
     # simulate on (and thread start-up costs more than it saves on a 64-unit layer).
-    threads = torch.get_num_threads()
-    torch.set_num_threads(1)
-    vec_env = make_vec_env(
-        MAKE_ID, n_envs=settings.n_envs, seed=settings.seed + done,
-        env_kwargs={"material": settings.material, "target_g": settings.target_g,
-                    "levels": settings.levels, "settings": settings.sim,
-                    "calibration": settings.calibration},
-        vec_env_cls=SubprocVecEnv if settings.n_envs > 1 else DummyVecEnv,
-    )
-    log = EpisodeLog(out_dir / LOG_FILE, kept=done if start else None)
-    try:
+    with contextlib.ExitStack() as cleanup:  # undone in reverse, also when a step fails
+        cleanup.callback(torch.set_num_threads, torch.get_num_threads())
+        torch.set_num_threads(1)
+        vec_env = make_vec_env(
+            MAKE_ID, n_envs=settings.n_envs, seed=settings.seed + done,
+            env_kwargs={"material": settings.material, "target_g": settings.target_g,
+                        "levels": settings.levels, "settings": settings.sim,
+                        "calibration": settings.calibration},
+            vec_env_cls=SubprocVecEnv if settings.n_envs > 1 else DummyVecEnv,
+        )
+        cleanup.callback(close_envs, vec_env)
+        log = EpisodeLog(out_dir / LOG_FILE, kept=done if start else None)
+        cleanup.callback(log.close)
         model = (_load(start[0], trusted, vec_env) if start else
                  PPO("MlpPolicy", vec_env, n_steps=settings.n_steps,
                      batch_size=settings.batch_size, learning_rate=settings.learning_rate,
@@ -264,10 +267,6 @@ def train(settings: TrainSettings, out_dir: Path, resume: bool = False) -> Path:
         path = out_dir / POLICY_FILE
         save_stamped(model, path, meta)
         return path
-    finally:
-        log.close()
-        close_envs(vec_env)
-        torch.set_num_threads(threads)
 
 
 def close_envs(vec_env: VecEnv) -> None:

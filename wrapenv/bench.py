@@ -157,9 +157,13 @@ class BenchUnit:
         iterations, erp = ((settings.wrapped_solver_iterations, settings.wrapped_contact_erp)
                            if wrap is not None else (settings.solver_iterations, None))
         self.world = BulletWorld(settings.timestep_s, iterations, erp, settings.rigid_boxes)
-        _build(self.world, self.scene, self._stick_slip().coefficients())
-        #: The wrap as the last level left it (None: unwrapped).
-        self.wrap = WrapNet(wrap, layout) if wrap is not None else None
+        try:
+            _build(self.world, self.scene, self._stick_slip().coefficients())
+            #: The wrap as the last level left it (None: unwrapped).
+            self.wrap = WrapNet(wrap, layout) if wrap is not None else None
+        except BaseException:  # an interrupt or bad wrap while building: no client left behind
+            self.world.close()
+            raise
         #: Bundle centres in the pallet frame when the unit was put on (None: before level 1).
         self.origin_m: np.ndarray | None = None
 

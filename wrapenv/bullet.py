@@ -465,6 +465,11 @@ class BulletWorld:
         return rgb, (seg if mask else None)
 
     # -- lifetime -------------------------------------------------------------------------
+    @property
+    def closed(self) -> bool:
+        """True once the client is disconnected."""
+        return self._client is None
+
     def close(self) -> None:
         """Disconnect the client; safe to call more than once."""
         if self._client is not None:

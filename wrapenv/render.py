@@ -315,7 +315,7 @@ class Renderer:
     def _place(self, pallet_pos: np.ndarray, pallet_rot: np.ndarray, bundle_pos: np.ndarray,
                bundle_rot: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Move the bodies to a state; returns it as the state arrays (positions, rotations)."""
-        if self.world._client is None:
+        if self.world.closed:
             raise RuntimeError("the renderer is closed")
         moving = self.scene.moving
         pos, rot = np.empty((len(moving), 3)), np.empty((len(moving), 3, 3))

@@ -125,6 +125,30 @@ def test_a_training_run_leaves_nothing_of_its_own_in_the_temp_folder(tmp_path, m
     assert not [p for p in after_one if p.name.startswith("SB3-")]
 
 
+def test_a_training_that_fails_to_start_closes_its_envs_and_gives_torch_its_threads_back(
+        tmp_path, monkeypatch):
+    """A log that cannot be opened (a full disk) after the env workers started: they are
+    closed, and torch's thread count, lowered to one for training, is the caller's again."""
+    torch = pytest.importorskip("torch")
+    closed = []
+    monkeypatch.setattr(recommender.policy, "close_envs",
+                        lambda vec_env: (closed.append(vec_env), vec_env.close()))
+
+    def full_disk(*args, **kwargs):
+        raise OSError("No space left on device")
+
+    monkeypatch.setattr(recommender.policy, "EpisodeLog", full_disk)
+    threads = torch.get_num_threads()
+    torch.set_num_threads(2)
+    try:
+        with pytest.raises(OSError):
+            train(TINY, tmp_path)
+        assert torch.get_num_threads() == 2
+    finally:
+        torch.set_num_threads(threads)
+    assert len(closed) == 1
+
+
 def test_a_time_budget_ends_training_early_and_still_writes_the_policy(tmp_path):
     """A budget that has passed by the first step still lets PPO learn from the rollout it
     ends in, then stops it at the next one's first step (SB3 ends `learn` when a callback

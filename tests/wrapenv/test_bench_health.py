@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import gc
 import json
 import os
 import platform
@@ -83,10 +84,14 @@ def _rss_kb() -> int:
 
 
 def test_many_runs_close_their_worlds_and_do_not_grow_memory(monkeypatch):
-    closed = []
-    original = bullet.BulletWorld.close
-    monkeypatch.setattr(bullet.BulletWorld, "close",
-                        lambda self: (closed.append(1), original(self))[1])
+    # A world's finaliser would disconnect a forgotten client too: count the worlds that reach
+    # it still connected, so that only an explicit close passes.
+    opened, left_open = [], []
+    original_init = bullet.BulletWorld.__init__
+    monkeypatch.setattr(bullet.BulletWorld, "__init__",
+                        lambda self, *a, **k: (opened.append(1), original_init(self, *a, **k))[1])
+    monkeypatch.setattr(bullet.BulletWorld, "__del__",
+                        lambda self: left_open.append(1) if not self.closed else None)
     layout = LoadUnit.from_dict(SMALL).layout()
     for _ in range(5):  # warm-up: allocator pools, imports
         run_level(layout, PulseProfile(0.2))
@@ -94,7 +99,8 @@ def test_many_runs_close_their_worlds_and_do_not_grow_memory(monkeypatch):
     for _ in range(40):
         run_level(layout, PulseProfile(0.2))
     grown_mb = (_rss_kb() - before) / 1024
-    assert len(closed) >= 45
+    gc.collect()
+    assert len(opened) == 45 and left_open == []
     assert grown_mb < 20, f"resident memory grew {grown_mb:.1f} MB over 40 runs"
 
 

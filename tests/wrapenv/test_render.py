@@ -187,13 +187,13 @@ def test_renderers_close_their_clients(layout):
         renderer.frame(*state, wrap_net=net)
     renderer.close()
     renderer.close()
-    assert renderer.world._client is None
+    assert renderer.world.closed
     with pytest.raises(RuntimeError):
         renderer.frame(*state)
     before = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss  # KiB on Linux
     for _ in range(30):
         with Renderer(layout, CAMERA) as r:
             r.frame(*state, wrap_net=net)
-        assert r.world._client is None
+        assert r.world.closed
     grown_mb = (resource.getrusage(resource.RUSAGE_SELF).ru_maxrss - before) / 1024
     assert grown_mb < 50
