@@ -30,8 +30,6 @@ SLED_DECK_M = 0.1            # thickness of the sled deck (its top is z = 0)
 STOPPER_SIZE_M = (0.05, 0.08)  # pallet stopper bar: thickness along x, height
 #: A bundle starts this far per layer above where it stands stacked (`Body.start_centre_m`).
 START_LIFT_M = 1e-4
-#: Gap between the stopper bar and the pallet's rear face, so they do not start in contact.
-STOPPER_GAP_M = 1e-3
 
 SLED, STOPPER, PALLET_NAME = "sled", "stopper", "pallet"
 #: State arrays hold the pallet's row, then the bundles' rows in layout order.
@@ -128,6 +126,6 @@ def _bodies(layout: Layout) -> list[Body]:
                         BUNDLE_RGBA[(column + b.layer) % 2], b.layer))
     if layout.pallet_stopper:
         t, h = STOPPER_SIZE_M
-        out.append(Body(STOPPER, (t, py, h), (-px / 2 - t / 2 - STOPPER_GAP_M, 0.0, h / 2), 0.0,
+        out.append(Body(STOPPER, (t, py, h), (-px / 2 - t / 2, 0.0, h / 2), 0.0,
                         SLED, STOPPER_RGBA))
     return out

@@ -14,7 +14,6 @@ from wrapenv.scene import (
     BUNDLES,
     PALLET,
     SLED_DECK_M,
-    STOPPER_GAP_M,
     STOPPER_SIZE_M,
     BenchScene,
 )
@@ -68,12 +67,13 @@ def test_geometry_deck_top_at_zero_pallet_on_it_stopper_behind_the_rear_face(lay
     assert sled.size_m[2] == SLED_DECK_M and sled.mass_kg == 0.0
     assert pallet.centre_m[2] - pallet.size_m[2] / 2 == pytest.approx(0.0)
     assert pallet.mass_kg == layout.pallet_mass_kg
-    # the bar stands on the deck, across the pallet's width, a gap behind its rear (-x) face
+    # the bar stands on the deck, across the pallet's width, against its rear (-x) face: a lab
+    # sets the pallet against it (docs/materials.md, "the stop bar")
     t, h = STOPPER_SIZE_M
     assert stopper.size_m == (t, py, h) and stopper.mass_kg == 0.0
     assert stopper.centre_m[2] - h / 2 == pytest.approx(0.0)
     front = stopper.centre_m[0] + t / 2
-    assert -px / 2 - front == pytest.approx(STOPPER_GAP_M)
+    assert front == pytest.approx(-px / 2)
     for b in layout.bundles:
         body = scene.body(b.name)
         assert (body.centre_m, body.size_m, body.mass_kg, body.layer) == (
