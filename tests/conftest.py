@@ -12,9 +12,12 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pytest
 
 from wrapenv.config import InputError
+from wrapenv.material import Material
+from wrapenv.wrap_elements import bend_factor
 
 #: A LOAD.toml as a dict: EUR pallet, 2 columnar layers of explicitly sized PET bundles.
 BASE_LOAD: dict[str, Any] = {
@@ -176,3 +179,16 @@ def assert_input_error() -> Callable[[BaseException, str, str], None]:
         assert exc.message.strip(), "the message must say what is wrong"
 
     return check
+
+
+@pytest.fixture
+def edge_factor() -> Callable[[Material, float], float]:
+    """How much less tension a web bears wrapped fully round an edge of radius r: it bends to
+    the edge's own curvature, so its outer fibre carries t / (2r + t) of strain on top of its
+    membrane's (the hand computation `bend_curvature` and `bend_factor` must agree with)."""
+
+    def factor(material: Material, edge_radius_m: float) -> float:
+        t = material.thickness
+        return float(bend_factor(material, np.array(t / (2 * edge_radius_m + t))))
+
+    return factor

@@ -1,7 +1,7 @@
 """The wrap's element law: tension-only, elastoplastic with linear hardening, tearing.
 
 Arrays over elements (rings, panels), so the net updates them all in one call per step; and
-how much less a web bears where it bends round a load's edge (`edge_factor`).
+how much less a web bears where it bends round a load's edge (`bend_curvature`, `bend_factor`).
 """
 
 from __future__ import annotations
@@ -17,13 +17,6 @@ DAMPING_RATIO = 0.2
 #: A fold round a sharp edge costs the web at most this fraction of its stretch to break: paper
 #: is folded round carton edges at wrapping tension without tearing [A] (P7).
 BEND_STRAIN_CAP = 0.5
-
-
-def edge_factor(material: Material, edge_radius_m: float) -> float:
-    """How much a web's bearable tension falls where it wraps fully round an edge of this
-    radius (a load's corner): `bend_factor` of the outer fibre's strain t / (2r + t)."""
-    t = material.thickness
-    return float(bend_factor(material, np.array(t / (2 * edge_radius_m + t))))
 
 
 def bend_factor(material: Material, bend_strain: np.ndarray) -> np.ndarray:

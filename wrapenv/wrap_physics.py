@@ -23,8 +23,10 @@ share of height. What limits a wrap, beyond that law (docs/materials.md, section
   has the load-side compliance of the edges it bears on in series with the web (the bundle card's
   corner stiffness times the edge height; the pallet's block is far stiffer). It is physical, and
   it bounds every element's stiffness so the explicit coupling stays stable at 240 Hz.
-* **Edges.** Where a ring's web turns round an edge of radius r it also bends: its outer fibre
-  carries t / (2r + t) more strain, so that place tears at a lower tension (`edge_factor`).
+* **Edges.** Where a ring's web turns round an edge it also bends to a curvature κ: its outer
+  fibre carries t κ / (2 + t κ) more strain, so that place tears at a lower tension
+  (`bend_factor`). κ is the edge's 1/r for a web wrapped fully round it (t / (2r + t)), less for
+  a small turn under tension, which the web's bending stiffness spreads (`bend_curvature`).
 * **Layers that slide.** Paper does not cling: only the layer touching the load is gripped by it;
   the layers outside it take a panel's load through friction on the layer beneath, pressed by
   the rings' push on the corners, so their share is capped. Film layers cling and act as one.

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from wrapenv.material import MATERIALS, Material
-from wrapenv.wrap_elements import bend_curvature, bend_factor, edge_factor, element_set
+from wrapenv.wrap_elements import bend_curvature, bend_factor, element_set
 
 # -- the element law ----------------------------------------------------------------------
 
@@ -55,23 +55,23 @@ STANDARD_KRAFT = Material("standard kraft", 0.09, 4.0e5, 0.008, 0.025, 0.1125, 0
                           thickness_m=1.3e-4)
 
 
-def test_round_a_carton_edge_extensible_kraft_bears_a_sixth_less():
+def test_round_a_carton_edge_extensible_kraft_bears_a_sixth_less(edge_factor):
     # t = 130 um round r = 3 mm: outer fibre strain 0.13 / 6.13 = 0.02121, leaving
     # 0.07 - 0.02121 = 0.04879 of membrane strain: 3200 + 45000 x (0.04879 - 0.008) = 5035.6 N/m
     # against 5990 N/m flat
     assert edge_factor(KRAFT, 0.003) == pytest.approx(5990.0 / 5035.6, rel=1e-4)
 
 
-def test_round_a_bottle_the_edge_costs_kraft_about_one_percent():
+def test_round_a_bottle_the_edge_costs_kraft_about_one_percent(edge_factor):
     # r = 45 mm: 0.13 / 90.13 = 0.001442 of strain, 45000 x 0.001442 = 64.9 N/m less
     assert edge_factor(KRAFT, 0.045) == pytest.approx(5990.0 / (5990.0 - 64.9), rel=1e-4)
 
 
-def test_film_is_too_thin_and_stretchy_for_an_edge_to_matter():
+def test_film_is_too_thin_and_stretchy_for_an_edge_to_matter(edge_factor):
     assert edge_factor(MATERIALS["lldpe"], 0.003) == pytest.approx(1.0, abs=0.005)
 
 
-def test_a_knife_edge_costs_at_most_half_the_stretch_to_break():
+def test_a_knife_edge_costs_at_most_half_the_stretch_to_break(edge_factor):
     # capped bending 0.0125 of 0.025: 3200 + 45000 x (0.0125 - 0.008) = 3402.5 N/m against
     # 3200 + 45000 x 0.017 = 3965 N/m
     assert edge_factor(STANDARD_KRAFT, 1e-5) == pytest.approx(3965.0 / 3402.5, rel=1e-4)
