@@ -252,17 +252,17 @@ def stage_sizes(points: int, p: int) -> list[int]:
 
 
 def surrogate(evaluate: Evaluate, p: int, points: int, seed: int,
-              centre: np.ndarray | None = None, shared: Sequence[np.ndarray] = (),
+              shared: Sequence[np.ndarray] = (),
               informed_by: Sequence[np.ndarray | None] = ()) -> SurrogateFit:
     """Staged emulator fit over the unit box [0, 1]^p with at most `points` replays of every
-    recording (see the module docstring); `centre` is the first box's centre (default: the
-    box's), whose half-width is always the whole box's. The covariance returned counts the
-    tracker error `shared` by groups of features (`_covariance`); the boxes follow the
-    replays' scatter and independent noise, as they were tuned to (a 20-replay wrapped LLDPE
-    fit reported its stiffness at ± 3 % with frames counted independent). `informed_by`: per
-    parameter the features that inform it (None: all), for the global stage (`_accepted`)."""
+    recording (see the module docstring); the first box is the whole unit box. The covariance
+    returned counts the tracker error `shared` by groups of features (`_covariance`); the boxes
+    follow the replays' scatter and independent noise, as they were tuned to (a 20-replay
+    wrapped LLDPE fit reported its stiffness at ± 3 % with frames counted independent).
+    `informed_by`: per parameter the features that inform it (None: all), for the global stage
+    (`_accepted`)."""
     rng = np.random.default_rng(seed)
-    centre = np.full(p, 0.5) if centre is None else np.asarray(centre, float)
+    centre = np.full(p, 0.5)
     half = np.full(p, 0.5)
     us: list[np.ndarray] = []
     rs: list[np.ndarray] = []

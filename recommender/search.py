@@ -67,7 +67,6 @@ TIGHT_PROGRAMS = tuple((float(MIN_BOTTOM_WRAPS), float(MIN_TOP_WRAPS), 0.0, 0.0,
 #: Initial spread per coordinate, times `sigma0`: wraps by whole revolutions, the rest by a
 #: share of its range.
 COORDINATE_STDS = (5.0, 5.0, 3.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0)
-CHECKPOINT_FORMAT = checkpoint.CHECKPOINT_FORMAT
 #: How an evaluation was judged: screened (cheap), the default settings, or not simulated
 #: because a confirmed pass that meets the margin goal is lighter (it cannot be the answer).
 SCREENING, DEFAULT, DOMINATED = "screening", "default", "dominated"

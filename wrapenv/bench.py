@@ -60,8 +60,6 @@ class SimSettings:
     #: on a two-bundle unit blew up at 0.3 g (36 mm overlap) with 0.08, not with 0.05, which
     #: moves the wrapped examples' figures by about a millimetre (benchmarks/bench_solver.py).
     wrapped_contact_erp: float = 0.05
-    #: Contact states are updated and poses recorded every `sample_every` steps.
-    sample_every: int = 1
     settle_s: float = 0.3
     #: The run ends once no body has moved (relative to the sled) faster than this on average,
     #: i.e. by more than rest_speed_mps x rest_hold_s (0.5 mm), for `rest_hold_s` after the
@@ -442,16 +440,11 @@ class _Run:
         """Everything done between two steps: wrap forces, push, records, checks, contact
         states, rest. Returns the step to go on from (later than `step` after a skip), or None
         when the run ends."""
-        sample = step % self.s.sample_every == 0
-        if not (sample or self.wrap is not None):
-            return step
         pos, rot, vel, omega = self._state()
         if self.wrap is not None:
             self._apply_wrap(self.wrap, pos, rot, vel, omega, step * self.s.timestep_s)
         if self.push is not None and step < self.stop_step:
             self.world.push(self.push[0], self.push[1])
-        if not sample:
-            return step
         self.samples.append((step * self.s.timestep_s, float(self.accel[step]), pos, rot))
         if step == 0 and self.settled:
             self.invalid = self._came_apart(pos)
@@ -489,7 +482,7 @@ class _Run:
         if last > step and not s.simulate_stop and self.rest.quiet_between(step, self.stop_step):
             last = self.stop_step  # what is left is quiet: taken to change nothing
         self.samples.extend((k * dt, float(self.accel[k]), pos, rot)
-                            for k in range(step + 1, last + 1) if k % s.sample_every == 0)
+                            for k in range(step + 1, last + 1))
         return None if last == self.stop_step else last
 
     def _trace(self) -> Trace:

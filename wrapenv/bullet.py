@@ -40,6 +40,9 @@ VELOCITY_DECIMALS = 9
 SOLVER_DISABLE_VELOCITY_DEPENDENT_FRICTION_DIRECTION = 64
 #: a solver iteration count no world has, to find the solver info in a saved world's bytes
 _MARKER_ITERATIONS = 987654
+#: TinyRenderer's light for drawn frames: from the camera's side and above; faces shaded by
+#: their orientation only (steady colours for the trackers)
+LIGHT_DIRECTION, LIGHT_AMBIENT, LIGHT_DIFFUSE = (0.3, -1.0, 0.8), 0.6, 0.4
 #: pybullet's residual threshold (PhysicsServerCommandProcessor), which loading a world resets
 _PYBULLET_RESIDUAL_THRESHOLD = 1e-7
 
@@ -418,9 +421,6 @@ class BulletWorld:
         height: int,
         view: Sequence[float],
         projection: Sequence[float],
-        light_direction: Sequence[float] = (0.3, -1.0, 0.8),
-        ambient: float = 0.6,
-        diffuse: float = 0.4,
     ) -> np.ndarray:
         """RGB image (height, width, 3) uint8 from TinyRenderer, the CPU renderer that works
         headless in DIRECT mode. `view` and `projection` are OpenGL 4x4 matrices, column-major.
@@ -429,8 +429,7 @@ class BulletWorld:
         wrong for anything but a perspective camera; no specular highlight either, so a face's
         colour depends only on its orientation (steady colours for trackers).
         """
-        rgb, _ = self._render(width, height, view, projection, light_direction, ambient, diffuse,
-                              False)
+        rgb, _ = self._render(width, height, view, projection, False)
         return rgb
 
     def camera_image_and_mask(
@@ -439,26 +438,21 @@ class BulletWorld:
         height: int,
         view: Sequence[float],
         projection: Sequence[float],
-        light_direction: Sequence[float] = (0.3, -1.0, 0.8),
-        ambient: float = 0.6,
-        diffuse: float = 0.4,
     ) -> tuple[np.ndarray, np.ndarray]:
         """`camera_image` and, per pixel, the index in this world of the body seen there (-1:
         none): which pixels a texture of that body may paint."""
-        rgb, seg = self._render(width, height, view, projection, light_direction, ambient,
-                                diffuse, True)
+        rgb, seg = self._render(width, height, view, projection, True)
         lookup = np.full(max(self._ids) + 2, -1, np.int32)  # unique id -> index; id -1 -> -1
         lookup[np.array(self._ids)] = np.arange(len(self._ids))
         return rgb, lookup[np.asarray(seg, np.int64).reshape(height, width)]
 
     def _render(self, width: int, height: int, view: Sequence[float],
-                projection: Sequence[float], light_direction: Sequence[float], ambient: float,
-                diffuse: float, mask: bool) -> tuple[np.ndarray, np.ndarray | None]:
+                projection: Sequence[float], mask: bool) -> tuple[np.ndarray, np.ndarray | None]:
         _, _, rgba, _, seg = self._client.getCameraImage(
             width, height, viewMatrix=[float(v) for v in view],
             projectionMatrix=[float(p) for p in projection], renderer=pb.ER_TINY_RENDERER,
-            shadow=0, lightDirection=list(light_direction), lightAmbientCoeff=ambient,
-            lightDiffuseCoeff=diffuse, lightSpecularCoeff=0.0,
+            shadow=0, lightDirection=list(LIGHT_DIRECTION), lightAmbientCoeff=LIGHT_AMBIENT,
+            lightDiffuseCoeff=LIGHT_DIFFUSE, lightSpecularCoeff=0.0,
             flags=0 if mask else pb.ER_NO_SEGMENTATION_MASK,
         )
         rgb = np.asarray(rgba, np.uint8).reshape(height, width, 4)[..., :3].copy()

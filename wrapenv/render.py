@@ -327,13 +327,13 @@ class Renderer:
             self.world.set_pose(w, pos[row], quat[row])
         return pos, rot
 
-    def trace_frame(self, trace: Trace, sample_index: int, wrap_net: WrapNet | None = None,
-                    sled_x_m: float = 0.0) -> np.ndarray:
+    def trace_frame(self, trace: Trace, sample_index: int,
+                    wrap_net: WrapNet | None = None) -> np.ndarray:
         """The frame of one sample of a bench run. A trace does not record when elements tore:
         the wrap is drawn with the net's tear state as it is now."""
         i = sample_index
         return self.frame(trace.pallet_pos[i], trace.pallet_rot[i], trace.bundle_pos[i],
-                          trace.bundle_rot[i], wrap_net, sled_x_m)
+                          trace.bundle_rot[i], wrap_net)
 
     def close(self) -> None:
         """Disconnect the Bullet client; safe to call more than once."""

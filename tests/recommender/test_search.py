@@ -17,9 +17,9 @@ import numpy as np
 import pytest
 import tomli_w
 
+from recommender.checkpoint import CHECKPOINT_FORMAT
 from recommender.cli import EXAMPLE_LOAD, main
 from recommender.search import (
-    CHECKPOINT_FORMAT,
     DEFAULT,
     DOMINATED,
     SCREENING,
