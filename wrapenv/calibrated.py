@@ -12,8 +12,8 @@ from wrapenv.load import PAIRS, Friction, FrictionPair, LoadUnit
 
 #: CAL.json's keys beside `friction` and `wrap`: the fit's diagnostics (residual, the replays'
 #: own scatter, one replay's residual, simulations and what they were for, method), advice on
-#: further tests, the prediction errors on recordings that were not fitted (`calibrate
-#: --validate`), and the version of wrapbench that fitted it.
+#: further tests, the prediction errors on recordings that were not fitted (its validation),
+#: and the version of wrapbench that fitted it.
 DIAGNOSTICS = ("residual_rms_m", "spread_rms_m", "replay_rms_m", "simulations",
                "simulations_by_part", "method", "advice", "validation", "wrapbench_version")
 
@@ -39,7 +39,7 @@ class Calibration:
     #: uncertain it is: a wrap-stage parameter like the web's stiffness.
     give_scale: float = 1.0
     give_scale_std: float = 0.0
-    #: The wrap scales that were measured and given to the fit (`calibrate --known`), not
+    #: The wrap scales that were measured elsewhere and given to the fit, not
     #: fitted: their standard deviations are 0 because nothing was estimated.
     known: tuple[str, ...] = ()
 
@@ -167,7 +167,7 @@ def _normal(rng: np.random.Generator, value: float, std: float, floor: float) ->
     return value if std == 0 else max(floor, float(rng.normal(value, std)))
 
 
-#: The wrap scales by their names in CAL.json's `wrap.known` and `calibrate --known`.
+#: The wrap scales by their names in CAL.json's `wrap.known`.
 WRAP_SCALE_NAMES = ("stiffness", "tension", "give")
 
 

@@ -221,59 +221,60 @@ class _Required:
 _REQUIRED: Any = _Required()
 
 
-def check_output(path: Path | None, flag: str, *, inputs: Iterable[str | Path] = ()) -> None:
+def check_output(path: Path | None, field: str, *, inputs: Iterable[str | Path] = ()) -> None:
     """An output file must be writable before any work starts, so a long run does not end in
     a failed write (`path` None: the output was not asked for): not a folder or a device, not
-    one of the run's `inputs` (by any name), in an existing folder a file can be created in."""
+    one of the run's `inputs` (by any name), in an existing folder a file can be created in.
+    `field`: the output's name in an error (what the user called it)."""
     if path is None:
         return
     path = Path(path)
     if path.is_dir():
-        raise InputError(str(path), flag, "is a folder; name a file to write")
+        raise InputError(str(path), field, "is a folder; name a file to write")
     if path.exists() and not path.is_file():
-        raise InputError(str(path), flag, "not a regular file")
+        raise InputError(str(path), field, "not a regular file")
     for source in inputs:
         if path.exists() and Path(source).exists() and os.path.samefile(path, source):
-            raise InputError(str(path), flag, f"is an input ({source}): writing it would "
+            raise InputError(str(path), field, f"is an input ({source}): writing it would "
                              "destroy it")
     folder = path.resolve().parent
     if not folder.is_dir():
-        raise InputError(str(path), flag, "the folder to write into does not exist")
-    _check_writable(folder, str(path), flag)
+        raise InputError(str(path), field, "the folder to write into does not exist")
+    _check_writable(folder, str(path), field)
 
 
 def check_distinct(outputs: dict[str, Path | None]) -> None:
-    """No two outputs (flag -> path; None: not asked) name one file: the later write would
-    replace the earlier one."""
-    given = [(flag, Path(path)) for flag, path in outputs.items() if path is not None]
-    for i, (flag, path) in enumerate(given):
+    """No two outputs (the name an error gives it -> path; None: not asked) name one file: the
+    later write would replace the earlier one."""
+    given = [(field, Path(path)) for field, path in outputs.items() if path is not None]
+    for i, (field, path) in enumerate(given):
         for earlier, other in given[:i]:
             if path.resolve() == other.resolve() or (
                     path.exists() and other.exists() and os.path.samefile(path, other)):
-                raise InputError(str(path), flag, f"is also {earlier}")
+                raise InputError(str(path), field, f"is also {earlier}")
 
 
-def check_output_folder(path: Path, flag: str) -> None:
+def check_output_folder(path: Path, field: str) -> None:
     """An output folder (created whole at the end) must be new or empty, and creatable: the
     nearest folder above it that exists must take new entries. Nothing is created."""
     path = Path(path)
     if path.exists() and (not path.is_dir() or any(path.iterdir())):
-        raise InputError(str(path), flag, "exists and is not an empty folder")
+        raise InputError(str(path), field, "exists and is not an empty folder")
     above = path.absolute().parent
     while not above.exists():
         above = above.parent
     if not above.is_dir():
-        raise InputError(str(path), flag, f"{above} is not a folder")
-    _check_writable(above, str(path), flag)
+        raise InputError(str(path), field, f"{above} is not a folder")
+    _check_writable(above, str(path), field)
 
 
-def _check_writable(folder: Path, source: str, flag: str) -> None:
+def _check_writable(folder: Path, source: str, field: str) -> None:
     """Create and remove a file in `folder`: one test for permissions, read-only file systems
     and /proc alike (`os.access` says yes to root in read-only folders and in /proc)."""
     try:
         fd, probe = tempfile.mkstemp(dir=folder, prefix=".wrapbench-probe-")
     except OSError as exc:
-        raise InputError(source, flag, f"cannot write into {folder} "
+        raise InputError(source, field, f"cannot write into {folder} "
                          f"({exc.strerror or exc})") from None
     os.close(fd)
     os.unlink(probe)

@@ -25,7 +25,7 @@ wraps), so no part of the load is held by part of a turn, which the bench would 
 the load (`wrapenv.program`) although it presses on some faces only. No spiral down (a higher
 overlap lays the same layers in one pass); the web (its card and width) and the machine's
 speeds, which are the space's `Web`: a named card on the 0.5 m web and the default machine, or
-those of a WRAP.toml (`recommend --web`).
+those of a WRAP.toml (`Web.from_toml`).
 """
 
 from __future__ import annotations

@@ -126,9 +126,9 @@ class WrapBenchEnv(gym.Env):
 
     ## Info
     `reset`: "load" (the unit's name), "reference_mass_kg". `step`: "format" (the program and
-    the bands it laid, before calibration scaling), "verdict" (the `wrapbench simulate --json`
-    verdict), "material_used" (area_m2, mass_kg, web_length_m, roll_length_m, revolutions),
-    "cycle_time_s", "passed", "margin", "valid", "material_ratio", "reward_terms".
+    the bands it laid, before calibration scaling), "verdict" (the run's verdict,
+    `Verdict.to_json`), "material_used" (area_m2, mass_kg, web_length_m, roll_length_m,
+    revolutions), "cycle_time_s", "passed", "margin", "valid", "material_ratio", "reward_terms".
 
     ## Arguments
     `gymnasium.make("wrapenv/WrapBench-v2", **kwargs)`, all keyword-only and checked at
