@@ -49,9 +49,8 @@ import numpy as np  # noqa: E402
 import pybullet as pb  # noqa: E402
 
 from wrapenv.bench import BenchUnit, SimSettings, run_level  # noqa: E402
-from wrapenv.bullet import G  # noqa: E402
 from wrapenv.load import Layout, LoadUnit  # noqa: E402
-from wrapenv.profile import PulseProfile  # noqa: E402
+from wrapenv.profile import G, PulseProfile  # noqa: E402
 from wrapenv.scene import PALLET_NAME, SLED, BenchScene  # noqa: E402
 from wrapenv.wrap import WrapFormat  # noqa: E402
 

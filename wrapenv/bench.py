@@ -9,7 +9,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from wrapenv.bullet import BulletWorld, G, rotation_matrices
+from wrapenv.bullet import BulletWorld, rotation_matrices
 from wrapenv.eumos import (
     ELASTIC,
     EUMOS_LIMITS,
@@ -22,7 +22,7 @@ from wrapenv.eumos import (
 )
 from wrapenv.friction import WRAPPED_SLIP_SPEED_MPS, WRAPPED_STICK_SPEED_MPS, StickSlip
 from wrapenv.load import Layout, LoadUnit
-from wrapenv.profile import Profile, PulseProfile
+from wrapenv.profile import G, Profile, PulseProfile
 from wrapenv.rest import Rest
 from wrapenv.scene import BUNDLES, PALLET, SLED_DECK_M, BenchScene
 from wrapenv.trace import Trace, in_pallet_frame

@@ -21,7 +21,8 @@ from typing import Any
 
 import numpy as np
 
-G = 9.81
+from wrapenv.profile import G
+
 #: What the numpy side hands to Bullet (body friction coefficients, wrap forces and torques) is
 #: rounded to these many decimals (coefficients; newtons and newton-metres). numpy's linear
 #: algebra and its vectorised functions round differently in their last bits from one processor

@@ -17,6 +17,7 @@ import numpy as np
 
 from wrapenv.config import InputError, read_csv
 
+#: Gravity (m/s²), by which levels are given in g; the bench's world pulls down with it too.
 G = 9.81
 #: The ESTL bench produces 0 to 10 m/s² (paper, section 2): the highest level it can run is 1.0 g.
 BENCH_MAX_ACCEL_MPS2 = 10.0
@@ -25,8 +26,8 @@ MIN_DWELL_S = 0.3
 #: Longest measured profile accepted [A]: a test is a pulse and a few seconds of run-out (the
 #: source paper's recordings last 8 to 10 s), and a logger left running adds quiet ones (a level
 #: ends once nothing more can happen); longer is a unit mistake, such as t_s in milliseconds.
-#: The same bound as a recording's profile (`calibration.recording`), so a recording that
-#: `track` and `calibrate` take, `simulate --profile` takes too.
+#: One bound for every measured profile, a recording's (`calibration.recording`) included: a
+#: recording's profile is one the bench can be driven by.
 MAX_PROFILE_S = 120.0
 #: The highest level in g, rounded down so that the quoted bound is itself accepted.
 MAX_LEVEL_TEXT = f"{int(BENCH_MAX_ACCEL_MPS2 / G * 1000) / 1000:.3f}"

@@ -21,8 +21,8 @@ import math
 
 import numpy as np
 
-from wrapenv.bullet import G
 from wrapenv.load import Layout
+from wrapenv.profile import G
 from wrapenv.scene import BUNDLES
 
 #: A bundle with none of its axes this close to vertical leans on something, where no tipping

@@ -8,7 +8,8 @@ import tempfile
 import numpy as np
 import pytest
 
-from wrapenv.bullet import BulletWorld, G, _rigid_world_bytes, rotation_matrices
+from wrapenv.bullet import BulletWorld, _rigid_world_bytes, rotation_matrices
+from wrapenv.profile import G
 
 BOX_M = (0.28, 0.19, 0.33)
 BOX_KG = 9.3
