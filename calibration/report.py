@@ -8,32 +8,30 @@ import math
 from collections.abc import Sequence
 from pathlib import Path
 
-import matplotlib
+import numpy as np
+from matplotlib import colormaps, ticker
+from matplotlib.figure import Figure
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-from matplotlib import ticker  # noqa: E402
-
-from calibration import features  # noqa: E402
-from calibration.replay import Observation  # noqa: E402
-from wrapenv.config import printable  # noqa: E402
+from calibration import features
+from calibration.replay import Observation
+from wrapenv.config import printable
 
 #: Bodies' colours: a 3-layer unit's visible row and its pallet are 13 bodies, more than
 #: matplotlib's 10 default colours tell apart; tab20's dark tones first, then its light ones.
-BODY_COLOURS = [plt.get_cmap("tab20")(i) for i in (*range(0, 20, 2), *range(1, 20, 2))]
+BODY_COLOURS = [colormaps["tab20"](i) for i in (*range(0, 20, 2), *range(1, 20, 2))]
 
 
-def _png(fig: plt.Figure) -> bytes:
+def _png(fig: Figure) -> bytes:
+    """Figures are made without pyplot: importing this module leaves matplotlib's backend be."""
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=110)
-    plt.close(fig)
     return buf.getvalue()
 
 
 def loss_png(curve: Sequence[tuple[int, float]], title: str = "") -> bytes:
     """Residual RMS (the square root of the loss) of the best point so far."""
-    fig, ax = plt.subplots(figsize=(7, 3.6), layout="constrained")
+    fig = Figure(figsize=(7, 3.6), layout="constrained")
+    ax = fig.subplots()
     sims = [s for s, _ in curve]
     rms_mm = [1e3 * math.sqrt(loss) for _, loss in curve]
     ax.plot(sims, rms_mm, marker=".", lw=1)
@@ -52,8 +50,8 @@ def overlay_png(observations: Sequence[Observation],
     """One panel per recording: the tracked (dots) and one fitted replay's (lines) slip of every
     compared body across its contact, over the frames the bench can predict."""
     n = len(observations)
-    fig, axes = plt.subplots(n, 1, figsize=(9, 3.0 * n + 0.4), squeeze=False,
-                             layout="constrained")
+    fig = Figure(figsize=(9, 3.0 * n + 0.4), layout="constrained")
+    axes = fig.subplots(n, 1, squeeze=False)
     for ax, obs, sim in zip(axes[:, 0], observations, fitted, strict=True):
         tracked = features.slips(obs.states, obs.bodies)
         replayed = (features.slips({k: (t, sim[k]) for k, (t, _) in obs.states.items()},

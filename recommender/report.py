@@ -10,30 +10,29 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-import matplotlib
+import cv2
+import numpy as np
+from matplotlib import colormaps
+from matplotlib.axes import Axes
+from matplotlib.cm import ScalarMappable
+from matplotlib.colors import Colormap, Normalize
+from matplotlib.figure import Figure
 
-matplotlib.use("Agg")
-import cv2  # noqa: E402
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-from matplotlib.axes import Axes  # noqa: E402
-from matplotlib.colors import Colormap, Normalize  # noqa: E402
-
-from wrapenv.bench import BenchRun  # noqa: E402
-from wrapenv.config import printable  # noqa: E402
-from wrapenv.eumos import ELASTIC, PERMANENT, LevelVerdict  # noqa: E402
-from wrapenv.load import Layout  # noqa: E402
-from wrapenv.render import Renderer, fitting_camera, torn_net  # noqa: E402
-from wrapenv.trace import Trace  # noqa: E402
-from wrapenv.wrap import WrapFormat  # noqa: E402
-from wrapenv.wrap_geometry import CORNER_NAMES, corner_positions_m  # noqa: E402
-from wrapenv.wrap_report import Place, WrapReport  # noqa: E402
+from wrapenv.bench import BenchRun
+from wrapenv.config import printable
+from wrapenv.eumos import ELASTIC, PERMANENT, LevelVerdict
+from wrapenv.load import Layout
+from wrapenv.render import Renderer, fitting_camera, torn_net
+from wrapenv.trace import Trace
+from wrapenv.wrap import WrapFormat
+from wrapenv.wrap_geometry import CORNER_NAMES, corner_positions_m
+from wrapenv.wrap_report import Place, WrapReport
 
 if TYPE_CHECKING:
     from recommender.search import Evaluation
 
 #: Layers' colours: matplotlib's tab10 without its orange and red, which draw the limits.
-LAYER_COLOURS = tuple(plt.get_cmap("tab10")(i) for i in (0, 2, 4, 5, 6, 7, 8, 9))
+LAYER_COLOURS = tuple(colormaps["tab10"](i) for i in (0, 2, 4, 5, 6, 7, 8, 9))
 
 
 def plot_displacements(run: BenchRun, title: str = "") -> bytes:
@@ -43,8 +42,8 @@ def plot_displacements(run: BenchRun, title: str = "") -> bytes:
     title adds the permanent displacement since the unit was put on the sled (what the
     permanent limit judges)."""
     n = len(run.traces)
-    fig, axes = plt.subplots(n, 1, figsize=(9, 2.8 * n + 0.6), squeeze=False, sharex=True,
-                             layout="constrained")
+    fig = Figure(figsize=(9, 2.8 * n + 0.6), layout="constrained")
+    axes = fig.subplots(n, 1, squeeze=False, sharex=True)
     for ax, trace, verdict in zip(axes[:, 0], run.traces, run.verdict.levels, strict=True):
         plot_level(ax, trace, verdict, run.verdict.load_height_m)
     axes[-1, 0].set_xlabel("time from pulse start [s]")
@@ -85,7 +84,8 @@ def plot_search(history: Sequence[Evaluation], best: Evaluation | None,
     """Every simulated candidate of a search: material against its worst sample's margin,
     robust passes in green, the recommendation circled: where the search found the cheap side
     of safe."""
-    fig, ax = plt.subplots(figsize=(7, 4.5))
+    fig = Figure(figsize=(7, 4.5))
+    ax = fig.subplots()
     simulated = [e for e in history if e.margins]
     passed = [e for e in simulated if e.robust_pass]
     failed = [e for e in simulated if not e.robust_pass]
@@ -110,11 +110,11 @@ def plot_search(history: Sequence[Evaluation], best: Evaluation | None,
     return _png(fig)
 
 
-def _png(fig: plt.Figure) -> bytes:
-    """A figure as PNG (the caller writes it, with the run's other outputs)."""
+def _png(fig: Figure) -> bytes:
+    """A figure as PNG (the caller writes it, with the run's other outputs). Figures are made
+    without pyplot, so importing this module leaves the caller's matplotlib backend alone."""
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=110)
-    plt.close(fig)
     return buf.getvalue()
 
 
@@ -135,10 +135,10 @@ def plot_tension_map(run: BenchRun, layout: Layout, title: str = "") -> bytes:
               if t.wrap is not None]
     if not levels:
         raise ValueError("no wrapped level to map")
-    fig, axes = plt.subplots(len(levels), 1, figsize=(10, 3.8 * len(levels) + 0.8),
-                             squeeze=False, layout="constrained")
+    fig = Figure(figsize=(10, 3.8 * len(levels) + 0.8), layout="constrained")
+    axes = fig.subplots(len(levels), 1, squeeze=False)
     norm = Normalize(0.0, 1.0)
-    cmap = plt.get_cmap("turbo")
+    cmap = colormaps["turbo"]
     for ax, (verdict, report) in zip(axes[:, 0], levels, strict=True):
         _map_places(ax, report, cmap, norm)
         _map_frame(ax, layout)
@@ -146,7 +146,7 @@ def plot_tension_map(run: BenchRun, layout: Layout, title: str = "") -> bytes:
         worst = (f"; most loaded: {top.where} at {top.height_m:.3f} m, {top.utilisation:.0%}"
                  if top is not None else "")
         ax.set_title(f"{verdict.level_g:.2f} g{worst}", fontsize=10)
-    fig.colorbar(plt.cm.ScalarMappable(norm=norm, cmap=cmap), ax=axes[:, 0].tolist(),
+    fig.colorbar(ScalarMappable(norm=norm, cmap=cmap), ax=axes[:, 0].tolist(),
                  label="peak force / what the place bears", fraction=0.04)
     if title:
         fig.suptitle(printable(title, 120), fontsize=11, parse_math=False)

@@ -4,8 +4,12 @@ that moved most and the two limits."""
 
 from __future__ import annotations
 
-import matplotlib.pyplot as plt
+import os
+import subprocess
+import sys
+
 import numpy as np
+from matplotlib.figure import Figure
 
 from recommender.report import plot_level
 from wrapenv.eumos import evaluate
@@ -26,12 +30,9 @@ def three_bundles(moved_m: list[float]) -> Trace:
 
 
 def legend_of(trace: Trace) -> list[str]:
-    fig, ax = plt.subplots()
-    try:
-        plot_level(ax, trace, evaluate(trace), trace.load_height_m)
-        return [text.get_text() for text in ax.get_legend().get_texts()]
-    finally:
-        plt.close(fig)
+    ax = Figure().subplots()
+    plot_level(ax, trace, evaluate(trace), trace.load_height_m)
+    return [text.get_text() for text in ax.get_legend().get_texts()]
 
 
 def test_the_legend_names_each_layer_once_and_the_bundle_that_moved_most():
@@ -42,3 +43,12 @@ def test_the_legend_names_each_layer_once_and_the_bundle_that_moved_most():
 
 def test_the_bundle_that_moved_most_is_judged_by_its_largest_displacement():
     assert "L2C1R1, moved most" in legend_of(three_bundles([0.004, 0.010, -0.050]))
+
+
+def test_importing_the_reports_leaves_the_callers_matplotlib_backend_alone():
+    # a notebook that imports the library keeps its inline plots
+    script = ("import matplotlib, recommender.report, calibration.report; "
+              "print(matplotlib.get_backend())")
+    done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
+                          check=True, env=os.environ | {"MPLBACKEND": "svg"})
+    assert done.stdout.strip() == "svg"
