@@ -33,12 +33,11 @@ from benchmarks.tension_cap import (
     to_target,
 )
 from wrapenv.design import ProgramSpace
-from wrapenv.load import Friction, FrictionPair, LoadUnit
+from wrapenv.load import ORIENTATIONS, Friction, FrictionPair, LoadUnit, Orientation
 from wrapenv.profile import PulseProfile
 from wrapenv.wrap import WrapFormat
 
 EXAMPLES = ("examples/pet_2layer_columnar.toml", "examples/pet_3layer_columnar.toml")
-ORIENTATIONS = ("long", "short")
 LLDPE_PROGRAM = "examples/program_lldpe_default.toml"
 #: The pulse's variants: PulseProfile's ramp and braking, which no source gives [A].
 PULSES: dict[str, Callable[[float], PulseProfile]] = {
@@ -85,7 +84,7 @@ def _unit_and_wrap(load_path: str, material: str, variant: str) -> tuple[LoadUni
     return load, wrap.relaxed(HOURS_SINCE_WRAPPING)
 
 
-def case(args: tuple[str, str, str, str]) -> str:
+def case(args: tuple[str, str, str, Orientation]) -> str:
     load_path, material, variant, orientation = args
     load, wrap = _unit_and_wrap(load_path, material, variant)
     row, _ = to_target(load_path, load, wrap, orientation, PULSES.get(variant, PulseProfile))

@@ -21,7 +21,7 @@ from typing import Any
 from wrapenv.bench import run_levels
 from wrapenv.design import MIN_BOTTOM_WRAPS, MIN_TOP_WRAPS, TOP_OVERHANG_M, ProgramSpace
 from wrapenv.eumos import LevelVerdict, level_margin
-from wrapenv.load import LoadUnit
+from wrapenv.load import ORIENTATIONS, LoadUnit, Orientation
 from wrapenv.profile import PulseProfile, eumos_levels
 from wrapenv.program import Program
 from wrapenv.wrap import WrapFormat
@@ -29,7 +29,6 @@ from wrapenv.wrap import WrapFormat
 EXAMPLES = ("examples/pet_2layer_columnar.toml", "examples/pet_3layer_columnar.toml",
             "examples/pet_3layer_interlocked.toml")
 YIELD_FRACTIONS = (0.2, 0.3, 0.4, 0.5)
-ORIENTATIONS = ("long", "short")
 TARGET_G = 0.5
 HOURS_SINCE_WRAPPING = 16.0  # recommend's default (ASTM D5414's rest)
 
@@ -41,7 +40,7 @@ def lightest(tension_n: float) -> Program:
                    top_overhang_m=TOP_OVERHANG_M, top_tension_n=tension_n)
 
 
-def to_target(load_path: str, load: LoadUnit, wrap: WrapFormat, orientation: str,
+def to_target(load_path: str, load: LoadUnit, wrap: WrapFormat, orientation: Orientation,
               pulse: Callable[[float], PulseProfile] = PulseProfile
               ) -> tuple[str, LevelVerdict | None]:
     """The EUMOS sequence to `TARGET_G`, each level run as `pulse` makes it: the table's
@@ -58,7 +57,7 @@ def to_target(load_path: str, load: LoadUnit, wrap: WrapFormat, orientation: str
             last)
 
 
-def case(args: tuple[str, float, str]) -> str:
+def case(args: tuple[str, float, Orientation]) -> str:
     load_path, fraction, orientation = args
     load = LoadUnit.from_toml(load_path)
     space = ProgramSpace.for_layout(load.layout(), "kraft")

@@ -22,7 +22,7 @@ from recommender.parallel import BACKENDS
 from recommender.uncertainty import TRANSPORT_HOURS
 from wrapenv import __version__
 from wrapenv.config import InputError
-from wrapenv.load import EXAMPLE_LOAD
+from wrapenv.load import EXAMPLE_LOAD, ORIENTATIONS
 
 
 class _Parser(argparse.ArgumentParser):
@@ -83,7 +83,7 @@ def _add_simulate(sub: argparse._SubParsersAction) -> None:
     sim.add_argument("--start", type=level_g, metavar="G",
                      help="first level (default 0.2 g, or the target when it is lower)")
     sim.add_argument("--profile", type=Path, help="drive the sled by a measured profile.csv")
-    sim.add_argument("--orientation", choices=("long", "short"),
+    sim.add_argument("--orientation", choices=ORIENTATIONS,
                      help="pallet side along the motion (default: as the load file lays it out)")
     sim.add_argument("--hours-since-wrapping", type=_number, default=0.0, metavar="H",
                      help="test the wrap after its tension relaxed for H hours (default 0)")
@@ -135,7 +135,7 @@ def _add_recommend_problem(rec: argparse.ArgumentParser) -> None:
                           "default: start a local Ray instance of --workers CPUs")
     rec.add_argument("--seed", type=seed, default=0,
                      help="seed of the search and of the samples (same seed, same answer)")
-    rec.add_argument("--orientation", choices=("long", "short", "both"), default="both",
+    rec.add_argument("--orientation", choices=(*ORIENTATIONS, "both"), default="both",
                      help="pallet side(s) along the motion a program must pass (default both: "
                           "a load is only as safe as its weaker orientation)")
     rec.add_argument("--target-long", type=level_g, metavar="G",

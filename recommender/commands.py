@@ -44,7 +44,7 @@ from wrapenv.config import (
     write_together,
 )
 from wrapenv.eumos import EUMOS_LIMITS, Limits
-from wrapenv.load import Layout, LoadUnit
+from wrapenv.load import ORIENTATIONS, Layout, LoadUnit, Orientation
 from wrapenv.profile import PulseProfile
 from wrapenv.wrap import Web, WrapFormat
 
@@ -107,10 +107,10 @@ def wrap_json(simulated: WrapFormat, laid: WrapFormat, layout: Layout) -> dict[s
 # --- recommend ---------------------------------------------------------------------------------
 
 
-def _targets(args: argparse.Namespace) -> tuple[tuple[str, float], ...]:
+def _targets(args: argparse.Namespace) -> tuple[tuple[Orientation, float], ...]:
     """(orientation, target) pairs: --orientation both (default) searches both sides, each at
     --target unless --target-long / --target-short says otherwise."""
-    sides = ("long", "short") if args.orientation == "both" else (args.orientation,)
+    sides = ORIENTATIONS if args.orientation == "both" else (args.orientation,)
     given = {"long": args.target_long, "short": args.target_short}
     for side, target in given.items():
         if target is not None:

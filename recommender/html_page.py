@@ -23,7 +23,7 @@ from wrapenv import __version__
 from wrapenv.bench import BenchRun
 from wrapenv.config import printable
 from wrapenv.eumos import EUMOS_CRITERIA, NO_DAMAGE, Criterion, LevelVerdict, Verdict
-from wrapenv.load import PAIRS, Layout, LoadUnit
+from wrapenv.load import PAIRS, Layout, LoadUnit, Orientation
 from wrapenv.wrap import WrapFormat, program_to_dict
 
 #: The page's style, inlined into it (screen, and A4 print without cut tables or figures).
@@ -43,7 +43,7 @@ class Figure:
 class OrientationRun:
     """One orientation's bench run: the EUMOS levels run on the unit laid out as `layout`."""
 
-    orientation: str | None  # "long" | "short" | None (as the load file lays it out)
+    orientation: Orientation | None  # None: as the load file lays it out
     layout: Layout
     run: BenchRun
     target_g: float | None = None

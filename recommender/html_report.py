@@ -23,7 +23,7 @@ from wrapenv.config import (
     write_atomic,
     write_together,
 )
-from wrapenv.load import Layout, LoadUnit
+from wrapenv.load import Layout, LoadUnit, Orientation
 from wrapenv.wrap import WrapFormat
 
 PAGE = "report.html"
@@ -70,11 +70,11 @@ def _video(run: BenchRun, layout: Layout, wrap: WrapFormat | None, stage: Path) 
 
 
 def simulate_page(stage: Path, load: LoadUnit, run: BenchRun, laid: WrapFormat | None,
-                  simulated: WrapFormat | None, orientation: str | None, hours: float,
+                  simulated: WrapFormat | None, orientation: Orientation | None, hours: float,
                   inputs: Mapping[str, Path | None]) -> Page:
     """`simulate --report`: the levels run, the wrap as entered (`laid`) and as simulated
     (calibrated, relaxed) for the video."""
-    layout = load.layout(orientation)  # type: ignore[arg-type]
+    layout = load.layout(orientation)
     figures = (_displacement(run, stage, load.name, "the levels in the table above"),
                _tension_map(run, layout, stage, load.name))
     return Page("Bench test report", load, (OrientationRun(orientation, layout, run),), laid, hours,
@@ -90,9 +90,9 @@ def recommend_page(stage: Path, problem: Problem, check: Verification, best: Eva
 
     s, load, weakest = problem.settings, problem.load, check.weakest
     targets = dict(s.targets)
-    tested = tuple(OrientationRun(o, load.layout(o), run, targets[o])  # type: ignore[arg-type]
+    tested = tuple(OrientationRun(o, load.layout(o), run, targets[o])
                    for o, run in check.runs.items())
-    run, layout = check.runs[weakest], load.layout(weakest)  # type: ignore[arg-type]
+    run, layout = check.runs[weakest], load.layout(weakest)
     which = f"the {weakest} side along the motion, the weaker"
     search = (Figure("Search", None, "a trained policy proposed the program: there was no "
                      "search") if state is None else

@@ -21,7 +21,7 @@ from wrapenv.bench import SimSettings
 from wrapenv.calibrated import Calibration
 from wrapenv.design import INTEGER_INDICES, ProgramSpace
 from wrapenv.eumos import EUMOS_LIMITS, Limits
-from wrapenv.load import Layout, LoadUnit
+from wrapenv.load import Layout, LoadUnit, Orientation
 from wrapenv.profile import PulseProfile
 from wrapenv.wrap import Web, WrapFormat
 
@@ -39,13 +39,13 @@ TENSION_PRICE = 0.05
 
 #: A load is only as safe as its weaker orientation: road rules ask 0.8 g forward and 0.5 g
 #: sideways and rearward (EN 12195-1); the default searches both sides at 0.5 g.
-BOTH_SIDES = (("long", 0.5), ("short", 0.5))
+BOTH_SIDES: tuple[tuple[Orientation, float], ...] = (("long", 0.5), ("short", 0.5))
 
 
 @dataclass(frozen=True)
 class SearchSettings:
     #: (orientation, target level in g) pairs every candidate must pass.
-    targets: tuple[tuple[str, float], ...] = BOTH_SIDES
+    targets: tuple[tuple[Orientation, float], ...] = BOTH_SIDES
     #: The web a program is sought for (card, width, machine).
     web: Web = Web.named("kraft")
     samples: int = 3               # K robust samples per candidate

@@ -50,6 +50,7 @@ from recommender.uncertainty import PassProbability
 from wrapenv.bench import BenchRun, SimSettings, run_levels
 from wrapenv.config import InputError
 from wrapenv.design import INTEGER_INDICES, MIN_BOTTOM_WRAPS, MIN_TOP_WRAPS, N_PARAMS
+from wrapenv.load import Orientation
 from wrapenv.profile import eumos_levels
 from wrapenv.wrap import WrapFormat
 
@@ -137,14 +138,14 @@ class Trial:
 
     passed: bool
     margin: float
-    orientation: str
+    orientation: Orientation
     level: dict[str, Any]  # the weakest orientation's level verdict (simulate's JSON)
     sample: dict[str, Any]
     simulations: int = 1  # levels run: one per orientation
 
 
-def _trial(problem: Problem, wrap: WrapFormat, seed: int, sim: SimSettings, orientation: str,
-           target_g: float) -> Trial:
+def _trial(problem: Problem, wrap: WrapFormat, seed: int, sim: SimSettings,
+           orientation: Orientation, target_g: float) -> Trial:
     """A program in one sample of the uncertain parameters, one orientation at its target (in a
     worker: a sample's orientations run side by side)."""
     sample = problem.sample(seed)
@@ -377,7 +378,7 @@ class Verification:
     """A program run the way a lab would see it: the EUMOS sequence of every orientation on the
     nominal load, and its pass probability over fresh samples of what is not known."""
 
-    runs: dict[str, BenchRun]  # orientation -> the nominal EUMOS sequence up to its target
+    runs: dict[Orientation, BenchRun]  # orientation -> the nominal EUMOS sequence up to its target
     probability: PassProbability
     worst: Trial | None  # the sample with the smallest margin
 
@@ -386,7 +387,7 @@ class Verification:
         return all(run.verdict.passed for run in self.runs.values())
 
     @property
-    def weakest(self) -> str:
+    def weakest(self) -> Orientation:
         """The orientation with the smallest nominal margin."""
         return min(self.runs, key=lambda o: self.runs[o].verdict.margin)
 

@@ -6,7 +6,7 @@ from __future__ import annotations
 from wrapenv.bench import BenchRun
 from wrapenv.config import printable
 from wrapenv.eumos import EUMOS_CRITERIA, LevelVerdict, Verdict
-from wrapenv.load import Layout, LoadUnit
+from wrapenv.load import Layout, LoadUnit, Orientation
 from wrapenv.program import Pass, Program
 from wrapenv.wrap import WrapFormat
 
@@ -53,7 +53,7 @@ def _row(verdict: Verdict, v: LevelVerdict, height_m: float) -> str:
             f"  {_mm(v.pallet_slip_m)}  {note}{damage}")
 
 
-def orientation_tested(load: LoadUnit, orientation: str | None) -> str:
+def orientation_tested(load: LoadUnit, orientation: Orientation | None) -> str:
     """Which side of the pallet faced the motion: "long" or "short" (a square pallet's is
     "long"), as asked or as the load file lays the unit out (its length along x)."""
     if orientation is not None:
@@ -71,11 +71,11 @@ def sequence_text(verdict: Verdict) -> str:
     return "a fresh unit for every level"
 
 
-def verdict_table(load: LoadUnit, run: BenchRun, orientation: str | None) -> str:
+def verdict_table(load: LoadUnit, run: BenchRun, orientation: Orientation | None) -> str:
     """The unit, the sequence, the criteria, one row per level run, the highest level passed.
     Figures in mm; "permanent" is this level's, then since the unit was put on the sled (what
     the criterion judges)."""
-    layout = load.layout(orientation)  # type: ignore[arg-type]
+    layout = load.layout(orientation)
     v = run.verdict
     h = v.load_height_m
     criteria = v.levels[0].limits.criteria() if v.levels else EUMOS_CRITERIA

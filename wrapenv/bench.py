@@ -21,7 +21,7 @@ from wrapenv.eumos import (
     fallen,
 )
 from wrapenv.friction import WRAPPED_SLIP_SPEED_MPS, WRAPPED_STICK_SPEED_MPS, StickSlip
-from wrapenv.load import Layout, LoadUnit
+from wrapenv.load import Layout, LoadUnit, Orientation
 from wrapenv.profile import G, Profile, PulseProfile
 from wrapenv.rest import Rest
 from wrapenv.scene import BUNDLES, PALLET, SLED_DECK_M, BenchScene
@@ -199,7 +199,7 @@ def run_levels(
     load: LoadUnit,
     levels: Iterable[float | Profile],
     settings: SimSettings = SimSettings(),
-    orientation: str | None = None,
+    orientation: Orientation | None = None,
     stop_at_failure: bool = False,
     wrap: WrapFormat | None = None,
     fresh: bool = False,
@@ -243,14 +243,14 @@ def _run_levels_once(
     load: LoadUnit,
     levels: Iterable[float | Profile],
     settings: SimSettings,
-    orientation: str | None,
+    orientation: Orientation | None,
     stop_at_failure: bool,
     wrap: WrapFormat | None,
     fresh: bool,
     limits: Limits,
     on_level: Callable[[LevelVerdict], None] | None,
 ) -> BenchRun:
-    layout = load.layout(orientation)  # type: ignore[arg-type]
+    layout = load.layout(orientation)
     verdicts: list[LevelVerdict] = []
     traces: list[Trace] = []
     with contextlib.ExitStack() as stack:

@@ -23,6 +23,9 @@ from wrapenv.load_checks import (
 )
 
 Pattern = Literal["columnar", "interlocked", "explicit"]
+#: Which of the pallet's sides lies along the sled's motion.
+Orientation = Literal["long", "short"]
+ORIENTATIONS: tuple[Orientation, ...] = ("long", "short")
 PATTERNS: tuple[str, ...] = ("columnar", "interlocked", "explicit")
 PAIRS: tuple[str, ...] = ("sled_pallet", "pallet_bundle", "bundle_bundle")
 
@@ -212,7 +215,7 @@ class LoadUnit:
         stiffness = self.bundle.corner_stiffness_n_per_m2 * scale
         return replace(self, bundle=replace(self.bundle, corner_stiffness_n_per_m2=stiffness))
 
-    def layout(self, orientation: Literal["long", "short"] | None = None) -> Layout:
+    def layout(self, orientation: Orientation | None = None) -> Layout:
         """Place the bundles. ``orientation`` puts the pallet's long or short side along the
         motion (x); None keeps the file's layout (pallet length along x)."""
         p = self.pallet
