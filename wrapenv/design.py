@@ -9,7 +9,8 @@ maps linearly onto the ranges, rounding the wraps.
     0      bottom_wraps           1 .. 6 revolutions parked at the sled surface (whole)
     1      top_wraps              1 .. 6 revolutions parked high (whole)
     2      reinforcement_wraps    0 .. 4 revolutions parked at index 4's height (whole; 0: none)
-    3      up_overlap             0 .. 0.75 of the web: a spiral of 1 to 4 layers
+    3      up_overlap             0 .. 0.75 of the web: a spiral of 1 to 4 layers (from what the
+                                  carriage can rise a revolution, `min_overlap`)
     4      reinforcement_from_m   0 .. load top - web width: where the reinforcement's web starts
     5-8    tension of the bottom, middle (spiral), top and reinforcement wraps: 5 % .. 50 % of
            one layer's yield force (machines keep about half the limit for the corners, P4)
@@ -30,6 +31,7 @@ those of a WRAP.toml (`Web.from_toml`).
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -94,9 +96,20 @@ class ProgramSpace:
         return TENSION_FRACTIONS[0] * limit, TENSION_FRACTIONS[1] * limit
 
     @property
+    def min_overlap(self) -> float:
+        """The least overlap the machine lays: at its rpm the carriage rises at most
+        `carriage_speed_mps` x 60 / rpm a revolution (`wrapenv.program.as_laid`); whole
+        percent, rounded up."""
+        m = self.web.machine
+        most = m.carriage_speed_mps * 60.0 / m.rpm
+        least = math.ceil(100.0 * (1.0 - most / self.web_width_m) - 1e-9) / 100.0
+        return min(max(0.0, least), MAX_OVERLAP)
+
+    @property
     def low(self) -> np.ndarray:
         t0, _ = self.tension_range_n
-        return np.array([MIN_BOTTOM_WRAPS, MIN_TOP_WRAPS, 0, 0.0, 0.0, t0, t0, t0, t0])
+        return np.array([MIN_BOTTOM_WRAPS, MIN_TOP_WRAPS, 0, self.min_overlap, 0.0,
+                         t0, t0, t0, t0])
 
     @property
     def high(self) -> np.ndarray:
@@ -118,6 +131,7 @@ class ProgramSpace:
             up_overlap=round(float(v[3]), OVERLAP_DECIMALS), middle_tension_n=tension[1],
             top_wraps=wraps[1], top_overhang_m=TOP_OVERHANG_M,
             top_tension_n=tension[2], reinforcements=reinforcement,
+            prestretch=self.material.prestretch,  # film: the panel's setting, written out
         )
 
     def wrap(self, values: np.ndarray) -> WrapFormat:

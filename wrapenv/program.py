@@ -24,7 +24,7 @@ given by its lower edge, as a machine's carriage height is.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 #: Lengths and turn counts below this are rounding, not web.
 _FLAT = 1e-9
@@ -190,6 +190,15 @@ def _travel(start_m: float, end_m: float, rise_m: float, tension_n: float) -> Pa
     down as the heights lie (a reinforcement may lie above the top wraps' height)."""
     zone = "spiral up" if end_m >= start_m else "spiral down"
     return Pass(zone, start_m, end_m, abs(end_m - start_m) / rise_m, tension_n)
+
+
+def as_laid(passes: tuple[Pass, ...], rpm: float, machine: Machine) -> tuple[Pass, ...]:
+    """The passes as the machine lays them at `rpm`. The turntable does not wait for the
+    carriage: a spiral asking a rise per revolution the carriage cannot travel in one revolution
+    turns more often, each turn rising what the carriage can, and lays that much more web."""
+    most = machine.carriage_speed_mps * 60.0 / rpm
+    return tuple(replace(p, turns=p.travel_m / most) if p.rise_m > most + _FLAT else p
+                 for p in passes)
 
 
 def layer_map(passes: tuple[Pass, ...], web_width_m: float, load_height_m: float

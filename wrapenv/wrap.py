@@ -36,6 +36,7 @@ from wrapenv.program import (
     Outline,
     Pass,
     Program,
+    as_laid,
     band_passes,
     cycle_time_s,
     layer_map,
@@ -137,10 +138,13 @@ class WrapFormat:
     def from_program(cls, material: Material, web_width_m: float, program: Program,
                      load_height_m: float, material_key: str = "custom",
                      machine: Machine | None = None) -> WrapFormat:
-        """The wrap a program lays on a load of this height."""
-        passes = program.passes(web_width_m, load_height_m)
+        """The wrap a program lays on a load of this height, at its machine's speeds
+        (`as_laid`)."""
+        machine = machine or Machine()
+        rpm = program.rpm if program.rpm is not None else machine.rpm
+        passes = as_laid(program.passes(web_width_m, load_height_m), rpm, machine)
         return cls(material, web_width_m, layer_map(passes, web_width_m, load_height_m),
-                   material_key, program, machine or Machine(), passes)
+                   material_key, program, machine, passes)
 
     # --- reading and writing -----------------------------------------------------------------
 
@@ -189,15 +193,19 @@ class WrapFormat:
                 raise InputError(source, f"band[{i}].to_m", f"{band.to_m} m is above the top of"
                                  f" the load ({load_height_m:.3f} m)")
 
-    def warnings(self) -> tuple[str, ...]:
+    def warnings(self, layout: Layout | None = None) -> tuple[str, ...]:
         """What the file asks that no machine lays or the bench cannot judge: a tension too
-        slack to hold anything (a figure in kilonewtons?); paper bands narrower than the web
-        (only a rope of film is narrower, and paper is not roped); a paper program without a
-        bottom wrap, whose head nothing holds; a program whose web does not close round the
-        load at some height (wrapenv.design)."""
-        slack = self._slack_tensions()
+        slack to hold anything (a figure in kilonewtons?) or beyond the web's yield; paper
+        bands narrower than the web (only a rope of film is narrower, and paper is not roped);
+        a paper program without a bottom wrap, whose head nothing holds; a program whose web
+        does not close round the load at some height (wrapenv.design), whose spiral the
+        carriage cannot rise at the machine's rpm, or, on a `layout`, whose web misses the
+        pallet or lies mostly above the load."""
+        slack = self._tension_warnings()
         if self.program is not None:
-            return slack + self._program_warnings(self.program)
+            placed = _placement_warnings(self.program, self.web_width_m, layout) if layout else ()
+            return (slack + self._program_warnings(self.program)
+                    + self._carriage_warnings(self.program) + placed)
         if self.material.kind != "paper":
             return slack
         return slack + tuple(
@@ -205,8 +213,9 @@ class WrapFormat:
             "no machine lays it (material is costed as full-width revolutions)"
             for i, b in enumerate(self.bands) if b.height_m < self.web_width_m - 1e-9)
 
-    def _slack_tensions(self) -> tuple[str, ...]:
-        """A warning for each tension under `SLACK_TENSION_FRACTION` of the web's yield force."""
+    def _tension_warnings(self) -> tuple[str, ...]:
+        """A warning for each tension under `SLACK_TENSION_FRACTION` of the web's yield force,
+        and for each above it (between yield and break: accepted, as the web bears it)."""
         yield_n = self.material.yield_force_n_per_m * self.web_width_m
         if self.program is not None:
             p = self.program
@@ -218,9 +227,30 @@ class WrapFormat:
         else:
             named = [(f"band[{i}].tension_n", b.tension_n) for i, b in enumerate(self.bands)]
         share = f"{100 * SLACK_TENSION_FRACTION:g} %"
-        return tuple(f"{key} is {value:g} N, under {share} of the web's yield force "
-                     f"({yield_n:.0f} N): kilonewtons? Tensions are in newtons"
-                     for key, value in named if value < SLACK_TENSION_FRACTION * yield_n)
+        slack = tuple(f"{key} is {value:g} N, under {share} of the web's yield force "
+                      f"({yield_n:.0f} N): kilonewtons? Tensions are in newtons"
+                      for key, value in named if value < SLACK_TENSION_FRACTION * yield_n)
+        return slack + tuple(
+            f"{key} is {value:g} N, above the web's yield force ({yield_n:.0f} N): the web is "
+            "stretched for good while it is laid, and a corner's peak tears it first; machines "
+            f"keep about half of it ({yield_n / 2:.0f} N, docs/materials.md, P4)"
+            for key, value in named if value > yield_n)
+
+    def _carriage_warnings(self, program: Program) -> tuple[str, ...]:
+        """A spiral asking a rise per revolution the carriage cannot travel at the rpm is laid
+        at the overlap the carriage allows (`as_laid`): said, as the material counts it."""
+        if not any(p.travel_m > 0 for p in self.passes):
+            return ()
+        most = self.machine.carriage_speed_mps * 60.0 / self.rpm
+        asked = [("program.up_overlap", program.up_overlap)]
+        if program.down_overlap is not None:
+            asked.append(("program.down_overlap", program.down_overlap))
+        return tuple(
+            f"{key} = {overlap:g} asks the carriage to rise {self.web_width_m * (1 - overlap):.3f}"
+            f" m a revolution; at {self.rpm:g} rpm it rises at most {most:.3f} m "
+            f"({self.machine.carriage_speed_mps:g} m/s), so the spiral is laid at "
+            f"{100 * (1 - most / self.web_width_m):.0f} % overlap, and the web used counts it so"
+            for key, overlap in asked if self.web_width_m * (1 - overlap) > most + 1e-9)
 
     def _program_warnings(self, program: Program) -> tuple[str, ...]:
         out = [UNHELD_HEAD] if self.material.kind == "paper" and program.bottom_wraps == 0 else []
@@ -270,7 +300,9 @@ class WrapFormat:
         return out
 
     def to_toml(self) -> str:
-        head = "# Wrap (WRAP.toml); heights in metres from the sled surface.\n"
+        head = ("# Wrap (WRAP.toml): heights in metres from the sled surface (a program's: the "
+                "web's lower edge),\n# tensions in newtons per layer of web while wrapping, "
+                "overlaps as fractions of the web (0.5 = 50 %).\n")
         return head + tomli_w.dumps(self.to_dict())
 
     # --- variants ------------------------------------------------------------------------------
@@ -343,6 +375,31 @@ class WrapFormat:
         """Seconds from one pallet to the next on this machine (wrapenv.program.cycle_time_s)."""
         home = self.program.bottom_from_m if self.program is not None else 0.0
         return cycle_time_s(self.passes, home, self.rpm, self.machine)
+
+
+def _placement_warnings(program: Program, web_width_m: float, layout: Layout
+                        ) -> tuple[str, ...]:
+    """A program whose web misses the pallet (nothing ties the load to it), or whose top wraps
+    or reinforcements lay most of their web above the load (folded over: the file asked it,
+    or the web is wider than the load is high)."""
+    pallet_m, h, w = layout.pallet_size_m[2], layout.load_height_m, web_width_m
+    out = []
+    if program.bottom_from_m >= pallet_m:
+        out.append(f"program.bottom_from_m = {program.bottom_from_m:g} m: the web does not reach "
+                   f"down to the pallet (its top at {pallet_m:.3f} m), so nothing ties the load "
+                   "to it")
+    above = program.top_from_m(w, h) + w - h
+    if program.top_wraps and above > program.top_overhang_m + 1e-9:
+        out.append(f"web_width_m = {w:g} m is more than the load's height ({h:.3f} m) and "
+                   f"program.top_overhang_m ({program.top_overhang_m:g} m): the top wraps are "
+                   f"laid from the sled and reach {above:.2f} m above the load, folded over it")
+    elif program.top_wraps and above > w / 2:
+        out.append(f"program.top_overhang_m = {program.top_overhang_m:g} m: the top wraps lay "
+                   f"{above:.2f} m of their {w:g} m web above the load, folded over it")
+    out.extend(f"program.reinforcement[{i}].from_m = {r.from_m:g} m: its wraps lay "
+               f"{r.from_m + w - h:.2f} m of their {w:g} m web above the load, folded over it"
+               for i, r in enumerate(program.reinforcements) if r.from_m + w - h > w / 2)
+    return tuple(out)
 
 
 def outline_of(layout: Layout) -> Outline:

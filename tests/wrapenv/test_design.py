@@ -84,3 +84,16 @@ def test_a_machine_s_own_web_sets_the_tensions_the_width_laid_and_the_cycle():
     wrap = space.wrap(space.low)
     assert wrap.web_width_m == 0.75 and wrap.material == card and wrap.machine.rpm == 10.0
     assert wrap.passes[0].start_m == 0.0 and wrap.bands[0].to_m == pytest.approx(0.75)
+
+
+def test_no_program_asks_a_spiral_the_carriage_cannot_rise():
+    """At 10 rpm the carriage (0.1 m/s) rises 0.6 m a revolution: a 0.75 m web's spiral
+    overlaps at least 1 - 0.6 / 0.75 = 20 %, so the space starts there and every program it
+    lays is laid as asked. At 12 rpm a 0.5 m web may touch (0 %)."""
+    load = LoadUnit.from_toml("examples/pet_2layer_columnar.toml")
+    wide = ProgramSpace.for_layout(load.layout(), Web(MATERIALS["kraft"], "kraft", 0.75,
+                                                       Machine(rpm=10.0)))
+    assert wide.min_overlap == pytest.approx(0.2)
+    assert wide.program(wide.low).up_overlap == pytest.approx(0.2)
+    assert not any("up_overlap" in w for w in wide.wrap(wide.low).warnings())
+    assert ProgramSpace.for_layout(load.layout(), "kraft").min_overlap == 0.0

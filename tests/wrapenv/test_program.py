@@ -215,6 +215,46 @@ def test_a_program_whose_web_does_not_close_somewhere_is_warned_about():
     assert laid(program(bottom_wraps=1, top_wraps=1, top_overhang_m=0.05), 0.804).warnings() == ()
 
 
+def test_a_program_whose_web_misses_the_pallet_or_lies_above_the_load_is_warned_about():
+    """On the 2-layer example (pallet 0.144 m, load 0.804 m, a 0.5 m web): bottom wraps from
+    0.3 m leave the pallet bare; an overhang of 0.39 m and a reinforcement from 0.6 m put 0.39
+    and 0.296 m of their web above the load; a 1 m web's top wraps stand on the sled and reach
+    0.196 m above it, whatever the overhang asked (a user, 2026-11-27: each taken silently)."""
+    layout = LoadUnit.from_toml("examples/pet_2layer_columnar.toml").layout()
+
+    def warned(web_m: float = W, **changes: object) -> str:
+        prog = program(**{"bottom_wraps": 1, "top_wraps": 1, "top_overhang_m": 0.05, **changes})
+        return " | ".join(WrapFormat.from_program(KRAFT, web_m, prog, 0.804).warnings(layout))
+
+    assert warned() == ""
+    assert ("program.bottom_from_m = 0.3 m: the web does not reach down to the pallet (its "
+            "top at 0.144 m)") in warned(bottom_from_m=0.3)
+    assert ("program.top_overhang_m = 0.39 m: the top wraps lay 0.39 m of their 0.5 m web "
+            "above the load") in warned(top_overhang_m=0.39)
+    assert ("program.reinforcement[0].from_m = 0.6 m: its wraps lay 0.30 m of their 0.5 m "
+            "web above the load") in warned(reinforcements=(Reinforcement(0.6, 1, 100.0),))
+    assert ("web_width_m = 1 m is more than the load's height (0.804 m) and "
+            "program.top_overhang_m (0.05 m): the top wraps are laid from the sled and reach "
+            "0.20 m above the load") in warned(web_m=1.0)
+
+
+def test_a_spiral_the_carriage_cannot_rise_at_the_rpm_is_laid_at_the_overlap_it_can():
+    """A 0.75 m web at 10 rpm, the carriage at 0.1 m/s: a touching spiral asks 0.75 m a
+    revolution, the carriage rises 0.1 m/s x 6 s = 0.6 m, and the turntable does not wait:
+    0.6 m a turn is 20 % overlap, 0.75 / 0.6 = 1.25 layers. A user's program was costed at
+    0 % and timed at the carriage's speed (2026-11-27)."""
+    prog = program(bottom_wraps=1, top_wraps=1)
+    wrap = WrapFormat.from_program(KRAFT, 0.75, prog, 2.0, "kraft", Machine(rpm=10.0))
+    (spiral,) = [p for p in wrap.passes if p.zone == "spiral up"]
+    assert spiral.turns == pytest.approx(1.25 / 0.6)   # the top wraps at 2.0 - 0.75 m
+    assert wrap.layers_at(1.0) == pytest.approx(1.25)
+    (said,) = [w for w in wrap.warnings() if "up_overlap" in w]
+    assert "at 10 rpm it rises at most 0.600 m (0.1 m/s), so the spiral is laid at 20 %" in said
+    at_12 = WrapFormat.from_program(KRAFT, W, prog, 2.0, "kraft", Machine())  # 0.5 m: as fast
+    assert [p.turns for p in at_12.passes if p.zone == "spiral up"] == [pytest.approx(3.0)]
+    assert not any("up_overlap" in w for w in at_12.warnings())
+
+
 # --- cycle time --------------------------------------------------------------------------------
 
 

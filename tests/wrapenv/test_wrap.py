@@ -395,6 +395,9 @@ BAD_PROGRAMS = {
         {"from_m": 0.3, "wraps": 100, "tension_n": 300.0}]}, "program.reinforcement[0].wraps"),
     "fractional top wraps": ({"program.top_wraps": 1.5}, "program.top_wraps"),
     "overlap of 1": ({"program.up_overlap": 1.0}, "program.up_overlap"),
+    # 0.99: 71 layers and 12 kg of paper in one spiral on the 2-layer example (a user,
+    # 2026-11-27); layers beyond 10 a pass are parked wraps
+    "a spiral of a hundred layers": ({"program.up_overlap": 0.99}, "program.up_overlap"),
     "overlap above 1": ({"program.down_overlap": 1.2}, "program.down_overlap"),
     "a gap wider than the web": ({"program.up_overlap": -1.5}, "program.up_overlap"),
     "negative overhang": ({"program.top_overhang_m": -0.01}, "program.top_overhang_m"),
@@ -485,6 +488,19 @@ def test_a_tension_too_slack_to_hold_anything_is_warned_about(wrap_file):
     assert not any("kilonewtons" in w for w in least.warnings())
     bands = WrapFormat.from_toml(wrap_file({"band.0.tension_n": 0.5}), load_height_m=0.804)
     assert bands.warnings()[0].startswith("band[0].tension_n is 0.5 N, under 1 %")
+
+
+def test_a_tension_beyond_the_web_s_yield_is_warned_about(wrap_file):
+    """2900 N on a 0.5 m Kraft web: 181 % of its 1600 N yield force, 97 % of its break force
+    (a user, 2026-11-27: accepted without a word). The yield force itself is not warned of."""
+    hard = WrapFormat.from_toml(wrap_file({"program.bottom_tension_n": 2900.0}, program=True),
+                                load_height_m=0.804)
+    assert hard.warnings() == (
+        "program.bottom_tension_n is 2900 N, above the web's yield force (1600 N): the web is "
+        "stretched for good while it is laid, and a corner's peak tears it first; machines "
+        "keep about half of it (800 N, docs/materials.md, P4)",)
+    at_yield = wrap_file({"program.bottom_tension_n": 1600.0}, program=True)
+    assert WrapFormat.from_toml(at_yield, load_height_m=0.804).warnings() == ()
 
 
 def test_film_may_be_roped_and_pre_stretched(wrap_file):
