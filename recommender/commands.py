@@ -93,12 +93,18 @@ def warn(command: str, messages: tuple[str, ...]) -> None:
         sys.stderr.write(f"wrapbench {command}: warning: {message}\n")
 
 
-def wrap_json(simulated: WrapFormat, laid: WrapFormat, layout: Layout) -> dict[str, Any]:
-    """The JSON keys of a wrap: what was simulated (`format`: bands as simulated, the program
-    as entered), the web laid and the cycle time."""
+def wrap_json(simulated: WrapFormat, laid: WrapFormat, layout: Layout,
+              hours_since_wrapping: float) -> dict[str, Any]:
+    """The JSON keys of a wrap: what was simulated (`format`: bands as simulated, their
+    tensions relaxed for the hours since wrapping and calibrated; the program as entered),
+    the web laid and the cycle time."""
     cycle = laid.cycle_time_s
-    return {"format": {**simulated.to_json(), **({"program": laid.to_json()["program"]}
-                                                 if laid.program is not None else {})},
+    relaxed = {"hours_since_wrapping": hours_since_wrapping,
+               "tension_retained": round(laid.material.relaxation.retained(
+                   hours_since_wrapping), 4)}
+    return {"format": {**simulated.to_json(), **relaxed,
+                       **({"program": laid.to_json()["program"]}
+                          if laid.program is not None else {})},
             "material_used": asdict(laid.material_used_on(layout)),
             "cycle_time_s": round(cycle, 3), "pallets_per_hour": round(3600 / cycle, 2)}
 
@@ -434,7 +440,8 @@ def _write_outputs(args: argparse.Namespace, problem: Problem, best: Evaluation,
     files = {}
     if args.json:
         weakest = check.runs[check.weakest]
-        out = {**wrap_json(problem.simulated(best.wrap), best.wrap, problem.layout),
+        out = {**wrap_json(problem.simulated(best.wrap), best.wrap, problem.layout,
+                           problem.settings.hours_since_wrapping),
                "program": best.wrap.to_json().get("program"),
                "verdict": {**weakest.verdict.to_json(), "orientation": check.weakest},
                "orientations": {o: run.verdict.to_json() for o, run in check.runs.items()},

@@ -13,7 +13,13 @@ from tqdm import tqdm
 
 from recommender.commands import as_flag, check_hours, criteria_limits, warn, wrap_json
 from recommender.html_report import check_report_folder, simulate_page, write_report
-from recommender.text import orientation_tested, program_text, rerun_note, verdict_table
+from recommender.text import (
+    age_text,
+    orientation_tested,
+    program_text,
+    rerun_note,
+    verdict_table,
+)
 from wrapenv.bench import run_levels
 from wrapenv.calibrated import Calibration
 from wrapenv.config import InputError, check_distinct, check_output, result_json, write_together
@@ -76,7 +82,7 @@ def run_simulate(args: argparse.Namespace) -> int:
     warn("simulate", tuple(w for p in levels if isinstance(p, MeasuredProfile)
                            for w in p.warnings()))
     if laid is not None:
-        warn("simulate", laid.warnings())
+        warn("simulate", laid.warnings(layout))
     limits = criteria_limits(args)
     stop = not args.level and not args.profile
     with tqdm(total=len(levels), desc="levels", unit="level", file=sys.stderr,
@@ -88,6 +94,7 @@ def run_simulate(args: argparse.Namespace) -> int:
     print(verdict_table(load, run, args.orientation))
     if laid is not None:
         print(program_text(laid, layout))
+        print(age_text(laid.material, args.hours_since_wrapping))
     if args.report:   # first: the slowest to make, and nothing of it shows until it is whole
         given = {"load unit": args.load, "wrap": args.wrap, "calibration": args.calibration,
                  "sled profile": args.profile}
@@ -99,7 +106,7 @@ def run_simulate(args: argparse.Namespace) -> int:
         if rerun_note(run):
             out["solver_iterations"] = run.solver_iterations
         if wrap is not None and laid is not None:
-            out.update(wrap_json(wrap, laid, layout))
+            out.update(wrap_json(wrap, laid, layout, args.hours_since_wrapping))
             out["hours_since_wrapping"] = args.hours_since_wrapping
         files[Path(args.json)] = result_json(out)
     if args.plot:

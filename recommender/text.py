@@ -7,6 +7,7 @@ from wrapenv.bench import BenchRun
 from wrapenv.config import printable
 from wrapenv.eumos import EUMOS_CRITERIA, LevelVerdict, Verdict
 from wrapenv.load import Layout, LoadUnit, Orientation
+from wrapenv.material import Material
 from wrapenv.program import Pass, Program
 from wrapenv.wrap import WrapFormat
 
@@ -87,7 +88,7 @@ def verdict_table(load: LoadUnit, run: BenchRun, orientation: Orientation | None
         f"{orientation_tested(load, orientation)} side ({layout.pallet_size_m[0]:.3f} m)",
         f"limits: {limits}, no damage",
         "figures in mm (% of load height); permanent: during the level, then since the unit "
-        "was put on the sled",
+        "was put on the sled; pallet slip: on the sled, during the level",
         f"{'level    result':17}{'elastic max':>15}  {'permanent':>6} {'total':>15}  "
         f"{'low20cm':>6}  {'layer shift':>15}  {'pallet slip':>6}",
     ]
@@ -140,8 +141,11 @@ def program_text(wrap: WrapFormat, layout: Layout) -> str:
     """The program step by step (what the carriage does, in order), then the web it lays and
     the cycle time. A band form is listed as the full-width revolutions a machine needs."""
     what = "wrapping program" if wrap.program is not None else "bands, laid as"
-    lines = [f"{what}: {printable(wrap.material.name)}, web {wrap.web_width_m:.2f} m, "
-             f"{wrap.rpm:g} rpm",
+    given = wrap.program.prestretch if wrap.program is not None else None
+    stretch = given if given is not None else wrap.material.prestretch
+    prestretch = f", pre-stretch {100 * stretch:.0f} %" if stretch is not None else ""
+    lines = [f"{what}: {printable(wrap.material.name)}, web {wrap.web_width_m:.2f} m"
+             f"{prestretch}, {wrap.rpm:g} rpm",
              "step  zone           wraps  overlap  carriage (web's lower edge)        tension N"]
     lines += [_step(i, p, wrap, layout.load_height_m) for i, p in enumerate(wrap.passes, 1)]
     used = wrap.material_used_on(layout)
@@ -152,9 +156,19 @@ def program_text(wrap: WrapFormat, layout: Layout) -> str:
     m = wrap.machine
     cycle = wrap.cycle_time_s
     lines.append(f"cycle time: {cycle:.0f} s, {3600 / cycle:.0f} pallets/h ({wrap.rpm:g} rpm, "
-                 f"carriage up to {m.carriage_speed_mps:.2f} m/s, {m.handling_s:.0f} s to change "
+                 f"carriage up to {m.carriage_speed_mps:g} m/s, {m.handling_s:.0f} s to change "
                  "pallets)")
     return "\n".join(lines)
+
+
+def age_text(material: Material, hours_since_wrapping: float) -> str:
+    """How old the wrap was when tested, and what its tension kept."""
+    if hours_since_wrapping == 0:
+        return ("wrap tested as just laid (0 h after wrapping; a lab tests it after it stood: "
+                "--hours-since-wrapping)")
+    kept = material.relaxation.retained(hours_since_wrapping)
+    return (f"wrap tested {hours_since_wrapping:g} h after wrapping: its tension {kept:.0%} of "
+            f"what was laid ({printable(material.name)} relaxes)")
 
 
 def program_summary(program: Program) -> str:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import math
 import signal
 import subprocess
 import sys
@@ -482,6 +483,26 @@ def test_a_program_is_simulated_as_the_bands_its_web_lays(load_file, tmp_path, c
     assert verdict["material_used"]["revolutions"] == pytest.approx(6.0 + 0.024 / 0.25)
     assert verdict["cycle_time_s"] == pytest.approx(6.096 * 5 + 15.0)
     assert verdict["pallets_per_hour"] == pytest.approx(3600 / verdict["cycle_time_s"], rel=1e-3)
+
+
+def test_a_wrapped_run_says_how_old_the_wrap_was_and_the_panel_s_pre_stretch(load_file,
+                                                                             tmp_path, capsys):
+    """16 h after wrapping LLDPE keeps 0.74 + 0.18 e^(-16/0.5) + 0.08 e^(-16/72) = 80.4 % of
+    its tension (docs/materials.md, L5): the table says so, the JSON says it of the bands it
+    simulated, and the program's header names the pre-stretch the operator sets (250 %)."""
+    out_json = tmp_path / "verdict.json"
+    code = run(["simulate", str(load_file(base=TINY_LOAD)), "--wrap",
+                str(EXAMPLES / "program_lldpe_default.toml"), "--level", "0.2",
+                "--hours-since-wrapping", "16", "--json", str(out_json)])
+    out, err = capsys.readouterr()
+    assert code == 0, err
+    kept = 0.74 + 0.18 * math.exp(-16.0 / 0.5) + 0.08 * math.exp(-16.0 / 72.0)
+    assert "LLDPE cast stretch film (applied), web 0.50 m, pre-stretch 250 %, 12 rpm" in out
+    assert f"wrap tested 16 h after wrapping: its tension {kept:.0%} of what was laid" in out
+    wrap = json.loads(out_json.read_text())["format"]
+    assert wrap["hours_since_wrapping"] == 16 and wrap["tension_retained"] == round(kept, 4)
+    laid = wrap["program"]["bottom_tension_n"]
+    assert wrap["bands"][0]["tension_n"] == pytest.approx(laid * kept, abs=0.01)
 
 
 def test_paper_asked_to_rope_exits_2_naming_the_field(load_file, tmp_path, capsys):
