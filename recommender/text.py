@@ -38,6 +38,12 @@ def wrapped(verdict: Verdict) -> bool:
     return any(level.wrap is not None for level in verdict.levels)
 
 
+def g_text(level_g: float) -> str:
+    """A level in g as a table shows it: two decimals, three where two would round it onto
+    another level (0.495 and 0.5 g are not both "0.50")."""
+    return f"{level_g:.2f}" if abs(level_g - round(level_g, 2)) < 1e-9 else f"{level_g:.3f}"
+
+
 def _row(verdict: Verdict, v: LevelVerdict, height_m: float) -> str:
     result = level_result(verdict, v)
     failed = [k for k, ok in v.criteria.items() if not ok]
@@ -47,7 +53,7 @@ def _row(verdict: Verdict, v: LevelVerdict, height_m: float) -> str:
     if len(v.damage) > 4:
         damage += ", ..."
     total = v.permanent_total_max_m
-    return (f"{v.level_g:5.2f} g  {result:7s} {_mm(v.elastic_max_m)} "
+    return (f"{g_text(v.level_g):>5} g  {result:7s} {_mm(v.elastic_max_m)} "
             f"{_pct(v.elastic_max_m, height_m)}  {_mm(v.permanent_max_m)} {_mm(total)} "
             f"{_pct(total, height_m)}  {_mm(v.permanent_low20_m)}"
             f"  {_mm(v.layer_shift_max_m)} {_pct(v.layer_shift_max_m, height_m)}"
@@ -93,11 +99,11 @@ def verdict_table(load: LoadUnit, run: BenchRun, orientation: Orientation | None
         f"{'low20cm':>6}  {'layer shift':>15}  {'pallet slip':>6}",
     ]
     lines += [_row(v, level, h) for level in v.levels]
-    torn = [f"{level.level_g:.2f} g" for level in v.levels if level.wrap and level.wrap.torn]
+    torn = [f"{g_text(level.level_g)} g" for level in v.levels if level.wrap and level.wrap.torn]
     if torn:
         lines.append(f"wrap torn at: {', '.join(torn)}")
     best = v.highest_passed_g
-    lines.append(f"highest level passed: {'none' if best is None else f'{best:.2f} g'}"
+    lines.append(f"highest level passed: {'none' if best is None else g_text(best) + ' g'}"
                  + ("" if v.valid else f"  (simulation became unphysical: see INVALID rows"
                                        f"{TIGHT_WRAP_HINT if wrapped(v) else ''})"))
     if rerun := rerun_note(run):

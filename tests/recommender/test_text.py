@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from dataclasses import replace
 
-from recommender.text import TIGHT_WRAP_HINT, level_result, verdict_table
+from recommender.text import TIGHT_WRAP_HINT, g_text, level_result, verdict_table
 from wrapenv.bench import BenchRun
 from wrapenv.eumos import LevelVerdict, Verdict
 from wrapenv.load import LoadUnit
@@ -23,6 +23,20 @@ def test_each_level_reads_pass_fail_invalid_or_void():
     after_blow_up = Verdict(0.8, (good, replace(blown, level_g=0.4)))
     assert level_result(after_blow_up, good) == "VOID"
     assert level_result(after_blow_up, after_blow_up.levels[1]) == "INVALID"
+
+
+def test_levels_two_decimals_would_merge_keep_a_third():
+    """0.495 g passed and 0.5 g failed: a table reading "0.50 PASS, 0.50 FAIL" and "highest
+    level passed: 0.50 g" said the opposite (a user, 2026-11-27)."""
+    assert [g_text(g) for g in (0.2, 0.5, 0.495, 0.499, 0.8)] == [
+        "0.20", "0.50", "0.495", "0.499", "0.80"]
+    unit = LoadUnit.from_toml("examples/pet_2layer_columnar.toml")
+    run = BenchRun(Verdict(0.804, (replace(level(True), level_g=0.495),
+                                   replace(level(False), level_g=0.5))), (), 20)
+    lines = verdict_table(unit, run, None).splitlines()
+    assert lines[-3].lstrip().startswith("0.495 g  PASS")
+    assert lines[-2].lstrip().startswith("0.50 g  FAIL")
+    assert lines[-1] == "highest level passed: 0.495 g"
 
 
 def test_a_level_that_ended_before_rest_says_why_on_its_line():
