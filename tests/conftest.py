@@ -188,7 +188,7 @@ def edge_factor() -> Callable[[Material, float], float]:
     membrane's (the hand computation `bend_curvature` and `bend_factor` must agree with)."""
 
     def factor(material: Material, edge_radius_m: float) -> float:
-        t = material.thickness
+        t = material.layer_thickness_m
         return float(bend_factor(material, np.array(t / (2 * edge_radius_m + t))))
 
     return factor

@@ -93,13 +93,13 @@ class Material:
     #: How its wrapping tension relaxes while the wrapped load stands.
     relaxation: Relaxation = NO_RELAXATION
     #: One layer's thickness as applied (bending strain round a load's edge); None: grammage
-    #: over the kind's density (`thickness`).
+    #: over the kind's density (`layer_thickness_m`).
     thickness_m: float | None = None
     #: Static friction of one layer on the next; None: the layers cling (film) or, for paper,
     #: `PAPER_INTERLAYER_FRICTION` (`interlayer_mu`).
     interlayer_friction: float | None = None
     #: Force per metre of height the wrap's tail joint (glue, clamp, cling) holds before it
-    #: lets go; None: `seam_strength` (a fraction of the web's own breaking force).
+    #: lets go; None: `seam_holds_n_per_m` (a fraction of the web's own breaking force).
     seam_strength_n_per_m: float | None = None
 
     @property
@@ -112,7 +112,7 @@ class Material:
         return self.yield_force_n_per_m + hardening * (self.break_strain - self.yield_strain)
 
     @property
-    def thickness(self) -> float:
+    def layer_thickness_m(self) -> float:
         """Metres; from the grammage and the kind's density when the card gives none [D]."""
         if self.thickness_m is not None:
             return self.thickness_m
@@ -136,7 +136,7 @@ class Material:
         return PAPER_INTERLAYER_FRICTION
 
     @property
-    def seam_strength(self) -> float:
+    def seam_holds_n_per_m(self) -> float:
         """N/m of height the tail joint holds: the card's, else film's cling lap holds as
         much as the film (it does not slip before the film tears) and a glued paper tail
         `GLUED_SEAM_FRACTION` of the paper's breaking force [A] (docs/materials.md, P5)."""
@@ -257,7 +257,7 @@ MAX_THICKNESS_M = 0.005
 def _failure_fields(t: Table) -> dict[str, float]:
     """The optional keys of how a web fails beyond its own law: thickness (bending round an
     edge), layer-on-layer friction and the tail's strength; absent keys keep the documented
-    defaults (`Material.thickness`, `interlayer_mu`, `seam_strength`)."""
+    defaults (`Material.layer_thickness_m`, `interlayer_mu`, `seam_holds_n_per_m`)."""
     limits = {"thickness_m": MAX_THICKNESS_M, "interlayer_friction": MAX_FRICTION,
               "seam_strength_n_per_m": None}
     return {key: t.number(key, positive=True, maximum=top)

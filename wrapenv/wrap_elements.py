@@ -36,7 +36,7 @@ def bend_curvature(material: Material, edge_radius_m: np.ndarray, turn_rad: np.n
     tension per metre of one layer's width. A tensioned web does not follow a kink sharply:
     its bending stiffness D = K t² / 12 spreads the turn over l = sqrt(D / T), so its sharpest
     bend is turn / (2 l) (a tensioned beam over a point), and no sharper than the edge."""
-    t = material.thickness
+    t = material.layer_thickness_m
     stiffness = material.stiffness_n_per_m * t * t / 12.0
     length = np.sqrt(stiffness / np.maximum(tension_n_per_m, 1e-9))
     return np.minimum(1.0 / edge_radius_m, turn_rad / (2.0 * length))

@@ -39,16 +39,16 @@ OutlinePoint = tuple[int, tuple[float, float, float], tuple[float, float]]
 
 @dataclass(frozen=True)
 class Ring:
-    """One hoop of web at height `z`, standing for the web over the heights `share`."""
+    """One hoop of web at height `z_m`, standing for the web over the heights `share_m`."""
 
-    z: float
-    share: tuple[float, float]
+    z_m: float
+    share_m: tuple[float, float]
     slots: list[tuple[int, tuple[float, float, float]]]  # (body, local point), counter-clockwise
     corner_slots: list[int]   # slots at the outline's corners: -x-y, +x-y, +x+y, -x+y
     rest_xy: list[tuple[float, float]]  # slot positions at rest, sled frame
     perimeter_m: float
     layers: float             # web layers over the share (averaged round the load)
-    web_metres: float         # layers x height share: metres of web the ring stands for
+    web_m: float              # layers x height share: metres of web the ring stands for
     tension_n: float          # wrapping tension of those layers
     #: Per slot: the place it is (a corner or the face it lies on) and its position round the
     #: outline, `s`.
@@ -57,7 +57,7 @@ class Ring:
 
     @property
     def height_m(self) -> float:
-        return self.share[1] - self.share[0]
+        return self.share_m[1] - self.share_m[0]
 
 
 @dataclass(frozen=True)
@@ -169,9 +169,9 @@ def _make_ring(wrap: WrapFormat, z: float, share: tuple[float, float], pts: list
     places, s = _slot_places(xy, corners, outline)
     layers = wrap.layers_over(*share)
     return Ring(
-        z=z, share=share, slots=[(body, local) for body, local, _ in pts],
+        z_m=z, share_m=share, slots=[(body, local) for body, local, _ in pts],
         corner_slots=corners, rest_xy=[tuple(w) for w in xy], perimeter_m=perimeter,
-        layers=layers, web_metres=layers * h,
+        layers=layers, web_m=layers * h,
         tension_n=wrap.line_tension_n_per_m(*share) * h, places=places, s_m=s,
     )
 
@@ -206,15 +206,15 @@ def panel_specs(wrap: WrapFormat, rings: list[Ring], corners: list[list[int]],
     rows: list[tuple] = []
     for i in range(len(rings) - 1):
         lo, hi = rings[i], rings[i + 1]
-        if not wrap.covers(lo.z, hi.z):
+        if not wrap.covers(lo.z_m, hi.z_m):
             continue
-        n = wrap.layers_over(lo.z, hi.z)
-        h = hi.z - lo.z
+        n = wrap.layers_over(lo.z_m, hi.z_m)
+        h = hi.z_m - lo.z_m
         c_lo = [np.array(lo.rest_xy[j]) for j in lo.corner_slots]
         c_hi = [np.array(hi.rest_xy[j]) for j in hi.corner_slots]
         faces = [(np.linalg.norm(c_lo[(c + 1) % 4] - c_lo[c])
                   + np.linalg.norm(c_hi[(c + 1) % 4] - c_hi[c])) / 2 for c in range(4)]
-        z = (lo.z + hi.z) / 2
+        z = (lo.z_m + hi.z_m) / 2
         for c in range(4):
             a, b = corners[i][c], corners[i + 1][c]
             if node_body[a] != node_body[b]:
@@ -253,11 +253,11 @@ def seam_rings(wrap: WrapFormat, rings: list[Ring]) -> list[int]:
     last = wrap.passes[-1]
     height = last.rope_m if last.rope_m is not None else wrap.web_width_m
     lo = last.end_m
-    inside = [i for i, r in enumerate(rings) if lo <= r.z < lo + height]
+    inside = [i for i, r in enumerate(rings) if lo <= r.z_m < lo + height]
     if inside:
         return inside
     middle = lo + height / 2
-    return [min(range(len(rings)), key=lambda i: abs(rings[i].z - middle))]
+    return [min(range(len(rings)), key=lambda i: abs(rings[i].z_m - middle))]
 
 
 def ring_give(ring: Ring, corner_stiffness: np.ndarray) -> float:

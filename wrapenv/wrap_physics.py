@@ -84,7 +84,7 @@ class WrapNet:
         self._node_body: list[int] = []
         self._node_local: list[tuple[float, float, float]] = []
         self.ring_specs = rings = ring_specs(wrap, layout)
-        self.ring_heights = np.array([r.z for r in rings])
+        self.ring_heights = np.array([r.z_m for r in rings])
         width = max(len(r.slots) for r in rings) if rings else 0
         self._slots = np.full((len(rings), width), -1)
         corners = []
@@ -129,9 +129,9 @@ class WrapNet:
         strength = (m.yield_force_n_per_m, m.break_force_n_per_m, m.hardening_ratio)
         perimeter = np.array([r.perimeter_m for r in rings])
         return element_set(
-            k_web=np.array([m.stiffness_n_per_m * r.web_metres for r in rings]) / perimeter,
+            k_web=np.array([m.stiffness_n_per_m * r.web_m for r in rings]) / perimeter,
             material_strength=strength,
-            web_metres=np.array([r.web_metres for r in rings]),
+            web_metres=np.array([r.web_m for r in rings]),
             pretension=np.array([r.tension_n for r in rings]),
             mass=np.array([mass[[b for b, _ in r.slots]].mean() for r in rings]),
             height=self.ring_heights, length=perimeter,
@@ -198,7 +198,7 @@ class WrapNet:
         layers = np.array([rings[i].layers for i in self.seam])
         lap = np.clip(layers - 1.0, 0.0, 1.0)
         self._seam_share = np.exp(-2 * math.pi * m.interlayer_mu * lap) / np.maximum(layers, 1)
-        self._seam_bears = m.seam_strength * np.array([rings[i].height_m for i in self.seam])
+        self._seam_bears = m.seam_holds_n_per_m * np.array([rings[i].height_m for i in self.seam])
         self.seam_peak, self.seam_peak_force, self.seam_peak_t = 0.0, 0.0, math.nan
 
     # -- state ----------------------------------------------------------------------------
@@ -324,9 +324,9 @@ class WrapNet:
         and the tighter it is pulled (`bend_curvature`), at the last step's tension."""
         m, r = self.wrap.material, self.rings
         angle = 2 * np.arcsin(np.clip(np.linalg.norm(turn[..., :2], axis=-1) / 2, 0, 1))
-        per_layer = r.last / np.maximum(np.array([s.web_metres for s in self.ring_specs]), 1e-9)
+        per_layer = r.last / np.maximum(np.array([s.web_m for s in self.ring_specs]), 1e-9)
         kappa = bend_curvature(m, self.slot_radius, angle, per_layer[:, None])
-        t = m.thickness
+        t = m.layer_thickness_m
         return np.where(active, bend_factor(m, t * kappa / (2 + t * kappa)), 1.0)
 
     def _seam_step(self, tension: np.ndarray, t_s: float | None) -> np.ndarray:

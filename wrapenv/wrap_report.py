@@ -119,8 +119,8 @@ def _ring_places(net: WrapNet) -> list[Place]:
             for slots, where, span in spots:
                 edge = max((float(net.ring_edge[i, j]) for j in slots), default=1.0)
                 use = min(force * edge / bears, 1.0)
-                out.append(Place("ring", where, spec.z, use, force, _timed(r.peak_t[i]),
-                                 *span, spec.z, spec.z,
+                out.append(Place("ring", where, spec.z_m, use, force, _timed(r.peak_t[i]),
+                                 *span, spec.z_m, spec.z_m,
                                  torn=bool(r.torn[i]) and use >= 1.0 - 1e-9,
                                  opened=bool(r.opened[i])))
     return out

@@ -29,27 +29,27 @@ CUSTOM_PAPER: dict[str, Any] = {**CUSTOM, "kind": "paper", "break_strain": 0.2}
 
 def test_kraft_is_paper_130_um_thick_sliding_at_0_4_with_a_glued_tail():
     kraft = MATERIALS["kraft"]
-    assert kraft.thickness == 1.3e-4 and not kraft.clings
+    assert kraft.layer_thickness_m == 1.3e-4 and not kraft.clings
     assert kraft.interlayer_mu == 0.4
-    assert kraft.seam_strength == 3000.0        # about half the web's 5990 N/m
+    assert kraft.seam_holds_n_per_m == 3000.0        # about half the web's 5990 N/m
 
 
 def test_lldpe_clings_and_its_clung_tail_holds_as_the_film_does():
     film = MATERIALS["lldpe"]
-    assert film.thickness == 10.7e-6 and film.clings
-    assert film.seam_strength == pytest.approx(film.break_force_n_per_m)
+    assert film.layer_thickness_m == 10.7e-6 and film.clings
+    assert film.seam_holds_n_per_m == pytest.approx(film.break_force_n_per_m)
 
 
 def test_a_custom_card_without_the_fields_gets_the_documented_defaults(wrap_data):
     film = WrapFormat.from_dict(wrap_data({"material": dict(CUSTOM), **LOW_TENSION})).material
-    assert film.thickness == pytest.approx(0.012 / DENSITY_KG_M3["film"])
+    assert film.layer_thickness_m == pytest.approx(0.012 / DENSITY_KG_M3["film"])
     assert film.clings
-    assert film.seam_strength == pytest.approx(film.break_force_n_per_m)
+    assert film.seam_holds_n_per_m == pytest.approx(film.break_force_n_per_m)
     paper = WrapFormat.from_dict(wrap_data({"material": {**CUSTOM_PAPER},
                                             **LOW_TENSION})).material
-    assert paper.thickness == pytest.approx(0.012 / DENSITY_KG_M3["paper"])
+    assert paper.layer_thickness_m == pytest.approx(0.012 / DENSITY_KG_M3["paper"])
     assert not paper.clings and paper.interlayer_mu == PAPER_INTERLAYER_FRICTION
-    assert paper.seam_strength == pytest.approx(GLUED_SEAM_FRACTION
+    assert paper.seam_holds_n_per_m == pytest.approx(GLUED_SEAM_FRACTION
                                                 * paper.break_force_n_per_m)
 
 
@@ -58,7 +58,8 @@ def test_a_custom_card_takes_the_fields_given_and_writes_them_back(wrap_data):
              "seam_strength_n_per_m": 150.0}
     wrap = WrapFormat.from_dict(wrap_data({"material": table, **LOW_TENSION}))
     card = wrap.material
-    assert (card.thickness, card.interlayer_mu, card.seam_strength) == (2e-4, 0.6, 150.0)
+    assert (card.layer_thickness_m, card.interlayer_mu,
+            card.seam_holds_n_per_m) == (2e-4, 0.6, 150.0)
     assert WrapFormat.from_dict(wrap.to_dict()).material == card
 
 
