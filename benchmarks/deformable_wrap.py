@@ -18,7 +18,6 @@ PyBullet's C code prints a few lines ("argv[0]=", ...) that Python cannot silenc
 from __future__ import annotations
 
 import math
-import sys
 import tempfile
 import time
 from pathlib import Path
@@ -27,11 +26,11 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-if TYPE_CHECKING:  # for the annotations only: the project is imported lazily (see below)
-    from pybullet_utils.bullet_client import BulletClient
+from wrapenv.load import Layout, LoadUnit
+from wrapenv.profile import PulseProfile
 
-    from wrapenv.load import Layout, LoadUnit
-    from wrapenv.profile import PulseProfile
+if TYPE_CHECKING:  # for the annotations only: pybullet is imported where it is measured
+    from pybullet_utils.bullet_client import BulletClient
 
 REPO = Path(__file__).resolve().parent.parent
 EXAMPLES = {
@@ -55,18 +54,6 @@ DECK_SIZE_M = (4.0, 3.0, 0.1)
 #: tube runs 2 s at 500 Hz; at 240 Hz it blows up (~0.35 s) once the top-layer bundles slide into
 #: it, with or without the anchors.
 SPRING_DAMPING = 1.0
-
-
-def _project_imports() -> tuple[type[LoadUnit], type[PulseProfile]]:
-    """Import the project lazily (nothing runs at import) and from this checkout if needed."""
-    try:
-        from wrapenv.load import LoadUnit
-        from wrapenv.profile import PulseProfile
-    except ImportError:
-        sys.path.insert(0, str(REPO))
-        from wrapenv.load import LoadUnit
-        from wrapenv.profile import PulseProfile
-    return LoadUnit, PulseProfile
 
 
 def _perimeter_points(half_x: float, half_y: float, n: int) -> list[tuple[float, float]]:
@@ -151,7 +138,6 @@ def run_deformable_wrap(layers: int = 3, nodes_around: int = 24, rings: int = 7,
     import pybullet as pb
     from pybullet_utils import bullet_client
 
-    LoadUnit, PulseProfile = _project_imports()
     if layers not in EXAMPLES:
         raise ValueError(f"layers must be one of {sorted(EXAMPLES)} (got {layers})")
     if rings < 2:
