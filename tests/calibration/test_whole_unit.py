@@ -7,17 +7,17 @@ The unit is the paper's columnar 2-layer stack cut down to 2 x 2 bundles a layer
 
 One draw of such a test says little on its own: the unit is chaotic, and what the fit makes of
 it changes with the draw (and, until the bench rounded what it hands Bullet, with the last bits
-of the processor's arithmetic: this test's draw then predicted its third level within 15 % with
-OpenBLAS's AVX2 kernels and 26.5 % off with its AVX-512 ones). Over the draws of seeds 0-5 at
-this budget (2026-11-26, a recording its final replays leave unexplained replayed 24 times
-before the fit is refused): every draw found the pair that slid; 5 fits were written, each with
-its kinetic coefficient within 0.03 of the truth and its static one within 0.05 or reported
-unresolved with its error within two standard deviations (seed 0: 0.095 off at +- 0.052, seed 1:
-0.109 at +- 0.057); 1 was refused (seed 4: its kinetic coefficient 0.031 off, the 0.45 g take
-left 11.0 mm unexplained); 1 written fit in 5 predicted its third level within 15 % (+9 %; the
-others +58 %, -65 %, +61 %, +34 %). So the tests specify what held on every draw, a calibration
-claims only what its takes pin and a wrong one is refused saying where, on one draw of each
-kind, and keep the issue's 15 % as an expected failure until the fit meets it."""
+of the processor's arithmetic). Over the draws of seeds 0-5 at this budget (2026-11-27, the stop
+bar flush against the pallet; `python -m benchmarks.whole_unit_draws`): every draw found the
+pairs that slid; 3 fits were written, each with bundle-bundle's kinetic coefficient within
+0.004 of the truth and its static one within 0.029; 3 were refused, the 0.45 g take left 12.7
+to 21.2 mm unexplained (seed 4 rightly: its kinetic coefficient 0.055 off; seeds 0 and 3 with
+theirs within 0.010); 2 written fits in 3 predicted their third level within 15 % (+1 %, -15 %;
+the third, this test's, 119 % off). (With the bar 1 mm behind the pallet, until that day: 5
+written, 1 refused, 1 written fit in 5 within 15 %.) So the tests specify what held on every
+draw, a calibration claims only what its takes pin and a wrong one is refused saying where,
+on one draw of each kind, and keep the issue's 15 % as an expected failure until the fit meets
+it on every draw."""
 
 from __future__ import annotations
 
@@ -27,7 +27,6 @@ import pytest
 
 from calibration.fit import (
     FINAL_REPLAYS,
-    RESOLVED_STATIC_STD,
     UNEXPLAINED_REPLAYS,
     FitResult,
     FitSettings,
@@ -37,6 +36,7 @@ from calibration.recording import Recording, Truth
 from calibration.replay import Observation, observe
 from calibration.synth import synthesize
 from calibration.track import track
+from calibration.trajectories import ObjectPath, Trajectories
 from calibration.validate import Check, validate
 from wrapenv.load import LoadUnit
 
@@ -67,12 +67,18 @@ class Draw:
     def __init__(self, seed: int, folder) -> None:
         load = LoadUnit.from_dict(UNIT)
         self.observations: dict[float, Observation] = {}
+        #: The pairs that slid in each fitted take, read from its true paths.
+        self.truly_slipped: list[frozenset[str]] = []
         for level in (*FITTED, HELD_OUT):
             take = folder / f"at{level}"
             synthesize(load, take, level_g=level, seed=seed, size=(480, 300),
                        friction_jitter=0.1)
             rec = Recording.read(take)
             self.observations[level] = observe(rec, track(rec).trajectories)
+            if level in FITTED:
+                true_paths = Trajectories({name: ObjectPath(o.t_s, o.x_m, o.z_m, o.angle_rad)
+                                           for name, o in Truth.read(take).objects.items()})
+                self.truly_slipped.append(observe(rec, true_paths).slipped)
         self.truth = Truth.read(take).params["friction"]["bundle_bundle"]
         self.fitted = [self.observations[level] for level in FITTED]
         self.result: FitResult = fit(self.fitted, FitSettings(budget=BUDGET, workers=2))
@@ -93,24 +99,27 @@ def refused(tmp_path_factory) -> Draw:
     return Draw(REFUSED, tmp_path_factory.mktemp("refused"))
 
 
-def test_every_draw_finds_the_pair_that_slid(written, refused):
+def test_every_draw_finds_the_pairs_that_slid(written, refused):
+    """As the true paths show them: the top layer on the bottom one in every draw, and in the
+    refused draw's 0.45 g take also a bottom bundle on the pallet (5.3 mm)."""
     for draw in (written, refused):
-        assert {"bundle_bundle"} == set().union(*(o.slipped for o in draw.fitted))
+        assert [o.slipped for o in draw.fitted] == draw.truly_slipped
+        assert "bundle_bundle" in set().union(*draw.truly_slipped)
 
 
 def test_a_written_calibration_claims_only_what_its_takes_pin(written):
-    """The kinetic coefficient within the issue's 0.03; the static one, which this draw's takes
-    do not pin (0.109 off), reported unresolved with a spread that covers its error, and with
-    advice; the pairs that never slipped not identified."""
+    """The kinetic coefficient within the issue's 0.03; the static one, which slipped at every
+    level so the takes bound it only from above, within 0.05 or its error within two standard
+    deviations, and said unresolved with advice (a lower level); the pairs that never slipped
+    not identified."""
     result = written.result
     pair = result.calibration.friction["bundle_bundle"]
     assert result.converged, result.reason
     assert abs(pair.kinetic - written.truth["kinetic"]) <= 0.03
     assert 0 < pair.kinetic_std < 0.05
     static_error = abs(pair.static - written.truth["static"])
-    assert static_error > 0.05
-    assert pair.static_std > RESOLVED_STATIC_STD and static_error <= 2 * pair.static_std
-    assert "bundle_bundle" in result.advice
+    assert static_error <= max(0.05, 2 * pair.static_std)
+    assert "not resolved" in result.advice["bundle_bundle"]
     assert not result.calibration.friction["pallet_bundle"].identified
     assert "pallet_bundle" in result.advice and "sled_pallet" in result.advice
     assert result.simulations <= MOST_SIMULATIONS
@@ -128,7 +137,7 @@ def test_a_fit_outside_the_bounds_is_refused_naming_the_take_it_leaves_unexplain
 
 
 @pytest.mark.xfail(strict=True, reason="issue 13 open: a written calibration predicted its "
-                   "third level within 15 % in 1 draw of 5 (this one: 65 % off)")
+                   "third level within 15 % in 2 draws of 3 (this one: 119 % off)")
 def test_a_written_calibration_predicts_a_level_it_was_not_fitted_to_within_15_pct(written):
     layer, slide = written.held_out()
     assert layer == 2 and slide.recorded_m < -0.05
