@@ -139,13 +139,21 @@ BASE_PROGRAM: dict[str, Any] = {
 @pytest.fixture
 def wrap_data() -> Callable[[dict[str, Any] | None], dict[str, Any]]:
     """``wrap_data({"band.0.layers": 0})``: BASE_WRAP with that change, as parsed TOML."""
-    return lambda changes=None: changed(BASE_WRAP, changes)
+
+    def data(changes: dict[str, Any] | None = None) -> dict[str, Any]:
+        return changed(BASE_WRAP, changes)
+
+    return data
 
 
 @pytest.fixture
 def program_data() -> Callable[[dict[str, Any] | None], dict[str, Any]]:
     """``program_data({"program.top_wraps": 1})``: BASE_PROGRAM with that change, parsed."""
-    return lambda changes=None: changed(BASE_PROGRAM, changes)
+
+    def data(changes: dict[str, Any] | None = None) -> dict[str, Any]:
+        return changed(BASE_PROGRAM, changes)
+
+    return data
 
 
 @pytest.fixture

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 from concurrent.futures import Future
 from pathlib import Path
+from typing import Any
 
 import cv2
 import numpy as np
@@ -25,7 +26,7 @@ SMALL_LOAD = {
 }
 #: 800 x 500 at 0.2 g gives ~240 px/m: markers of 0.075 m are 18 px, big enough for ArUco.
 SIZE = (800, 500)
-SYNTH = {"level_g": 0.2, "size": SIZE, "fps": 10.0, "marker_size_m": 0.075}
+SYNTH: dict[str, Any] = {"level_g": 0.2, "size": SIZE, "fps": 10.0, "marker_size_m": 0.075}
 
 
 class InlinePool:
@@ -101,7 +102,8 @@ SLIDE_LOAD = {
 }
 #: Seed 7 and a 10 % jitter make the true pallet-bundle pair 0.378 / 0.302 (the file says
 #: 0.35 / 0.28), which the fit must find without being told.
-SLIDE_SYNTH = {"level_g": 0.45, "seed": 7, "size": (480, 300), "friction_jitter": 0.1}
+SLIDE_SYNTH: dict[str, Any] = {"level_g": 0.45, "seed": 7, "size": (480, 300),
+                               "friction_jitter": 0.1}
 
 
 @pytest.fixture(scope="session")

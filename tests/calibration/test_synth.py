@@ -28,6 +28,7 @@ def detect(frame: np.ndarray, rec: Recording) -> dict[int, np.ndarray]:
     """Marker id -> corners (4, 2), refined to sub-pixel."""
     params = cv2.aruco.DetectorParameters()
     params.cornerRefinementMethod = cv2.aruco.CORNER_REFINE_SUBPIX
+    assert rec.markers is not None
     detector = cv2.aruco.ArucoDetector(rec.markers.aruco(), params)
     corners, ids, _ = detector.detectMarkers(cv2.cvtColor(frame, cv2.COLOR_RGB2GRAY))
     return {} if ids is None else {int(i): c.reshape(4, 2) for i, c in zip(ids.ravel(), corners,

@@ -525,7 +525,7 @@ def test_nothing_passed_counts_only_slow_candidates_as_over_the_limit():
     history = [SimpleNamespace(cycle_s=c, passed=p)
                for c, p in ((35.0, (False,)), (38.0, ()), (45.0, ()))]
     state = SimpleNamespace(history=history, ranked=lambda goal: [])
-    text = _nothing_passed(state, settings, 3, 8)   # type: ignore[arg-type]
+    text = _nothing_passed(state, settings, 3, 8)
     assert text.endswith("after 3 candidates x 3 samples, 1 of them over the cycle-time limit")
 
 
@@ -548,11 +548,11 @@ def test_a_search_pass_that_fails_a_verification_sample_is_not_recommended(monke
     problem = SimpleNamespace(settings=SimpleNamespace(margin_goal=0.2))
     fragile, sturdy = SimpleNamespace(wrap="fragile"), SimpleNamespace(wrap="sturdy")
     both = SimpleNamespace(ranked=lambda goal: [fragile, sturdy])
-    assert _verified(problem, both, 8, 1)[0] is sturdy    # type: ignore[arg-type,index]
+    assert _verified(problem, both, 8, 1)[0] is sturdy
     alone = SimpleNamespace(ranked=lambda goal: [fragile], history=[fragile])
-    assert _verified(problem, alone, 8, 1) is None        # type: ignore[arg-type]
+    assert _verified(problem, alone, 8, 1) is None
     settings = SimpleNamespace(margin_goal=0.2, max_cycle_s=40.0, targets=(("long", 0.5),))
-    assert _nothing_passed(alone, settings, 2, 8).startswith(   # type: ignore[arg-type]
+    assert _nothing_passed(alone, settings, 2, 8).startswith(
         "no program recommended: the 1 lightest of the 1 programs that passed the search's 2 "
         "samples failed their verification")
 

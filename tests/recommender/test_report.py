@@ -32,7 +32,9 @@ def three_bundles(moved_m: list[float]) -> Trace:
 def legend_of(trace: Trace) -> list[str]:
     ax = Figure().subplots()
     plot_level(ax, trace, evaluate(trace), trace.load_height_m)
-    return [text.get_text() for text in ax.get_legend().get_texts()]
+    legend = ax.get_legend()
+    assert legend is not None
+    return [text.get_text() for text in legend.get_texts()]
 
 
 def test_the_legend_names_each_layer_once_and_the_bundle_that_moved_most():

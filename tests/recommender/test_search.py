@@ -553,8 +553,9 @@ def fixed_policy(load: Path, action: float, path: Path) -> Path:
     env = gym.make("wrapenv/WrapBench-v2", load=str(load))
     model = PPO("MlpPolicy", env, n_steps=64, batch_size=32, device="cpu", seed=0)
     with torch.no_grad():
-        model.policy.action_net.weight.zero_()
-        model.policy.action_net.bias.fill_(action)
+        head: torch.nn.Linear = model.policy.action_net  # type: ignore[assignment]
+        head.weight.zero_()
+        head.bias.fill_(action)
     model.save(path.with_suffix(""))
     stamp(path, policy_meta(TrainSettings()))
     env.close()

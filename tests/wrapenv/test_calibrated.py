@@ -5,6 +5,7 @@ from __future__ import annotations
 import copy
 import dataclasses
 import json
+from typing import Any
 
 import pytest
 
@@ -13,7 +14,7 @@ from wrapenv.config import InputError
 from wrapenv.load import Friction, FrictionPair, LoadUnit
 
 #: The CAL.json of CONTRACTS.md, with every pair filled in.
-CAL = {
+CAL: dict[str, Any] = {
     "friction": {
         "sled_pallet": {"static": 0.45, "kinetic": 0.40, "static_std": 0.02, "kinetic_std": 0.01,
                         "identified": True},

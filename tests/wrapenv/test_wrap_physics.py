@@ -13,6 +13,7 @@ import re
 import tomllib
 from dataclasses import replace
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -45,7 +46,7 @@ def custom(stiffness, yield_strain, break_strain=2.0, hardening_ratio=0.05) -> d
 
 
 def one_layer(positions=None, pallet_bundle=(0.3, 0.23)) -> LoadUnit:
-    stack = {"layers": 1}
+    stack: dict[str, Any] = {"layers": 1}
     if positions is not None:
         stack.update(pattern="explicit", positions=positions)
     return LoadUnit.from_dict({
@@ -303,7 +304,9 @@ def test_pretension_squeezes_a_layer_so_it_resists_a_larger_push():
 
 
 def elastic_max(load: LoadUnit, wrap: WrapFormat, level_g: float) -> float:
-    return evaluate(run_level(load.layout(), PulseProfile(level_g), wrap=wrap)).elastic_max_m
+    elastic = evaluate(run_level(load.layout(), PulseProfile(level_g), wrap=wrap)).elastic_max_m
+    assert elastic is not None
+    return elastic
 
 
 @pytest.mark.parametrize("vary", ["layers", "tension"])

@@ -1,9 +1,9 @@
 """Template matching: every copy of the template found once, at sub-pixel centres."""
 
 import numpy as np
-from vision_frames import moved, texture
 
 from calibration.vision.detection import find_template, nms, subpixel_peak
+from tests.calibration.vision.vision_frames import moved, texture
 
 
 def test_finds_each_copy_once_with_subpixel_centre() -> None:

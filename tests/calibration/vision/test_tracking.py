@@ -1,7 +1,6 @@
 """Patch tracking against the first frame: sub-pixel translation and rotation without drift."""
 
 import pytest
-from vision_frames import moved, texture
 
 from calibration.vision.flow import RigidFlow, warp_to_reference
 from calibration.vision.tracking import (
@@ -10,8 +9,10 @@ from calibration.vision.tracking import (
     MultiTracker,
     PatchTracker,
     Pose,
+    Tracker,
     make_tracker,
 )
+from tests.calibration.vision.vision_frames import moved, texture
 
 CENTRE = (200.3, 150.6)
 SIZE = (110, 130)
@@ -55,7 +56,7 @@ def test_rigid_flow_sign_conventions() -> None:
 def test_no_drift_over_a_long_sequence() -> None:
     """A patch moving 0.3 px a frame for 100 frames ends within 0.1 px (chaining would not)."""
     image = texture(300, 400, seed=5)
-    trackers = {"a": PatchTracker(Frame(image), CENTRE, SIZE)}
+    trackers: dict[str, Tracker] = {"a": PatchTracker(Frame(image), CENTRE, SIZE)}
     multi = MultiTracker(trackers, {"a": Pose(*CENTRE)}, threads=1)
     for k in range(1, 101):
         frame = moved(image, CENTRE, 0.3 * k, 0.0, noise=3.0, seed=k)

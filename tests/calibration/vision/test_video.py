@@ -7,10 +7,10 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from vision_frames import texture
 
 from calibration.filming import write_video
 from calibration.vision.video import VideoReader
+from tests.calibration.vision.vision_frames import texture
 
 FRAMES = 12
 
