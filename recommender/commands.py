@@ -306,7 +306,7 @@ def _nothing_passed(state: SearchState, settings: SearchSettings, samples: int,
     candidate failed, or was over the cycle-time limit and never simulated (nor were
     candidates heavier than a pass that later failed its verification: they are not slow)."""
     history = state.history
-    passes = len(state.ranked(settings.margin_goal))
+    passes = len(state.to_verify(settings.margin_goal))
     if passes:
         tried = min(passes, VERIFY_CANDIDATES)
         return (f"no program recommended: the {tried} lightest of the {passes} programs that "
@@ -343,13 +343,14 @@ def _run_search(search: Any, state: SearchState, settings: SearchSettings) -> Se
 
 def _verified(problem: Problem, state: SearchState, samples: int,
               workers: int) -> tuple[Evaluation, Verification] | None:
-    """The lightest robust pass that also passes the whole EUMOS sequence in every orientation
-    (the search tried the target levels only) and every sample of its verification, as a
-    policy's proposal must: a pass of a few search samples may hold in them by chance (with
-    --samples 2 a program passing 3 of 8 verification samples was recommended, exit 0)."""
+    """The first pass (`SearchState.to_verify`: confirmed ones, then screened ones) that also
+    passes the whole EUMOS sequence in every orientation (the search tried the target levels
+    only) and every sample of its verification, as a policy's proposal must: a pass of a few
+    search samples may hold in them by chance (with --samples 2 a program passing 3 of 8
+    verification samples was recommended, exit 0)."""
     from recommender.search import verify
 
-    for candidate in state.ranked(problem.settings.margin_goal)[:VERIFY_CANDIDATES]:
+    for candidate in state.to_verify(problem.settings.margin_goal)[:VERIFY_CANDIDATES]:
         check = verify(problem, candidate.wrap, samples, workers=workers)
         if check.passed and check.probability.passed == check.probability.samples:
             return candidate, check

@@ -131,6 +131,15 @@ class SearchState:
         ranked = self.ranked(margin_goal)
         return ranked[0] if ranked else None
 
+    def to_verify(self, margin_goal: float) -> list[Evaluation]:
+        """Passes an answer is verified from, best first: the confirmed ones, then the screened
+        passes never confirmed (they ranked after a confirmed pass; a verification runs the
+        default fidelity on more samples than a confirmation does). On the bundled example
+        the confirmed 80 N program held in the search's 3 samples and 5 of its 8; the 440 N
+        program, screened at a margin of 0.84, was the answer left unverified."""
+        screened = [e for e in self.history if e.robust_pass and e.fidelity == SCREENING]
+        return self.ranked(margin_goal) + sorted(screened, key=lambda e: e.rank(margin_goal))
+
 
 @dataclass(frozen=True)
 class Trial:
