@@ -98,11 +98,10 @@ class ProgramSpace:
     @property
     def min_overlap(self) -> float:
         """The least overlap the machine lays: at its rpm the carriage rises at most
-        `carriage_speed_mps` x 60 / rpm a revolution (`wrapenv.program.as_laid`); whole
-        percent, rounded up."""
+        `Machine.most_rise_m` a revolution (`wrapenv.program.as_laid`); whole percent, rounded
+        up."""
         m = self.web.machine
-        most = m.carriage_speed_mps * 60.0 / m.rpm
-        least = math.ceil(100.0 * (1.0 - most / self.web_width_m) - 1e-9) / 100.0
+        least = math.ceil(100.0 * (1.0 - m.most_rise_m(m.rpm) / self.web_width_m) - 1e-9) / 100.0
         return min(max(0.0, least), MAX_OVERLAP)
 
     @property

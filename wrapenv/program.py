@@ -93,6 +93,10 @@ class Machine:
     carriage_speed_mps: float = 0.1   # fastest carriage travel (6 m/min) [A]
     handling_s: float = 15.0          # pallet in and out, cut and seal the tail [A]
 
+    def most_rise_m(self, rpm: float) -> float:
+        """The most the carriage rises in one revolution at `rpm`."""
+        return self.carriage_speed_mps * 60.0 / rpm
+
 
 @dataclass(frozen=True, kw_only=True)
 class Program:
@@ -196,7 +200,7 @@ def as_laid(passes: tuple[Pass, ...], rpm: float, machine: Machine) -> tuple[Pas
     """The passes as the machine lays them at `rpm`. The turntable does not wait for the
     carriage: a spiral asking a rise per revolution the carriage cannot travel in one revolution
     turns more often, each turn rising what the carriage can, and lays that much more web."""
-    most = machine.carriage_speed_mps * 60.0 / rpm
+    most = machine.most_rise_m(rpm)
     return tuple(replace(p, turns=p.travel_m / most) if p.rise_m > most + _FLAT else p
                  for p in passes)
 

@@ -203,7 +203,8 @@ class WrapFormat:
         pallet or lies mostly above the load."""
         slack = self._tension_warnings()
         if self.program is not None:
-            placed = _placement_warnings(self.program, self.web_width_m, layout) if layout else ()
+            placed = (_placement_warnings(self.program, self.web_width_m, layout)
+                      if layout is not None else ())
             return (slack + self._program_warnings(self.program)
                     + self._carriage_warnings(self.program) + placed)
         if self.material.kind != "paper":
@@ -241,7 +242,7 @@ class WrapFormat:
         at the overlap the carriage allows (`as_laid`): said, as the material counts it."""
         if not any(p.travel_m > 0 for p in self.passes):
             return ()
-        most = self.machine.carriage_speed_mps * 60.0 / self.rpm
+        most = self.machine.most_rise_m(self.rpm)
         asked = [("program.up_overlap", program.up_overlap)]
         if program.down_overlap is not None:
             asked.append(("program.down_overlap", program.down_overlap))
