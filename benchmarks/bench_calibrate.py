@@ -86,11 +86,8 @@ class Take:
     wrap: str | None = None
 
     def folder(self) -> Path:
-        """The cache folder; a wrapped take's names the wrapped solve it was made with (a
-        recording made before that solve changed is not its truth)."""
-        s = SimSettings()
-        wrap = (f"-{Path(self.wrap).stem}-x{TRUE_STIFFNESS}-it{s.wrapped_solver_iterations}"
-                f"-erp{s.wrapped_contact_erp}" if self.wrap else "")
+        """The cache folder (`CACHE` names the code that made it)."""
+        wrap = f"-{Path(self.wrap).stem}-x{TRUE_STIFFNESS}" if self.wrap else ""
         return CACHE / "calibrate" / (f"{Path(self.load).stem}{wrap}-{self.level_g}g-"
                                       f"{self.size[0]}x{self.size[1]}-seed{SEED}")
 

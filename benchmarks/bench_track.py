@@ -11,6 +11,7 @@ tracking), and the per-object displacement error against truth.json.
 from __future__ import annotations
 
 import argparse
+import hashlib
 import tempfile
 import time
 from pathlib import Path
@@ -24,7 +25,17 @@ from calibration.trajectories import error_vs_truth
 from wrapenv.load import LoadUnit
 from wrapenv.wrap import WrapFormat
 
-CACHE = Path(tempfile.gettempdir()) / "wrapbench-bench"
+
+def _code_digest() -> str:
+    """The bench's and the filming's source, digested: a recording made by other code is not
+    its truth (a stop bar moved 1 mm changed every take; 2026-11-27)."""
+    root = Path(__file__).resolve().parent.parent
+    sources = sorted([*root.glob("wrapenv/**/*.py"), *root.glob("calibration/**/*.py")])
+    return hashlib.sha256(b"".join(p.read_bytes() for p in sources)).hexdigest()[:12]
+
+
+#: Recordings made once per parameter set and per version of the code that makes them.
+CACHE = Path(tempfile.gettempdir()) / "wrapbench-bench" / _code_digest()
 #: Seconds a synthetic test lasts at 20 fps (pre-roll included), measured on the examples; used
 #: to pick the frame rate that gives the wanted number of frames.
 PROBE_FPS = 20.0

@@ -22,9 +22,10 @@ HEADER = ("t_s", "object", "x_m", "z_m", "angle_rad")
 #: No tracked centre lies farther from the camera's origin than this: a sled run travels a few
 #: metres and a load stands under 3 m. Beyond it a file is in millimetres (another tracker's).
 MAX_POSITION_M = 100.0
-#: No object turns farther than this on a bench (a fallen bundle lies a quarter turn over):
-#: beyond it an angle is in degrees.
-MAX_ANGLE_RAD = 2 * math.pi
+#: No object turns farther than this on a bench: a fallen bundle lies a quarter turn over, and
+#: one tumbling off the sled was tracked through 7.9 rad (its angle unwrapped frame to frame).
+#: Beyond two turns an angle is in degrees.
+MAX_ANGLE_RAD = 4 * math.pi
 
 
 @dataclass(frozen=True)
@@ -109,7 +110,7 @@ def _numbers(path: Path, line: int, row: list[str]) -> tuple[float, float, float
                              f"({MAX_POSITION_M:g} m): millimetres? Positions are in metres")
         if key == "angle_rad" and abs(value) > MAX_ANGLE_RAD:
             raise InputError(str(path), f"line {line}: {key}",
-                             f"{value:g} rad, more than a whole turn: degrees? Angles are in "
+                             f"{value:g} rad, more than two whole turns: degrees? Angles are in "
                              "radians")
         values.append(value)
     return values[0], values[1], values[2], values[3]
