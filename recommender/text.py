@@ -147,8 +147,7 @@ def program_text(wrap: WrapFormat, layout: Layout) -> str:
     """The program step by step (what the carriage does, in order), then the web it lays and
     the cycle time. A band form is listed as the full-width revolutions a machine needs."""
     what = "wrapping program" if wrap.program is not None else "bands, laid as"
-    given = wrap.program.prestretch if wrap.program is not None else None
-    stretch = given if given is not None else wrap.material.prestretch
+    stretch = wrap.prestretch
     prestretch = f", pre-stretch {100 * stretch:.0f} %" if stretch is not None else ""
     lines = [f"{what}: {printable(wrap.material.name)}, web {wrap.web_width_m:.2f} m"
              f"{prestretch}, {wrap.rpm:g} rpm",

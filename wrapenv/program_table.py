@@ -61,7 +61,7 @@ def check_program_fits(program: Program, load_height_m: float, web_width_m: floa
 #: Overlaps are fractions of the web; gaps up to a web wide (>= -1), and at most 0.9 [A]: a
 #: spiral at 0.9 lays 10 layers in one pass (the search goes to 0.75, 4 layers), at 0.99 it
 #: laid 71 and 12 kg of paper on the 2-layer example; layers beyond that are parked wraps.
-MIN_OVERLAP, MAX_OVERLAP = -1.0, 0.9
+MIN_OVERLAP, MAX_PROGRAM_OVERLAP = -1.0, 0.9
 #: Most revolutions parked at one height (bottom, top, a reinforcement) [A]: three times the
 #: search's six (`wrapenv.design.MAX_WRAPS`); a wrapper's program lays a few. Thirty top wraps
 #: of 800 N needed four times the bench's solver iterations to rest (docs/bench.md); 100000
@@ -102,10 +102,10 @@ def program_from_table(t: Table, material: Material, web_width_m: float) -> Prog
 
 def _overlap(t: Table, key: str) -> float:
     value = t.number(key, minimum=MIN_OVERLAP)
-    if value > MAX_OVERLAP:
+    if value > MAX_PROGRAM_OVERLAP:
         why = (f"a spiral at {value:g} lays {1 / (1 - value):.0f} layers in one pass, which "
                "parked wraps lay" if value < 1.0 else "at 1 or more the carriage never rises")
-        raise t.error(key, f"must be at most {MAX_OVERLAP}: {why} (got {value})"
+        raise t.error(key, f"must be at most {MAX_PROGRAM_OVERLAP}: {why} (got {value})"
                       f"{fraction_hint(value, ' of the web')}")
     return value
 

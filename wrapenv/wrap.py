@@ -345,18 +345,23 @@ class WrapFormat:
 
     # --- what it costs -------------------------------------------------------------------------
 
+    @property
+    def prestretch(self) -> float | None:
+        """The film's pre-stretch as laid: the program's, else the card's (None: the web is not
+        pre-stretched)."""
+        given = self.program.prestretch if self.program is not None else None
+        return given if given is not None else self.material.prestretch
+
     def material_used(self, outline: Outline) -> MaterialUsed:
         """The web every revolution lays (round the pallet below its top, round the load
         above), its mass, and the metres taken from the roll."""
         area = sum(pass_area_m2(p, self.web_width_m, outline) for p in self.passes)
-        prestretch = self.program.prestretch if self.program is not None else None
-        stretch = prestretch if prestretch is not None else self.material.prestretch
         laid = area / self.web_width_m
         return MaterialUsed(
             area_m2=area,
-            mass_kg=area * self.material.grammage_at(prestretch),
+            mass_kg=area * self.material.grammage_at(self.prestretch),
             web_length_m=laid,
-            roll_length_m=laid / (1 + (stretch or 0.0)),
+            roll_length_m=laid / (1 + (self.prestretch or 0.0)),
             revolutions=sum(p.turns for p in self.passes),
         )
 
