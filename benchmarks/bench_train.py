@@ -13,7 +13,8 @@ alternated in rounds so a busy machine disturbs each alike:
 - `DummyVecEnv` (1 env, in this process) and `SubprocVecEnv` with 2 and 4 env processes (a
   vector step waits for its slowest env; more envs than cores let the others use the wait).
 
-    python -m benchmarks.bench_train [--episodes 32] [--rounds 2]
+    python -m benchmarks.bench_train [--episodes 32] [--rounds 2] [--envs 1 2 4 8]
+                                     [--settings default training rigid]
 """
 
 from __future__ import annotations
@@ -33,11 +34,16 @@ from recommender.policy import MAKE_ID, TrainSettings
 from wrapenv.bench import SimSettings
 from wrapenv.design import N_PARAMS
 
-SETTINGS = {"default SimSettings()": SimSettings(), "TrainSettings.sim": TrainSettings().sim,
-            "the same, rigid boxes": replace(TrainSettings().sim, rigid_boxes=True)}
-VEC_ENVS: dict[str, tuple[int, type[DummyVecEnv] | type[SubprocVecEnv]]] = {
-    "DummyVecEnv x 1": (1, DummyVecEnv), "SubprocVecEnv x 2": (2, SubprocVecEnv),
-    "SubprocVecEnv x 4": (4, SubprocVecEnv)}
+#: The settings compared, by their command-line key; the first one run is the reference.
+SETTINGS = {"default": ("default SimSettings()", SimSettings()),
+            "training": ("TrainSettings.sim", TrainSettings().sim),
+            "rigid": ("the same, rigid boxes", replace(TrainSettings().sim, rigid_boxes=True))}
+
+
+def vec_env_name(n_envs: int) -> str:
+    """How `make_vec_env` runs `n_envs` envs here: in this process when 1, else one process
+    each."""
+    return "DummyVecEnv x 1" if n_envs == 1 else f"SubprocVecEnv x {n_envs}"
 
 
 Outcome = tuple[bool, float, bool]  # an episode's (passed, margin, valid)
@@ -90,14 +96,23 @@ def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--episodes", type=int, default=32, help="per configuration and round")
     parser.add_argument("--rounds", type=int, default=2)
+    parser.add_argument("--envs", type=int, nargs="+", default=[1, 2, 4],
+                        help="vector env sizes (default 1 2 4)")
+    parser.add_argument("--settings", nargs="+", choices=list(SETTINGS), default=list(SETTINGS),
+                        help="the first is the reference of the ratios and agreements")
     args = parser.parse_args(argv)
+    if any(n < 1 or args.episodes % n for n in args.envs):
+        parser.error("every --envs must be >= 1 and divide --episodes")
+    settings = {SETTINGS[key][0]: SETTINGS[key][1] for key in args.settings}
     print(f"{os.cpu_count()} cores; {args.episodes} episodes per configuration and round, "
           f"{args.rounds} rounds (goal >= 5 episodes/s on 2 cores)")
     rates: dict[tuple[str, str], list[tuple[float, float]]] = {}
-    outcomes: dict[str, list[Outcome]] = {name: [] for name in SETTINGS}
+    outcomes: dict[str, list[Outcome]] = {name: [] for name in settings}
     for round_ in range(args.rounds):
-        for vec_name, (n_envs, cls) in VEC_ENVS.items():
-            for sim_name, sim in SETTINGS.items():
+        for n_envs in args.envs:
+            vec_name = vec_env_name(n_envs)
+            cls = DummyVecEnv if n_envs == 1 else SubprocVecEnv
+            for sim_name, sim in settings.items():
                 wall, cpu, reward, seen = episodes_per_s(sim, n_envs, cls, args.episodes,
                                                          seed=round_)
                 rates.setdefault((vec_name, sim_name), []).append((wall, cpu))
@@ -106,9 +121,9 @@ def main(argv: list[str] | None = None) -> None:
                       f"{cpu:5.2f} per CPU s (mean reward {reward:+.3f})", flush=True)
     print("\nepisodes/s of wall time (episodes per CPU second); ratios of the wall figures to "
           "the defaults'")
-    print(f"{'vector env':18s} " + " ".join(f"{name:>24s}" for name in SETTINGS) + "  ratios")
-    for vec_name in VEC_ENVS:
-        mean = [np.mean(rates[vec_name, sim_name], axis=0) for sim_name in SETTINGS]
+    print(f"{'vector env':18s} " + " ".join(f"{name:>24s}" for name in settings) + "  ratios")
+    for vec_name in map(vec_env_name, args.envs):
+        mean = [np.mean(rates[vec_name, sim_name], axis=0) for sim_name in settings]
         print(f"{vec_name:18s} " + " ".join(f"{w:11.2f} ({c:.2f} /CPU s)" for w, c in mean)
               + "  " + ", ".join(f"{m[0] / mean[0][0]:.2f} x" for m in mean[1:]))
     default, *cheaper = outcomes.items()
