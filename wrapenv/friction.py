@@ -80,6 +80,13 @@ class StickSlip:
         b_rest = np.where(self.sliding, self._kinetic, self._static)
         return np.exp(self._p_rest @ b_rest + self._p_side @ self._b_side)
 
+    def stick_all(self) -> list[int]:
+        """Every contact sticks (the bodies were stopped). Returns the bodies of the contacts
+        that were sliding, as `update` does."""
+        changed = self.sliding
+        self.sliding = np.zeros_like(changed)
+        return sorted(set(self._i[changed].tolist()) | set(self._j[changed].tolist()))
+
     def update(self, pos: np.ndarray, rot: np.ndarray, vel: np.ndarray,
                omega: np.ndarray) -> list[int]:
         """Update contact states from body states (all bodies, sled included, sled frame).

@@ -61,6 +61,21 @@ def test_a_sliding_contact_takes_its_kinetic_value_and_the_others_keep_theirs():
     assert ss.sliding_bodies() == {top, below}
 
 
+def test_stopping_every_body_names_only_the_contacts_that_were_sliding():
+    """A later level starts still: the contacts that slid are the ones to rebuild, and the
+    pallet's grip on the sled, which did not change, is left alone."""
+    layout = unit(2).layout()
+    ss = StickSlip(layout)
+    pos, rot, vel, omega = at_rest(ss.n_bodies)
+    top = 2 + next(k for k, b in enumerate(layout.bundles) if b.layer == 2)
+    vel[top, 0] = 2 * SLIP_SPEED_MPS
+    ss.update(pos, rot, vel, omega)
+    below = next(c.other for c in ss.resting if c.body == top)
+    assert ss.stick_all() == sorted([below, top])
+    assert not ss.sliding.any() and ss.stick_all() == []
+    assert products(ss) == products(StickSlip(layout))
+
+
 def test_hysteresis_keeps_a_slide_going_until_it_is_slower_than_the_stick_speed():
     ss = StickSlip(unit(1).layout())
     pos, rot, vel, omega = at_rest(ss.n_bodies)
