@@ -156,11 +156,10 @@ class BenchUnit:
         iterations, erp = ((settings.wrapped_solver_iterations, settings.wrapped_contact_erp)
                            if wrap is not None else (settings.solver_iterations, None))
         self.world = BulletWorld(settings.timestep_s, iterations, erp, settings.rigid_boxes)
+        speeds = (WRAPPED_SLIP_SPEED_MPS, WRAPPED_STICK_SPEED_MPS) if self.wrapped else ()
         #: The contact states, kept with the world: they say which contacts a level's start
         #: must rebuild.
-        self.stick_slip = StickSlip(self.scene, *((WRAPPED_SLIP_SPEED_MPS,
-                                                   WRAPPED_STICK_SPEED_MPS) if self.wrapped
-                                                  else ()))
+        self.stick_slip = StickSlip(self.scene, *speeds)
         try:
             _build(self.world, self.scene, self.stick_slip.coefficients())
             #: The wrap as the last level left it (None: unwrapped).
