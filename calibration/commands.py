@@ -393,7 +393,7 @@ def _fitted_and_written(args: argparse.Namespace, observations: list, held_out: 
     """Fit (the search's replays kept in `checkpoint`), validate and write; the checkpoint is
     removed once the fit has ended, written or refused."""
     from calibration.checkpoint import ReplayLog
-    from calibration.fit import fit
+    from calibration.fit import FitSettings, fit
     from calibration.report import loss_png, overlay_png
     from calibration.validate import Unpredictable, validate
     from wrapenv.pool import ProcessPool
@@ -424,7 +424,8 @@ def _fitted_and_written(args: argparse.Namespace, observations: list, held_out: 
         "residual_rms_m": result.residual_rms_m, "spread_rms_m": result.spread_rms_m,
         "replay_rms_m": result.replay_rms_m, "simulations": result.simulations,
         "simulations_by_part": result.simulations_by_part, "method": result.method,
-        "advice": result.advice, "validation": [c.to_dict() for c in checks]}
+        "advice": result.advice, "acceptance": _acceptance(result, settings),
+        "validation": [c.to_dict() for c in checks]}
     paths = _outputs(args.out)
     write_together({
         paths["json"]: result_json(out),
@@ -433,6 +434,10 @@ def _fitted_and_written(args: argparse.Namespace, observations: list, held_out: 
         paths["overlay"]: overlay_png(observations, result.fitted)})
     checkpoint.unlink()
     print(_summary(result))
+    if settings.max_residual_m > FitSettings.max_residual_m:
+        print(f"note: accepted under --max-residual-mm {1e3 * settings.max_residual_m:g}, "
+              f"looser than the default {1e3 * FitSettings.max_residual_m:g} mm (CAL.json's "
+              "acceptance)")
     for check in checks:
         print(_validation_summary(check))
     taken = f", {log.reused} replays from the checkpoint" if log.reused else ""
@@ -440,6 +445,14 @@ def _fitted_and_written(args: argparse.Namespace, observations: list, held_out: 
           f"{wall:.0f} s ({result.method}); wrote "
           f"{', '.join(printable(str(p)) for p in paths.values())}")
     return 0
+
+
+def _acceptance(result: FitResult, settings: FitSettings) -> dict:
+    """The bound the fit was accepted under and the recording that came nearest it, so that a
+    calibration accepted under a looser `--max-residual-mm` says so wherever it goes."""
+    v = result.verdict
+    return {"max_residual_m": settings.max_residual_m, "least_explained": v.source,
+            "unexplained_rms_m": v.rms_m, "explained_by": v.by, "excused": list(v.excused)}
 
 
 def _parts(simulations_by_part: dict[str, int]) -> str:

@@ -12,10 +12,12 @@ from wrapenv.load import PAIRS, Friction, FrictionPair, LoadUnit
 
 #: CAL.json's keys beside `friction` and `wrap`: the fit's diagnostics (residual, the replays'
 #: own scatter, one replay's residual, simulations and what they were for, method), advice on
-#: further tests, the prediction errors on recordings that were not fitted (its validation),
-#: and the version of wrapbench that fitted it.
+#: further tests, the bound it was accepted under (acceptance), the prediction errors on
+#: recordings that were not fitted (its validation), and the version of wrapbench that fitted
+#: it.
 DIAGNOSTICS = ("residual_rms_m", "spread_rms_m", "replay_rms_m", "simulations",
-               "simulations_by_part", "method", "advice", "validation", "wrapbench_version")
+               "simulations_by_part", "method", "advice", "acceptance", "validation",
+               "wrapbench_version")
 
 
 @dataclass(frozen=True)

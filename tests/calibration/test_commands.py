@@ -184,6 +184,11 @@ def test_calibrate_writes_cal_json_that_simulate_accepts(slide_dir, tmp_path, ca
     assert f"{data['simulations']} simulations (search {parts['search']}, final replays 6" in out
     assert data["friction"]["pallet_bundle"]["identified"] is True
     assert data["friction"]["sled_pallet"]["identified"] is False
+    # the bound it was accepted under, and the recording nearest it
+    acceptance = data["acceptance"]
+    assert acceptance["max_residual_m"] == 0.01 and "looser than the default" not in out
+    assert acceptance["least_explained"] == str(rec)
+    assert 0 <= acceptance["unexplained_rms_m"] <= 0.01
     assert (tmp_path / "cal-loss.png").read_bytes()[:4] == b"\x89PNG"
     assert (tmp_path / "cal-overlay.png").read_bytes()[:4] == b"\x89PNG"
     assert Calibration.from_json(cal).friction["pallet_bundle"].static > 0
@@ -213,6 +218,15 @@ def test_calibrate_that_does_not_converge_writes_nothing(slide_dir, tmp_path, ca
     assert any(line.startswith("pallet_bundle ") for line in found)
     assert any(line.startswith("refused: the least explained recording") for line in found)
     assert list(out.iterdir()) == []
+
+    # the engineer may accept it knowingly, under a looser bound: CAL.json then says so
+    assert main(["calibrate", str(rec), "--out", str(out / "cal.json"), "--budget", "10",
+                 "--max-residual-mm", "100"]) == 0
+    assert "accepted under --max-residual-mm 100, looser than the default 10 mm" in \
+        capsys.readouterr().out
+    acceptance = json.loads((out / "cal.json").read_text())["acceptance"]
+    assert acceptance["max_residual_m"] == 0.1
+    assert 0.01 < acceptance["unexplained_rms_m"] <= 0.1
 
 
 def test_calibrate_warns_of_a_profile_that_looks_written_in_g(slide_dir, tmp_path, capsys):
