@@ -19,6 +19,7 @@ from typing import TYPE_CHECKING
 
 from tqdm import tqdm
 
+from wrapenv.calibrated import DEFAULT_MAX_RESIDUAL_M
 from wrapenv.config import (
     InputError,
     check_distinct,
@@ -223,7 +224,8 @@ def add_calibrate(sub: argparse._SubParsersAction) -> None:
                    help="parallel simulations (default: all cores)")
     p.add_argument("--seed", type=seed, default=0,
                    help="seed of the fit's designs and replays (same seed, same CAL.json)")
-    p.add_argument("--max-residual-mm", type=float, default=10.0, metavar="MM",
+    p.add_argument("--max-residual-mm", type=float, default=1e3 * DEFAULT_MAX_RESIDUAL_M,
+                   metavar="MM",
                    help="fail (nothing written) when more residual RMS than this is left "
                         "beyond the bench's own run-to-run scatter")
     p.add_argument("--validate", type=Path, nargs="+", default=[], metavar="DIR",
@@ -393,7 +395,7 @@ def _fitted_and_written(args: argparse.Namespace, observations: list, held_out: 
     """Fit (the search's replays kept in `checkpoint`), validate and write; the checkpoint is
     removed once the fit has ended, written or refused."""
     from calibration.checkpoint import ReplayLog
-    from calibration.fit import FitSettings, fit
+    from calibration.fit import fit
     from calibration.report import loss_png, overlay_png
     from calibration.validate import Unpredictable, validate
     from wrapenv.pool import ProcessPool
@@ -434,10 +436,10 @@ def _fitted_and_written(args: argparse.Namespace, observations: list, held_out: 
         paths["overlay"]: overlay_png(observations, result.fitted)})
     checkpoint.unlink()
     print(_summary(result))
-    if settings.max_residual_m > FitSettings.max_residual_m:
+    if settings.max_residual_m > DEFAULT_MAX_RESIDUAL_M:
         print(f"note: accepted under --max-residual-mm {1e3 * settings.max_residual_m:g}, "
-              f"looser than the default {1e3 * FitSettings.max_residual_m:g} mm (CAL.json's "
-              "acceptance)")
+              f"looser than the default {1e3 * DEFAULT_MAX_RESIDUAL_M:g} mm (CAL.json's "
+              "acceptance; simulate and recommend warn of it)")
     for check in checks:
         print(_validation_summary(check))
     taken = f", {log.reused} replays from the checkpoint" if log.reused else ""

@@ -32,7 +32,7 @@ from calibration.objective import Model, Objective, Param, Progress
 from calibration.replay import Observation, replay, resettled, residuals
 from calibration.surrogate import Stage, SurrogateFit, min_points, profile, surrogate
 from wrapenv.bench import SimSettings
-from wrapenv.calibrated import CalibratedPair, Calibration
+from wrapenv.calibrated import DEFAULT_MAX_RESIDUAL_M, CalibratedPair, Calibration
 from wrapenv.load import PAIRS, Friction, FrictionPair
 from wrapenv.pool import ProcessPool
 
@@ -88,7 +88,7 @@ class FitSettings:
     seed: int = 0
     #: The fit fails (no output) when a recording's residual its replays' own scatter does not
     #: explain is above this (RMS, metres; `calibration.acceptance`).
-    max_residual_m: float = 0.01
+    max_residual_m: float = DEFAULT_MAX_RESIDUAL_M
     sim: SimSettings = SimSettings()
     #: Wrap scales measured elsewhere (name, value), held at their value instead of fitted: one
     #: wrapped take constrains the film's stiffness only together with its laid tension and the

@@ -93,6 +93,13 @@ def warn(command: str, messages: tuple[str, ...]) -> None:
         sys.stderr.write(f"wrapbench {command}: warning: {message}\n")
 
 
+def read_calibration(path: Path, command: str) -> Calibration:
+    """CAL.json, with what its user should know said once (a fit accepted knowingly)."""
+    calibration = Calibration.from_json(path)
+    warn(command, calibration.warnings())
+    return calibration
+
+
 def wrap_json(simulated: WrapFormat, laid: WrapFormat, layout: Layout,
               hours_since_wrapping: float) -> dict[str, Any]:
     """The JSON keys of a wrap: what was simulated (`format`: bands as simulated, their
@@ -245,7 +252,7 @@ def run_recommend(args: argparse.Namespace) -> int:
     from recommender.search import RobustSearch
 
     load = LoadUnit.from_toml(args.load)
-    calibration = Calibration.from_json(args.calibration) if args.calibration else None
+    calibration = read_calibration(args.calibration, "recommend") if args.calibration else None
     settings = _settings(args)
     _check_flags(args)
     checkpoint = _check_outputs(args)
@@ -497,6 +504,8 @@ def run_train(args: argparse.Namespace) -> int:
     _material(args.material)
     _target(args.target)
     calibration = _observable_calibration(args.calibration)
+    if calibration is not None:
+        warn("train", calibration.warnings())
     if args.out.exists() and not args.out.is_dir():
         raise InputError(str(args.out), "--out", "exists and is not a folder")
     made = not args.out.exists()

@@ -11,7 +11,14 @@ from typing import Any
 
 from tqdm import tqdm
 
-from recommender.commands import as_flag, check_hours, criteria_limits, warn, wrap_json
+from recommender.commands import (
+    as_flag,
+    check_hours,
+    criteria_limits,
+    read_calibration,
+    warn,
+    wrap_json,
+)
 from recommender.html_report import check_report_folder, simulate_page, write_report
 from recommender.text import (
     age_text,
@@ -21,7 +28,6 @@ from recommender.text import (
     verdict_table,
 )
 from wrapenv.bench import run_levels
-from wrapenv.calibrated import Calibration
 from wrapenv.config import InputError, check_distinct, check_output, result_json, write_together
 from wrapenv.eumos import LevelVerdict
 from wrapenv.load import LoadUnit
@@ -58,7 +64,7 @@ def run_simulate(args: argparse.Namespace) -> int:
     wrap = WrapFormat.from_toml(args.wrap, layout.load_height_m) if args.wrap else None
     laid = wrap
     if args.calibration:
-        calibration = Calibration.from_json(args.calibration)
+        calibration = read_calibration(args.calibration, "simulate")
         load = calibration.apply(load)
         if wrap is not None:
             wrap = wrap.scaled(calibration.stiffness_scale, calibration.tension_scale)

@@ -16,8 +16,10 @@ from wrapenv.load import PAIRS, Friction, FrictionPair, LoadUnit
 #: recordings that were not fitted (its validation), and the version of wrapbench that fitted
 #: it.
 DIAGNOSTICS = ("residual_rms_m", "spread_rms_m", "replay_rms_m", "simulations",
-               "simulations_by_part", "method", "advice", "acceptance", "validation",
-               "wrapbench_version")
+               "simulations_by_part", "method", "advice", "validation", "wrapbench_version")
+#: The most a default fit leaves its least explained recording unexplained (RMS, metres): a
+#: fit past it is refused unless the engineer accepts it under a looser bound.
+DEFAULT_MAX_RESIDUAL_M = 0.01
 
 
 @dataclass(frozen=True)
@@ -44,6 +46,18 @@ class Calibration:
     #: The wrap scales that were measured elsewhere and given to the fit, not
     #: fitted: their standard deviations are 0 because nothing was estimated.
     known: tuple[str, ...] = ()
+    #: What the fit left its least explained recording unexplained (RMS, metres; CAL.json's
+    #: `acceptance`, 0 when the file does not say).
+    unexplained_rms_m: float = 0.0
+
+    def warnings(self) -> tuple[str, ...]:
+        """What a user of this calibration should know: it was accepted knowingly under a
+        looser bound than a default fit's."""
+        if self.unexplained_rms_m <= DEFAULT_MAX_RESIDUAL_M:
+            return ()
+        return (f"the calibration was accepted with {1e3 * self.unexplained_rms_m:.1f} mm of a "
+                f"recording unexplained, where a default fit refuses more than "
+                f"{1e3 * DEFAULT_MAX_RESIDUAL_M:g} mm",)
 
     def wrap_scales(self) -> dict[str, float]:
         """The wrapped unit's scales by the names `calibration.replay.WRAP_SCALES` applies
@@ -135,6 +149,12 @@ class Calibration:
         give = _give(wrap)
         known = _known(wrap)
         wrap.done()
+        unexplained = 0.0
+        if top.has("acceptance"):
+            acceptance = top.table("acceptance")
+            unexplained = acceptance.number("unexplained_rms_m", 0.0, minimum=0.0)
+            acceptance.ignore("max_residual_m", "least_explained", "explained_by", "excused")
+            acceptance.done()
         # how the fit went and how it was checked: for people, the bench does not need them
         top.ignore(*DIAGNOSTICS)
         top.done()
@@ -142,7 +162,7 @@ class Calibration:
             # all defaults: the load's own friction and wrap, which the user meant to replace
             raise InputError(source, "friction",
                              "no friction pair and no wrap table: the file calibrates nothing")
-        return cls(pairs, stiffness, tension, *stds, *give, known)
+        return cls(pairs, stiffness, tension, *stds, *give, known, unexplained)
 
 
 #: Drawn coefficients are kept above these (a draw far in a tail is not a friction pair).

@@ -227,6 +227,11 @@ def test_calibrate_that_does_not_converge_writes_nothing(slide_dir, tmp_path, ca
     acceptance = json.loads((out / "cal.json").read_text())["acceptance"]
     assert acceptance["max_residual_m"] == 0.1
     assert 0.01 < acceptance["unexplained_rms_m"] <= 0.1
+    assert main(["simulate", str(rec / "load.toml"), "--calibration", str(out / "cal.json"),
+                 "--level", "0.3"]) in (0, 1)
+    err = capsys.readouterr().err
+    assert "wrapbench simulate: warning: the calibration was accepted with " in err
+    assert "where a default fit refuses more than 10 mm" in err
 
 
 def test_calibrate_warns_of_a_profile_that_looks_written_in_g(slide_dir, tmp_path, capsys):

@@ -82,6 +82,20 @@ def test_fit_diagnostics_are_accepted_and_not_required():
     assert Calibration.from_dict(plain) == Calibration.from_dict(CAL)
 
 
+def test_a_fit_accepted_under_a_looser_bound_says_so_to_its_users():
+    """`calibrate --max-residual-mm 30` may accept a fit that left a recording 28 mm
+    unexplained; whoever simulates with its CAL.json later is told."""
+    acceptance = {"max_residual_m": 0.03, "least_explained": "takes/0.45g",
+                  "unexplained_rms_m": 0.028, "explained_by": "replay 3", "excused": []}
+    loose = Calibration.from_dict(edited(acceptance=acceptance))
+    assert loose.unexplained_rms_m == 0.028
+    assert loose.warnings() == ("the calibration was accepted with 28.0 mm of a recording "
+                                "unexplained, where a default fit refuses more than 10 mm",)
+    assert loose.draw(0).warnings() == loose.warnings()
+    within = Calibration.from_dict(edited(acceptance=acceptance | {"unexplained_rms_m": 0.004}))
+    assert Calibration.from_dict(CAL).warnings() == within.warnings() == ()
+
+
 def test_std_and_identified_are_optional_with_documented_defaults():
     cal = Calibration.from_dict({"friction": {"sled_pallet": {"static": 0.5, "kinetic": 0.4}}})
     assert cal.friction["sled_pallet"] == CalibratedPair(0.5, 0.4, 0.0, 0.0, True)
@@ -171,6 +185,10 @@ BAD_CALS = {
     "known twice": (edited(wrap__known=["give", "give"]), "wrap.known"),
     "known not a list": (edited(wrap__known="give"), "wrap.known"),
     "unknown top-level key": (edited(frictions={}), "frictions"),
+    "negative unexplained": (edited(acceptance={"unexplained_rms_m": -0.01}),
+                             "acceptance.unexplained_rms_m"),
+    "typo in acceptance": (edited(acceptance={"unexplaned_rms_m": 0.01}),
+                           "acceptance.unexplaned_rms_m"),
 }
 
 
