@@ -152,6 +152,12 @@ CASES = [
          needles=("c.json", "friction")),
     Case("CAL.json that calibrates nothing", ["simulate", "L.toml", "--calibration", "c.json"],
          {"L.toml": LOAD, "c.json": "{}"}, needles=("c.json", "calibrates nothing")),
+    Case("CAL.json whose acceptance says a recording was unexplained by -1 m",
+         ["simulate", "L.toml", "--calibration", "c.json"],
+         {"L.toml": LOAD, "c.json": '{"friction": {"sled_pallet": {"static": 0.4, '
+                                    '"kinetic": 0.3}}, "acceptance": '
+                                    '{"unexplained_rms_m": -1}}'},
+         needles=("c.json", "acceptance.unexplained_rms_m")),
     Case("CAL.json truncated", ["simulate", "L.toml", "--calibration", "c.json"],
          {"L.toml": LOAD, "c.json": '{"friction": {"sled_pallet": {"static": 0.4'},
          needles=("c.json",)),
