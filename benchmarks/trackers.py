@@ -24,6 +24,7 @@ from calibration.recording import Recording, Truth
 from calibration.track import track
 from calibration.trajectories import error_vs_truth
 from calibration.vision.tracking import OPENCV_TRACKERS, OWN_TRACKERS
+from wrapenv.config import InputError
 
 RECORDINGS = (("examples/pet_2layer_columnar.toml", 0.4, None),
               ("examples/pet_3layer_columnar.toml", 0.3, None))
@@ -33,7 +34,12 @@ SWAP_M = 0.095
 
 def row(rec: Recording, kind: str) -> str:
     start = time.perf_counter()
-    result = track(rec, tracker=kind)
+    try:
+        result = track(rec, tracker=kind)
+    except InputError as exc:
+        # track's own checks refused what this tracker followed (e.g. a sled that departs
+        # from the profile's path): that is the tracker's result here
+        return f"| {kind:9} | refused by track: {exc.field}: {exc.message.split(':')[0]} |"
     seconds = time.perf_counter() - start
     lengths = [len(p.t_s) for p in result.trajectories.objects.values()]
     frames = max(lengths)
