@@ -410,9 +410,11 @@ def _fitted_and_written(args: argparse.Namespace, observations: list, held_out: 
         # what the refused fit found, and the advice: which test would pin what it missed
         checkpoint.unlink()
         print("the refused fit (not written):\n" + _summary(result))
+        hint = (" (a larger --max-residual-mm accepts it knowingly, and CAL.json says so)"
+                if result.verdict.rms_m > settings.max_residual_m else "")
         sys.stderr.write("wrapbench calibrate: the fit did not converge: "
                          f"{printable(result.reason, MESSAGE_CHARS)}; "
-                         "nothing written\n")
+                         f"nothing written{hint}\n")
         return 1
     try:
         with ProcessPool(args.workers) as pool:

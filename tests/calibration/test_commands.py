@@ -213,6 +213,7 @@ def test_calibrate_that_does_not_converge_writes_nothing(slide_dir, tmp_path, ca
     err = [line for line in captured.err.strip().splitlines() if ": warning: " not in line]
     assert len(err) == 1 and "did not converge" in err[0] and "nothing written" in err[0], err
     assert "unexplained > 10 mm" in err[0]
+    assert "a larger --max-residual-mm accepts it knowingly" in err[0]
     found = captured.out.splitlines()
     found = found[found.index("the refused fit (not written):"):]
     assert any(line.startswith("pallet_bundle ") for line in found)
