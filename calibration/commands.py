@@ -411,7 +411,7 @@ def _fitted_and_written(args: argparse.Namespace, observations: list, held_out: 
         checkpoint.unlink()
         print("the refused fit (not written):\n" + _summary(result))
         hint = (" (a larger --max-residual-mm accepts it knowingly, and CAL.json says so)"
-                if result.verdict.rms_m > settings.max_residual_m else "")
+                if settings.max_residual_m < result.verdict.rms_m < math.inf else "")
         sys.stderr.write("wrapbench calibrate: the fit did not converge: "
                          f"{printable(result.reason, MESSAGE_CHARS)}; "
                          f"nothing written{hint}\n")
