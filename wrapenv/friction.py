@@ -73,7 +73,11 @@ class StickSlip:
 
     def sliding_bodies(self) -> set[int]:
         """Bodies touching a contact that slides now."""
-        return set(self._i[self.sliding].tolist()) | set(self._j[self.sliding].tolist())
+        return self._bodies(self.sliding)
+
+    def _bodies(self, contacts: np.ndarray) -> set[int]:
+        """The bodies touching the resting contacts a boolean mask selects."""
+        return set(self._i[contacts].tolist()) | set(self._j[contacts].tolist())
 
     def coefficients(self) -> np.ndarray:
         """Body coefficients (n_bodies,) for the current contact states."""
@@ -85,7 +89,7 @@ class StickSlip:
         that were sliding, as `update` does."""
         changed = self.sliding
         self.sliding = np.zeros_like(changed)
-        return sorted(set(self._i[changed].tolist()) | set(self._j[changed].tolist()))
+        return sorted(self._bodies(changed))
 
     def update(self, pos: np.ndarray, rot: np.ndarray, vel: np.ndarray,
                omega: np.ndarray) -> list[int]:
@@ -103,8 +107,7 @@ class StickSlip:
         new = np.where(self.sliding, rel > self.stick_speed_mps, rel > self.slip_speed_mps)
         changed = new != self.sliding
         self.sliding = new
-        return sorted(set(i[changed].tolist()) | set(j[changed].tolist()))
-
+        return sorted(self._bodies(changed))
 
     def update_moving(self, pos: np.ndarray, rot: np.ndarray, vel: np.ndarray,
                       omega: np.ndarray) -> list[int]:
