@@ -106,6 +106,8 @@ class StickSlip:
         rel = np.sqrt(np.einsum("nk,nk->n", v, v))
         new = np.where(self.sliding, rel > self.stick_speed_mps, rel > self.slip_speed_mps)
         changed = new != self.sliding
+        if not changed.any():  # most steps: no set built for nothing
+            return []
         self.sliding = new
         return sorted(self._bodies(changed))
 
