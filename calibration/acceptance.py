@@ -19,11 +19,7 @@ So the test is per body, then per recording:
   judged alike: a mode of the whole unit (the bottom layer slides or holds at its threshold)
   that few replays visit moves several bodies at once, and one replay in it suffices;
 - the fit is refused when the worst recording's exceeds `FitSettings.max_residual_m`: a value
-  one recording is sensitive to is judged there, not diluted by recordings blind to it;
-- a recording the fitted values' replays leave unexplained is replayed more, with the values
-  drawn within the standard deviations the fit reports (`fit._replayed_more`): a calibration
-  is a claim of values and their uncertainty, and a take one of its outcomes rarely visits is
-  judged against that claim; a fit that pins a value less reports it unresolved.
+  one recording is sensitive to is judged there, not diluted by recordings blind to it.
 Measured with `python -m benchmarks.bench_calibrate --truth N [--offset PAIR.KIND=DELTA]`; its power
 against other rules: `python -m benchmarks.acceptance_power`.
 """

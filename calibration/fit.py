@@ -50,11 +50,6 @@ WRAP_PARAMS = {"stiffness": (-2.0, 2.0), "tension": (-2.0, 2.0), "give": (-2.0, 
 #: A static coefficient with a larger standard deviation than this is reported as unresolved,
 #: and so is a wrap scale whose base-2 logarithm's is larger than this (1 sigma = +-20 %).
 RESOLVED_STATIC_STD = 0.025
-#: A kinetic coefficient with a larger standard deviation than this is reported as unresolved:
-#: half issue 13's +-0.03, as the static coefficient's is half its +-0.05. The acceptance test
-#: judges a take against the fit's values drawn within their standard deviations
-#: (`_replayed_more`), so a fit that pins a coefficient less must say so.
-RESOLVED_KINETIC_STD = 0.015
 RESOLVED_LOG2_SCALE_STD = math.log2(1.2)
 #: A bracketed static coefficient (held at one level, slipped at another) is replayed this far
 #: either side of its fitted value, the other values kept, then refitted to it (`_probe`); a
@@ -72,22 +67,11 @@ PROBE_STATIC = 3 * RESOLVED_STATIC_STD
 #: in 80 % and 52 % (`bench_calibrate --truth 24`, `acceptance_power`: docs/calibration.md,
 #: "When a fit is refused"). The descents get one.
 FINAL_REPLAYS = 6
-#: A recording its final replays leave unexplained is replayed with the fitted values this many
-#: times in all (`_replayed_more`): a take near a threshold can be an outcome the bench
-#: produces once in 12 runs with the true values (columnar2's 0.45 g take,
-#: `benchmarks/acceptance_power.py`), which 6 replays miss in half the fits whatever the
-#: values; then, if still unexplained, with the values drawn within their
-#: standard deviations. Those come after the fitted values' own (`DRAWN_REPLAYS`): the true
-#: values reproduce that take once in 12 replays, values drawn 0.015 / 0.008 about them never
-#: in 18 (`benchmarks/acceptance_power.py`).
+#: A recording its final replays leave unexplained is replayed this many times in all before
+#: the fit is refused (`_replayed_more`): a take near a threshold can be an outcome the bench
+#: produces once in 24 runs, which 6 replays miss in half the fits whatever the values
+#: (columnar2's 0.45 g take, `benchmarks/acceptance_power.py`).
 UNEXPLAINED_REPLAYS = 24
-#: Replays of the fitted values drawn within their standard deviations, for a recording
-#: `UNEXPLAINED_REPLAYS` of the fitted values leave unexplained (`_replayed_more`): a take one
-#: fit's point values never visit may be an outcome of values its uncertainty admits. On
-#: columnar2's 0.45 g take 5 fits of 6 were refused without them, 4 of those within issue 13's
-#: goals (docs/calibration.md, "Judged against the fit's uncertainty").
-DRAWN_REPLAYS = 18
-ALL_REPLAYS = UNEXPLAINED_REPLAYS + DRAWN_REPLAYS
 
 
 @dataclass(frozen=True)
@@ -98,7 +82,7 @@ class FitSettings:
     #: would report resolved costs its probes on top (`_probe`: 2 x the final replays of each
     #: bare recording, up to twice that when the other values are refitted), and so does a
     #: recording the final replays, or a probe's, leave unexplained (up to
-    #: `UNEXPLAINED_REPLAYS` in all, and the fit's own up to `DRAWN_REPLAYS` more)
+    #: `UNEXPLAINED_REPLAYS` in all)
     budget: int = 300
     workers: int = max(1, os.cpu_count() or 1)
     seed: int = 0
@@ -212,11 +196,10 @@ def fit(observations: Sequence[Observation], settings: FitSettings,
                 for o in observations]
         replays = [[f.result() for f in fs] for fs in runs]
         progress.spend(repeats * len(observations), "final_replays")
-        _probe(bare, _bracketed(bare, settings), found, settings, repeats, pool, progress)
-        reported = _reported(observations, bare, settings, slipped, found)
         replays = _replayed_more(observations, found.friction, found.scales, settings, replays,
-                                 pool, progress, "unexplained_replays", reported.calibration)
-    return _result(observations, settings, found, reported, replays, repeats, progress)
+                                 pool, progress, "unexplained_replays")
+        _probe(bare, _bracketed(bare, settings), found, settings, repeats, pool, progress)
+    return _result(observations, bare, settings, slipped, found, replays, progress)
 
 
 Stages = list[tuple[tuple[Param, ...], list[int]]]
@@ -374,58 +357,24 @@ def min_budget(observations: Sequence[Observation], settings: FitSettings) -> in
 def _replayed_more(observations: Sequence[Observation], friction: Friction,
                    scales: dict[str, float], settings: FitSettings,
                    replays: list[list[dict[str, np.ndarray] | None]],
-                   pool: ProcessPoolExecutor, progress: Progress, part: str,
-                   uncertain: Calibration | None = None
+                   pool: ProcessPoolExecutor, progress: Progress, part: str
                    ) -> list[list[dict[str, np.ndarray] | None]]:
     """The replays of these values (the fit's final ones, or a probe's), those of each
     recording they leave unexplained (and all physical) made up to `UNEXPLAINED_REPLAYS`,
     settling longer each as before; the surrogate's only (the descents replay once). A wrong
     value moves bodies the same way in every replay, so more replays leave it unexplained
-    still; a rare outcome of the right values is found among them. With `uncertain` (the fit's
-    own values, as CAL.json reports them), a recording those still leave unexplained gets
-    `DRAWN_REPLAYS` more with the values drawn within their standard deviations (`_drawn`): a
-    take is judged against what the calibration claims, its values and their uncertainty.
-    `part`: what the replays are counted as (`Progress.parts`)."""
+    still; a rare outcome of the right values is found among them. `part`: what the
+    replays are counted as (`Progress.parts`)."""
     if settings.method != "surrogate":
         return replays
-    replays = _replayed_up_to(observations, lambda k: (friction, scales), settings, replays,
-                              pool, progress, part, UNEXPLAINED_REPLAYS)
-    if uncertain is None:
-        return replays
-    return _replayed_up_to(observations,
-                           lambda k: _drawn(friction, scales, uncertain,
-                                            settings.seed * ALL_REPLAYS + k),
-                           settings, replays, pool, progress, part, ALL_REPLAYS)
-
-
-Values = Callable[[int], tuple[Friction, dict[str, float]]]
-
-
-def _replayed_up_to(observations: Sequence[Observation], values: Values,
-                    settings: FitSettings, replays: list[list[dict[str, np.ndarray] | None]],
-                    pool: ProcessPoolExecutor, progress: Progress, part: str, up_to: int
-                    ) -> list[list[dict[str, np.ndarray] | None]]:
-    """Each recording `replays` leave unexplained (and all physical) replayed up to `up_to`
-    times in all, replay k with `values(k)` and settling longer each."""
-    more = {i: [pool.submit(replay, obs, *values(k), resettled(settings.sim, k))
-                for k in range(len(runs), up_to)]
+    more = {i: [pool.submit(replay, obs, friction, scales, resettled(settings.sim, k))
+                for k in range(len(runs), UNEXPLAINED_REPLAYS)]
             for i, (obs, runs) in enumerate(zip(observations, replays, strict=True))
             if all(run is not None for run in runs)
             and acceptance.recording(obs, runs).rms_m > settings.max_residual_m}
     out = [runs + [f.result() for f in more.get(i, [])] for i, runs in enumerate(replays)]
     progress.spend(sum(len(fs) for fs in more.values()), part)
     return out
-
-
-def _drawn(friction: Friction, scales: dict[str, float], uncertain: Calibration, seed: int
-           ) -> tuple[Friction, dict[str, float]]:
-    """`friction` and `scales` with what the calibration identified drawn within its standard
-    deviations (`Calibration.draw`); the pairs held stuck and the known scales as they are."""
-    draw = uncertain.draw(seed)
-    pairs = {name: FrictionPair(p.static, p.kinetic) for name, p in draw.friction.items()
-             if p.identified}
-    drawn_scales = draw.wrap_scales()
-    return replace(friction, **pairs), {name: drawn_scales[name] for name in scales}
 
 
 def _final_replays(settings: FitSettings, recordings: int) -> int:
@@ -526,20 +475,10 @@ def _prediction(observations: Sequence[Observation],
     return rms[0], rms[1], rms[2]
 
 
-@dataclass(frozen=True)
-class _Reported:
-    """The fitted values as CAL.json reports them, and what decides the advice."""
-
-    calibration: Calibration
-    bare: Sequence[Observation]
-    slipped: frozenset[str]
-    present: tuple[str, ...]
-    bounds: dict[str, identify.Bound]
-    throughout: dict[str, identify.Bound]
-
-
-def _reported(observations: Sequence[Observation], bare: Sequence[Observation],
-              settings: FitSettings, slipped: frozenset[str], found: _Fitted) -> _Reported:
+def _result(observations: Sequence[Observation], bare: Sequence[Observation],
+            settings: FitSettings, slipped: frozenset[str], found: _Fitted,
+            replays: list[list[dict[str, np.ndarray] | None]], progress: Progress) -> FitResult:
+    rms, spread_rms, replay_rms = _prediction(observations, replays)
     # friction not asked for is not reported: the bench keeps the load file's values
     present = identify.pairs_present(observations) if settings.params != "wrap" else ()
     bounds = identify.pair_bounds(bare, found.friction, slipped)
@@ -547,52 +486,27 @@ def _reported(observations: Sequence[Observation], bare: Sequence[Observation],
                   if (b := identify.slipped_throughout(name, bare, found.friction, slipped))}
     calibration = _calibration(found, slipped, bounds, throughout, present,
                                tuple(name for name in WRAP_PARAMS if name in dict(settings.known)))
-    return _Reported(calibration, bare, slipped, present, bounds, throughout)
-
-
-def _advice(observations: Sequence[Observation], found: _Fitted, reported: _Reported
-            ) -> dict[str, str]:
-    """Per pair or scale the recordings did not pin, the test that would."""
-    calibration, bare = reported.calibration, reported.bare
-    advice = {name: identify.advice_unslipped(name, reported.bounds[name])
-              for name in reported.present if name not in reported.slipped}
+    advice = {name: identify.advice_unslipped(name, bounds[name])
+              for name in present if name not in slipped}
     advice |= {name: identify.advice_static(name, bare, p.static_std,
                                             found.unrefused.get(name, ()))
                for name, p in calibration.friction.items()
                if p.identified and p.static_std > RESOLVED_STATIC_STD}
     advice |= {name: identify.advice_slipped_throughout(b, calibration.friction[name].static,
                                                         calibration.friction[name].static_std)
-               for name, b in reported.throughout.items()}
-    for name, p in calibration.friction.items():
-        if p.identified and p.kinetic_std > RESOLVED_KINETIC_STD:
-            text = identify.advice_kinetic(name, bare, p.kinetic_std)
-            advice[name] = f"{advice[name]}; {text}" if name in advice else text
+               for name, b in throughout.items()}
     paper = any(o.wrap is not None and o.wrap.material.kind == "paper" for o in observations)
     advice |= {name: identify.advice_scale(name, found.scales[name], found.stds[name, ""], paper)
                for name in found.scales if (name, "") in found.stds
                and found.stds[name, ""] / (found.scales[name] * math.log(2))
                > RESOLVED_LOG2_SCALE_STD}
-    return advice
-
-
-def _result(observations: Sequence[Observation], settings: FitSettings, found: _Fitted,
-            reported: _Reported, replays: list[list[dict[str, np.ndarray] | None]],
-            repeats: int, progress: Progress) -> FitResult:
-    """The fit's outcome: the prediction is the mean of the fitted values' `repeats` final
-    replays; the acceptance test judges every replay, the added ones drawn within the
-    standard deviations (`_replayed_more`)."""
-    rms, spread_rms, replay_rms = _prediction(observations, [runs[:repeats] for runs in replays])
     verdict = acceptance.worst(observations, replays)
-    if verdict.by.startswith("replay ") and int(verdict.by.split()[1]) >= UNEXPLAINED_REPLAYS:
-        verdict = replace(verdict, by=f"{verdict.by}, its values drawn within their standard "
-                          "deviations")
     replayed = {o.source: len(runs) for o, runs in zip(observations, replays, strict=True)}
     reason = _failure(rms, verdict, replayed.get(verdict.source, 0), progress.simulations,
                       found, settings)
-    return FitResult(reported.calibration, rms, progress.simulations, settings.method,
-                     progress.curve, [runs[0] for runs in replays], not reason, spread_rms,
-                     replay_rms, reason, _advice(observations, found, reported),
-                     tuple(found.stages), verdict,
+    return FitResult(calibration, rms, progress.simulations, settings.method, progress.curve,
+                     [runs[0] for runs in replays], not reason, spread_rms, replay_rms, reason,
+                     advice, tuple(found.stages), verdict,
                      tuple(name for name in WRAP_PARAMS if (name, "") in found.stds),
                      dict(progress.parts))
 
@@ -602,7 +516,7 @@ def _failure(rms: float, verdict: acceptance.Unexplained, replays: int, simulati
     """Why the fit is not to be trusted ("" when it is): a replay of the fitted values that
     became unphysical, a recording the replays leave unexplained (`calibration.acceptance`), or
     a search most of whose replays became unphysical. `replays`: how often the recording the
-    verdict names was replayed, beyond `UNEXPLAINED_REPLAYS` with drawn values."""
+    verdict names was replayed."""
     if not math.isfinite(rms) or not math.isfinite(verdict.rms_m):
         return "the fitted values' replay became unphysical"
     if verdict.rms_m > settings.max_residual_m:
@@ -610,18 +524,12 @@ def _failure(rms: float, verdict: acceptance.Unexplained, replays: int, simulati
                    if verdict.excused else "")
         return (f"{verdict.source} is left {1e3 * verdict.rms_m:.1f} mm unexplained > "
                 f"{1e3 * settings.max_residual_m:g} mm by the scatter of its {replays} "
-                f"replays{_drawn_share(replays)}{excused}; "
+                f"replays{excused}; "
                 f"residual RMS of all recordings {1e3 * rms:.1f} mm after {simulations} "
                 "simulations")
     if found.unphysical > found.replays // 2:
         return f"{found.unphysical} of the search's {found.replays} replays became unphysical"
     return ""
-
-
-def _drawn_share(replays: int) -> str:
-    """' (18 of them drawn within the standard deviations)', or nothing."""
-    drawn = replays - UNEXPLAINED_REPLAYS
-    return f" ({drawn} of them drawn within the standard deviations)" if drawn > 0 else ""
 
 
 def _calibration(found: _Fitted, slipped: frozenset[str], bounds: dict[str, identify.Bound],
