@@ -50,6 +50,11 @@ WRAP_PARAMS = {"stiffness": (-2.0, 2.0), "tension": (-2.0, 2.0), "give": (-2.0, 
 #: A static coefficient with a larger standard deviation than this is reported as unresolved,
 #: and so is a wrap scale whose base-2 logarithm's is larger than this (1 sigma = +-20 %).
 RESOLVED_STATIC_STD = 0.025
+#: A kinetic coefficient with a larger standard deviation than this is reported as unresolved:
+#: half issue 13's +-0.03, as the static coefficient's is half its +-0.05. Every pallet-bundle
+#: kinetic coefficient of issue 13's fits claimed +-0.017 to 0.062 and said nothing of it
+#: (docs/calibration.md, "Judged against the fit's uncertainty").
+RESOLVED_KINETIC_STD = 0.015
 RESOLVED_LOG2_SCALE_STD = math.log2(1.2)
 #: A bracketed static coefficient (held at one level, slipped at another) is replayed this far
 #: either side of its fitted value, the other values kept, then refitted to it (`_probe`); a
@@ -495,6 +500,10 @@ def _result(observations: Sequence[Observation], bare: Sequence[Observation],
     advice |= {name: identify.advice_slipped_throughout(b, calibration.friction[name].static,
                                                         calibration.friction[name].static_std)
                for name, b in throughout.items()}
+    for name, p in calibration.friction.items():
+        if p.identified and p.kinetic_std > RESOLVED_KINETIC_STD:
+            text = identify.advice_kinetic(name, bare, p.kinetic_std)
+            advice[name] = f"{advice[name]}; {text}" if name in advice else text
     paper = any(o.wrap is not None and o.wrap.material.kind == "paper" for o in observations)
     advice |= {name: identify.advice_scale(name, found.scales[name], found.stds[name, ""], paper)
                for name in found.scales if (name, "") in found.stds
