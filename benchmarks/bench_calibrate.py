@@ -200,9 +200,19 @@ def report(name: str, method: str, result: FitResult, truth: Truth, wall: float,
     sims = result.simulations + validating
     head = (f"{name} / {method}: {result.simulations} + {validating} simulations, "
             f"{wall:.0f} s; residual {1e3 * result.residual_rms_m:.1f} mm (replays scatter "
-            f"{1e3 * result.spread_rms_m:.1f} mm); converged {result.converged} {result.reason}")
+            f"{1e3 * result.spread_rms_m:.1f} mm); converged {result.converged} {result.reason}"
+            f"{_least_explained(result)}")
     row = f"| {name} | {method} | {sims} | {wall:.0f} s | " + " ; ".join(cells) + " |"
     return "\n".join([head, *lines, row])
+
+
+def _least_explained(result: FitResult) -> str:
+    """'; least explained: TAKE, 4.2 mm by replay 9', for an accepted fit (a refused one's
+    reason names it)."""
+    v = result.verdict
+    if not result.converged or not v.source:
+        return ""
+    return f"; least explained: {Path(v.source).name}, {1e3 * v.rms_m:.1f} mm by {v.by}"
 
 
 @dataclass(frozen=True)
