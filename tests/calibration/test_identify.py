@@ -10,6 +10,7 @@ from calibration.fit import static_std_above
 from calibration.identify import (
     STUCK_MARGIN,
     Bound,
+    advice_kinetic,
     advice_scale,
     advice_slipped_throughout,
     advice_static,
@@ -105,6 +106,15 @@ def test_advice_on_an_unresolved_static_coefficient_brackets_the_first_slip():
     obs = [_obs(0.30, set()), _obs(0.40, {"bundle_bundle"}), _obs(0.50, {"bundle_bundle"})]
     assert "between 0.30 and 0.40 g" in advice_static("bundle_bundle", obs, 0.08)
     assert "below 0.40 g" in advice_static("bundle_bundle", obs[1:], 0.08)
+
+
+def test_advice_on_an_unresolved_kinetic_coefficient_asks_for_a_longer_slide():
+    """How far a slip runs pins the kinetic coefficient: a level above the highest the pair
+    slipped at, not the highest tested (at 0.50 g the pair held)."""
+    obs = [_obs(0.30, {"pallet_bundle"}), _obs(0.45, {"pallet_bundle"}), _obs(0.50, set())]
+    text = advice_kinetic("pallet_bundle", obs, 0.042)
+    assert text.startswith("kinetic coefficient not resolved (± 0.042)")
+    assert "a level above 0.45 g" in text
 
 
 def test_advice_on_a_bracketed_coefficient_names_the_shifts_the_recordings_allow():
