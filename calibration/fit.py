@@ -164,7 +164,7 @@ def _friction_params(observations: Sequence[Observation], slipped: frozenset[str
         if name not in slipped:
             continue
         if method == "surrogate":
-            level = max(o.peak_accel_g[0] for o in observations if name in o.slipped)
+            level = identify.highest_slipped_g(name, observations)
             kind = "static" if _onset_bracketed(name, observations) else "kinetic"
             first = Param(kind, name, STATIC_RANGE[0],
                           min(STATIC_RANGE[1], level + KINETIC_HEADROOM_G))

@@ -148,12 +148,17 @@ def advice_static(name: str, observations: Sequence[Observation], std: float,
             "below rock (then the slip above is set by their rocking)")
 
 
+def highest_slipped_g(name: str, observations: Sequence[Observation]) -> float:
+    """The highest level (peak acceleration, g) of the recordings in which the pair slipped."""
+    return max(o.peak_accel_g[0] for o in observations if name in o.slipped)
+
+
 def advice_kinetic(name: str, observations: Sequence[Observation], std: float) -> str:
     """For a pair that slipped whose kinetic coefficient the recordings do not resolve: how far
     a slip runs pins it, and a higher level makes it run farther."""
-    highest = max(o.peak_accel_g[0] for o in observations if name in o.slipped)
     return (f"kinetic coefficient not resolved (± {std:.3f}): how far a slip runs pins it; a "
-            f"level above {highest:.2f} g, where it runs farther, would narrow it")
+            f"level above {highest_slipped_g(name, observations):.2f} g, where it runs "
+            "farther, would narrow it")
 
 
 def advice_slipped_throughout(bound: Bound, static: float, std: float) -> str:
