@@ -27,7 +27,9 @@ from wrapenv.bench import SimSettings
 from wrapenv.config import InputError, is_finite_number
 from wrapenv.load import Friction
 
-CHECKPOINT_FORMAT = "wrapbench-calibration-replays/1"
+#: Every version of the format starts so: what an existing file must be to be overwritten.
+FORMAT_FAMILY = "wrapbench-calibration-replays/"
+CHECKPOINT_FORMAT = FORMAT_FAMILY + "1"
 
 
 def recording_key(obs: Observation) -> str:

@@ -22,6 +22,7 @@ from tqdm import tqdm
 from wrapenv.calibrated import DEFAULT_MAX_RESIDUAL_M
 from wrapenv.config import (
     InputError,
+    check_checkpoint,
     check_distinct,
     check_output,
     printable,
@@ -350,13 +351,14 @@ def _checkpoint(args: argparse.Namespace) -> Path:
 def _check_outputs(args: argparse.Namespace, recordings: list) -> None:
     """Every output writable and none of them a file the run reads (checked once the
     recordings are read, before they are tracked); the checkpoint there to resume from."""
+    from calibration.checkpoint import FORMAT_FAMILY
     inputs = [p for rec in recordings
               for p in (*rec.inputs(), rec.folder / "trajectories.csv")]
     outputs = _outputs(args.out)
     for path in outputs.values():
         check_output(path, "--out", inputs=inputs)
     checkpoint = _checkpoint(args)
-    check_output(checkpoint, "--checkpoint", inputs=inputs)
+    check_checkpoint(checkpoint, "--checkpoint", FORMAT_FAMILY, inputs=inputs)
     check_distinct({"--out": outputs["json"], "--out (loss figure)": outputs["loss"],
                     "--out (overlay figure)": outputs["overlay"], "--checkpoint": checkpoint})
     if args.resume and not checkpoint.exists():

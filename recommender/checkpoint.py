@@ -16,8 +16,10 @@ from typing import Any
 
 from wrapenv.config import InputError, is_finite_number, read_json, write_atomic
 
+#: Every version of the format starts so: what an existing file must be to be overwritten.
+FORMAT_FAMILY = "wrapbench-search/"
 #: /2: every candidate records the fidelity it was judged with (multi-fidelity search).
-CHECKPOINT_FORMAT = "wrapbench-search/2"
+CHECKPOINT_FORMAT = FORMAT_FAMILY + "2"
 #: The keys of one checkpointed generation that are lists with one entry per candidate ("x": the
 #: asked vectors); "simulations" counts the levels the generation simulated.
 GENERATION_KEYS = ("x", "objective", "margins", "passed", "fidelity")
@@ -76,4 +78,4 @@ def _check_values(generation: dict[str, Any], where: str, source: str) -> None:
         raise InputError(source, f"{where}.simulations", "must be a whole number >= 0")
 
 
-__all__ = ["CHECKPOINT_FORMAT", "load", "save"]
+__all__ = ["CHECKPOINT_FORMAT", "FORMAT_FAMILY", "load", "save"]

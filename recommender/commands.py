@@ -19,6 +19,7 @@ from typing import Any
 
 from tqdm import tqdm
 
+from recommender.checkpoint import FORMAT_FAMILY as SEARCH_CHECKPOINT
 from recommender.html_report import (
     check_report_folder,
     recommend_page,
@@ -36,6 +37,7 @@ from recommender.text import program_text, verdict_table
 from wrapenv.calibrated import Calibration
 from wrapenv.config import (
     InputError,
+    check_checkpoint,
     check_distinct,
     check_output,
     fraction_hint,
@@ -238,7 +240,8 @@ def _check_outputs(args: argparse.Namespace) -> Path | None:
     check_output(args.json, "--json", inputs=inputs)
     check_output(args.wrap_out, "--wrap-out", inputs=inputs)
     checkpoint = _checkpoint(args)
-    check_output(checkpoint, "--checkpoint", inputs=inputs)
+    check_checkpoint(checkpoint, "--checkpoint", SEARCH_CHECKPOINT,
+                     inputs=inputs)
     check_distinct({"--json": args.json, "--wrap-out": args.wrap_out,
                     "--checkpoint": checkpoint})
     if args.report is not None:

@@ -243,6 +243,25 @@ def check_output(path: Path | None, field: str, *, inputs: Iterable[str | Path] 
     _check_writable(folder, str(path), field)
 
 
+def check_checkpoint(path: Path | None, field: str, format_prefix: str, *,
+                     inputs: Iterable[str | Path] = ()) -> None:
+    """A checkpoint is an output the run also deletes once it has answered: a file already
+    there must be a checkpoint of this kind (its first line a JSON object whose `format` starts
+    with `format_prefix`), not a user's file that would be overwritten, then removed."""
+    check_output(path, field, inputs=inputs)
+    if path is None or not Path(path).exists():
+        return
+    try:
+        with Path(path).open(encoding="utf-8") as file:
+            head = json.loads(file.readline())
+    except (OSError, UnicodeDecodeError, ValueError):
+        head = None
+    kind = head.get("format") if isinstance(head, dict) else None
+    if not (isinstance(kind, str) and kind.startswith(format_prefix)):
+        raise InputError(str(path), field, "exists and is not a wrapbench checkpoint: it would "
+                         "be overwritten, then removed; name a new file")
+
+
 def check_distinct(outputs: dict[str, Path | None]) -> None:
     """No two outputs (the name an error gives it -> path; None: not asked) name one file: the
     later write would replace the earlier one."""

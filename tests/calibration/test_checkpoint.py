@@ -145,3 +145,15 @@ def test_resume_without_a_checkpoint_is_refused_before_fitting(slide_dir, tmp_pa
                  "--resume"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "cal.checkpoint.jsonl" in err[0] and "--resume" in err[0]
+
+
+def test_a_checkpoint_path_holding_a_user_s_file_is_refused_before_fitting(slide_dir, tmp_path,
+                                                                         capsys):
+    """The fit would append its replays to it, then remove it once it answered."""
+    notes = tmp_path / "notes.txt"
+    notes.write_text("my lab notes\n")
+    assert main(["calibrate", str(slide_dir), "--out", str(tmp_path / "cal.json"),
+                 "--checkpoint", str(notes)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "notes.txt" in err[0] and "not a wrapbench checkpoint" in err[0]
+    assert notes.read_text() == "my lab notes\n" and not (tmp_path / "cal.json").exists()

@@ -567,3 +567,14 @@ def test_two_outputs_on_one_file_are_refused_before_any_simulation(command, flag
     assert run([command, str(load_file()), *[same if f == "X" else f for f in flags]]) == 2
     err = one_line(capsys.readouterr().err)
     assert "is also --json" in err and not (tmp_path / "same").exists()
+
+
+def test_a_checkpoint_path_holding_a_user_s_file_is_refused_before_any_simulation(
+        load_file, tmp_path, capsys):
+    """The search would overwrite it, then remove it once it answered."""
+    notes = tmp_path / "notes.txt"
+    notes.write_text("my lab notes\n")
+    assert run(["recommend", str(load_file()), "--checkpoint", str(notes)]) == 2
+    err = one_line(capsys.readouterr().err)
+    assert "notes.txt" in err and "--checkpoint" in err and "not a wrapbench checkpoint" in err
+    assert notes.read_text() == "my lab notes\n"

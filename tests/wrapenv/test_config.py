@@ -11,6 +11,7 @@ import pytest
 from wrapenv.config import (
     InputError,
     Table,
+    check_checkpoint,
     check_output,
     check_output_folder,
     printable,
@@ -89,6 +90,23 @@ def test_an_output_folder_must_be_new_or_empty_and_creatable(tmp_path: Path) -> 
                          (Path("/proc/rec"), "cannot write into /proc")):
         with pytest.raises(InputError, match=needle):
             check_output_folder(path, "--out")
+
+
+def test_a_checkpoint_may_replace_only_a_checkpoint_of_its_kind(tmp_path: Path) -> None:
+    """A run removes its checkpoint once it has answered: a user's file at that path would be
+    overwritten, then deleted."""
+    check_checkpoint(tmp_path / "new.json", "--checkpoint", "wrapbench-search/")
+    ours = tmp_path / "search.json"
+    ours.write_text('{"format": "wrapbench-search/1", "generations": []}\n')
+    check_checkpoint(ours, "--checkpoint", "wrapbench-search/")   # an older version of ours
+    for name, text in (("notes.txt", "my lab notes\n"), ("load.toml", "[pallet]\n"),
+                       ("cal.jsonl", '{"format": "wrapbench-calibration-replays/1"}\n'),
+                       ("list.json", "[1, 2]\n"), ("empty.json", "")):
+        mine = tmp_path / name
+        mine.write_text(text)
+        with pytest.raises(InputError, match="not a wrapbench checkpoint") as info:
+            check_checkpoint(mine, "--checkpoint", "wrapbench-search/")
+        assert info.value.field == "--checkpoint" and mine.read_text() == text
 
 
 def test_printable_escapes_control_characters_and_truncates() -> None:
