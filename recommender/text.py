@@ -7,7 +7,7 @@ from wrapenv.bench import BenchRun
 from wrapenv.config import printable
 from wrapenv.eumos import EUMOS_CRITERIA, LevelVerdict, Verdict
 from wrapenv.load import Layout, LoadUnit, Orientation
-from wrapenv.material import Material
+from wrapenv.material import NO_RELAXATION, Material
 from wrapenv.program import Pass, Program
 from wrapenv.wrap import WrapFormat
 
@@ -172,8 +172,9 @@ def age_text(material: Material, hours_since_wrapping: float) -> str:
         return ("wrap tested as just laid (0 h after wrapping; a lab tests it after it stood: "
                 "--hours-since-wrapping)")
     kept = material.relaxation.retained(hours_since_wrapping)
+    how = "relaxes" if material.relaxation != NO_RELAXATION else "does not relax, by its card"
     return (f"wrap tested {hours_since_wrapping:g} h after wrapping: its tension {kept:.0%} of "
-            f"what was laid ({printable(material.name)} relaxes)")
+            f"what was laid ({printable(material.name)} {how})")
 
 
 def program_summary(program: Program) -> str:

@@ -55,6 +55,8 @@ FILM_RELAXATION = Relaxation(0.74, ((0.18, 0.5), (0.08, 72.0)))
 #: relaxes at constant strain, assumed like film: 20 % in 30 days (docs/materials.md, P8) [A].
 PAPER_RELAXATION = Relaxation(0.80, ((0.10, 1.0), (0.10, 100.0)))
 NO_RELAXATION = Relaxation()
+#: The law a custom card of each kind takes when it gives none.
+KIND_RELAXATION: dict[str, Relaxation] = {"paper": PAPER_RELAXATION, "film": FILM_RELAXATION}
 
 
 @dataclass(frozen=True)
@@ -209,7 +211,9 @@ def custom_material(t: Table) -> Material:
         raise t.error("hardening_ratio", f"must be < 1, a slope below the elastic one "
                       f"(got {hardening})")
     cd_ratio = t.number("cd_ratio", 0.5, positive=True, maximum=1.0)
-    relaxation = _relaxation(t.table("relaxation")) if t.has("relaxation") else NO_RELAXATION
+    # no law given: the kind's card's (a custom paper relaxes as paper is assumed to, P8)
+    relaxation = (_relaxation(t.table("relaxation")) if t.has("relaxation")
+                  else KIND_RELAXATION[kind])
     prestretch = (t.number("prestretch", minimum=0.0, maximum=MAX_PRESTRETCH)
                   if t.has("prestretch") else None)
     if prestretch is not None and kind == "paper":

@@ -25,7 +25,6 @@ from wrapenv.load import Layout
 from wrapenv.material import (
     DEFAULT_TENSION_N,
     MATERIALS,
-    NO_RELAXATION,
     Material,
     check_tension,
     custom_material,
@@ -272,8 +271,9 @@ class WrapFormat:
         if named:
             return self.material_key
         out = {k: v for k, v in asdict(self.material).items() if v is not None}
-        if self.material.relaxation == NO_RELAXATION:
-            del out["relaxation"]
+        # its relaxation always (a custom card that gives none takes its kind's), as TOML holds it
+        law = self.material.relaxation
+        out["relaxation"] = {"plateau": law.plateau, "terms": [list(t) for t in law.terms]}
         return out
 
     def to_dict(self) -> dict[str, Any]:

@@ -11,11 +11,14 @@ import pytest
 from wrapenv.config import InputError
 from wrapenv.material import (
     DENSITY_KG_M3,
+    FILM_RELAXATION,
     GLUED_SEAM_FRACTION,
     LOOKS,
     MATERIAL_KINDS,
     MATERIALS,
+    NO_RELAXATION,
     PAPER_INTERLAYER_FRICTION,
+    PAPER_RELAXATION,
 )
 from wrapenv.wrap import WrapFormat
 
@@ -51,6 +54,23 @@ def test_a_custom_card_without_the_fields_gets_the_documented_defaults(wrap_data
     assert not paper.clings and paper.interlayer_mu == PAPER_INTERLAYER_FRICTION
     assert paper.seam_holds_n_per_m == pytest.approx(GLUED_SEAM_FRACTION
                                                 * paper.break_force_n_per_m)
+
+
+def test_a_custom_card_without_a_relaxation_law_relaxes_as_its_kind(wrap_data):
+    """A plant's own paper tested 16 h after wrapping relaxes as paper is assumed to
+    (docs/materials.md, P8), not at all; a card that relaxes differently says so, and one that
+    does not relax gives `relaxation = {plateau = 1.0}`. Each is written back as read."""
+    cards = {"film": {**CUSTOM}, "paper": {**CUSTOM_PAPER},
+             "none": {**CUSTOM_PAPER, "relaxation": {"plateau": 1.0}},
+             "own": {**CUSTOM_PAPER, "relaxation": {"plateau": 0.9, "terms": [[0.1, 5.0]]}}}
+    laws = {}
+    for key, table in cards.items():
+        wrap = WrapFormat.from_dict(wrap_data({"material": table, **LOW_TENSION}))
+        laws[key] = wrap.material.relaxation
+        assert WrapFormat.from_dict(wrap.to_dict()).material == wrap.material
+    assert laws["film"] == FILM_RELAXATION and laws["paper"] == PAPER_RELAXATION
+    assert laws["none"] == NO_RELAXATION and laws["own"].retained(5.0) == pytest.approx(
+        0.9 + 0.1 / 2.718281828459045)
 
 
 def test_a_custom_card_takes_the_fields_given_and_writes_them_back(wrap_data):

@@ -13,6 +13,7 @@ import pytest
 
 from wrapenv.config import InputError
 from wrapenv.load import LoadUnit
+from wrapenv.material import FILM_RELAXATION
 from wrapenv.program import Machine, Outline
 from wrapenv.wrap import (
     DEFAULT_TENSION_N,
@@ -93,14 +94,17 @@ def test_custom_material_table_is_read_with_defaults(wrap_data):
     wrap = WrapFormat.from_dict(wrap_data({"material": dict(CUSTOM), "band.0.tension_n": 100.0,
                                          "band.1.tension_n": 100.0}))
     assert wrap.material_key == "custom"
-    assert wrap.material == Material("custom", 0.012, 3000.0, 0.1, 0.5, 0.1, 0.5)
+    # the kind a film, and a film's relaxation (docs/materials.md, L5)
+    assert wrap.material == Material("custom", 0.012, 3000.0, 0.1, 0.5, 0.1, 0.5,
+                                     relaxation=FILM_RELAXATION)
 
 
 def test_custom_material_takes_every_value_given(wrap_data):
     table = {**CUSTOM, "name": "test film", "hardening_ratio": 0.0, "cd_ratio": 1.0}
     wrap = WrapFormat.from_dict(wrap_data({"material": table, "band.0.tension_n": 100.0,
                                          "band.1.tension_n": 100.0}))
-    assert wrap.material == Material("test film", 0.012, 3000.0, 0.1, 0.5, 0.0, 1.0)
+    assert wrap.material == Material("test film", 0.012, 3000.0, 0.1, 0.5, 0.0, 1.0,
+                                     relaxation=FILM_RELAXATION)
     assert wrap.material.break_force_n_per_m == pytest.approx(300.0)
 
 
@@ -237,7 +241,8 @@ def test_to_dict_names_a_card_and_writes_a_custom_material_in_full(wrap_data):
     custom = WrapFormat(Material("m", 0.01, 3000.0, 0.1, 0.5), 0.5, (Band(0, 1, 1, 50.0),))
     assert custom.to_dict()["material"] == {
         "name": "m", "grammage_kg_m2": 0.01, "stiffness_n_per_m": 3000.0, "yield_strain": 0.1,
-        "break_strain": 0.5, "hardening_ratio": 0.1, "cd_ratio": 0.5, "kind": "film"}
+        "break_strain": 0.5, "hardening_ratio": 0.1, "cd_ratio": 0.5, "kind": "film",
+        "relaxation": {"plateau": 1.0, "terms": []}}
 
 
 # --- calibration scaling -------------------------------------------------------------------
