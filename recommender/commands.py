@@ -23,6 +23,7 @@ from recommender.checkpoint import FORMAT_FAMILY as SEARCH_CHECKPOINT
 from recommender.html_report import (
     check_report_folder,
     recommend_page,
+    report_outputs,
     write_report,
 )
 from recommender.search import (
@@ -240,10 +241,9 @@ def _check_outputs(args: argparse.Namespace) -> Path | None:
     check_output(args.json, "--json", inputs=inputs)
     check_output(args.wrap_out, "--wrap-out", inputs=inputs)
     checkpoint = _checkpoint(args)
-    check_checkpoint(checkpoint, "--checkpoint", SEARCH_CHECKPOINT,
-                     inputs=inputs)
-    check_distinct({"--json": args.json, "--wrap-out": args.wrap_out,
-                    "--checkpoint": checkpoint})
+    check_checkpoint(checkpoint, "--checkpoint", SEARCH_CHECKPOINT, inputs=inputs)
+    check_distinct({**report_outputs(args.report), "--json": args.json,
+                    "--wrap-out": args.wrap_out, "--checkpoint": checkpoint})
     if args.report is not None:
         check_report_folder(args.report, inputs)
     if args.resume and (checkpoint is None or not checkpoint.exists()):

@@ -121,6 +121,14 @@ def check_report_folder(folder: Path, inputs: Iterable[str | Path], flag: str = 
         check_output(folder / name, flag, inputs=inputs)
 
 
+def report_outputs(folder: Path | None, flag: str = "--report") -> dict[str, Path | None]:
+    """The files a report writes, by the name an error gives each (for `check_distinct`: no
+    other output may be one of them); none when no report was asked for."""
+    if folder is None:
+        return {}
+    return {f"{flag} ({name})": Path(folder) / name for name in REPORT_FILES}
+
+
 def write_report(folder: Path, make: Callable[[Path], Page]) -> Path:
     """`make(stage)` writes the figures and the video into a staging folder and returns the
     page; then the files are written into `folder` together (`write_together`), the page last.
@@ -134,8 +142,10 @@ def write_report(folder: Path, make: Callable[[Path], Page]) -> Path:
     try:
         write_atomic(stage / PAGE, render(make(stage)).encode())
         folder.mkdir(parents=True, exist_ok=True)
-        write_together({folder / path.name: path.read_bytes()
-                        for path in sorted(stage.iterdir(), key=lambda p: p.name == PAGE)})
+        written = sorted(stage.iterdir(), key=lambda p: p.name == PAGE)
+        write_together({folder / path.name: path.read_bytes() for path in written})
+        for name in set(REPORT_FILES) - {path.name for path in written}:
+            (folder / name).unlink(missing_ok=True)   # an earlier report's, not this page's
     except BaseException:
         if created:
             shutil.rmtree(folder, ignore_errors=True)

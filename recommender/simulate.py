@@ -19,7 +19,12 @@ from recommender.commands import (
     warn,
     wrap_json,
 )
-from recommender.html_report import check_report_folder, simulate_page, write_report
+from recommender.html_report import (
+    check_report_folder,
+    report_outputs,
+    simulate_page,
+    write_report,
+)
 from recommender.text import (
     age_text,
     orientation_tested,
@@ -80,7 +85,8 @@ def run_simulate(args: argparse.Namespace) -> int:
     if args.report is not None:
         check_report_folder(args.report, inputs)
     check_output(args.tension_map, "--tension-map", inputs=inputs)
-    check_distinct({"--json": args.json, "--plot": args.plot, "--tension-map": args.tension_map})
+    check_distinct({**report_outputs(args.report), "--json": args.json, "--plot": args.plot,
+                    "--tension-map": args.tension_map})
     if args.tension_map and wrap is None:
         raise InputError("arguments", "--tension-map", "needs --wrap (an unwrapped unit has "
                                                        "no envelope to map)")

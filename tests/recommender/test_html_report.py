@@ -100,6 +100,40 @@ def test_simulate_refuses_a_report_folder_that_is_a_file_before_simulating(tmp_p
     assert not (tmp_path / "v.json").exists()
 
 
+@pytest.mark.parametrize("command", ["simulate", "recommend"])
+def test_an_output_that_is_one_of_the_report_s_files_is_refused_before_any_work(
+        command, tmp_path, capsys, load_file):
+    """The report would replace it (or it the report's page)."""
+    folder = tmp_path / "R"
+    folder.mkdir()
+    args = ["--level", "0.2"] if command == "simulate" else []
+    code = main([command, str(load_file()), *args, "--report", str(folder),
+                 "--json", str(folder / PAGE)])
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1, err
+    assert "--json" in err and f"is also --report ({PAGE})" in err
+    assert list(folder.iterdir()) == []
+
+
+def test_a_report_leaves_no_figure_of_an_earlier_report_in_its_folder(tmp_path, monkeypatch):
+    """An unwrapped unit's page has no tension map: the wrapped run's, left in a reused folder,
+    would sit beside a page that says there is none."""
+    folder = tmp_path / "R"
+    folder.mkdir()
+    for name in (PAGE, "tension_map.png", "displacement.png"):
+        (folder / name).write_text("earlier report")
+    (folder / "notes.txt").write_text("mine")
+
+    def make(stage: Path) -> Page:
+        (stage / "displacement.png").write_bytes(b"new figure")
+        return None  # type: ignore[return-value]
+
+    monkeypatch.setattr("recommender.html_report.render", lambda page: "new page")
+    write_report(folder, make)
+    assert {p.name: p.read_text() for p in folder.iterdir()} == {
+        PAGE: "new page", "displacement.png": "new figure", "notes.txt": "mine"}
+
+
 # --- a real report in a real browser -----------------------------------------------------------
 
 CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
