@@ -104,10 +104,10 @@ LOW_PEAK_G = 0.15
 
 def profile_warnings(source: str, accel_mps2: np.ndarray) -> tuple[str, ...]:
     """What a measured profile holds that a bench test hardly does, each a sentence naming
-    `source`: a peak below any bench level (a column in g?), or a deceleration stronger than
-    the forward pulse (an accelerometer mounted the other way round, or a bench that tests by
-    braking, whose level the forward peak does not give and whose load the stop bar behind
-    the pallet does not hold)."""
+    `source`: a peak below any bench level (a column in g?) or beyond the bench's (a spike?),
+    or a deceleration stronger than the forward pulse (an accelerometer mounted the other way
+    round, or a bench that tests by braking, whose level the forward peak does not give and
+    whose load the stop bar behind the pallet does not hold)."""
     forward, backward = float(np.max(accel_mps2)), float(-np.min(accel_mps2))
     out = []
     if backward > forward:
@@ -120,6 +120,11 @@ def profile_warnings(source: str, accel_mps2: np.ndarray) -> tuple[str, ...]:
         out.append(f"{source}: accel_mps2 peaks at {forward:.2f} m/s² ({forward / G:.3f} g), "
                    "below any bench level (EUMOS 40509 starts at 0.2 g): is the column in g? "
                    "It must be in m/s²")
+    if max(forward, backward) > BENCH_MAX_ACCEL_MPS2:
+        out.append(f"{source}: accel_mps2 reaches {max(forward, backward):.2f} m/s², beyond "
+                   f"the ESTL bench's {BENCH_MAX_ACCEL_MPS2:g} m/s² (the highest level it runs "
+                   "is 1.0 g): a spike in the recording, or a profile of another bench? It is "
+                   "simulated as given")
     return tuple(out)
 
 

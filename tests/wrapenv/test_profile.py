@@ -237,6 +237,21 @@ def test_a_profile_that_brakes_harder_than_it_accelerates_is_questioned(tmp_path
     assert "negate the column" in warning
 
 
+def test_a_profile_beyond_the_bench_s_10_m_s2_is_questioned_and_simulated_as_given(tmp_path):
+    """The ESTL bench runs up to 10 m/s² (`--level` refuses more); a recording reaching 14.7
+    (a spike, another bench) is warned about, not refused: up to twice that it may be real.
+    A 1.0 g profile (9.81 m/s²) raises nothing."""
+    path = write_csv(tmp_path, "t_s,accel_mps2\n0,0\n0.1,14.7\n0.6,14.7\n0.7,0\n")
+    profile = MeasuredProfile.from_csv(path)
+    (warning,) = profile.warnings()
+    assert warning.startswith(str(path))
+    assert "14.70 m/s², beyond the ESTL bench's 10 m/s²" in warning
+    assert profile.level_g == pytest.approx(14.7 / G)
+    top = MeasuredProfile.from_csv(write_csv(tmp_path, "t_s,accel_mps2\n0,0\n0.1,9.81\n0.6,0\n",
+                                             "top.csv"))
+    assert top.warnings() == ()
+
+
 def test_profile_csv_with_velocity_and_position_columns_is_read(tmp_path):
     path = write_csv(tmp_path, "t_s,accel_mps2,vel_mps,pos_m\n"
                                "0.0,0.0,0.0,0.0\n0.5,3.0,0.75,0.19\n1.0,-1.0,1.25,0.7\n")
