@@ -30,11 +30,11 @@ class InputError(ValueError):
 
 
 def read_toml(path: str | Path) -> dict[str, Any]:
-    """Parse a TOML file, turning I/O and syntax errors into `InputError`."""
+    """Parse a TOML file, turning I/O and syntax errors into `InputError`. A byte-order mark
+    (Windows editors write one) is not part of the first key."""
     path = Path(path)
     try:
-        with path.open("rb") as fh:
-            return tomllib.load(fh)
+        return tomllib.loads(path.read_bytes().decode("utf-8-sig"))
     except OSError as exc:
         raise InputError(str(path), "", f"cannot read file ({exc.strerror or exc})") from None
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:

@@ -328,12 +328,16 @@ def _stack(t: Table) -> Stack:
         raw = t.array("positions")
         if not raw:
             raise t.error("positions", "must list at least one bundle centre")
-        parsed = []
+        parsed: list[tuple[float, float]] = []
         for i, item in enumerate(raw):
             ok = isinstance(item, list) and len(item) == 2 and all(map(is_finite_number, item))
             if not ok:
                 raise t.error(f"positions[{i}]", f"must be [x, y] in metres (got {item!r})")
-            parsed.append((float(item[0]), float(item[1])))
+            point = (float(item[0]), float(item[1]))
+            if point in parsed:
+                raise t.error(f"positions[{i}]", f"is positions[{parsed.index(point)}] again "
+                                                 f"({item!r}): two bundles in one place")
+            parsed.append(point)
         positions = tuple(parsed)
     t.done()
     return Stack(layers, cast(Pattern, pattern), positions)

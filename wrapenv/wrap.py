@@ -171,6 +171,9 @@ class WrapFormat:
             check_program_fits(program, load_height_m, web.width_m, source)
             return cls.from_program(web.material, web.width_m, program, load_height_m,
                                     web.material_key, web.machine)
+        if not top.has("band"):
+            raise top.error("program", "missing: a WRAP.toml holds a [program] (what the machine "
+                                       "lays) or [[band]]s; this one only names a web")
         raw = top.array("band")
         if not raw:
             raise top.error("band", "must list at least one [[band]]")

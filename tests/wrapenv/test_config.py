@@ -17,6 +17,7 @@ from wrapenv.config import (
     printable,
     read_csv,
     read_json,
+    read_toml,
     result_json,
     write_together,
 )
@@ -114,6 +115,18 @@ def test_printable_escapes_control_characters_and_truncates() -> None:
     assert printable("a\nb\tc\u200bd") == "a\\nb\\tc\\u200bd"
     long = printable("x" * 100_000, limit=80)
     assert len(long) <= 80 and long.startswith("x" * 20) and "99920 more characters" in long
+
+
+def test_a_toml_file_with_a_byte_order_mark_is_read_as_without_one(tmp_path):
+    """Windows editors write one; it is not part of the first key. Other bytes than UTF-8
+    stay malformed."""
+    marked = tmp_path / "load.toml"
+    marked.write_bytes(b"\xef\xbb\xbfname = 'x'\n[pallet]\npreset = 'EUR'\n")
+    assert read_toml(marked) == {"name": "x", "pallet": {"preset": "EUR"}}
+    latin = tmp_path / "latin.toml"
+    latin.write_bytes(b"name = '\xe9'\n")
+    with pytest.raises(InputError, match="malformed TOML"):
+        read_toml(latin)
 
 
 def test_a_json_key_given_twice_is_an_error_naming_it(tmp_path, assert_input_error):

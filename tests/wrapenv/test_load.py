@@ -411,7 +411,7 @@ BAD_LOADS = {
         "stack.positions"),
     "explicit duplicate positions": (
         {"stack.pattern": "explicit", "stack.positions": [[0.2, 0.1], [0.2, 0.1]]},
-        "stack.positions"),
+        "stack.positions[1]"),
     "bundle bigger than the pallet": ({"bundle.length_m": 1.5}, "bundle"),
     "give softer than a pillow": ({"bundle.corner_stiffness_n_per_m2": 1e3},
                                   "bundle.corner_stiffness_n_per_m2"),

@@ -278,7 +278,7 @@ BAD_WRAPS = {
     "missing web width": ({"web_width_m": None}, "web_width_m"),
     "zero web width": ({"web_width_m": 0.0}, "web_width_m"),
     "web wider than 2 m": ({"web_width_m": 2.5}, "web_width_m"),
-    "missing band list": ({"band": None}, "band"),
+    "neither a program nor bands (a web alone)": ({"band": None}, "program"),
     "empty band list": ({"band": []}, "band"),
     "band list of numbers": ({"band": [1, 2]}, "band[0]"),
     "band a single table": ({"band": {"from_m": 0.0, "to_m": 0.4, "layers": 1,
