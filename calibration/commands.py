@@ -301,8 +301,8 @@ def known_scales(entries: list[str]) -> tuple[tuple[str, float], ...]:
 
     out: dict[str, float] = {}
     for entry in entries:
-        name, _, text = entry.partition("=")
-        if name not in WRAP_PARAMS or name in out:
+        name, equals, text = entry.partition("=")
+        if name not in WRAP_PARAMS or name in out or not equals:
             raise InputError("arguments", "--known",
                              f"expected distinct NAME=SCALE with NAME one of "
                              f"{', '.join(WRAP_PARAMS)} (got {printable(entry)!r})")
@@ -328,6 +328,11 @@ def _check_calibrate_args(args: argparse.Namespace) -> None:
         raise InputError("arguments", "--max-residual-mm",
                          f"must be > 0 (got {args.max_residual_mm})")
     fitted = {d.resolve() for d in args.recordings}
+    for flag, folders in (("DIR", args.recordings), ("--validate", args.validate)):
+        for d in folders:
+            if not d.is_dir():
+                raise InputError(str(d), flag, "not a folder (a recording folder holds "
+                                               "video.mp4, profile.csv, setup.toml, load.toml)")
     for d in args.validate:
         if d.resolve() in fitted:
             raise InputError("arguments", "--validate",

@@ -13,6 +13,7 @@ import signal
 import sys
 from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
 
 from calibration import commands
 from calibration.commands import level_g, seed
@@ -26,11 +27,26 @@ from wrapenv.load import EXAMPLE_LOAD, ORIENTATIONS
 
 
 class _Parser(argparse.ArgumentParser):
-    """argparse that reports a usage error in one line and exits with status 2."""
+    """argparse that reports a usage error in one line and exits with status 2, and takes a
+    flag only as written (`--lev` is no `--level`: a script must not change meaning when a
+    flag is added)."""
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        super().__init__(*args, **{**kwargs, "allow_abbrev": False})
 
     def error(self, message: str) -> None:  # type: ignore[override]
-        sys.stderr.write(f"{self.prog}: error: {message}\n")
+        sys.stderr.write(f"{self.prog}: error: {message}{self._greedy_hint(message)}\n")
         sys.exit(2)
+
+    def _greedy_hint(self, message: str) -> str:
+        """A missing positional after an option that takes several values was most likely
+        taken by it (`calibrate --known tension=1 take1/`)."""
+        greedy = [a.option_strings[0] for a in self._actions
+                  if a.option_strings and a.nargs in ("+", "*")]
+        if not (greedy and message.startswith("the following arguments are required")):
+            return ""
+        return (f" ({', '.join(greedy)} take every word after them: put the "
+                f"{'folders' if 'DIR' in message else 'arguments'} before them)")
 
 
 def _number(text: str) -> float:

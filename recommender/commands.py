@@ -197,9 +197,16 @@ def criteria_limits(args: argparse.Namespace) -> Limits:
     return Limits(layer_shift_fraction=pct / 100)
 
 
+#: The longest a wrapped load is taken to stand before the road: a year. Longer is a unit
+#: mistaken (seconds, or minutes, for hours); the relaxation laws have long levelled off.
+MAX_HOURS_SINCE_WRAPPING = 8760.0
+
+
 def check_hours(hours: float) -> None:
-    if not hours >= 0:
-        raise InputError("arguments", "--hours-since-wrapping", f"must be >= 0 (got {hours})")
+    if not 0 <= hours <= MAX_HOURS_SINCE_WRAPPING:
+        raise InputError("arguments", "--hours-since-wrapping",
+                         f"must be from 0 to {MAX_HOURS_SINCE_WRAPPING:g} (a year) (got {hours:g}; "
+                         "hours, not seconds or minutes)")
 
 
 def _checkpoint(args: argparse.Namespace) -> Path | None:

@@ -319,13 +319,31 @@ def test_calibrate_refuses_trajectories_the_recording_cannot_have(edit, needles,
                                           (["--workers", "0"], "--workers"),
                                           (["--max-residual-mm", "nan"], "--max-residual-mm"),
                                           (["--known", "friction=1"], "--known"),
-                                          (["--known", "tension"], "--known"),
+                                          (["--known", "tension"], "give (got 'tension')"),
                                           (["--known", "tension=nan"], "--known"),
                                           (["--known", "tension=9"], "--known"),
                                           (["--known", "give=1", "give=0.9"], "--known")])
 def test_calibrate_rejects_bad_arguments(args, needle, slide_dir, tmp_path, capsys):
     assert main(["calibrate", str(slide_dir), "--out", str(tmp_path / "c.json"), *args]) == 2
     _one_line_error(capsys, needle)
+
+
+def test_a_folder_that_is_none_names_the_flag_it_was_given_to(slide_dir, tmp_path, capsys):
+    for args, flag in (([str(tmp_path / "nope")], "DIR"),
+                       ([str(slide_dir), "--validate", str(tmp_path / "nope")], "--validate")):
+        assert main(["calibrate", *args, "--out", str(tmp_path / "c.json")]) == 2
+        _one_line_error(capsys, str(tmp_path / "nope"), f"{flag}: not a folder")
+
+
+def test_recordings_taken_by_an_option_that_takes_several_values_are_named_so(slide_dir,
+                                                                             tmp_path, capsys):
+    """`--known tension=1 take1/` gives take1/ to --known: the usage error says so."""
+    with pytest.raises(SystemExit) as info:
+        main(["calibrate", "--out", str(tmp_path / "c.json"), "--known", "tension=1",
+              str(slide_dir)])
+    assert info.value.code == 2
+    _one_line_error(capsys, "required: DIR", "--known take every word after them",
+                    "put the folders before them")
 
 
 @pytest.mark.parametrize("name", ["video.avi", "profile.csv", "load.toml", "trajectories.csv"])

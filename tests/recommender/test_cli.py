@@ -203,7 +203,9 @@ def test_malformed_calibration_exits_2_naming_the_file(load_file, tmp_path, caps
     ["simulate"],
     ["simulat", "LOAD"],
     [],
-], ids=["unknown option", "bad orientation", "missing load", "unknown command", "no command"])
+    ["simulate", "LOAD", "--lev", "0.2"],
+], ids=["unknown option", "bad orientation", "missing load", "unknown command", "no command",
+        "abbreviated option (a script must not change meaning when a flag is added)"])
 def test_usage_error_exits_2_with_one_line(argv, load_file, capsys):
     path = str(load_file())
     assert run([path if a == "LOAD" else a for a in argv]) == 2
@@ -224,6 +226,7 @@ def test_a_flag_the_run_would_ignore_is_refused(argv, field, load_file, capsys):
 
 @pytest.mark.parametrize("argv, field", [
     (["--hours-since-wrapping", "-1"], "--hours-since-wrapping"),
+    (["--hours-since-wrapping", "1e9"], "hours, not seconds or minutes"),
     (["--layer-shift-limit-pct", "0"], "--layer-shift-limit-pct"),
     (["--layer-shift-limit-pct", "101"], "--layer-shift-limit-pct"),
     (["--layer-shift-limit-pct", "nan"], "--layer-shift-limit-pct"),
