@@ -37,7 +37,7 @@ LAYER_COLOURS = tuple(colormaps["tab10"](i) for i in (0, 2, 4, 5, 6, 7, 8, 9))
 
 def plot_displacements(run: BenchRun, title: str = "") -> bytes:
     """One panel per level: each bundle's displacement in the pallet frame against time, from
-    where it stood when the level began, coloured by layer, the bundle that moved most named,
+    where it stood when the level began, coloured by layer, the bundle of the highest peak named,
     with the elastic and permanent limits; after the first level of a cumulative sequence the
     title adds the permanent displacement since the unit was put on the sled (what the
     permanent limit judges)."""
@@ -55,7 +55,8 @@ def plot_displacements(run: BenchRun, title: str = "") -> bytes:
 
 def plot_level(ax: Axes, trace: Trace, verdict: LevelVerdict, height_m: float) -> None:
     """A level's panel: a unit has dozens of bundles, too many to tell apart by colour, so
-    the legend names the layers and the one bundle that moved most."""
+    the legend names the layers and the one bundle whose displacement peaked highest (the
+    elastic figure's; the permanent one may be another's)."""
     disp_mm = trace.bundle_displacement_m() * 1000
     layers = trace.layers if trace.layers is not None else np.ones(len(trace.names), int)
     for layer in np.unique(layers):
@@ -65,7 +66,7 @@ def plot_level(ax: Axes, trace: Trace, verdict: LevelVerdict, height_m: float) -
                     alpha=0.8, label=f"layer {layer}" if j == 0 else None)
     most = int(np.argmax(disp_mm.max(axis=0)))
     ax.plot(trace.t_s, disp_mm[:, most], lw=1.6, color="black",
-            label=f"{trace.names[most]}, moved most")
+            label=f"{trace.names[most]}, highest peak")
     for c, line in ((ELASTIC, "red"), (PERMANENT, "orange")):
         ax.axhline(c.limit_m(height_m) * 1000, color=line, ls="--",
                    label=f"{c.label.split()[0].lower()} limit ({100 * c.limit:g} % of height)")

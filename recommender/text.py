@@ -98,7 +98,7 @@ def verdict_table(load: LoadUnit, run: BenchRun, orientation: Orientation | None
         f"{'level    result':17}{'elastic max':>15}  {'permanent':>6} {'total':>15}  "
         f"{'low20cm':>6}  {'layer shift':>15}  {'pallet slip':>6}",
     ]
-    lines += [_row(v, level, h) for level in v.levels]
+    lines += [_row(v, level, h).rstrip() for level in v.levels]
     torn = [f"{g_text(level.level_g)} g" for level in v.levels if level.wrap and level.wrap.torn]
     if torn:
         lines.append(f"wrap torn at: {', '.join(torn)}")

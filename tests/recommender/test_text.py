@@ -37,6 +37,7 @@ def test_levels_two_decimals_would_merge_keep_a_third():
     assert lines[-3].lstrip().startswith("0.495 g  PASS")
     assert lines[-2].lstrip().startswith("0.50 g  FAIL")
     assert lines[-1] == "highest level passed: 0.495 g"
+    assert all(line == line.rstrip() for line in lines), "no trailing blanks to copy along"
 
 
 def test_a_level_that_ended_before_rest_says_why_on_its_line():
