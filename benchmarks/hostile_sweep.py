@@ -1,8 +1,8 @@
 """The hostile-input sweep of issue 17, re-run: every case is a `wrapbench` command a careless or
 hostile user could type, run as a separate process in a scratch folder. Each is checked for what
 the product promises about bad input: exit status 2, one line on stderr naming the file or flag
-(no traceback), and nothing written. Cases that are not bad input (a BOM in profile.csv, a tiny
-video, an escaped name) are checked for their own promise.
+(no traceback), and nothing written (no file added, none changed). Cases that are not bad
+input (a BOM in profile.csv, a tiny video, an escaped name) are checked for their own promise.
 
     python -m benchmarks.hostile_sweep            # prints one row per case, exits 1 on a failure
     python -m benchmarks.hostile_sweep -k synth   # only the cases whose name contains 'synth'
@@ -199,6 +199,26 @@ CASES = [
     Case("recommend --max-cycle-s 1 (no program that fast)",
          ["recommend", "L.toml", "--max-cycle-s", "1", "--budget", "3", "--samples", "1"],
          {"L.toml": LOAD}, status=1, check=_cycle_limit_named),
+    # found by a new user's walk through the README (2026-11-27)
+    Case("recommend --checkpoint naming the user's own notes",
+         ["recommend", "L.toml", "--checkpoint", "notes.txt"],
+         {"L.toml": LOAD, "notes.txt": "my lab notes\n"}, needles=("notes.txt", "--checkpoint")),
+    Case("simulate --json onto the report's page",
+         ["simulate", "L.toml", "--level", "0.2", "--report", "R", "--json", "R/report.html"],
+         {"L.toml": LOAD, "R/keep.txt": ""}, needles=("--json", "--report")),
+    Case("wrap: a web with neither program nor bands", ["simulate", "L.toml", "--wrap", "W.toml"],
+         {"L.toml": LOAD, "W.toml": 'material = "kraft"\nweb_width_m = 0.5\n'},
+         needles=("W.toml", "program")),
+    Case("load: two bundles at one explicit position", ["simulate", "L.toml"],
+         {"L.toml": _load(pattern='pattern = "explicit"\npositions = [[0.2, 0.1], [0.2, 0.1]]')},
+         needles=("L.toml", "positions[1]")),
+    Case("simulate --hours-since-wrapping 1e9", ["simulate", "L.toml", "--wrap", "W.toml",
+                                                 "--hours-since-wrapping", "1e9"],
+         {"L.toml": LOAD, "W.toml": WRAP}, needles=("--hours-since-wrapping",)),
+    Case("simulate --lev 0.2 (a flag abbreviated)", ["simulate", "L.toml", "--lev", "0.2"],
+         {"L.toml": LOAD}, needles=("--lev",)),
+    Case("a LOAD.toml saved with a byte-order mark", ["simulate", "L.toml", "--level", "0.2"],
+         {"L.toml": "\ufeff" + LOAD}, status=0),
     Case("a load name with escape codes", ["simulate", "L.toml", "--level", "0.2"],
          {"L.toml": LOAD.replace('name = "6x1.5 L PET bundles, 2 layers, columnar"',
                                  'name = "evil\\u001b[2J"')},
@@ -213,7 +233,8 @@ def run(case: Case) -> tuple[bool, str, float]:
         for name, text in case.files.items():
             (folder / name).parent.mkdir(parents=True, exist_ok=True)
             (folder / name).write_text(text)
-        before = sorted(p.relative_to(folder) for p in folder.rglob("*"))
+        before = {p.relative_to(folder): p.read_bytes() if p.is_file() else None
+                  for p in folder.rglob("*")}
         t0 = time.perf_counter()
         env = {**os.environ, "PYTHONPATH": str(ROOT)}
         try:
@@ -226,8 +247,8 @@ def run(case: Case) -> tuple[bool, str, float]:
         return _judge(case, proc, folder, before, seconds)
 
 
-def _judge(case: Case, proc: subprocess.CompletedProcess, folder: Path, before: list[Path],
-           seconds: float) -> tuple[bool, str, float]:
+def _judge(case: Case, proc: subprocess.CompletedProcess, folder: Path,
+           before: dict[Path, bytes | None], seconds: float) -> tuple[bool, str, float]:
     lines = proc.stderr.strip().splitlines()
     if proc.returncode != case.status:
         last = lines[-1] if lines else ""
@@ -241,9 +262,12 @@ def _judge(case: Case, proc: subprocess.CompletedProcess, folder: Path, before: 
         missing = [n for n in case.needles if n.lower() not in errors[0].lower()]
         if missing:
             return False, f"message lacks {missing}: {errors[0][:120]}", seconds
-        after = sorted(p.relative_to(folder) for p in folder.rglob("*"))
+        after = {p.relative_to(folder): p.read_bytes() if p.is_file() else None
+                 for p in folder.rglob("*")}
         if after != before:
-            return False, f"wrote {sorted(set(after) - set(before))}", seconds
+            changed = sorted(p for p in after.keys() | before.keys()
+                             if after.get(p) != before.get(p))
+            return False, f"wrote {changed}", seconds
         return True, errors[0][:110], seconds
     problem = case.check(folder, proc.stdout) if case.check else ""
     return not problem, problem or "as promised", seconds
