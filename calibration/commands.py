@@ -327,12 +327,12 @@ def _check_calibrate_args(args: argparse.Namespace) -> None:
     if not (math.isfinite(args.max_residual_mm) and args.max_residual_mm > 0):
         raise InputError("arguments", "--max-residual-mm",
                          f"must be > 0 (got {args.max_residual_mm})")
-    fitted = {d.resolve() for d in args.recordings}
     for flag, folders in (("DIR", args.recordings), ("--validate", args.validate)):
         for d in folders:
             if not d.is_dir():
                 raise InputError(str(d), flag, "not a folder (a recording folder holds "
                                                "video.mp4, profile.csv, setup.toml, load.toml)")
+    fitted = {d.resolve() for d in args.recordings}
     for d in args.validate:
         if d.resolve() in fitted:
             raise InputError("arguments", "--validate",

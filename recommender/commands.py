@@ -204,9 +204,10 @@ MAX_HOURS_SINCE_WRAPPING = 8760.0
 
 def check_hours(hours: float) -> None:
     if not 0 <= hours <= MAX_HOURS_SINCE_WRAPPING:
+        unit = ": hours, not seconds or minutes" if hours > MAX_HOURS_SINCE_WRAPPING else ""
         raise InputError("arguments", "--hours-since-wrapping",
-                         f"must be from 0 to {MAX_HOURS_SINCE_WRAPPING:g} (a year) (got {hours:g}; "
-                         "hours, not seconds or minutes)")
+                         f"must be from 0 to {MAX_HOURS_SINCE_WRAPPING:g} h, a year (got "
+                         f"{hours:g}{unit})")
 
 
 def _checkpoint(args: argparse.Namespace) -> Path | None:
