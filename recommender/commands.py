@@ -399,7 +399,11 @@ def _propose_with_policy(args: argparse.Namespace, problem: Problem,
                            + ": it observes this unit's uncertainty unlike in training; its "
                            "proposal is verified as given",))
     load = LoadUnit.from_toml(args.load)
-    unseen = outside(load, base_friction(calibration))
+    # the unit as the policy observes it (calibration applied), against the units it was
+    # trained on: about the calibration's friction only if it was trained with one
+    observed = calibration.apply(load) if calibration is not None else load
+    trained_on = base_friction(calibration if meta.get("calibrated", False) else None)
+    unseen = outside(observed, trained_on)
     if unseen:
         warn("recommend", ("this unit lies outside the random units the policy was trained on ("
                            + "; ".join(unseen) + "): its proposal is an extrapolation, verified "

@@ -611,6 +611,9 @@ def test_ppo_method_answers_from_a_policy_and_verifies_it(load_file, tmp_path, c
 
 def test_a_policy_used_with_a_calibration_it_was_not_trained_on_is_warned_about(
         load_file, tmp_path, capsys):
+    """And the unit is judged as the policy observes it, calibrated, against the units it was
+    trained on: the calibrated pallet-bundle 0.5 against the defaults' spread (it used to be
+    the load file's 0.3 against a spread about the calibration, which no policy saw)."""
     load = load_file(base=SMALL)
     policy = fixed_policy(load, -1.0, tmp_path / "light.zip")
     cal = tmp_path / "cal.json"
@@ -620,6 +623,7 @@ def test_a_policy_used_with_a_calibration_it_was_not_trained_on_is_warned_about(
           "--workers", "2", "--orientation", "long", "--calibration", str(cal)])
     err = capsys.readouterr().err
     assert "warning: the policy was trained without a calibration" in err
+    assert "pallet_bundle static 0.5, not 0.255-0.345" in err
 
 
 def test_a_policy_asked_for_a_target_it_was_not_trained_for_is_warned_about(
