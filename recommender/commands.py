@@ -528,8 +528,13 @@ def run_train(args: argparse.Namespace) -> int:
         args.out.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         raise InputError(str(args.out), "--out", f"cannot be created ({exc.strerror})") from None
-    check_output(args.out / "policy.zip", "--out")
-    _check_run_folder(args.out, args.resume)
+    try:
+        check_output(args.out / "policy.zip", "--out")
+        _check_run_folder(args.out, args.resume)
+    except InputError:
+        if made:   # refused: leave no folder behind either
+            args.out.rmdir()
+        raise
     settings = TrainSettings(timesteps=args.timesteps, n_envs=args.envs, material=args.material,
                              target_g=args.target, seed=args.seed, max_minutes=args.minutes,
                              calibration=calibration)

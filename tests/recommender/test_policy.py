@@ -475,6 +475,12 @@ def test_resume_needs_an_interrupted_run(files, needle, tmp_path, capsys):
     assert "\n" not in err and "--resume" in err and needle in err
 
 
+def test_resume_into_a_folder_that_does_not_exist_is_refused_leaving_none(tmp_path, capsys):
+    assert main(["train", "--out", str(tmp_path / "never"), "--resume"]) == 2
+    assert "no interrupted run" in capsys.readouterr().err
+    assert not (tmp_path / "never").exists()
+
+
 def test_a_new_run_into_an_interrupted_one_names_resume(trained, capsys):
     _, out = trained
     assert main(["train", "--out", str(out)]) == 2
