@@ -9,6 +9,7 @@ the reward and the arguments.
 from __future__ import annotations
 
 import math
+import numbers
 from dataclasses import asdict
 from pathlib import Path
 from typing import Any
@@ -156,6 +157,10 @@ class WrapBenchEnv(gym.Env):
     Pass paths rather than objects to vector envs (`gymnasium.make_vec(..., load="x.toml")`):
     they pickle small and read the same file in every worker.
 
+    Numbers may be NumPy scalars. `gym.make(..., render_mode="human")` wraps the env in
+    Gymnasium's `HumanRendering` (which needs pygame) before the env sees the mode; the env
+    itself takes only "rgb_array".
+
     `render()` ("rgb_array") returns a 480 x 300 RGB uint8 frame from the recordings' side
     camera: the unit as stacked before a step, else the last tested unit in the final state of
     its last level with the wrap drawn over it (elements at the heights the verdict reports
@@ -210,8 +215,8 @@ class WrapBenchEnv(gym.Env):
             raise InputError("arguments", "levels",
                              f"must be one of {', '.join(map(repr, LEVEL_MODES))} (got {levels!r})")
         self.levels = levels
-        if (isinstance(material_weight, bool) or not isinstance(material_weight, int | float)
-                or not math.isfinite(material_weight) or material_weight < 0):
+        if not (_is_real(material_weight) and math.isfinite(material_weight)
+                and material_weight >= 0):
             raise InputError("arguments", "material_weight",
                              f"must be a finite number >= 0 (got {material_weight!r})")
         self.material_weight = float(material_weight)
@@ -395,8 +400,14 @@ def reward_terms(verdict: Verdict, material_ratio: float,
     return {"verdict": term, "material": -material_weight * material_ratio}
 
 
+def _is_real(value: Any) -> bool:
+    """A real number as an RL config gives it: Python's or NumPy's (np.float32 from a sampled
+    hyper-parameter), not a bool."""
+    return isinstance(value, numbers.Real) and not isinstance(value, bool)
+
+
 def _level(name: str, value: Any) -> float:
-    if isinstance(value, bool) or not isinstance(value, int | float):
+    if not _is_real(value):
         raise InputError("arguments", name, f"must be a number of g (got {value!r})")
     return float(value)
 

@@ -142,10 +142,20 @@ def test_calibration_sets_friction_and_its_std(tiny, tmp_path):
     assert named["friction_sled_pallet_static_std"] == 0.0
 
 
+def test_numpy_numbers_are_taken_as_numbers(tiny):
+    """An RL config's sampled values are NumPy scalars; a bool is no number."""
+    env = make(tiny, target_g=np.float32(0.3), material_weight=np.int64(1))
+    assert env.target_g == pytest.approx(0.3) and env.material_weight == 1.0
+    env.close()
+    with pytest.raises(InputError, match="target_g"):
+        make(tiny, target_g=True)
+
+
 @pytest.mark.parametrize("kwargs", [
     {"material": "paper"}, {"target_g": 1.5}, {"target_g": 0.5, "start_g": 0.7},
     {"levels": "all"}, {"material_weight": -1.0}, {"render_mode": "human"},
-    {"load": "/nonexistent/LOAD.toml"},
+    {"load": "/nonexistent/LOAD.toml"}, {"material_weight": np.float32("nan")},
+    {"target_g": np.bool_(True)},
 ])
 def test_bad_kwargs_raise_at_construction(tiny, kwargs):
     with pytest.raises(ValueError) as err:
