@@ -27,6 +27,7 @@ from recommender.html_report import (
 )
 from recommender.text import (
     age_text,
+    calibration_text,
     orientation_tested,
     program_text,
     rerun_note,
@@ -68,6 +69,7 @@ def run_simulate(args: argparse.Namespace) -> int:
     layout = load.layout(args.orientation)
     wrap = WrapFormat.from_toml(args.wrap, layout.load_height_m) if args.wrap else None
     laid = wrap
+    calibration = None
     if args.calibration:
         calibration = read_calibration(args.calibration, "simulate")
         load = calibration.apply(load)
@@ -104,6 +106,8 @@ def run_simulate(args: argparse.Namespace) -> int:
                          on_level=lambda v: _level_done(bar, v),
                          on_rerun=lambda iterations: _rerun(bar, iterations))
     print(verdict_table(load, run, args.orientation))
+    if calibration is not None:
+        print(calibration_text(str(args.calibration), calibration, load, wrap is not None))
     if laid is not None:
         print(program_text(laid, layout))
         print(age_text(laid.material, args.hours_since_wrapping))
@@ -117,6 +121,8 @@ def run_simulate(args: argparse.Namespace) -> int:
         out = run.verdict.to_json() | {"orientation": orientation_tested(load, args.orientation)}
         if rerun_note(run):
             out["solver_iterations"] = run.solver_iterations
+        if calibration is not None:
+            out["calibration"] = str(args.calibration)
         if wrap is not None and laid is not None:
             out.update(wrap_json(wrap, laid, layout, args.hours_since_wrapping))
             out["hours_since_wrapping"] = args.hours_since_wrapping

@@ -4,6 +4,7 @@ operator enters it, with the web it lays and the time it takes."""
 from __future__ import annotations
 
 from wrapenv.bench import BenchRun
+from wrapenv.calibrated import Calibration
 from wrapenv.config import printable
 from wrapenv.eumos import EUMOS_CRITERIA, LevelVerdict, Verdict
 from wrapenv.load import Layout, LoadUnit, Orientation
@@ -175,6 +176,22 @@ def age_text(material: Material, hours_since_wrapping: float) -> str:
     how = "relaxes" if material.relaxation != NO_RELAXATION else "does not relax, by its card"
     return (f"wrap tested {hours_since_wrapping:g} h after wrapping: its tension {kept:.0%} of "
             f"what was laid ({printable(material.name)} {how})")
+
+
+def calibration_text(source: str, calibration: Calibration, simulated: LoadUnit,
+                     wrapped: bool) -> str:
+    """Which values a calibration put in place, as simulated (a pair it leaves out, or one it
+    only bounds below the load file's value, keeps the load file's)."""
+    pairs = ", ".join(f"{name} {simulated.friction.pair(name).static:.3f} / "
+                      f"{simulated.friction.pair(name).kinetic:.3f}"
+                      for name in calibration.friction)
+    parts = [f"friction (static / kinetic) {pairs}" if pairs else "no friction pair"]
+    if wrapped:
+        parts.append(f"web stiffness x {calibration.stiffness_scale:.2f}, laid tension x "
+                     f"{calibration.tension_scale:.2f}")
+    if calibration.give_scale != 1.0:
+        parts.append(f"the load's give x {calibration.give_scale:.2f}")
+    return f"calibrated by {printable(source)}: " + "; ".join(parts)
 
 
 def program_summary(program: Program) -> str:

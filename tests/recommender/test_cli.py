@@ -182,6 +182,21 @@ def test_bad_profile_csv_exits_2_naming_the_file(load_file, tmp_path, capsys):
     assert str(profile) in line and "line 3" in line
 
 
+def test_a_calibrated_run_says_which_values_it_put_in_place(load_file, tmp_path, capsys):
+    """The calibrated pair as simulated, the pairs it leaves out the load file's; the JSON
+    names the file (a run on file must say it was calibrated)."""
+    cal, out_json = tmp_path / "cal.json", tmp_path / "verdict.json"
+    cal.write_text(json.dumps({"friction": {"pallet_bundle": {"static": 0.41, "kinetic": 0.35}},
+                               "wrap": {"stiffness_scale": 1.2, "tension_scale": 0.9}}))
+    assert run(["simulate", str(load_file(base=TINY_LOAD)), "--level", "0.2", "--calibration",
+                str(cal), "--json", str(out_json)]) == 0
+    out = capsys.readouterr().out
+    assert (f"calibrated by {cal}: friction (static / kinetic) pallet_bundle 0.410 / 0.350"
+            in out)
+    assert "web stiffness" not in out, "an unwrapped unit has no web to scale"
+    assert json.loads(out_json.read_text())["calibration"] == str(cal)
+
+
 def test_bad_calibration_exits_2_naming_the_file_and_field(load_file, tmp_path, capsys):
     cal = tmp_path / "CAL.json"
     cal.write_text(json.dumps({"friction": {"sled_pallet": {"static": 0.3, "kinetic": 0.5}}}))
