@@ -273,7 +273,8 @@ def run_recommend(args: argparse.Namespace) -> int:
         t0 = time.perf_counter()
         best, check = _propose_with_policy(args, problem, samples)
         refused = _refused_proposal(problem, best, check)
-        _print_recommendation(problem, best, check, recommended=not refused)
+        _print_recommendation(problem, best, check, recommended=not refused,
+                              margin_of="nominal")   # no search: the proposal's own runs
         print(f"policy proposal verified in {time.perf_counter() - t0:.0f} s")
         if refused:   # as a search that finds no pass: nothing to enter, nothing written
             print(f"the policy's proposal {refused}: nothing written; search with --method "
@@ -433,7 +434,7 @@ def _refused_proposal(problem: Problem, best: Evaluation, check: Verification) -
 
 
 def _print_recommendation(problem: Problem, best: Evaluation, check: Verification,
-                          recommended: bool = True) -> None:
+                          recommended: bool = True, margin_of: str = "search") -> None:
     s, p = problem.settings, check.probability
     low, high = p.interval
     head = "recommended wrapping program" if recommended else "the policy's proposal"
@@ -441,7 +442,7 @@ def _print_recommendation(problem: Problem, best: Evaluation, check: Verificatio
           f"{'passes' if check.passed else 'fails'} {_targets_text(s)}, "
           f"{s.hours_since_wrapping:g} h after wrapping, in {p.passed} of {p.samples} samples "
           f"of what the bench does not know (pass probability {p.estimate:.0%}, 95 % interval "
-          f"{low:.0%}-{high:.0%}; search margin {best.margin:.2f})")
+          f"{low:.0%}-{high:.0%}; {margin_of} margin {best.margin:.2f})")
     print(program_text(best.wrap, problem.layout))
     for orientation, run in check.runs.items():
         print(f"-- {orientation} side along the motion --")
