@@ -7,10 +7,12 @@ Exit status (CONTRACTS.md): 0 success; 1 the run completed but the load failed t
 from __future__ import annotations
 
 import argparse
+import logging  # noqa: F401  its fork hooks first: `_Forking` brackets them
 import math
 import os
 import signal
 import sys
+import threading
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -218,8 +220,54 @@ class _Terminated(KeyboardInterrupt):
     out (the default action would end the process and leave its worker processes behind)."""
 
 
+class _Forking:
+    """Whether the process is inside `os.fork` (a worker pool starting). A signal that comes
+    then is handled in the first Python code after the fork, the fork hooks (logging's lock
+    release), where an exception cannot be raised: Python prints it, 'Exception ignored in
+    <function _releaseLock>' with a traceback, and drops it. Registered after logging's hooks,
+    these bracket them."""
+
+    now = False
+
+    @classmethod
+    def starts(cls) -> None:
+        cls.now = True
+
+    @classmethod
+    def ended(cls) -> None:
+        cls.now = False
+
+
+os.register_at_fork(before=_Forking.starts, after_in_parent=_Forking.ended,
+                    after_in_child=_Forking.ended)
+
+
+def _deferred(signum: int) -> bool:
+    """Inside a fork: the signal is sent again a moment later, to be raised where it can be."""
+    if not _Forking.now:
+        return False
+    threading.Timer(0.01, os.kill, (os.getpid(), signum)).start()
+    return True
+
+
 def _terminate(signum: int, frame: object) -> None:
+    if _deferred(signum):
+        return
+    _ignore_interrupts()
     raise _Terminated
+
+
+def _interrupt(signum: int, frame: object) -> None:
+    """Ctrl-C, raised once: a second one while the command winds down is ignored, not raised
+    inside whatever runs then."""
+    if _deferred(signum):
+        return
+    _ignore_interrupts()
+    raise KeyboardInterrupt
+
+
+def _ignore_interrupts() -> None:
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -231,13 +279,15 @@ def main(argv: Sequence[str] | None = None) -> int:
                "calibrate": commands.run_calibrate}[args.command]
     handlers = {signal.SIGTERM: signal.signal(signal.SIGTERM, _terminate),
                 signal.SIGINT: signal.getsignal(signal.SIGINT)}
+    if handlers[signal.SIGINT] is signal.default_int_handler:   # not when ignored (`cmd &`)
+        signal.signal(signal.SIGINT, _interrupt)
     try:
         return command(args)
     except InputError as exc:
         sys.stderr.write(f"wrapbench {args.command}: {exc}\n")
         return 2
     except KeyboardInterrupt as exc:
-        signal.signal(signal.SIGINT, signal.SIG_IGN)  # a second Ctrl-C: no traceback
+        _ignore_interrupts()  # a second Ctrl-C: no traceback
         notes = getattr(exc, "__notes__", None) or ["interrupted, nothing written"]
         sys.stderr.write(f"wrapbench {args.command}: {notes[-1]}\n")
         return 128 + (signal.SIGTERM if isinstance(exc, _Terminated) else signal.SIGINT)

@@ -117,3 +117,25 @@ def test_a_second_ctrl_c_prints_no_traceback(tmp_path):
         _hung(proc)
     err = proc.stderr.read() if proc.stderr else ""
     assert "Traceback" not in err and proc.returncode == 130, err
+
+
+def test_a_ctrl_c_inside_a_fork_is_raised_just_after_it():
+    """Handled inside the fork hooks (logging's lock release as the worker pool starts), a
+    KeyboardInterrupt is printed by Python as 'Exception ignored' with a traceback, and lost;
+    the CLI's handler sends it again a moment later, to be raised in ordinary code."""
+    from recommender import cli
+
+    previous = signal.signal(signal.SIGINT, cli._interrupt)
+    try:
+        cli._Forking.starts()
+        try:
+            cli._interrupt(signal.SIGINT, None)   # inside the fork: not raised
+        except KeyboardInterrupt:
+            pytest.fail("raised inside the fork hooks, where Python drops it")
+        cli._Forking.ended()
+        with pytest.raises(KeyboardInterrupt):
+            time.sleep(2)                         # ... but a moment later
+        assert signal.getsignal(signal.SIGINT) == signal.SIG_IGN   # and only once
+    finally:
+        cli._Forking.ended()
+        signal.signal(signal.SIGINT, previous)
