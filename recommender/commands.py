@@ -379,7 +379,7 @@ def _verified(problem: Problem, state: SearchState, samples: int,
 def _propose_with_policy(args: argparse.Namespace, problem: Problem,
                          samples: int) -> tuple[Evaluation, Verification]:
     """A trained policy's program for this unit, answered at once, then verified."""
-    from recommender.policy import propose, read_meta
+    from recommender.policy import load_policy, propose, read_meta
     from recommender.search import verify
     from wrapenv.envs.random_units import base_friction, outside
 
@@ -389,6 +389,8 @@ def _propose_with_policy(args: argparse.Namespace, problem: Problem,
                                             "with --method ppo")
     calibration = _observable_calibration(args.calibration)
     meta = read_meta(args.policy)
+    # refused (another env version, material or observation) before any warning about it
+    model = load_policy(args.policy, problem.settings.web.material_key)
     trained_g, target_g = meta.get("target_g"), problem.settings.target_g
     if isinstance(trained_g, int | float) and abs(trained_g - target_g) > 1e-9:
         warn("recommend", (f"the policy was trained for {trained_g:g} g and is asked for "
@@ -409,7 +411,7 @@ def _propose_with_policy(args: argparse.Namespace, problem: Problem,
         warn("recommend", ("this unit lies outside the random units the policy was trained on ("
                            + "; ".join(unseen) + "): its proposal is an extrapolation, verified "
                            "as given",))
-    wrap = propose(args.policy, load, problem.settings.web.material_key,
+    wrap = propose(model, load, problem.settings.web.material_key,
                    problem.settings.target_g, calibration)
     check = verify(problem, wrap, samples, workers=args.workers)
     mass = wrap.material_used_on(problem.layout).mass_kg

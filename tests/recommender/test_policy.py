@@ -267,6 +267,21 @@ def test_a_policy_of_an_earlier_env_version_is_refused_in_one_line(trained, tmp_
     assert_input_error(info.value, str(v1), "env_id")
 
 
+def test_recommend_refuses_such_a_policy_before_warning_about_its_proposal(trained, tmp_path,
+                                                                         capsys):
+    """One line, the refusal: not first a warning that the unit lies outside what it learned
+    (the half pallet would be)."""
+    path, _ = trained
+    with zipfile.ZipFile(path) as archive:
+        meta = json.loads(archive.read(POLICY_META))
+    v1 = _rewritten(path, tmp_path / "v1.zip", meta={**meta,
+                                                     "env_id": "wrapenv/WrapBenchRandom-v1"})
+    assert main(["recommend", "examples/pet_3layer_half_pallet.toml", "--method", "ppo",
+                 "--policy", str(v1)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "env_id" in err[0], err
+
+
 def test_a_policy_is_loaded_without_unpickling_what_the_file_holds(trained, tmp_path):
     path, _ = trained
     with zipfile.ZipFile(path) as archive:
