@@ -10,7 +10,7 @@ Then, in 200 random draws of a fit's `FINAL_REPLAYS` replays, how often each rul
 - the fit's test (`calibration.acceptance.worst`) on 6 replays; then as `calibrate` runs it: a
   recording the 6 leave unexplained judged on all 24 (`fit.UNEXPLAINED_REPLAYS`, the same
   settling times a fit replays); then one the 24 leave unexplained judged on them and
-  `DRAWN_REPLAYS` replays of values drawn over the uncertainty (`JITTER`; tried in `calibrate`
+  `JITTERED_REPLAYS` replays of values drawn over the uncertainty (`JITTER`; tried in `calibrate`
   with the fit's own standard deviations and reverted: docs/calibration.md, "Judged against
   the fit's uncertainty"); and, the column "over the uncertainty", on 6 jittered replays
   alone;
@@ -52,8 +52,7 @@ OFFSETS = ("pallet_bundle.static=+0.1", "pallet_bundle.static=-0.1",
            "bundle_bundle.static=-0.1", "pallet_bundle.kinetic=+0.03",
            "bundle_bundle.kinetic=+0.03", "bundle_bundle.kinetic=-0.03")
 #: Replays over the uncertainty: a judgement's 18 added ones, and the column's draws of 6.
-DRAWN_REPLAYS = 18
-JITTERED_REPLAYS, DRAWS = DRAWN_REPLAYS, 200
+JITTERED_REPLAYS, DRAWS = 18, 200
 LIMIT_M = FitSettings().max_residual_m
 
 #: per recording, the residual vectors of its replays (replays x features)

@@ -10,6 +10,7 @@ from __future__ import annotations
 import csv
 import json
 import math
+import numbers
 import os
 import tempfile
 import tomllib
@@ -338,11 +339,15 @@ def fraction_hint(value: float, of: str = "") -> str:
     return f": a fraction{of} ({value / 100:g} for {value:g} %)" if 1 <= value <= 100 else ""
 
 
+def is_real_number(value: Any) -> bool:
+    """A real number, Python's or NumPy's (an RL config's sampled np.float32), not a bool,
+    though Python counts one as a number."""
+    return isinstance(value, numbers.Real) and not isinstance(value, bool)
+
+
 def is_finite_number(value: Any) -> bool:
-    """A finite int or float as a parsed file gives it (a bool is not a number, though
-    Python counts it as one)."""
-    return (isinstance(value, int | float) and not isinstance(value, bool)
-            and math.isfinite(value))
+    """A finite real number (`is_real_number`), as a parsed file or a caller gives it."""
+    return is_real_number(value) and math.isfinite(value)
 
 
 def write_atomic(path: str | Path, data: bytes) -> None:

@@ -9,7 +9,6 @@ the reward and the arguments.
 from __future__ import annotations
 
 import math
-import numbers
 from dataclasses import asdict
 from pathlib import Path
 from typing import Any
@@ -21,7 +20,7 @@ from gymnasium.error import ResetNeeded
 
 from wrapenv.bench import BenchRun, SimSettings, run_levels
 from wrapenv.calibrated import Calibration
-from wrapenv.config import InputError
+from wrapenv.config import InputError, is_finite_number, is_real_number
 from wrapenv.design import N_PARAMS, ProgramSpace
 from wrapenv.envs import random_units
 from wrapenv.envs.observation import OBS_FEATURES, OBS_NAMES, observe
@@ -215,8 +214,7 @@ class WrapBenchEnv(gym.Env):
             raise InputError("arguments", "levels",
                              f"must be one of {', '.join(map(repr, LEVEL_MODES))} (got {levels!r})")
         self.levels = levels
-        if not (_is_real(material_weight) and math.isfinite(material_weight)
-                and material_weight >= 0):
+        if not (is_finite_number(material_weight) and material_weight >= 0):
             raise InputError("arguments", "material_weight",
                              f"must be a finite number >= 0 (got {material_weight!r})")
         self.material_weight = float(material_weight)
@@ -400,14 +398,8 @@ def reward_terms(verdict: Verdict, material_ratio: float,
     return {"verdict": term, "material": -material_weight * material_ratio}
 
 
-def _is_real(value: Any) -> bool:
-    """A real number as an RL config gives it: Python's or NumPy's (np.float32 from a sampled
-    hyper-parameter), not a bool."""
-    return isinstance(value, numbers.Real) and not isinstance(value, bool)
-
-
 def _level(name: str, value: Any) -> float:
-    if not _is_real(value):
+    if not is_real_number(value):
         raise InputError("arguments", name, f"must be a number of g (got {value!r})")
     return float(value)
 
