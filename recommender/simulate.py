@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -33,10 +34,11 @@ from recommender.text import (
     rerun_note,
     verdict_table,
 )
-from wrapenv.bench import run_levels
+from wrapenv.bench import BenchRun, run_levels
+from wrapenv.calibrated import Calibration
 from wrapenv.config import InputError, check_distinct, check_output, result_json, write_together
 from wrapenv.eumos import LevelVerdict
-from wrapenv.load import LoadUnit
+from wrapenv.load import Layout, LoadUnit
 from wrapenv.profile import MeasuredProfile, PulseProfile, eumos_levels
 from wrapenv.wrap import WrapFormat
 
@@ -64,12 +66,23 @@ def _levels(args: argparse.Namespace) -> list[Any]:
         raise as_flag(exc) from None
 
 
-def run_simulate(args: argparse.Namespace) -> int:
+@dataclass(frozen=True)
+class _Inputs:
+    """What `simulate` runs: the load (calibrated when asked), its layout, the wrap as laid
+    (for the program's text) and as simulated (calibrated and relaxed), the calibration."""
+
+    load: LoadUnit
+    layout: Layout
+    laid: WrapFormat | None
+    wrap: WrapFormat | None
+    calibration: Calibration | None
+
+
+def _inputs(args: argparse.Namespace) -> _Inputs:
     load = LoadUnit.from_toml(args.load)
     layout = load.layout(args.orientation)
-    wrap = WrapFormat.from_toml(args.wrap, layout.load_height_m) if args.wrap else None
-    laid = wrap
-    calibration = None
+    laid = WrapFormat.from_toml(args.wrap, layout.load_height_m) if args.wrap else None
+    wrap, calibration = laid, None
     if args.calibration:
         calibration = read_calibration(args.calibration, "simulate")
         load = calibration.apply(load)
@@ -81,6 +94,11 @@ def run_simulate(args: argparse.Namespace) -> int:
                          "unit has no wrap tension to relax)")
     if wrap is not None:
         wrap = wrap.relaxed(args.hours_since_wrapping)
+    return _Inputs(load, layout, laid, wrap, calibration)
+
+
+def _check_outputs(args: argparse.Namespace, wrapped: bool) -> None:
+    """Every output writable, none onto an input or another output, before any simulation."""
     inputs = [p for p in (args.load, args.wrap, args.calibration, args.profile) if p]
     check_output(args.json, "--json", inputs=inputs)
     check_output(args.plot, "--plot", inputs=inputs)
@@ -89,9 +107,15 @@ def run_simulate(args: argparse.Namespace) -> int:
     check_output(args.tension_map, "--tension-map", inputs=inputs)
     check_distinct({**report_outputs(args.report), "--json": args.json, "--plot": args.plot,
                     "--tension-map": args.tension_map})
-    if args.tension_map and wrap is None:
+    if args.tension_map and not wrapped:
         raise InputError("arguments", "--tension-map", "needs --wrap (an unwrapped unit has "
                                                        "no envelope to map)")
+
+
+def run_simulate(args: argparse.Namespace) -> int:
+    given = _inputs(args)
+    load, layout, laid, wrap = given.load, given.layout, given.laid, given.wrap
+    _check_outputs(args, wrap is not None)
     levels = _levels(args)
     warn("simulate", tuple(w for p in levels if isinstance(p, MeasuredProfile)
                            for w in p.warnings()))
@@ -106,27 +130,19 @@ def run_simulate(args: argparse.Namespace) -> int:
                          on_level=lambda v: _level_done(bar, v),
                          on_rerun=lambda iterations: _rerun(bar, iterations))
     print(verdict_table(load, run, args.orientation))
-    if calibration is not None:
-        print(calibration_text(str(args.calibration), calibration, load, wrap is not None))
+    if given.calibration is not None:
+        print(calibration_text(str(args.calibration), given.calibration, load, wrap is not None))
     if laid is not None:
         print(program_text(laid, layout))
         print(age_text(laid.material, args.hours_since_wrapping))
     if args.report:   # first: the slowest to make, and nothing of it shows until it is whole
-        given = {"load unit": args.load, "wrap": args.wrap, "calibration": args.calibration,
+        named = {"load unit": args.load, "wrap": args.wrap, "calibration": args.calibration,
                  "sled profile": args.profile}
         write_report(args.report, lambda stage: simulate_page(
-            stage, load, run, laid, wrap, args.orientation, args.hours_since_wrapping, given))
+            stage, load, run, laid, wrap, args.orientation, args.hours_since_wrapping, named))
     files = {}
     if args.json:
-        out = run.verdict.to_json() | {"orientation": orientation_tested(load, args.orientation)}
-        if rerun_note(run):
-            out["solver_iterations"] = run.solver_iterations
-        if calibration is not None:
-            out["calibration"] = str(args.calibration)
-        if wrap is not None and laid is not None:
-            out.update(wrap_json(wrap, laid, layout, args.hours_since_wrapping))
-            out["hours_since_wrapping"] = args.hours_since_wrapping
-        files[Path(args.json)] = result_json(out)
+        files[Path(args.json)] = _json(args, given, run)
     if args.plot:
         from recommender.report import plot_displacements
 
@@ -137,6 +153,20 @@ def run_simulate(args: argparse.Namespace) -> int:
         files[Path(args.tension_map)] = plot_tension_map(run, layout, title=load.name)
     write_together(files)
     return 0 if run.verdict.passed else 1
+
+
+def _json(args: argparse.Namespace, given: _Inputs, run: BenchRun) -> bytes:
+    """`--json`'s document (CONTRACTS.md: simulate's keys)."""
+    out = run.verdict.to_json() | {"orientation": orientation_tested(given.load,
+                                                                     args.orientation)}
+    if rerun_note(run):
+        out["solver_iterations"] = run.solver_iterations
+    if given.calibration is not None:
+        out["calibration"] = str(args.calibration)
+    if given.wrap is not None and given.laid is not None:
+        out.update(wrap_json(given.wrap, given.laid, given.layout, args.hours_since_wrapping))
+        out["hours_since_wrapping"] = args.hours_since_wrapping
+    return result_json(out)
 
 
 def _rerun(bar: Any, iterations: int) -> None:
