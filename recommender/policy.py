@@ -52,8 +52,9 @@ from wrapenv.calibrated import Calibration
 from wrapenv.config import InputError, write_atomic
 from wrapenv.design import N_PARAMS, NAMES
 from wrapenv.envs import WrapBenchEnv, WrapBenchRandomEnv
-from wrapenv.envs.observation import OBS_NAMES
+from wrapenv.envs.observation import OBS_NAMES, material_features
 from wrapenv.load import LoadUnit
+from wrapenv.material import MATERIALS
 from wrapenv.wrap import WrapFormat
 
 ENV_ID = "wrapenv/WrapBenchRandom-v2"
@@ -291,7 +292,8 @@ def policy_meta(settings: TrainSettings) -> dict[str, Any]:
     """What a policy was trained on, as `POLICY_META` records it."""
     return {"env_id": ENV_ID, "material": settings.material, "target_g": settings.target_g,
             "observation": list(OBS_NAMES), "action": list(NAMES),
-            "calibrated": settings.calibration is not None}
+            "calibrated": settings.calibration is not None,
+            "material_features": material_features(MATERIALS[settings.material])}
 
 
 def stamp(path: Path, meta: dict[str, Any]) -> None:
@@ -430,10 +432,26 @@ def _check_meta(path: Path, meta: dict[str, Any], material: str | None,
     if material is not None and meta.get("material") != material:
         raise InputError(str(path), "material", f"the policy was trained for "
                          f"{meta.get('material')!r}, not {material!r}")
+    _check_card(path, meta)
     unknown = set(meta["_pickled"]) - set(trusted)
     if unknown:
         raise InputError(str(path), "policy", f"holds pickled entries {sorted(unknown)}, which "
                                               "are not loaded")
+
+
+def _check_card(path: Path, meta: dict[str, Any]) -> None:
+    """A policy observed its card's figures (`material_features`); one trained on figures the
+    card no longer has would see an input it never saw. Policies written before the figures
+    were recorded (2026-11-27) are taken as they are."""
+    recorded, name = meta.get("material_features"), meta.get("material")
+    if recorded is None or name not in MATERIALS:
+        return
+    now = material_features(MATERIALS[name])
+    if not (isinstance(recorded, list) and len(recorded) == len(now)
+            and all(isinstance(v, (int, float)) for v in recorded)
+            and np.allclose(recorded, now, rtol=1e-9, atol=0.0)):
+        raise InputError(str(path), "material_features", f"the policy was trained on the "
+                         f"{name} card's figures of another version of wrapbench: train a new one")
 
 
 def _load(path: Path, trusted: dict[str, Any], env: Any = None) -> PPO:

@@ -148,11 +148,13 @@ class Material:
         return fraction * self.break_force_n_per_m
 
     def grammage_at(self, prestretch: float | None) -> float:
-        """Mass per m² of film laid at another pre-stretch: thickness falls as (1 + p)^-0.5
-        (docs/materials.md, L2) [D]; paper and the card's own pre-stretch: the card's value."""
+        """Mass per m² of film laid at another pre-stretch. Every revolution lays the full web
+        width, so the film stretched (1 + p) times in length thins as much: the web laid
+        weighs what came off the roll (docs/materials.md, L2) [D]; paper and the card's own
+        pre-stretch: the card's value."""
         if prestretch is None or self.prestretch is None:
             return self.grammage_kg_m2
-        return self.grammage_kg_m2 * ((1 + self.prestretch) / (1 + prestretch)) ** 0.5
+        return self.grammage_kg_m2 * (1 + self.prestretch) / (1 + prestretch)
 
 
 #: The cards of docs/materials.md (labels there: [S] sourced, [D] derived, [A] assumed).
@@ -173,8 +175,8 @@ MATERIALS: dict[str, Material] = {
     ),
     "lldpe": Material(  # card 2b, cast film as applied after 250 % pre-stretch
         name="LLDPE cast stretch film (applied)",
-        grammage_kg_m2=0.0098,  # [D] 920 kg/m³ x 10.7 µm (t = 20 µm / √3.5)
-        stiffness_n_per_m=2500.0,  # [D]/[A] L2: 240 MPa x 10.7 µm
+        grammage_kg_m2=0.0184 / 3.5,  # [D] the roll's 18.4 g/m² (920 kg/m³ x 20 µm) / 3.5
+        stiffness_n_per_m=2500.0,  # [A] L2: oriented film, ≈ 440 MPa x 5.7 µm
         yield_strain=0.15,  # [D]/[A] L3: re-yield at the pre-stretch flow stress
         break_strain=0.55,  # [D] (1 + 4.5) / 3.5 - 1, rounded down
         hardening_ratio=0.925,  # [D] strength 1300 N/m: (1300 - 375) / (2500 x 0.4)
@@ -182,7 +184,7 @@ MATERIALS: dict[str, Material] = {
         kind="film",
         prestretch=2.5,  # [S] powered pre-stretch of 200-300 % typical
         relaxation=FILM_RELAXATION,  # [S]/[A] L5
-        thickness_m=10.7e-6,  # [D] 20 µm / √3.5
+        thickness_m=20e-6 / 3.5,  # [D] L2: 20 µm stretched 3.5 x at the web's full width
         # layers cling (interlayer_friction None) and the clung tail holds as the film (P5)
     ),
 }

@@ -267,6 +267,25 @@ def test_a_policy_of_an_earlier_env_version_is_refused_in_one_line(trained, tmp_
     assert_input_error(info.value, str(v1), "env_id")
 
 
+def test_a_policy_trained_on_a_card_whose_figures_have_since_changed_is_refused(
+        trained, tmp_path, assert_input_error):
+    """The card's figures are part of what a policy observes (the LLDPE card's grammage
+    changed on 2026-11-27); a policy records them, and one without the record is taken."""
+    path, _ = trained
+    with zipfile.ZipFile(path) as archive:
+        meta = json.loads(archive.read(POLICY_META))
+    assert meta["material_features"][0] == pytest.approx(0.090 / 0.1)  # kraft's 90 g/m²
+    other = list(meta["material_features"])
+    other[0] = 0.098
+    changed = _rewritten(path, tmp_path / "changed.zip", meta={**meta,
+                                                              "material_features": other})
+    with pytest.raises(InputError) as info:
+        load_policy(changed)
+    assert_input_error(info.value, str(changed), "material_features")
+    unrecorded = {k: v for k, v in meta.items() if k != "material_features"}
+    load_policy(_rewritten(path, tmp_path / "unrecorded.zip", meta=unrecorded))
+
+
 def test_recommend_refuses_such_a_policy_before_warning_about_its_proposal(trained, tmp_path,
                                                                          capsys):
     """One line, the refusal: not first a warning that the unit lies outside what it learned

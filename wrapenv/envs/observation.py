@@ -74,7 +74,7 @@ def observe(unit: LoadUnit, layout: Layout, target_g: float, material: Material,
         *friction,
         target_g,
         *std,
-        *_material_features(material),
+        *material_features(material),
     ]
     return np.array(values, np.float32)
 
@@ -91,8 +91,9 @@ def check_observable(calibration: Calibration, source: str) -> None:
                                  "observes")
 
 
-def _material_features(card: Material) -> list[float]:
-    """The web as the observation sees it (the last six `OBS_FEATURES`)."""
+def material_features(card: Material) -> list[float]:
+    """The web as the observation sees it (the last six `OBS_FEATURES`): a policy records
+    them, so that one trained on a card whose figures have since changed is refused."""
     return [card.grammage_kg_m2 / 0.1, math.log10(card.stiffness_n_per_m) / 6,
             card.yield_strain, card.break_strain, card.break_force_n_per_m / 1e4,
             float(card.kind == "paper")]

@@ -119,7 +119,7 @@ def test_spaces_and_observation_features(tiny):
     assert named["target_g"] == pytest.approx(0.3)
     assert named["friction_bundle_bundle_static_std"] == 0.0
     # the web by its card's figures (LLDPE as applied, docs/materials.md card 2b)
-    assert named["material_grammage"] == pytest.approx(0.0098 / 0.1)
+    assert named["material_grammage"] == pytest.approx(0.0184 / 3.5 / 0.1)
     assert named["material_log_stiffness"] == pytest.approx(np.log10(2500) / 6)
     assert (named["material_yield_strain"], named["material_break_strain"]) == pytest.approx(
         (0.15, 0.55))
