@@ -435,6 +435,17 @@ def _refused_proposal(problem: Problem, best: Evaluation, check: Verification) -
     return ""
 
 
+def _margins_text(goal: float, best: Evaluation, check: Verification, margin_of: str) -> str:
+    """The margins behind an answer, told apart: the worst of these samples' (which only had
+    to pass), the search's own samples' (or the proposal's nominal run) and the one asked."""
+    worst = "" if check.worst is None else f"margin {check.worst.margin:.2f} in the worst sample, "
+    return f"{worst}{best.margin:.2f} {_OF[margin_of]}; {goal:.2f} asked"
+
+
+#: How `_margins_text` names the margin an answer was chosen by.
+_OF = {"search": "in the search's", "nominal": "nominal"}
+
+
 def _print_recommendation(problem: Problem, best: Evaluation, check: Verification,
                           recommended: bool = True, margin_of: str = "search") -> None:
     s, p = problem.settings, check.probability
@@ -444,7 +455,7 @@ def _print_recommendation(problem: Problem, best: Evaluation, check: Verificatio
           f"{'passes' if check.passed else 'fails'} {_targets_text(s)}, "
           f"{s.hours_since_wrapping:g} h after wrapping, in {p.passed} of {p.samples} samples "
           f"of what the bench does not know (pass probability {p.estimate:.0%}, 95 % interval "
-          f"{low:.0%}-{high:.0%}; {margin_of} margin {best.margin:.2f})")
+          f"{low:.0%}-{high:.0%}; {_margins_text(s.margin_goal, best, check, margin_of)})")
     print(program_text(best.wrap, problem.layout))
     for orientation, run in check.runs.items():
         print(f"-- {orientation} side along the motion --")

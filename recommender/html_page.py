@@ -233,14 +233,16 @@ def _robust_section(r: Robustness) -> str:
                                   "Wilson)"),
              ("Search", "a trained policy's proposal, verified in simulation"
               if r.candidates is None else
-              f"{r.candidates} candidate programs; margin of the worst sample "
-              f"{r.search_margin:.2f} (goal {r.margin_goal:.2f})")]
+              f"{r.candidates} candidate programs; the answer's margin in the search's own "
+              f"samples {r.search_margin:.2f} (goal {r.margin_goal:.2f})")]
     if r.worst is not None:
         w, level = r.worst, r.worst.level
         facts.append(("Worst sample", f"{_t(w.orientation)} side, margin {w.margin:.2f}, "
                       f"elastic {_mm(level.get('elastic_max_m'))}, permanent "
                       f"{_mm(level.get('permanent_max_m'))}, "
-                      f"{'passed' if w.passed else 'failed'}"))
+                      f"{'passed' if w.passed else 'failed'}"
+                      + (f" (below the goal of {r.margin_goal:.2f}: these samples had only "
+                         "to pass)" if w.passed and w.margin < r.margin_goal else "")))
         facts.append(("Its draw", _t(_draw_text(w.sample), 1000)))
     return ('<section><h2>How sure: samples of what the bench does not know</h2>'
             + _facts(facts) + "</section>\n")

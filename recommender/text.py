@@ -122,8 +122,10 @@ def rerun_note(run: BenchRun) -> str:
 
 
 def _carriage(p: Pass, wrap: WrapFormat, load_height_m: float) -> str:
+    """Where the web's lower edge is; a spiral's carriage speed too, which a panel may ask
+    for instead of the overlap (the rise per revolution times the rpm)."""
     if p.travel_m > 0:
-        return f"{p.start_m:.3f} -> {p.end_m:.3f} m"
+        return f"{p.start_m:.3f} -> {p.end_m:.3f} m at {p.rise_m * wrap.rpm:.1f} m/min"
     text = f"{p.start_m:.3f} m"
     if p.rope_m is not None:
         return text + " (roped)"

@@ -193,6 +193,19 @@ def test_the_video_is_beside_the_page_browsers_first_with_its_still_for_print():
     assert not any(tag == "video" for tag, _ in Parsed(render(page(video_still=None))).tags)
 
 
+def test_a_worst_sample_below_the_margin_goal_says_it_only_had_to_pass():
+    """The search asks its margin of its own samples; the verification's only have to pass,
+    and a page that shows both margins says which is which."""
+    worst = Trial(True, 0.06, "long", {"elastic_max_m": 0.0459, "permanent_max_m": 0.0445},
+                  {"friction": {"sled_pallet": {"static": 0.45, "kinetic": 0.4}},
+                   "mass_scale": 1.0, "hours_since_wrapping": 16.0})
+    facts = Parsed(render(page(Robustness(PassProbability(8, 8), worst, 0.20, 0.2,
+                                          48)))).facts()
+    assert facts["Worst sample"].endswith("passed (below the goal of 0.20: these samples had "
+                                          "only to pass)")
+    assert "the answer's margin in the search's own samples 0.20" in facts["Search"]
+
+
 def test_recommend_shows_the_pass_probability_with_its_interval_and_the_worst_sample():
     worst = Trial(True, 0.41, "short", {"elastic_max_m": 0.0213, "permanent_max_m": 0.0102},
                   {"friction": {"sled_pallet": {"static": 0.45, "kinetic": 0.4}},
@@ -202,8 +215,8 @@ def test_recommend_shows_the_pass_probability_with_its_interval_and_the_worst_sa
     # Wilson 95 % for 7 of 8: centre (0.875 + 1.96²/16) / (1 + 1.96²/8) = 0.753, half width
     # 1.96 / 1.480 * sqrt(0.875 * 0.125 / 8 + 1.96² / 256) = 0.224: 53 % to 98 %
     assert facts["Pass probability"] == "88 % (7 of 8 samples; 95 % interval 53 %–98 %, Wilson)"
-    assert facts["Search"] == ("40 candidate programs; margin of the worst sample 0.45 "
-                               "(goal 0.20)")
+    assert facts["Search"] == ("40 candidate programs; the answer's margin in the search's "
+                               "own samples 0.45 (goal 0.20)")
     assert facts["Worst sample"] == ("short side, margin 0.41, elastic 21.3 mm, permanent "
                                      "10.2 mm, passed")
     assert "sled_pallet 0.450/0.400" in facts["Its draw"]

@@ -597,7 +597,7 @@ def test_ppo_method_answers_from_a_policy_and_verifies_it(load_file, tmp_path, c
                  "--samples", "2", "--workers", "2", "--json", str(out)])
     printed = capsys.readouterr().out
     assert code == 0 and "recommended wrapping program for" in printed
-    assert "nominal margin" in printed and "search margin" not in printed  # nothing searched
+    assert " nominal; 0.20 asked)" in printed and "search's" not in printed  # nothing searched
     result = json.loads(out.read_text())
     assert result["method"] == "ppo" and result["verdict"]["levels"][-1]["passed"]
     assert result["robust_pass_rate"] == 1.0

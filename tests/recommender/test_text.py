@@ -5,10 +5,17 @@ from __future__ import annotations
 
 from dataclasses import replace
 
-from recommender.text import TIGHT_WRAP_HINT, g_text, level_result, verdict_table
+from recommender.text import (
+    TIGHT_WRAP_HINT,
+    g_text,
+    level_result,
+    program_text,
+    verdict_table,
+)
 from wrapenv.bench import BenchRun
 from wrapenv.eumos import LevelVerdict, Verdict
 from wrapenv.load import LoadUnit
+from wrapenv.wrap import WrapFormat
 from wrapenv.wrap_report import WrapReport
 
 
@@ -59,3 +66,18 @@ def test_a_wrapped_run_that_blew_up_points_at_the_wrap_s_squeeze():
         last = verdict_table(unit, BenchRun(Verdict(1.134, (v,)), (), 20), None).splitlines()[-1]
         assert "simulation became unphysical" in last
         assert (TIGHT_WRAP_HINT in last) == hinted
+
+
+def test_a_spiral_step_gives_the_carriage_speed_a_panel_may_ask_for():
+    """A 0.5 m web at 50 % overlap rises 0.25 m a revolution: at 12 rpm the carriage travels
+    0.25 x 12 = 3.0 m/min; at 0 % overlap 6.0 m/min (the machine's fastest, 0.1 m/s)."""
+    layout = LoadUnit.from_toml("examples/pet_2layer_columnar.toml").layout()
+    wrap = WrapFormat.from_toml("examples/program_kraft_default.toml", layout.load_height_m)
+    assert wrap.program is not None and wrap.program.up_overlap == 0.5 and wrap.rpm == 12
+    spiral = next(line for line in program_text(wrap, layout).splitlines()
+                  if "spiral up" in line)
+    assert "at 3.0 m/min" in spiral
+    untouching = WrapFormat.from_program(wrap.material, 0.5, replace(wrap.program,
+                                                                     up_overlap=0.0),
+                                         layout.load_height_m)
+    assert "at 6.0 m/min" in program_text(untouching, layout)
