@@ -6,7 +6,7 @@ from __future__ import annotations
 from wrapenv.bench import BenchRun
 from wrapenv.calibrated import Calibration
 from wrapenv.config import printable
-from wrapenv.eumos import EUMOS_CRITERIA, LevelVerdict, Verdict
+from wrapenv.eumos import EUMOS_CRITERIA, NO_DAMAGE, LevelVerdict, Verdict
 from wrapenv.load import Layout, LoadUnit, Orientation
 from wrapenv.material import NO_RELAXATION, Material
 from wrapenv.program import Pass, Program
@@ -45,9 +45,18 @@ def g_text(level_g: float) -> str:
     return f"{level_g:.2f}" if abs(level_g - round(level_g, 2)) < 1e-9 else f"{level_g:.3f}"
 
 
+def _criterion_name(v: LevelVerdict, key: str) -> str:
+    """A failed criterion as the limits line above the table names it ("permanent max"), not
+    by its JSON key ("permanent_5pct")."""
+    if key == NO_DAMAGE:
+        return "damage"
+    named = {c.key: c.label.lower().replace(", ", " ") for c in v.limits.criteria()}
+    return named.get(key, key)
+
+
 def _row(verdict: Verdict, v: LevelVerdict, height_m: float) -> str:
     result = level_result(verdict, v)
-    failed = [k for k, ok in v.criteria.items() if not ok]
+    failed = [_criterion_name(v, k) for k, ok in v.criteria.items() if not ok]
     ended = [why for why in (v.stopped_early, v.not_at_rest) if why]
     note = v.invalid_reason or ", ".join(failed + ended)
     damage = f"; {len(v.damage)} damaged: {', '.join(v.damage[:4])}" if v.damage else ""

@@ -54,7 +54,7 @@ def test_a_level_that_ended_before_rest_says_why_on_its_line():
     table = verdict_table(unit, BenchRun(Verdict(1.134, (fell,)), (), 20), None)
     row = table.splitlines()[-2]
     assert row.lstrip().startswith("0.30 g  FAIL")
-    assert row.endswith("no_damage, L3C1R3 fell off the sled; 1 damaged: L3C1R3 fallen")
+    assert row.endswith("damage, L3C1R3 fell off the sled; 1 damaged: L3C1R3 fallen")
 
 
 def test_a_wrapped_run_that_blew_up_points_at_the_wrap_s_squeeze():
@@ -81,3 +81,11 @@ def test_a_spiral_step_gives_the_carriage_speed_a_panel_may_ask_for():
                                                                      up_overlap=0.0),
                                          layout.load_height_m)
     assert "at 6.0 m/min" in program_text(untouching, layout)
+
+
+def test_a_failed_level_names_its_criteria_as_the_limits_line_does():
+    failed = replace(level(False), criteria={"elastic_10pct": True, "permanent_5pct": False,
+                                             "low20_4cm": False, "no_damage": True})
+    row = verdict_table(LoadUnit.from_toml("examples/pet_2layer_columnar.toml"),
+                        BenchRun(Verdict(0.804, (failed,)), (), 20), None).splitlines()[-2]
+    assert row.endswith("permanent max, lowest 20 cm permanent")
