@@ -38,9 +38,9 @@ LAYER_COLOURS = tuple(colormaps["tab10"](i) for i in (0, 2, 4, 5, 6, 7, 8, 9))
 def plot_displacements(run: BenchRun, title: str = "") -> bytes:
     """One panel per level: each bundle's displacement in the pallet frame against time, from
     where it stood when the level began, coloured by layer, the bundle of the highest peak named,
-    with the elastic and permanent limits; after the first level of a cumulative sequence the
-    title adds the permanent displacement since the unit was put on the sled (what the
-    permanent limit judges)."""
+    with the elastic limit, and the permanent one where the level began where the unit was put
+    on the sled; in a cumulative sequence the title adds the permanent displacement since then
+    (what the permanent limit judges), and in its later levels that limit."""
     n = len(run.traces)
     fig = Figure(figsize=(9, 2.8 * n + 0.6), layout="constrained")
     axes = fig.subplots(n, 1, squeeze=False, sharex=True)
@@ -53,10 +53,17 @@ def plot_displacements(run: BenchRun, title: str = "") -> bytes:
     return _png(fig)
 
 
+#: A level whose bundles began further than this from where the unit was put on the sled is
+#: a later one of a cumulative sequence (0.1 mm: far above rounding, far below any figure).
+MOVED_BEFORE_M = 1e-4
+
+
 def plot_level(ax: Axes, trace: Trace, verdict: LevelVerdict, height_m: float) -> None:
     """A level's panel: a unit has dozens of bundles, too many to tell apart by colour, so
     the legend names the layers and the one bundle whose displacement peaked highest (the
-    elastic figure's; the permanent one may be another's)."""
+    elastic figure's; the permanent one may be another's). A later level of a cumulative
+    sequence draws no permanent limit over its own displacements: its title gives the
+    permanent displacement since the unit was put on the sled, and that limit."""
     disp_mm = trace.bundle_displacement_m() * 1000
     layers = trace.layers if trace.layers is not None else np.ones(len(trace.names), int)
     for layer in np.unique(layers):
@@ -67,12 +74,18 @@ def plot_level(ax: Axes, trace: Trace, verdict: LevelVerdict, height_m: float) -
     most = int(np.argmax(disp_mm.max(axis=0)))
     ax.plot(trace.t_s, disp_mm[:, most], lw=1.6, color="black",
             label=f"{trace.names[most]}, highest peak")
+    # a later level of a cumulative sequence starts displaced: its own curves, from where the
+    # level began, are not what the permanent limit judges, so the title gives that figure
+    later = trace.moved_before_m() > MOVED_BEFORE_M
     for c, line in ((ELASTIC, "red"), (PERMANENT, "orange")):
+        if c is PERMANENT and later:
+            continue
         ax.axhline(c.limit_m(height_m) * 1000, color=line, ls="--",
                    label=f"{c.label.split()[0].lower()} limit ({100 * c.limit:g} % of height)")
     result = "PASS" if verdict.passed else ("INVALID" if not verdict.valid else "FAIL")
     total_m = verdict.permanent_total_max_m
-    total = (f", permanent since put on the sled {1000 * total_m:.1f} mm"
+    limit = f" (limit {1000 * PERMANENT.limit_m(height_m):.1f} mm)" if later else ""
+    total = (f", permanent since put on the sled {1000 * total_m:.1f} mm{limit}"
              if trace.origin_m is not None and total_m is not None else "")
     ax.set_title(f"{verdict.level_g:.2f} g: {result}{total}", fontsize=10)
     ax.set_ylabel("displacement [mm]")

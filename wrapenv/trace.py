@@ -74,6 +74,14 @@ class Trace:
     def _end_in_pallet(self) -> np.ndarray:
         return in_pallet_frame(self.pallet_pos[-1], self.pallet_rot[-1], self.bundle_pos[-1])
 
+    def moved_before_m(self) -> float:
+        """How far the bundle that had moved most stood, when this level began, from where
+        the unit was put on the sled (0: a first level): what a later level of a cumulative
+        sequence adds to its own displacements before the permanent limit judges them."""
+        start = in_pallet_frame(self.pallet_pos[0], self.pallet_rot[0], self.bundle_pos[0])
+        moved = (start - self.origin())[:, :2]
+        return float(np.linalg.norm(moved, axis=1).max(initial=0.0))
+
     def origin(self) -> np.ndarray:
         """(n, 3) bundle centres in the pallet's frame when the unit was first put on the sled."""
         if self.origin_m is not None:

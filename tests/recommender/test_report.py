@@ -7,8 +7,11 @@ from __future__ import annotations
 import os
 import subprocess
 import sys
+from dataclasses import replace
+from typing import Any
 
 import numpy as np
+import pytest
 from matplotlib.figure import Figure
 
 from recommender.report import plot_level
@@ -30,11 +33,14 @@ def three_bundles(moved_m: list[float]) -> Trace:
 
 
 def legend_of(trace: Trace) -> list[str]:
+    return [text.get_text() for text in panel(trace).get_legend().get_texts()]
+
+
+def panel(trace: Trace) -> Any:
     ax = Figure().subplots()
     plot_level(ax, trace, evaluate(trace), trace.load_height_m)
-    legend = ax.get_legend()
-    assert legend is not None
-    return [text.get_text() for text in legend.get_texts()]
+    assert ax.get_legend() is not None
+    return ax
 
 
 def test_the_legend_names_each_layer_once_and_the_bundle_that_moved_most():
@@ -45,6 +51,22 @@ def test_the_legend_names_each_layer_once_and_the_bundle_that_moved_most():
 
 def test_the_bundle_that_moved_most_is_judged_by_its_largest_displacement():
     assert "L2C1R1, highest peak" in legend_of(three_bundles([0.004, 0.010, -0.050]))
+
+
+def test_a_later_level_of_a_sequence_gives_the_permanent_limit_in_its_title_not_as_a_line():
+    """The unit had moved 30 mm in earlier levels and moves 20 mm more: 50 mm since it was put
+    on the sled, past the 40 mm limit (5 % of 0.8 m), while its own curve stays under 40 mm;
+    a line at 40 mm over that curve would read as a pass."""
+    level = three_bundles([0.004, 0.020, 0.010])
+    origin = level.bundle_pos[0] - np.array([0.030, 0.0, 0.0])
+    later = replace(level, origin_m=origin)
+    assert later.moved_before_m() == pytest.approx(0.030)
+    assert "permanent limit (5 % of height)" not in legend_of(later)
+    assert panel(later).get_title().endswith(
+        "FAIL, permanent since put on the sled 50.0 mm (limit 40.0 mm)")
+    first = replace(level, origin_m=level.bundle_pos[0])
+    assert "permanent limit (5 % of height)" in legend_of(first)
+    assert "(limit" not in panel(first).get_title()
 
 
 def test_importing_the_reports_leaves_the_callers_matplotlib_backend_alone():
