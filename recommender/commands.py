@@ -91,15 +91,18 @@ def _web(args: argparse.Namespace) -> Web:
     return Web.from_toml(args.web)
 
 
-def warn(command: str, messages: tuple[str, ...]) -> None:
+def warn(command: str, messages: tuple[str, ...], said: list[str] | None = None) -> None:
+    """Each message on stderr, and into `said` for the report (which repeats what was said)."""
     for message in messages:
         sys.stderr.write(f"wrapbench {command}: warning: {message}\n")
+    if said is not None:
+        said.extend(messages)
 
 
-def read_calibration(path: Path, command: str) -> Calibration:
+def read_calibration(path: Path, command: str, said: list[str] | None = None) -> Calibration:
     """CAL.json, with what its user should know said once (a fit accepted knowingly)."""
     calibration = Calibration.from_json(path)
-    warn(command, calibration.warnings())
+    warn(command, calibration.warnings(), said)
     return calibration
 
 
@@ -263,7 +266,9 @@ def run_recommend(args: argparse.Namespace) -> int:
     from recommender.search import RobustSearch
 
     load = LoadUnit.from_toml(args.load)
-    calibration = read_calibration(args.calibration, "recommend") if args.calibration else None
+    said: list[str] = []
+    calibration = (read_calibration(args.calibration, "recommend", said) if args.calibration
+                   else None)
     settings = _settings(args)
     _check_flags(args)
     checkpoint = _check_outputs(args)
@@ -271,7 +276,7 @@ def run_recommend(args: argparse.Namespace) -> int:
     samples = max(8, args.samples)
     if args.method == "ppo":
         t0 = time.perf_counter()
-        best, check = _propose_with_policy(args, problem, samples)
+        best, check = _propose_with_policy(args, problem, samples, said)
         refused = _refused_proposal(problem, best, check)
         _print_recommendation(problem, best, check, recommended=not refused,
                               margin_of="nominal")   # no search: the proposal's own runs
@@ -280,7 +285,7 @@ def run_recommend(args: argparse.Namespace) -> int:
             print(f"the policy's proposal {refused}: nothing written; search with --method "
                   f"cmaes")
             return 1
-        _write_outputs(args, problem, best, check, 1, state=None)
+        _write_outputs(args, problem, best, check, 1, None, said)
         return 0
     search = RobustSearch(problem, checkpoint)
     state = search.resume() if args.resume else search.start()
@@ -303,7 +308,7 @@ def run_recommend(args: argparse.Namespace) -> int:
     print(f"searched {len(state.history)} candidates ({simulations} simulations) in "
           f"{time.perf_counter() - t0:.0f} s ({args.workers} workers, {args.backend})")
     try:
-        _write_outputs(args, problem, best, check, simulations, state=state)
+        _write_outputs(args, problem, best, check, simulations, state, said)
     except KeyboardInterrupt as exc:
         if checkpoint is not None:
             exc.add_note(f"interrupted: --json and --wrap-out not written; the search is "
@@ -376,8 +381,8 @@ def _verified(problem: Problem, state: SearchState, samples: int,
     return None
 
 
-def _propose_with_policy(args: argparse.Namespace, problem: Problem,
-                         samples: int) -> tuple[Evaluation, Verification]:
+def _propose_with_policy(args: argparse.Namespace, problem: Problem, samples: int,
+                         said: list[str]) -> tuple[Evaluation, Verification]:
     """A trained policy's program for this unit, answered at once, then verified."""
     from recommender.policy import load_policy, propose, read_meta
     from recommender.search import verify
@@ -395,12 +400,12 @@ def _propose_with_policy(args: argparse.Namespace, problem: Problem,
     if isinstance(trained_g, int | float) and abs(trained_g - target_g) > 1e-9:
         warn("recommend", (f"the policy was trained for {trained_g:g} g and is asked for "
                            f"{target_g:g} g (the target is one of its observations): its "
-                           "proposal is an extrapolation, verified as given",))
+                           "proposal is an extrapolation, verified as given",), said)
     if meta.get("calibrated", False) != (calibration is not None):
         warn("recommend", ("the policy was trained " + ("without a calibration, and --calibration "
                            "is given" if calibration else "with a calibration, and none is given")
                            + ": it observes this unit's uncertainty unlike in training; its "
-                           "proposal is verified as given",))
+                           "proposal is verified as given",), said)
     load = LoadUnit.from_toml(args.load)
     # the unit as the policy observes it (calibration applied), against the units it was
     # trained on: about the calibration's friction only if it was trained with one
@@ -410,7 +415,7 @@ def _propose_with_policy(args: argparse.Namespace, problem: Problem,
     if unseen:
         warn("recommend", ("this unit lies outside the random units the policy was trained on ("
                            + "; ".join(unseen) + "): its proposal is an extrapolation, verified "
-                           "as given",))
+                           "as given",), said)
     wrap = propose(model, load, problem.settings.web.material_key,
                    problem.settings.target_g, calibration)
     check = verify(problem, wrap, samples, workers=args.workers)
@@ -468,11 +473,12 @@ def _print_recommendation(problem: Problem, best: Evaluation, check: Verificatio
 
 
 def _write_outputs(args: argparse.Namespace, problem: Problem, best: Evaluation,
-                   check: Verification, evaluations: int, state: SearchState | None) -> None:
+                   check: Verification, evaluations: int, state: SearchState | None,
+                   said: list[str]) -> None:
     """The report first (the slowest to make; nothing of it shows until it is whole), then
     --json and --wrap-out together: an interrupt leaves the report at most."""
     if args.report:
-        _write_report(args, problem, check, best, state)
+        _write_report(args, problem, check, best, state, said)
     candidates = None if state is None else len(state.history)
     files = {}
     if args.json:
@@ -497,11 +503,11 @@ def _write_outputs(args: argparse.Namespace, problem: Problem, best: Evaluation,
 
 
 def _write_report(args: argparse.Namespace, problem: Problem, check: Verification,
-                  best: Evaluation, state: SearchState | None) -> None:
+                  best: Evaluation, state: SearchState | None, said: list[str]) -> None:
     """report.html and its files (state None: a policy's proposal, no search)."""
     given = {"load unit": args.load, "calibration": args.calibration, "policy": args.policy}
     write_report(args.report, lambda stage: recommend_page(stage, problem, check, best, state,
-                                                           given))
+                                                           given, tuple(said)))
 
 
 # --- train -------------------------------------------------------------------------------------

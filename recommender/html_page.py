@@ -71,6 +71,9 @@ class Page:
     figures: tuple[Figure, ...]
     video_still: bytes | None  # None: no video
     robustness: Robustness | None = None
+    #: What the command warned about on stderr (a web that does not close, a calibration
+    #: accepted knowingly, a policy's extrapolation): a page handed on must say it too.
+    warnings: tuple[str, ...] = ()
 
 
 def _t(text: object, limit: int = 300) -> str:
@@ -282,11 +285,19 @@ def _video_section(still: bytes | None) -> str:
             f"</figcaption></figure></section>\n")
 
 
+def _warnings_section(warnings: tuple[str, ...]) -> str:
+    if not warnings:
+        return ""
+    items = "".join(f"<li>{_t(w, 1000)}</li>" for w in warnings)
+    return f'<section class="warnings"><h2>Warnings</h2><ul>{items}</ul></section>\n'
+
+
 def render(page: Page) -> str:
     """The page as HTML text."""
     inputs = "".join(f"<li>{_t(what)}: <code>{_t(name)}</code></li>" for what, name in page.inputs)
     tested = "".join(_levels_section(t) for t in page.tested)
     robust = _robust_section(page.robustness) if page.robustness is not None else ""
+    warned = _warnings_section(page.warnings)
     return f"""<!DOCTYPE html>
 <html lang="en"><head><meta charset="utf-8">
 <meta name="viewport" content="width=device-width, initial-scale=1">
@@ -296,7 +307,7 @@ def render(page: Page) -> str:
 <p class="name">{_t(page.load.name)}</p>
 <p class="note">EUMOS 40509 test on the virtual ESTL acceleration bench of wrapbench
 {_t(__version__)}: a simulation, not a physical test. Inputs:</p><ul>{inputs}</ul></header>
-{_verdict(page)}{robust}{_load_section(page.load, page.tested[0].layout)}
+{_verdict(page)}{warned}{robust}{_load_section(page.load, page.tested[0].layout)}
 {_wrap_section(page.wrap, page.tested[0].layout, page.hours_since_wrapping)}
 <section><h2>EUMOS 40509 levels</h2>{tested}</section>
 {_figures_section(page.figures)}{_video_section(page.video_still)}

@@ -71,21 +71,23 @@ def _video(run: BenchRun, layout: Layout, wrap: WrapFormat | None, stage: Path) 
 
 def simulate_page(stage: Path, load: LoadUnit, run: BenchRun, laid: WrapFormat | None,
                   simulated: WrapFormat | None, orientation: Orientation | None, hours: float,
-                  inputs: Mapping[str, Path | None]) -> Page:
+                  inputs: Mapping[str, Path | None], warnings: tuple[str, ...] = ()) -> Page:
     """`simulate --report`: the levels run, the wrap as entered (`laid`) and as simulated
-    (calibrated, relaxed) for the video."""
+    (calibrated, relaxed) for the video, and the warnings the command gave."""
     layout = load.layout(orientation)
     figures = (_displacement(run, stage, load.name, "the levels in the table above"),
                _tension_map(run, layout, stage, load.name))
     return Page("Bench test report", load, (OrientationRun(orientation, layout, run),), laid, hours,
-                _inputs(inputs), figures, _video(run, layout, simulated, stage))
+                _inputs(inputs), figures, _video(run, layout, simulated, stage),
+                warnings=warnings)
 
 
 def recommend_page(stage: Path, problem: Problem, check: Verification, best: Evaluation,
-                   state: SearchState | None, inputs: Mapping[str, Path | None]) -> Page:
+                   state: SearchState | None, inputs: Mapping[str, Path | None],
+                   warnings: tuple[str, ...] = ()) -> Page:
     """`recommend --report`: the verified EUMOS sequence of every orientation, how sure the
     recommendation is, the search (none for a policy's proposal); the figures and the video of
-    the weakest orientation."""
+    the weakest orientation; the warnings the command gave."""
     from recommender.report import plot_search
 
     s, load, weakest = problem.settings, problem.load, check.weakest
@@ -105,7 +107,7 @@ def recommend_page(stage: Path, problem: Problem, check: Verification, best: Eva
                         None if state is None else len(state.history))
     return Page("Recommended wrapping program", load, tested, best.wrap,
                 s.hours_since_wrapping, _inputs(inputs), figures,
-                _video(run, layout, problem.simulated(best.wrap), stage), robust)
+                _video(run, layout, problem.simulated(best.wrap), stage), robust, warnings)
 
 
 def check_report_folder(folder: Path, inputs: Iterable[str | Path], flag: str = "--report") -> None:

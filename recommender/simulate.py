@@ -78,13 +78,13 @@ class _Inputs:
     calibration: Calibration | None
 
 
-def _inputs(args: argparse.Namespace) -> _Inputs:
+def _inputs(args: argparse.Namespace, said: list[str]) -> _Inputs:
     load = LoadUnit.from_toml(args.load)
     layout = load.layout(args.orientation)
     laid = WrapFormat.from_toml(args.wrap, layout.load_height_m) if args.wrap else None
     wrap, calibration = laid, None
     if args.calibration:
-        calibration = read_calibration(args.calibration, "simulate")
+        calibration = read_calibration(args.calibration, "simulate", said)
         load = calibration.apply(load)
         if wrap is not None:
             wrap = wrap.scaled(calibration.stiffness_scale, calibration.tension_scale)
@@ -113,14 +113,15 @@ def _check_outputs(args: argparse.Namespace, wrapped: bool) -> None:
 
 
 def run_simulate(args: argparse.Namespace) -> int:
-    given = _inputs(args)
+    said: list[str] = []
+    given = _inputs(args, said)
     load, layout, laid, wrap = given.load, given.layout, given.laid, given.wrap
     _check_outputs(args, wrap is not None)
     levels = _levels(args)
     warn("simulate", tuple(w for p in levels if isinstance(p, MeasuredProfile)
-                           for w in p.warnings()))
+                           for w in p.warnings()), said)
     if laid is not None:
-        warn("simulate", laid.warnings(layout))
+        warn("simulate", laid.warnings(layout), said)
     limits = criteria_limits(args)
     stop = not args.level and not args.profile
     with tqdm(total=len(levels), desc="levels", unit="level", file=sys.stderr,
@@ -139,7 +140,8 @@ def run_simulate(args: argparse.Namespace) -> int:
         named = {"load unit": args.load, "wrap": args.wrap, "calibration": args.calibration,
                  "sled profile": args.profile}
         write_report(args.report, lambda stage: simulate_page(
-            stage, load, run, laid, wrap, args.orientation, args.hours_since_wrapping, named))
+            stage, load, run, laid, wrap, args.orientation, args.hours_since_wrapping, named,
+            tuple(said)))
     files = {}
     if args.json:
         files[Path(args.json)] = _json(args, given, run)

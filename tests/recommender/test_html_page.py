@@ -224,3 +224,13 @@ def test_recommend_shows_the_pass_probability_with_its_interval_and_the_worst_sa
     policy = Robustness(PassProbability(8, 8), worst, 0.45, 0.2, None)
     assert Parsed(render(page(policy))).facts()["Search"] == ("a trained policy's proposal, "
                                                               "verified in simulation")
+
+
+def test_what_the_command_warned_about_is_on_the_page_too():
+    """A page is handed on without the terminal it was made in: a warning given on stderr (a
+    web that does not close round the load) must be on it, escaped like any user text."""
+    said = ("the web does not close round the load from 0.13 to 0.22 m <b>",)
+    html = render(page(warnings=said))
+    assert ("section", {"class": "warnings"}) in Parsed(html).tags
+    assert "the web does not close round the load from 0.13 to 0.22 m &lt;b&gt;" in html
+    assert 'class="warnings"' not in render(page())

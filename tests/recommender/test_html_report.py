@@ -249,6 +249,22 @@ def simulated_report(tmp_path_factory) -> Path:
     return folder / "report"
 
 
+def test_a_simulate_report_repeats_the_warnings_given_on_stderr(tmp_path, capsys):
+    """The bundled film program leaves the web open above its rope (README: `simulate` warns);
+    the page handed on says so as the terminal did."""
+    code = main(["simulate", "examples/pet_2layer_columnar.toml", "--wrap",
+                 "examples/program_lldpe_reinforced.toml", "--level", "0.2",
+                 "--report", str(tmp_path / "report")])
+    warned = [line.split("warning: ", 1)[1] for line in capsys.readouterr().err.splitlines()
+              if "warning: " in line]
+    assert code == 0 and any("does not close round the load" in w for w in warned)
+    page = (tmp_path / "report" / PAGE).read_text()
+    section = re.search(r'<section class="warnings">(.*?)</section>', page)
+    assert section is not None
+    assert re.findall(r"<li>(.*?)</li>", section.group(1)) == [
+        w.replace("'", "&#x27;") for w in warned]
+
+
 def test_simulate_report_writes_the_page_its_figures_and_both_videos(simulated_report):
     names = sorted(p.name for p in simulated_report.iterdir())
     assert names == ["displacement.png", PAGE, "tension_map.png", "test.mp4", "test.webm"]
