@@ -442,17 +442,15 @@ def _refused_proposal(problem: Problem, best: Evaluation, check: Verification) -
 
 def _margins_text(goal: float, best: Evaluation, check: Verification, margin_of: str) -> str:
     """The margins behind an answer, told apart: the worst of these samples' (which only had
-    to pass), the search's own samples' (or the proposal's nominal run) and the one asked."""
+    to pass), the one it was chosen by (`margin_of`: the search's own samples', or a
+    proposal's nominal run) and the one asked."""
     worst = "" if check.worst is None else f"margin {check.worst.margin:.2f} in the worst sample, "
-    return f"{worst}{best.margin:.2f} {_OF[margin_of]}; {goal:.2f} asked"
-
-
-#: How `_margins_text` names the margin an answer was chosen by.
-_OF = {"search": "in the search's", "nominal": "nominal"}
+    return f"{worst}{best.margin:.2f} {margin_of}; {goal:.2f} asked"
 
 
 def _print_recommendation(problem: Problem, best: Evaluation, check: Verification,
-                          recommended: bool = True, margin_of: str = "search") -> None:
+                          recommended: bool = True, margin_of: str = "in the search's"
+                          ) -> None:
     s, p = problem.settings, check.probability
     low, high = p.interval
     head = "recommended wrapping program" if recommended else "the policy's proposal"
