@@ -65,7 +65,7 @@ class Page:
     heading: str
     load: LoadUnit
     tested: tuple[OrientationRun, ...]
-    wrap: WrapFormat | None  # as the operator enters it (None: unwrapped)
+    wrap: WrapFormat | None  # as given or recommended, before relaxation (None: unwrapped)
     hours_since_wrapping: float
     inputs: tuple[tuple[str, str], ...]  # (what, file name)
     figures: tuple[Figure, ...]
@@ -148,7 +148,8 @@ def _wrap_section(wrap: WrapFormat | None, layout: Layout, hours: float) -> str:
     if wrap is None:
         return "<section><h2>Wrap</h2><p>None: the unit was tested unwrapped.</p></section>\n"
     used, m, cycle = wrap.material_used_on(layout), wrap.machine, wrap.cycle_time_s
-    what = "The program as the operator enters it" if wrap.program is not None else "The bands"
+    what = ("The program as WRAP.toml's [program] holds it" if wrap.program is not None
+            else "The bands")
     facts = [("Material", f"{_t(wrap.material.name)} ({_t(wrap.material_key)}), web "
                           f"{wrap.web_width_m:.2f} m"),
              ("Machine", f"{wrap.rpm:g} rpm, carriage up to {m.carriage_speed_mps:.2f} m/s, "
