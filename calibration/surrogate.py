@@ -290,7 +290,7 @@ def surrogate(evaluate: Evaluate, p: int, points: int, seed: int,
         else:
             z = (np.array([us[i] for i in inside]) - mid) / scale
             em = Emulator(z, np.array([rs[i] for i in inside]))
-            starts = [np.zeros(p)] + [z[i] for i in _best(em, z, rs, inside, STARTS - 1)]
+            starts = [np.zeros(p)] + [z[i] for i in _best(em, rs, inside, STARTS - 1)]
             z_hat = _solve(em, -np.ones(p), np.ones(p), starts)
             cov = _covariance(em, z_hat) * np.outer(scale, scale)
             u_hat = mid + scale * z_hat
@@ -347,8 +347,8 @@ def _box(centre: np.ndarray, half: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return c - half, c + half
 
 
-def _best(em: Emulator, z: np.ndarray, rs: Sequence[np.ndarray], inside: Sequence[int],
-          n: int) -> list[int]:
-    """Indices (into z) of the n replays with the smallest weighted residual."""
+def _best(em: Emulator, rs: Sequence[np.ndarray], inside: Sequence[int], n: int) -> list[int]:
+    """Positions in `inside` (the emulator's points, in order) of the n replays with the
+    smallest weighted residual."""
     cost = [float(np.sum((rs[i] / em.sigma) ** 2)) for i in inside]
     return [int(i) for i in np.argsort(cost)[:n]]

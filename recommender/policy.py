@@ -235,8 +235,10 @@ def train(settings: TrainSettings, out_dir: Path, resume: bool = False) -> Path:
     done = start[1] if start else 0
     meta = policy_meta(settings)
     trusted = _trusted_objects() if start else {}
+    # the checkpoint read once: what is checked is what is loaded
+    resumed = _read(start[0]) if start else b""
     if start:
-        _check_resumable(start[0], meta, trusted)   # before any env process starts
+        _check_resumable(start[0], resumed, meta, trusted)   # before any env process starts
     # The policy is a small MLP: one thread avoids oversubscribing the cores the env workers
     # simulate on (and thread start-up costs more than it saves on a 64-unit layer).
     with contextlib.ExitStack() as cleanup:  # undone in reverse, also when a step fails
@@ -252,7 +254,7 @@ def train(settings: TrainSettings, out_dir: Path, resume: bool = False) -> Path:
         cleanup.callback(close_envs, vec_env)
         log = EpisodeLog(out_dir / LOG_FILE, kept=done if start else None)
         cleanup.callback(log.close)
-        model = (_load(start[0], trusted, vec_env) if start else
+        model = (_load(start[0], resumed, trusted, vec_env) if start else
                  PPO("MlpPolicy", vec_env, n_steps=settings.n_steps,
                      batch_size=settings.batch_size, learning_rate=settings.learning_rate,
                      seed=settings.seed, device="cpu", verbose=0))
@@ -365,10 +367,20 @@ def _constant(value: float) -> Any:
     return lambda _progress: value
 
 
-def read_meta(path: Path) -> dict[str, Any]:
-    """The policy's `POLICY_META`, or a one-line error for anything else."""
+def _read(path: Path) -> bytes:
+    """A policy file's bytes, read once: it is checked and loaded from these, so a file
+    replaced in between is never loaded unchecked."""
     try:
-        with zipfile.ZipFile(path) as archive:
+        return Path(path).read_bytes()
+    except OSError as exc:
+        raise InputError(str(path), "policy", f"cannot be read ({exc.strerror})") from None
+
+
+def read_meta(path: Path, content: bytes | None = None) -> dict[str, Any]:
+    """The policy's `POLICY_META` (from `content`, the file's bytes, when given), or a
+    one-line error for anything else."""
+    try:
+        with zipfile.ZipFile(io.BytesIO(_read(path) if content is None else content)) as archive:
             meta = json.loads(archive.read(POLICY_META))
             data = json.loads(archive.read("data"))
     except (OSError, zipfile.BadZipFile, KeyError, ValueError) as exc:
@@ -404,13 +416,16 @@ def load_policy(policy_path: Path, material: str | None = None) -> PPO:
     """The trained policy, on the CPU, if it was trained for this bench (and `material`)."""
     path = Path(policy_path)
     trusted = _trusted_objects()
-    _check_meta(path, read_meta(path), material, trusted)
-    return _load(path, trusted)
+    content = _read(path)
+    _check_meta(path, read_meta(path, content), material, trusted)
+    return _load(path, content, trusted)
 
 
-def _check_resumable(path: Path, meta: dict[str, Any], trusted: dict[str, Any]) -> None:
-    """A run's checkpoint, if it was trained as `meta` says, or a one-line error."""
-    found = read_meta(path)
+def _check_resumable(path: Path, content: bytes, meta: dict[str, Any],
+                     trusted: dict[str, Any]) -> None:
+    """A run's checkpoint (`content`, its bytes), if it was trained as `meta` says, or a
+    one-line error."""
+    found = read_meta(path, content)
     _check_meta(path, found, meta["material"], trusted)
     for key in ("target_g", "calibrated"):
         if found.get(key) != meta[key]:
@@ -454,10 +469,11 @@ def _check_card(path: Path, meta: dict[str, Any]) -> None:
                          f"{name} card's figures of another version of wrapbench: train a new one")
 
 
-def _load(path: Path, trusted: dict[str, Any], env: Any = None) -> PPO:
-    """The policy file's weights (and optimizer state), nothing unpickled from it."""
+def _load(path: Path, content: bytes, trusted: dict[str, Any], env: Any = None) -> PPO:
+    """The policy file's weights (and optimizer state) from its checked bytes, nothing
+    unpickled from them."""
     try:
-        model = PPO.load(path, env=env, device="cpu", custom_objects=trusted)
+        model = PPO.load(io.BytesIO(content), env=env, device="cpu", custom_objects=trusted)
     except (OSError, ValueError, KeyError, RuntimeError, TypeError, AttributeError) as exc:
         raise InputError(str(path), "policy", f"cannot be loaded ({exc})") from None
     if not all(bool(p.isfinite().all()) for p in model.policy.parameters()):

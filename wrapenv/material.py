@@ -188,8 +188,6 @@ MATERIALS: dict[str, Material] = {
         # layers cling (interlayer_friction None) and the clung tail holds as the film (P5)
     ),
 }
-#: Web tension per layer for a 0.5 m web, newtons: [A] P4 (paper), [S] L4 (film).
-DEFAULT_TENSION_N: dict[str, float] = {"kraft": 250.0, "lldpe": 70.0}
 
 
 def custom_material(t: Table) -> Material:

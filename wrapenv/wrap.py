@@ -23,7 +23,6 @@ import tomli_w
 from wrapenv.config import InputError, Table, read_toml
 from wrapenv.load import Layout
 from wrapenv.material import (
-    DEFAULT_TENSION_N,
     MATERIALS,
     Material,
     check_tension,
@@ -49,7 +48,7 @@ from wrapenv.program_table import (
     program_to_dict,
 )
 
-__all__ = ["DEFAULT_TENSION_N", "MATERIALS", "Band", "Material", "MaterialUsed", "Program",
+__all__ = ["MATERIALS", "Band", "Material", "MaterialUsed", "Program",
            "Web", "WrapFormat", "program_to_dict"]
 
 #: Largest web width accepted; machine webs are 0.5 m, wide paper rolls about 1 m.

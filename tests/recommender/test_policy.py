@@ -11,6 +11,7 @@ each on one core, so the fast training test runs only 8 timesteps (about 20-30 s
 from __future__ import annotations
 
 import csv
+import io
 import json
 import tempfile
 import time
@@ -299,6 +300,23 @@ def test_recommend_refuses_such_a_policy_before_warning_about_its_proposal(train
                  "--policy", str(v1)]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "env_id" in err[0], err
+
+
+def test_a_policy_file_is_read_once_and_loaded_from_the_bytes_that_were_checked(
+        trained, monkeypatch):
+    """Checked from one read and loaded from another, a file replaced in between would be
+    loaded unchecked."""
+    path, _ = trained
+    reads: list[Path] = []
+    read = recommender.policy._read
+    monkeypatch.setattr(recommender.policy, "_read", lambda p: reads.append(p) or read(p))
+    given: list[object] = []
+    load = recommender.policy.PPO.load
+    monkeypatch.setattr(recommender.policy.PPO, "load",
+                        lambda source, **kw: given.append(source) or load(source, **kw))
+    load_policy(path)
+    assert reads == [path] and len(given) == 1 and isinstance(given[0], io.BytesIO)
+    assert given[0].getvalue() == path.read_bytes()
 
 
 def test_a_policy_is_loaded_without_unpickling_what_the_file_holds(trained, tmp_path):

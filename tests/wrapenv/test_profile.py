@@ -177,7 +177,8 @@ def test_eumos_levels_end_at_a_target_between_steps():
 
 def test_eumos_levels_every_level_can_be_run():
     for level in eumos_levels(1.0):
-        PulseProfile(level)
+        peak = PulseProfile(level).peak_mps2
+        assert peak == pytest.approx(level * 9.81) and peak <= 10.0
 
 
 @pytest.mark.parametrize("target", [2.0, 1.1, 0.0, -0.5, math.nan])

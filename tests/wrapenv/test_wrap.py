@@ -16,7 +16,6 @@ from wrapenv.load import LoadUnit
 from wrapenv.material import FILM_RELAXATION
 from wrapenv.program import Machine, Outline
 from wrapenv.wrap import (
-    DEFAULT_TENSION_N,
     MATERIALS,
     Band,
     Material,
@@ -62,10 +61,6 @@ def test_lldpe_card_is_the_applied_film_of_section_2b():
     assert film.yield_force_n_per_m == pytest.approx(375.0)
     assert film.break_force_n_per_m == pytest.approx(1300.0)
     assert film.cd_ratio == 0.5
-
-
-def test_default_tensions_are_the_cards_per_layer_web_tensions():
-    assert DEFAULT_TENSION_N == {"kraft": 250.0, "lldpe": 70.0}
 
 
 # --- examples ------------------------------------------------------------------------------
