@@ -111,8 +111,8 @@ def case(load: LoadUnit, wrap: WrapFormat | None, level_g: float,
     t0 = time.process_time()
     trace = run_level(load.layout(), PulseProfile(level_g), settings or SimSettings(), wrap=wrap)
     cpu = time.process_time() - t0
-    dx = trace.bundle_pos[-1, :, 0] - trace.bundle_pos[0, :, 0]
-    rise = trace.bundle_pos[:, :, 2] - trace.bundle_pos[0, :, 2]
+    dx = trace.bundle_pos_m[-1, :, 0] - trace.bundle_pos_m[0, :, 0]
+    rise = trace.bundle_pos_m[:, :, 2] - trace.bundle_pos_m[0, :, 2]
     if not trace.valid:
         return cpu, f"invalid: {trace.invalid_reason}"
     return cpu, (f"{1e3 * np.max(np.abs(dx)):.1f} mm, a bundle rose {1e3 * np.max(rise):.1f} mm"

@@ -77,7 +77,7 @@ def slip_error(settings: SimSettings) -> str:
     tr = run_level(load.layout(), p, settings)
     if tr.stopped_early:
         return "stopped once decided"
-    rel = tr.bundle_pos[:, 0, 0] - tr.pallet_pos[:, 0]
+    rel = tr.bundle_pos_m[:, 0, 0] - tr.pallet_pos_m[:, 0]
     a, mk, d = 0.6 * G, 0.4, p.decel_ratio * 0.6 * G
     dv = (a - mk * G) * p.dwell_s
     expected = 0.5 * (a - mk * G) * p.dwell_s**2 + dv**2 / (2 * (d + mk * G))

@@ -94,7 +94,7 @@ def timed_level(load: LoadUnit, wrap: WrapFormat, level_g: float,
     t0 = time.process_time()
     trace = run_level(load.layout(), PulseProfile(level_g), settings, wrap=wrap)
     cpu = time.process_time() - t0
-    return cpu, trace, trace.bundle_pos[-1, :, 0] - trace.bundle_pos[0, :, 0]
+    return cpu, trace, trace.bundle_pos_m[-1, :, 0] - trace.bundle_pos_m[0, :, 0]
 
 
 def level(load: LoadUnit, wrap: WrapFormat, level_g: float, iterations: int,

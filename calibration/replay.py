@@ -170,7 +170,7 @@ def replay(obs: Observation, friction: Friction, scales: Mapping[str, float] | N
     out = {}
     for name, (t, _) in obs.states.items():
         j = index.get(name)
-        pos = trace.pallet_pos if j is None else trace.bundle_pos[:, j]
+        pos = trace.pallet_pos_m if j is None else trace.bundle_pos_m[:, j]
         rot = trace.pallet_rot if j is None else trace.bundle_rot[:, j]
         angle = np.unwrap(np.arctan2(rot[:, 2, 0], rot[:, 0, 0]))
         tau = np.clip(t - obs.profile.t_s[0], 0.0, trace.t_s[-1])

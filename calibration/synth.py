@@ -254,7 +254,7 @@ def _states(trace: Trace, profile: SledProfile, n_pre: int, fps: float) -> State
     frames = n_pre + math.floor(trace.t_s[-1] * fps + 1e-9) + 1
     t = np.arange(frames) / fps
     tau = np.clip(t - n_pre / fps, 0.0, trace.t_s[-1])
-    pos = np.concatenate([trace.pallet_pos[:, None], trace.bundle_pos], axis=1)
+    pos = np.concatenate([trace.pallet_pos_m[:, None], trace.bundle_pos_m], axis=1)
     rot = np.concatenate([trace.pallet_rot[:, None], trace.bundle_rot], axis=1)
     x = np.interp(tau, trace.t_s, np.arange(len(trace.t_s)))
     i0 = np.minimum(np.floor(x).astype(int), len(trace.t_s) - 2)

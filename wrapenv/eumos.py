@@ -308,7 +308,7 @@ def fallen(bundle_z_m: np.ndarray, bottom_z_m: np.ndarray, dropped_m: np.ndarray
 
 def _damage(trace: Trace) -> tuple[str, ...]:
     tilt = trace.tilt_rad()
-    fell = fallen(trace.bundle_pos[-1, :, 2], trace.bottom_z_m, trace.dropped_m(), tilt)
+    fell = fallen(trace.bundle_pos_m[-1, :, 2], trace.bottom_z_m, trace.dropped_m(), tilt)
     toppled = tilt > TOPPLE_ANGLE_RAD
     out = []
     for name, f, t in zip(trace.names, fell, toppled, strict=True):

@@ -277,12 +277,12 @@ class Renderer:
             self.world.add_box(body.size_m, body.centre_m, 0.0, 0.5,
                                rgba=body.rgba if self.colours else WHITE_RGBA)
 
-    def frame(self, pallet_pos: np.ndarray, pallet_rot: np.ndarray, bundle_pos: np.ndarray,
+    def frame(self, pallet_pos_m: np.ndarray, pallet_rot: np.ndarray, bundle_pos_m: np.ndarray,
               bundle_rot: np.ndarray, wrap_net: WrapNet | None = None,
               sled_x_m: float = 0.0) -> np.ndarray:
         """RGB frame (height, width, 3) uint8 of the unit in the given state (sled frame;
         rotations as 3x3 matrices), the wrap drawn over it when `wrap_net` is given."""
-        pos, rot = self._place(pallet_pos, pallet_rot, bundle_pos, bundle_rot)
+        pos, rot = self._place(pallet_pos_m, pallet_rot, bundle_pos_m, bundle_rot)
         cam = self.camera
         image = self.world.camera_image(cam.width, cam.height, cam.view_matrix(sled_x_m),
                                         cam.projection_matrix())
@@ -290,12 +290,12 @@ class Renderer:
             return image
         return self.draw_wrap(image, pos, rot, wrap_net, sled_x_m)
 
-    def masked_frame(self, pallet_pos: np.ndarray, pallet_rot: np.ndarray,
-                     bundle_pos: np.ndarray, bundle_rot: np.ndarray,
+    def masked_frame(self, pallet_pos_m: np.ndarray, pallet_rot: np.ndarray,
+                     bundle_pos_m: np.ndarray, bundle_rot: np.ndarray,
                      sled_x_m: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
         """The frame without the wrap, and per pixel the world index of the body seen there
         (`BenchScene.index`; -1 background): where textures go."""
-        self._place(pallet_pos, pallet_rot, bundle_pos, bundle_rot)
+        self._place(pallet_pos_m, pallet_rot, bundle_pos_m, bundle_rot)
         cam = self.camera
         return self.world.camera_image_and_mask(cam.width, cam.height, cam.view_matrix(sled_x_m),
                                                 cam.projection_matrix())
@@ -312,15 +312,15 @@ class Renderer:
         self._overlay.alpha = alpha
         return self._overlay.draw(image, pos, rot, self.camera, sled_x_m)
 
-    def _place(self, pallet_pos: np.ndarray, pallet_rot: np.ndarray, bundle_pos: np.ndarray,
+    def _place(self, pallet_pos_m: np.ndarray, pallet_rot: np.ndarray, bundle_pos_m: np.ndarray,
                bundle_rot: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Move the bodies to a state; returns it as the state arrays (positions, rotations)."""
         if self.world.closed:
             raise RuntimeError("the renderer is closed")
         moving = self.scene.moving
         pos, rot = np.empty((len(moving), 3)), np.empty((len(moving), 3, 3))
-        pos[PALLET], rot[PALLET] = np.reshape(pallet_pos, 3), np.reshape(pallet_rot, (3, 3))
-        pos[BUNDLES] = np.reshape(bundle_pos, (-1, 3))
+        pos[PALLET], rot[PALLET] = np.reshape(pallet_pos_m, 3), np.reshape(pallet_rot, (3, 3))
+        pos[BUNDLES] = np.reshape(bundle_pos_m, (-1, 3))
         rot[BUNDLES] = np.reshape(bundle_rot, (-1, 3, 3))
         quat = quaternions(rot)
         for row, w in enumerate(moving.tolist()):
@@ -332,7 +332,7 @@ class Renderer:
         """The frame of one sample of a bench run. A trace does not record when elements tore:
         the wrap is drawn with the net's tear state as it is now."""
         i = sample_index
-        return self.frame(trace.pallet_pos[i], trace.pallet_rot[i], trace.bundle_pos[i],
+        return self.frame(trace.pallet_pos_m[i], trace.pallet_rot[i], trace.bundle_pos_m[i],
                           trace.bundle_rot[i], wrap_net)
 
     def close(self) -> None:

@@ -25,9 +25,9 @@ class Trace:
     bottom_z_m: np.ndarray      # (n,) height of each bundle's underside at rest
     t_s: np.ndarray             # (T,)
     sled_accel_mps2: np.ndarray  # (T,)
-    pallet_pos: np.ndarray      # (T, 3)
+    pallet_pos_m: np.ndarray      # (T, 3)
     pallet_rot: np.ndarray      # (T, 3, 3) rotation matrices
-    bundle_pos: np.ndarray      # (T, n, 3)
+    bundle_pos_m: np.ndarray      # (T, n, 3)
     bundle_rot: np.ndarray      # (T, n, 3, 3)
     valid: bool = True
     invalid_reason: str = ""
@@ -47,7 +47,7 @@ class Trace:
 
     def bundle_displacement_m(self) -> np.ndarray:
         """(T, n) horizontal displacement of each bundle centre in the pallet's frame."""
-        rel = in_pallet_frame(self.pallet_pos, self.pallet_rot, self.bundle_pos)
+        rel = in_pallet_frame(self.pallet_pos_m, self.pallet_rot, self.bundle_pos_m)
         return np.linalg.norm((rel - rel[0])[..., :2], axis=-1)
 
     def permanent_total_m(self) -> np.ndarray:
@@ -72,13 +72,13 @@ class Trace:
         return largest
 
     def _end_in_pallet(self) -> np.ndarray:
-        return in_pallet_frame(self.pallet_pos[-1], self.pallet_rot[-1], self.bundle_pos[-1])
+        return in_pallet_frame(self.pallet_pos_m[-1], self.pallet_rot[-1], self.bundle_pos_m[-1])
 
     def moved_before_m(self) -> float:
         """How far the bundle that had moved most stood, when this level began, from where
         the unit was put on the sled (0: a first level): what a later level of a cumulative
         sequence adds to its own displacements before the permanent limit judges them."""
-        start = in_pallet_frame(self.pallet_pos[0], self.pallet_rot[0], self.bundle_pos[0])
+        start = in_pallet_frame(self.pallet_pos_m[0], self.pallet_rot[0], self.bundle_pos_m[0])
         moved = (start - self.origin())[:, :2]
         return float(np.linalg.norm(moved, axis=1).max(initial=0.0))
 
@@ -86,11 +86,11 @@ class Trace:
         """(n, 3) bundle centres in the pallet's frame when the unit was first put on the sled."""
         if self.origin_m is not None:
             return self.origin_m
-        return in_pallet_frame(self.pallet_pos[0], self.pallet_rot[0], self.bundle_pos[0])
+        return in_pallet_frame(self.pallet_pos_m[0], self.pallet_rot[0], self.bundle_pos_m[0])
 
     def pallet_slip_m(self) -> float:
         """Permanent horizontal displacement of the pallet on the sled."""
-        return float(np.linalg.norm(self.pallet_pos[-1, :2] - self.pallet_pos[0, :2]))
+        return float(np.linalg.norm(self.pallet_pos_m[-1, :2] - self.pallet_pos_m[0, :2]))
 
     def dropped_m(self) -> np.ndarray:
         """(n,) how far each bundle centre ends below where it stood when the unit was first
@@ -102,8 +102,8 @@ class Trace:
         return np.arccos(np.clip(self.bundle_rot[-1, :, 2, 2], -1.0, 1.0))
 
 
-def in_pallet_frame(pallet_pos: np.ndarray, pallet_rot: np.ndarray,
-                    bundle_pos: np.ndarray) -> np.ndarray:
+def in_pallet_frame(pallet_pos_m: np.ndarray, pallet_rot: np.ndarray,
+                    bundle_pos_m: np.ndarray) -> np.ndarray:
     """Bundle centres (..., n, 3) in the pallet's frame, for one sample or a whole trace
-    (leading axes of `pallet_pos` (..., 3) and `pallet_rot` (..., 3, 3))."""
-    return np.einsum("...ba,...nb->...na", pallet_rot, bundle_pos - pallet_pos[..., None, :])
+    (leading axes of `pallet_pos_m` (..., 3) and `pallet_rot` (..., 3, 3))."""
+    return np.einsum("...ba,...nb->...na", pallet_rot, bundle_pos_m - pallet_pos_m[..., None, :])

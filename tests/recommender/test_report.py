@@ -26,8 +26,8 @@ def three_bundles(moved_m: list[float]) -> Trace:
     return Trace(
         level_g=0.3, load_height_m=0.8, names=("L1C1R1", "L1C2R1", "L2C1R1"),
         bottom_z_m=np.array([0.15, 0.15, 0.45]), t_s=np.array([0.0, 1.0]),
-        sled_accel_mps2=np.zeros(2), pallet_pos=np.zeros((2, 3)),
-        pallet_rot=np.stack([np.eye(3)] * 2), bundle_pos=np.stack([start, end]),
+        sled_accel_mps2=np.zeros(2), pallet_pos_m=np.zeros((2, 3)),
+        pallet_rot=np.stack([np.eye(3)] * 2), bundle_pos_m=np.stack([start, end]),
         bundle_rot=np.stack([np.stack([np.eye(3)] * 3)] * 2), layers=np.array([1, 1, 2]),
     )
 
@@ -58,13 +58,13 @@ def test_a_later_level_of_a_sequence_gives_the_permanent_limit_in_its_title_not_
     on the sled, past the 40 mm limit (5 % of 0.8 m), while its own curve stays under 40 mm;
     a line at 40 mm over that curve would read as a pass."""
     level = three_bundles([0.004, 0.020, 0.010])
-    origin = level.bundle_pos[0] - np.array([0.030, 0.0, 0.0])
+    origin = level.bundle_pos_m[0] - np.array([0.030, 0.0, 0.0])
     later = replace(level, origin_m=origin)
     assert later.moved_before_m() == pytest.approx(0.030)
     assert "permanent limit (5 % of height)" not in legend_of(later)
     assert panel(later).get_title().endswith(
         "FAIL, permanent since put on the sled 50.0 mm (limit 40.0 mm)")
-    first = replace(level, origin_m=level.bundle_pos[0])
+    first = replace(level, origin_m=level.bundle_pos_m[0])
     assert "permanent limit (5 % of height)" in legend_of(first)
     assert "(limit" not in panel(first).get_title()
 

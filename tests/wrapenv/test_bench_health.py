@@ -55,7 +55,7 @@ for rigid in (False, True):
                                             load.load_height_m)):
         trace = run_level(load.layout(), PulseProfile(0.45), SimSettings(rigid_boxes=rigid),
                           wrap=wrap)
-        print(hashlib.sha256(trace.bundle_pos.tobytes()).hexdigest())
+        print(hashlib.sha256(trace.bundle_pos_m.tobytes()).hexdigest())
 """
 #: Another processor, as far as numpy's arithmetic goes: OpenBLAS's SSE3 kernels (every x86-64
 #: has them) and numpy's loops without AVX-512 (a no-op where the processor has none).

@@ -56,7 +56,7 @@ def slip_closed_form(a: float, mu_k: float, dwell: float, decel: float) -> float
 
 def permanent_x(trace) -> float:
     """Final x displacement of the first bundle relative to the pallet (negative: lagging)."""
-    rel = trace.bundle_pos[:, 0, 0] - trace.pallet_pos[:, 0]
+    rel = trace.bundle_pos_m[:, 0, 0] - trace.pallet_pos_m[:, 0]
     return float(rel[-1] - rel[0])
 
 
@@ -138,8 +138,8 @@ def test_stack_at_rest_on_still_sled_drifts_less_than_1_mm_in_10_s(settings):
     trace = run_level(load.layout(), still,
                       replace(settings, max_rest_wait_s=0.0, skip_still=False))
     assert trace.t_s[-1] >= 10.0
-    bundles = np.linalg.norm(trace.bundle_pos[-1] - trace.bundle_pos[0], axis=-1)
-    pallet = np.linalg.norm(trace.pallet_pos[-1] - trace.pallet_pos[0])
+    bundles = np.linalg.norm(trace.bundle_pos_m[-1] - trace.bundle_pos_m[0], axis=-1)
+    pallet = np.linalg.norm(trace.pallet_pos_m[-1] - trace.pallet_pos_m[0])
     assert bundles.max() < 1e-3
     assert pallet < 1e-3
 

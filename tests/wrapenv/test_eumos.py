@@ -43,18 +43,18 @@ def trace(path_x_m: list[list[float]], bottom_z_m: list[float], layers: list[int
     steps, n = path.shape
     pallet_x = np.zeros(steps) if pallet_x_m is None else np.array(pallet_x_m, float)
     bottom = np.array(bottom_z_m, float)
-    bundle_pos = np.zeros((steps, n, 3))
-    bundle_pos[..., 0] = 0.3 * np.arange(n) + path + pallet_x[:, None]
-    bundle_pos[..., 2] = bottom + HALF_M
+    bundle_pos_m = np.zeros((steps, n, 3))
+    bundle_pos_m[..., 0] = 0.3 * np.arange(n) + path + pallet_x[:, None]
+    bundle_pos_m[..., 2] = bottom + HALF_M
     bundle_rot = np.broadcast_to(np.eye(3), (steps, n, 3, 3)).copy()
     bundle_rot[-1, :] = _rot_y(final_tilt_rad)
-    pallet_pos = np.zeros((steps, 3))
-    pallet_pos[:, 0] = pallet_x
+    pallet_pos_m = np.zeros((steps, 3))
+    pallet_pos_m[:, 0] = pallet_x
     return Trace(
         level_g=0.5, load_height_m=HEIGHT_M, names=tuple(f"L1C{k + 1}R1" for k in range(n)),
         bottom_z_m=bottom, t_s=np.arange(steps) * 0.1, sled_accel_mps2=np.zeros(steps),
-        pallet_pos=pallet_pos, pallet_rot=np.broadcast_to(np.eye(3), (steps, 3, 3)).copy(),
-        bundle_pos=bundle_pos, bundle_rot=bundle_rot, valid=valid,
+        pallet_pos_m=pallet_pos_m, pallet_rot=np.broadcast_to(np.eye(3), (steps, 3, 3)).copy(),
+        bundle_pos_m=bundle_pos_m, bundle_rot=bundle_rot, valid=valid,
         invalid_reason="" if valid else "non-finite state",
         layers=None if layers is None else np.array(layers), origin_m=origin_m)
 
@@ -112,9 +112,9 @@ def lowered(by_m: float, tilt_rad: float = 0.0) -> Trace:
     """One bundle standing on 0.5 m that ends `by_m` lower (still above that height for any
     `by_m` < `HALF_M`), tilted by `tilt_rad`."""
     t = trace([[0.0], [0.0]], [0.5], final_tilt_rad=tilt_rad)
-    pos = t.bundle_pos.copy()
+    pos = t.bundle_pos_m.copy()
     pos[-1, 0, 2] -= by_m
-    return replace(t, bundle_pos=pos)
+    return replace(t, bundle_pos_m=pos)
 
 
 def test_an_upright_bundle_lower_than_it_was_stacked_has_fallen_off_its_support():

@@ -42,7 +42,7 @@ def layout():
 
 
 def rest(layout):
-    """(pallet_pos, pallet_rot, bundle_pos, bundle_rot) of the unit as stacked."""
+    """(pallet_pos_m, pallet_rot, bundle_pos_m, bundle_rot) of the unit as stacked."""
     n = len(layout.bundles)
     return (np.array([0.0, 0.0, layout.pallet_size_m[2] / 2]), np.eye(3),
             np.array([b.centre_m for b in layout.bundles]), np.repeat(np.eye(3)[None], n, 0))
@@ -95,16 +95,16 @@ def test_quaternions_invert_bench_rotations():
 
 
 def test_frame_shape_and_moving_a_bundle_moves_its_pixels(layout):
-    pallet_pos, pallet_rot, bundle_pos, bundle_rot = rest(layout)
+    pallet_pos_m, pallet_rot, bundle_pos_m, bundle_rot = rest(layout)
     # the top layer's leftmost bundle of the front row: nothing is left of it
     k = next(i for i, b in enumerate(layout.bundles) if b.name == "L2C1R1")
     row = round(CAMERA.project([layout.bundles[k].centre_m])[0, 1])
-    moved = bundle_pos.copy()
+    moved = bundle_pos_m.copy()
     moved[k, 0] -= 0.1
     with Renderer(layout, CAMERA) as renderer:
-        before = renderer.frame(pallet_pos, pallet_rot, bundle_pos, bundle_rot)
-        after = renderer.frame(pallet_pos, pallet_rot, moved, bundle_rot)
-        shifted = renderer.frame(pallet_pos, pallet_rot, bundle_pos, bundle_rot, sled_x_m=0.1)
+        before = renderer.frame(pallet_pos_m, pallet_rot, bundle_pos_m, bundle_rot)
+        after = renderer.frame(pallet_pos_m, pallet_rot, moved, bundle_rot)
+        shifted = renderer.frame(pallet_pos_m, pallet_rot, bundle_pos_m, bundle_rot, sled_x_m=0.1)
     assert before.shape == (200, 320, 3) and before.dtype == np.uint8
 
     def left_edge(image):
@@ -163,19 +163,19 @@ def test_one_torn_ring_leaves_a_gap_and_film_has_its_own_tint(layout):
 
 
 def test_a_trace_frame_is_the_frame_of_its_sample(layout):
-    pallet_pos, pallet_rot, bundle_pos, bundle_rot = rest(layout)
+    pallet_pos_m, pallet_rot, bundle_pos_m, bundle_rot = rest(layout)
     net = WrapNet(wrap_format(), layout)
     n = len(layout.bundles)
-    moved = bundle_pos + [0.03, 0.0, 0.0]
+    moved = bundle_pos_m + [0.03, 0.0, 0.0]
     trace = Trace(
         level_g=0.3, load_height_m=layout.load_height_m,
         names=tuple(b.name for b in layout.bundles), bottom_z_m=np.zeros(n),
         t_s=np.array([0.0, 0.05]), sled_accel_mps2=np.zeros(2),
-        pallet_pos=np.stack([pallet_pos] * 2), pallet_rot=np.stack([pallet_rot] * 2),
-        bundle_pos=np.stack([bundle_pos, moved]), bundle_rot=np.stack([bundle_rot] * 2),
+        pallet_pos_m=np.stack([pallet_pos_m] * 2), pallet_rot=np.stack([pallet_rot] * 2),
+        bundle_pos_m=np.stack([bundle_pos_m, moved]), bundle_rot=np.stack([bundle_rot] * 2),
     )
     with Renderer(layout, CAMERA) as renderer:
-        one = renderer.frame(pallet_pos, pallet_rot, moved, bundle_rot, net)
+        one = renderer.frame(pallet_pos_m, pallet_rot, moved, bundle_rot, net)
         np.testing.assert_array_equal(renderer.trace_frame(trace, 1, net), one)
 
 

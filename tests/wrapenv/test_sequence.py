@@ -52,8 +52,8 @@ def test_a_layer_that_slid_starts_the_next_level_where_it_stopped():
     run = run_levels(two_by_two(), [0.3, 0.3])
     first, second = run.traces
     # the second level starts exactly where the first one came to rest
-    np.testing.assert_array_equal(second.bundle_pos[0], first.bundle_pos[-1])
-    np.testing.assert_array_equal(second.pallet_pos[0], first.pallet_pos[-1])
+    np.testing.assert_array_equal(second.bundle_pos_m[0], first.bundle_pos_m[-1])
+    np.testing.assert_array_equal(second.pallet_pos_m[0], first.pallet_pos_m[-1])
     one, two = run.verdict.levels
     assert one.permanent_max_m > 0.02 and two.permanent_max_m > 0.02  # slid in both levels
     # both slides go backwards on the sled: the displacements since the unit was put on add up

@@ -291,7 +291,7 @@ def middle_push(tension_n: float | None) -> float:
     # 36 N = 1.3 x the static friction under the bundle (0.3 x 9.3 kg x g)
     push = Push(layout.bundles[1].name, (0.0, 36.0))
     trace = run_level(layout, PulseProfile(0.01), wrap=wrap, push=push)
-    return float(np.ptp(trace.bundle_pos[:, 1, 1]))
+    return float(np.ptp(trace.bundle_pos_m[:, 1, 1]))
 
 
 def test_pretension_squeezes_a_layer_so_it_resists_a_larger_push():
@@ -382,7 +382,7 @@ def test_wrapped_runs_are_deterministic():
     wrap = wrap_format("kraft", [(0.0, 0.474, 2, 250.0)])
     a = run_level(layout, PulseProfile(0.5), wrap=wrap)
     b = run_level(layout, PulseProfile(0.5), wrap=wrap)
-    assert np.array_equal(a.bundle_pos, b.bundle_pos) and a.wrap == b.wrap
+    assert np.array_equal(a.bundle_pos_m, b.bundle_pos_m) and a.wrap == b.wrap
 
 
 # -- what limits a paper wrap on the bench (issue 12) ---------------------------------------

@@ -329,8 +329,8 @@ class WrapBenchEnv(gym.Env):
             pos, rot = rest_state(layout)
             return self._renderer.frame(pos[PALLET], rot[PALLET], pos[BUNDLES], rot[BUNDLES])
         trace, wrap = self._last
-        finite = np.flatnonzero([np.isfinite(trace.pallet_pos[i]).all()
-                                 and np.isfinite(trace.bundle_pos[i]).all()
+        finite = np.flatnonzero([np.isfinite(trace.pallet_pos_m[i]).all()
+                                 and np.isfinite(trace.bundle_pos_m[i]).all()
                                  and np.isfinite(trace.bundle_rot[i]).all()
                                  for i in range(len(trace.t_s))])
         index = int(finite[-1]) if len(finite) else 0
