@@ -8,7 +8,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from wrapenv.config import Table
+from wrapenv.config import InputError, Table, is_finite_number
 
 #: Strains at or above this are typos (1000 %), not materials.
 MAX_STRAIN = 10.0
@@ -271,6 +271,22 @@ def _failure_fields(t: Table) -> dict[str, float]:
 def tension_limit_n(material: Material, web_width_m: float) -> float:
     """The highest web tension a file may ask: one layer's breaking force."""
     return material.break_force_n_per_m * web_width_m
+
+
+#: The longest a wrapped load is taken to stand before the road: a year. Longer is a unit
+#: mistaken (seconds, or minutes, for hours); the relaxation laws have long levelled off.
+MAX_HOURS_SINCE_WRAPPING = 8760.0
+
+
+def check_hours_since_wrapping(hours: float) -> None:
+    """How long a wrap stood before its test: 0 to a year."""
+    if not (is_finite_number(hours) and 0 <= hours <= MAX_HOURS_SINCE_WRAPPING):
+        number = isinstance(hours, int | float)
+        late = number and hours > MAX_HOURS_SINCE_WRAPPING
+        unit = ": hours, not seconds or minutes" if late else ""
+        raise InputError("wrap", "hours_since_wrapping", f"must be from 0 to "
+                         f"{MAX_HOURS_SINCE_WRAPPING:g} h, a year (got "
+                         f"{f'{hours:g}' if number else repr(hours)}{unit})")
 
 
 def check_tension(t: Table, key: str, material: Material, web_width_m: float) -> float:

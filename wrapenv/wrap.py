@@ -25,6 +25,7 @@ from wrapenv.load import Layout
 from wrapenv.material import (
     MATERIALS,
     Material,
+    check_hours_since_wrapping,
     check_tension,
     custom_material,
 )
@@ -321,8 +322,7 @@ class WrapFormat:
     def relaxed(self, hours: float) -> WrapFormat:
         """The wrap after standing `hours` since wrapping: every band's tension scaled by the
         material's relaxation law (the web's length and stiffness are what they were)."""
-        if hours < 0:
-            raise InputError("wrap", "hours_since_wrapping", f"must be >= 0 (got {hours})")
+        check_hours_since_wrapping(hours)
         kept = self.material.relaxation.retained(hours)
         return replace(self, bands=tuple(replace(b, tension_n=b.tension_n * kept)
                                          for b in self.bands))

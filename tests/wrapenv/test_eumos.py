@@ -11,12 +11,14 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
+from wrapenv.config import InputError
 from wrapenv.eumos import (
     ELASTIC,
     EUMOS_CRITERIA,
     FALL_DROP_M,
     LAYER_SHIFT,
     LOW_ZONE,
+    MIN_LAYER_SHIFT_FRACTION,
     PERMANENT,
     Limits,
     Verdict,
@@ -199,3 +201,12 @@ def test_the_layer_shift_criterion_is_judged_only_when_asked():
     assert level_margin(loose, HEIGHT_M) == pytest.approx(0.25)
     assert level_margin(plain, HEIGHT_M) == pytest.approx(0.4)
     assert "layer_shift" in loose.to_json()["criteria"] and "limits" not in loose.to_json()
+
+
+@pytest.mark.parametrize("fraction", [0.0, MIN_LAYER_SHIFT_FRACTION / 2, 1.5, math.nan])
+def test_a_layer_shift_limit_outside_0_1_percent_to_all_of_the_height_is_refused(
+        fraction, assert_input_error):
+    with pytest.raises(InputError) as info:
+        Limits(layer_shift_fraction=fraction)
+    assert_input_error(info.value, "criteria", "layer_shift_fraction")
+    assert Limits(layer_shift_fraction=0.02).criteria()[-1].key == LAYER_SHIFT
