@@ -46,77 +46,77 @@ def bend_curvature(material: Material, edge_radius_m: np.ndarray, turn_rad: np.n
 class Elements:
     """Elastoplastic, tension-only elements with linear hardening; arrays over elements."""
 
-    k_elastic: np.ndarray    # N/m of elongation
-    plastic_modulus: np.ndarray  # hardening modulus H, so the post-yield tangent is k_h
-    yield_force: np.ndarray
-    break_force: np.ndarray
-    pretension: np.ndarray
-    damping: np.ndarray      # N s/m
-    height_m: np.ndarray     # where each element sits, for the report
-    length_m: np.ndarray     # material length at freeze, for plastic strain
+    k_elastic_n_per_m: np.ndarray  # per metre of elongation
+    plastic_modulus: np.ndarray    # hardening modulus H (N/m), so the post-yield tangent is k_h
+    yield_force_n: np.ndarray
+    break_force_n: np.ndarray
+    pretension_n: np.ndarray
+    damping_n_s_per_m: np.ndarray
+    height_m: np.ndarray           # where each element sits, for the report
+    length_m: np.ndarray           # material length at freeze, for plastic strain
 
     def __post_init__(self) -> None:
-        n = len(self.k_elastic)
-        self.rest = np.zeros(n)
-        self.plastic = np.zeros(n)
+        n = len(self.k_elastic_n_per_m)
+        self.rest_m = np.zeros(n)
+        self.plastic_m = np.zeros(n)
         self.torn = np.zeros(n, bool)
         self.opened = np.zeros(n, bool)   # slack for good: its seam let go (rings)
         self.peak = np.zeros(n)           # highest utilisation so far
-        self.peak_force = np.zeros(n)
-        self.peak_t = np.full(n, np.nan)
+        self.peak_force_n = np.zeros(n)
+        self.peak_t_s = np.full(n, np.nan)
         self.rising = np.zeros(n, bool)   # whose peak rose at the last call
-        self.last = self.pretension.copy()
+        self.last_n = self.pretension_n.copy()
 
     def force(self, length: np.ndarray, rate: np.ndarray, edge: np.ndarray | float = 1.0,
               t_s: float | None = None) -> np.ndarray:
         """Tension for the current lengths (return mapping of 1D plasticity), then tearing
         where tension times the `edge` factor reaches the breaking force."""
-        trial = self.k_elastic * (length - self.rest - self.plastic)
-        hardening = self.plastic_modulus * self.plastic
-        over = trial - (self.yield_force + hardening)
+        trial = self.k_elastic_n_per_m * (length - self.rest_m - self.plastic_m)
+        hardening = self.plastic_modulus * self.plastic_m
+        over = trial - (self.yield_force_n + hardening)
         if over.max(initial=0.0) > 0:  # some element yields (most steps none does)
-            flow = np.maximum(over, 0.0) / (self.k_elastic + self.plastic_modulus)
-            self.plastic += flow
-            trial = trial - self.k_elastic * flow
+            flow = np.maximum(over, 0.0) / (self.k_elastic_n_per_m + self.plastic_modulus)
+            self.plastic_m += flow
+            trial = trial - self.k_elastic_n_per_m * flow
         elastic = np.where(self.torn | self.opened, 0.0, np.maximum(trial, 0.0))
-        utilisation = elastic * edge / self.break_force
+        utilisation = elastic * edge / self.break_force_n
         self.rising = utilisation > self.peak
         if self.rising.any():
             self.peak = np.where(self.rising, np.minimum(utilisation, 1.0), self.peak)
             # a place that tore bore what it could: the force that reached its limit
-            bore = np.minimum(elastic, self.break_force / edge)
-            self.peak_force = np.where(self.rising, bore, self.peak_force)
-            self.peak_t = np.where(self.rising, np.nan if t_s is None else t_s, self.peak_t)
+            bore = np.minimum(elastic, self.break_force_n / edge)
+            self.peak_force_n = np.where(self.rising, bore, self.peak_force_n)
+            self.peak_t_s = np.where(self.rising, np.nan if t_s is None else t_s, self.peak_t_s)
         self.torn |= utilisation >= 1.0
-        self.last = np.where(self.torn, 0.0, elastic)
-        taut = self.last > 0
-        return np.where(taut, np.maximum(self.last + self.damping * rate, 0.0), 0.0)
+        self.last_n = np.where(self.torn, 0.0, elastic)
+        taut = self.last_n > 0
+        return np.where(taut, np.maximum(self.last_n + self.damping_n_s_per_m * rate, 0.0), 0.0)
 
 
 def series(*k: np.ndarray | float) -> np.ndarray:
     return np.asarray(1.0 / sum(1.0 / np.asarray(x, float) for x in k))
 
 
-def element_set(k_web: np.ndarray, material_strength: tuple[float, float, float],
-                 web_metres: np.ndarray, pretension: np.ndarray, mass: np.ndarray,
-                 height: np.ndarray, length: np.ndarray, give: np.ndarray | float
+def element_set(k_web_n_per_m: np.ndarray, material_strength: tuple[float, float, float],
+                 web_m: np.ndarray, pretension_n: np.ndarray, mass_kg: np.ndarray,
+                 height_m: np.ndarray, length_m: np.ndarray, give_n_per_m: np.ndarray | float
                  ) -> Elements:
-    """Elements from the web's stiffness (k_web, N/m), the metres of web they stand for, and
-    the load's give at their ends (N/m, in series with the web).
+    """Elements from the web's stiffness, the metres of web they stand for, and the load's
+    give at their ends (in series with the web).
 
     `material_strength` is (yield force per metre, break force per metre, hardening ratio).
     """
     yield_per_m, break_per_m, hardening = material_strength
-    k_e = series(k_web, give)
-    k_h = series(np.maximum(k_web * hardening, 1e-9), give)
+    k_e = series(k_web_n_per_m, give_n_per_m)
+    k_h = series(np.maximum(k_web_n_per_m * hardening, 1e-9), give_n_per_m)
     plastic_modulus = k_e * k_h / np.maximum(k_e - k_h, 1e-9)
     return Elements(
-        k_elastic=k_e,
+        k_elastic_n_per_m=k_e,
         plastic_modulus=plastic_modulus,
-        yield_force=yield_per_m * web_metres,
-        break_force=np.maximum(break_per_m * web_metres, 1e-9),
-        pretension=pretension,
-        damping=2 * DAMPING_RATIO * np.sqrt(k_e * mass),
-        height_m=height,
-        length_m=length,
+        yield_force_n=yield_per_m * web_m,
+        break_force_n=np.maximum(break_per_m * web_m, 1e-9),
+        pretension_n=pretension_n,
+        damping_n_s_per_m=2 * DAMPING_RATIO * np.sqrt(k_e * mass_kg),
+        height_m=height_m,
+        length_m=length_m,
     )

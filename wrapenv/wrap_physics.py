@@ -129,13 +129,13 @@ class WrapNet:
         strength = (m.yield_force_n_per_m, m.break_force_n_per_m, m.hardening_ratio)
         perimeter = np.array([r.perimeter_m for r in rings])
         return element_set(
-            k_web=np.array([m.stiffness_n_per_m * r.web_m for r in rings]) / perimeter,
+            k_web_n_per_m=np.array([m.stiffness_n_per_m * r.web_m for r in rings]) / perimeter,
             material_strength=strength,
-            web_metres=np.array([r.web_m for r in rings]),
-            pretension=np.array([r.tension_n for r in rings]),
-            mass=np.array([mass[[b for b, _ in r.slots]].mean() for r in rings]),
-            height=self.ring_heights, length=perimeter,
-            give=np.array([ring_give(r, self.corner_stiffness) for r in rings]),
+            web_m=np.array([r.web_m for r in rings]),
+            pretension_n=np.array([r.tension_n for r in rings]),
+            mass_kg=np.array([mass[[b for b, _ in r.slots]].mean() for r in rings]),
+            height_m=self.ring_heights, length_m=perimeter,
+            give_n_per_m=np.array([ring_give(r, self.corner_stiffness) for r in rings]),
         )
 
     def _panel_elements(self, mass: np.ndarray) -> Elements:
@@ -150,20 +150,20 @@ class WrapNet:
         give = series(*k_end) if len(a) else np.zeros(0)
         ma, mb = mass[self.node_body[a]], mass[self.node_body[b]]
         panels = element_set(
-            k_web=spec.k_web,
+            k_web_n_per_m=spec.k_web,
             material_strength=(m.yield_force_n_per_m, m.break_force_n_per_m, m.hardening_ratio),
-            web_metres=spec.web_metres, pretension=np.zeros_like(spec.k_web),
-            mass=ma * mb / (ma + mb), height=spec.height_m, length=np.ones_like(spec.k_web),
-            give=give)
+            web_m=spec.web_metres, pretension_n=np.zeros_like(spec.k_web),
+            mass_kg=ma * mb / (ma + mb), height_m=spec.height_m,
+            length_m=np.ones_like(spec.k_web), give_n_per_m=give)
         n = spec.layers
         #: Panels whose outer layers slide on the one beneath (paper, more than one layer).
         self.sliding = np.flatnonzero((n > 1.0 + 1e-9) & (not m.clings))
         k = self.sliding
         slipped = series(spec.k_web[k] / n[k], give[k])   # only the layer against the load
-        self._stuck = (panels.yield_force[k].copy(), panels.break_force[k].copy(),
+        self._stuck = (panels.yield_force_n[k].copy(), panels.break_force_n[k].copy(),
                        panels.plastic_modulus[k].copy(),
-                       panels.k_elastic[k] * slipped / np.maximum(panels.k_elastic[k] - slipped,
-                                                                  1e-9))
+                       panels.k_elastic_n_per_m[k] * slipped
+                       / np.maximum(panels.k_elastic_n_per_m[k] - slipped, 1e-9))
         return panels
 
     def _incidences(self) -> None:
@@ -218,10 +218,10 @@ class WrapNet:
         p = self.nodes(pos, rot)
         perimeter, *_ = self._ring_geometry(p)
         r = self.rings
-        r.rest = perimeter - r.pretension / r.k_elastic
+        r.rest_m = perimeter - r.pretension_n / r.k_elastic_n_per_m
         r.length_m = perimeter.copy()
         length = self._panel_lengths(p)
-        self.panels.rest = length.copy()
+        self.panels.rest_m = length.copy()
         self.panels.length_m = length.copy()
         self.frozen = True
 
@@ -230,7 +230,7 @@ class WrapNet:
         stretch, tears and an opened seam stay as they are; the peaks start again, since the
         report is per level."""
         for e in (self.rings, self.panels):
-            e.peak[:], e.peak_force[:], e.peak_t[:], e.rising[:] = 0.0, 0.0, np.nan, False
+            e.peak[:], e.peak_force_n[:], e.peak_t_s[:], e.rising[:] = 0.0, 0.0, np.nan, False
         self.ring_edge[:] = 1.0
         self.seam_peak, self.seam_peak_force, self.seam_peak_t = 0.0, 0.0, math.nan
 
@@ -311,7 +311,7 @@ class WrapNet:
             self.ring_edge[r.rising] = edge[r.rising]
             tension = self._seam_step(tension, t_s)
         else:
-            tension = np.where(r.torn | r.opened, 0.0, r.pretension * self.laid)
+            tension = np.where(r.torn | r.opened, 0.0, r.pretension_n * self.laid)
         # each hull corner is pulled towards both its neighbours
         pull = (turn * (tension[:, None, None] * active[..., None])).reshape(-1, 3)[
             self._node_slot]
@@ -324,7 +324,7 @@ class WrapNet:
         and the tighter it is pulled (`bend_curvature`), at the last step's tension."""
         m, r = self.wrap.material, self.rings
         angle = 2 * np.arcsin(np.clip(np.linalg.norm(turn[..., :2], axis=-1) / 2, 0, 1))
-        per_layer = r.last / np.maximum(np.array([s.web_m for s in self.ring_specs]), 1e-9)
+        per_layer = r.last_n / np.maximum(np.array([s.web_m for s in self.ring_specs]), 1e-9)
         kappa = bend_curvature(m, self.slot_radius, angle, per_layer[:, None])
         t = m.layer_thickness_m
         return np.where(active, bend_factor(m, t * kappa / (2 + t * kappa)), 1.0)
@@ -342,7 +342,7 @@ class WrapNet:
             self.seam_peak_t = math.nan if t_s is None else t_s
         if utilisation[k] >= 1.0:
             self.rings.opened[self.seam] = True
-            self.rings.last[self.seam] = 0.0
+            self.rings.last_n[self.seam] = 0.0
             tension = np.where(self.rings.opened, 0.0, tension)
         return tension
 
@@ -378,8 +378,8 @@ class WrapNet:
         grip = np.minimum(self.wrap.material.interlayer_mu * normal / rise, stuck_yield * outer)
         slips = grip / outer < stuck_yield
         p = self.panels
-        p.yield_force[k] = np.minimum(stuck_yield, grip / outer)
-        p.break_force[k] = np.minimum(stuck_break / n + grip, stuck_break)
+        p.yield_force_n[k] = np.minimum(stuck_yield, grip / outer)
+        p.break_force_n[k] = np.minimum(stuck_break / n + grip, stuck_break)
         p.plastic_modulus[k] = np.where(slips, slip_h, stuck_h)
 
     def report(self) -> WrapReport:
@@ -398,7 +398,7 @@ class WrapNet:
 
 def _strain(e: Elements) -> np.ndarray:
     """Permanent stretch of each element over its length (0 for a degenerate element)."""
-    return np.divide(e.plastic, e.length_m, out=np.zeros_like(e.plastic), where=e.length_m > 0)
+    return np.divide(e.plastic_m, e.length_m, out=np.zeros_like(e.plastic_m), where=e.length_m > 0)
 
 
 def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:

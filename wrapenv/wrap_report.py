@@ -110,7 +110,7 @@ def _ring_places(net: WrapNet) -> list[Place]:
     r, s = net.rings, net.outline_s
     out = []
     for i, spec in enumerate(net.ring_specs):
-        force, bears = float(r.peak_force[i]), float(r.break_force[i])
+        force, bears = float(r.peak_force_n[i]), float(r.break_force_n[i])
         for f in range(4):
             corner = spec.corner_slots[f]
             face = [j for j, where in enumerate(spec.places) if where == FACE_NAMES[f]]
@@ -119,7 +119,7 @@ def _ring_places(net: WrapNet) -> list[Place]:
             for slots, where, span in spots:
                 edge = max((float(net.ring_edge[i, j]) for j in slots), default=1.0)
                 use = min(force * edge / bears, 1.0)
-                out.append(Place("ring", where, spec.z_m, use, force, _timed(r.peak_t[i]),
+                out.append(Place("ring", where, spec.z_m, use, force, _timed(r.peak_t_s[i]),
                                  *span, spec.z_m, spec.z_m,
                                  torn=bool(r.torn[i]) and use >= 1.0 - 1e-9,
                                  opened=bool(r.opened[i])))
@@ -130,7 +130,7 @@ def _panel_places(net: WrapNet) -> list[Place]:
     """Per pair of rings: a vertical at each corner and the two diagonals of each face as
     one place, the more loaded diagonal speaking."""
     spec, inner = net.panel_spec, net.panels
-    use, force, when = inner.peak, inner.peak_force, inner.peak_t
+    use, force, when = inner.peak, inner.peak_force_n, inner.peak_t_s
     groups: dict[tuple[int, int, str], list[int]] = {}
     for e, where in enumerate(spec.where):
         lo, hi = (int(k) for k in spec.rings[e])

@@ -17,16 +17,17 @@ from wrapenv.wrap_elements import bend_curvature, bend_factor, element_set
 
 def element(k=1000.0, yield_n=10.0, break_n=50.0, hardening=0.1):
     """One element whose web has stiffness k and yield/break forces for one metre of web."""
-    return element_set(k_web=np.array([k]), material_strength=(yield_n, break_n, hardening),
-                       web_metres=np.array([1.0]), pretension=np.zeros(1), mass=np.ones(1),
-                       height=np.zeros(1), length=np.ones(1), give=1e12)
+    return element_set(k_web_n_per_m=np.array([k]),
+                       material_strength=(yield_n, break_n, hardening), web_m=np.array([1.0]),
+                       pretension_n=np.zeros(1), mass_kg=np.ones(1), height_m=np.zeros(1),
+                       length_m=np.ones(1), give_n_per_m=1e12)
 
 
 def test_element_is_elastic_below_yield_and_never_pushes():
     e = element()
     assert e.force(np.array([0.005]), np.zeros(1))[0] == pytest.approx(5.0, rel=1e-6)
     assert e.force(np.array([-0.01]), np.zeros(1))[0] == 0.0  # compressed: slack, no push
-    assert e.plastic[0] == 0.0
+    assert e.plastic_m[0] == 0.0
 
 
 def test_strain_past_yield_leaves_permanent_stretch():

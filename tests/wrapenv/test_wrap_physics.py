@@ -72,8 +72,8 @@ def test_ring_pretension_is_the_wrapping_tension_of_the_layers_over_its_height()
     wrap = wrap_format("kraft", [(0.0, 0.474, 1, 100.0), (0.144, 0.474, 2, 100.0)])
     net = WrapNet(wrap, layout)
     share = 0.33 / 2  # each of the layer's two rings stands for half the layer
-    assert net.rings.pretension[1:] == pytest.approx([3 * 100.0 / 0.5 * share] * 2)
-    assert net.rings.pretension[0] == pytest.approx(1 * 100.0 / 0.5 * 0.144)  # pallet round
+    assert net.rings.pretension_n[1:] == pytest.approx([3 * 100.0 / 0.5 * share] * 2)
+    assert net.rings.pretension_n[0] == pytest.approx(1 * 100.0 / 0.5 * 0.144)  # pallet round
 
 
 def test_ring_squeezes_the_corners_inward_and_leaves_the_face_bundles_alone():
@@ -133,10 +133,10 @@ def test_a_ring_has_its_corners_dents_in_series_with_its_web():
     h = 0.165                                  # each ring of the 0.33 m layer: half of it
     web = KRAFT.stiffness_n_per_m * 2 * h / (2 * (lx + ly))
     give = 6.0e5 * h / 8                       # the PET bundle's 6e5 N/m per m of edge
-    assert net.rings.k_elastic[1] == pytest.approx(1 / (1 / web + 1 / give), rel=1e-6)
+    assert net.rings.k_elastic_n_per_m[1] == pytest.approx(1 / (1 / web + 1 / give), rel=1e-6)
     pallet_give = PALLET_CORNER_STIFFNESS_N_PER_M2 * 0.144 / 8
     pallet_web = KRAFT.stiffness_n_per_m * 2 * 0.144 / 4.0      # EUR pallet: 4.0 m round
-    assert net.rings.k_elastic[0] == pytest.approx(1 / (1 / pallet_web + 1 / pallet_give),
+    assert net.rings.k_elastic_n_per_m[0] == pytest.approx(1 / (1 / pallet_web + 1 / pallet_give),
                                                    rel=1e-6)
 
 
@@ -146,7 +146,7 @@ def test_a_panel_has_the_give_of_both_its_ends():
     e = net.panel_spec.where.index("corner -x-y")
     ends = 1 / (1 / (PALLET_CORNER_STIFFNESS_N_PER_M2 * 0.144) + 1 / (6.0e5 * 0.165))
     web = net.panel_spec.k_web[e]
-    assert net.panels.k_elastic[e] == pytest.approx(1 / (1 / web + 1 / ends), rel=1e-6)
+    assert net.panels.k_elastic_n_per_m[e] == pytest.approx(1 / (1 / web + 1 / ends), rel=1e-6)
 
 
 def test_a_softer_product_makes_every_element_on_it_softer_and_none_stiffer_than_the_web():
@@ -156,10 +156,10 @@ def test_a_softer_product_makes_every_element_on_it_softer_and_none_stiffer_than
     wrap = wrap_format("kraft", [(0.0, 0.474, 2, 250.0)])
     nets = [WrapNet(wrap, load.with_give(scale).layout()) for scale in (0.5, 1.0, 2.0)]
     for elements, on_bundles in (("rings", slice(1, None)), ("panels", slice(None))):
-        k = [getattr(n, elements).k_elastic[on_bundles] for n in nets]
+        k = [getattr(n, elements).k_elastic_n_per_m[on_bundles] for n in nets]
         assert np.all(k[0] < k[1]) and np.all(k[1] < k[2]), elements
-    assert len({float(n.rings.k_elastic[0]) for n in nets}) == 1
-    assert np.all(nets[2].panels.k_elastic < nets[2].panel_spec.k_web)
+    assert len({float(n.rings.k_elastic_n_per_m[0]) for n in nets}) == 1
+    assert np.all(nets[2].panels.k_elastic_n_per_m < nets[2].panel_spec.k_web)
 
 
 # -- paper's layers slide, film's cling ------------------------------------------------------
@@ -190,8 +190,8 @@ def test_paper_layers_outside_the_first_bear_only_what_friction_passes_them():
     rise = run[2] / np.linalg.norm(run)
     grip = 0.4 * math.sqrt(2) * 216.0 * (2 / 3) / 3 / rise
     all_layers = KRAFT.break_force_n_per_m * net.panel_spec.web_metres[e]
-    assert net.panels.break_force[e] == pytest.approx(all_layers / 3 + grip, rel=1e-3)
-    assert net.panels.break_force[e] < all_layers
+    assert net.panels.break_force_n[e] == pytest.approx(all_layers / 3 + grip, rel=1e-3)
+    assert net.panels.break_force_n[e] < all_layers
 
 
 def test_film_layers_cling_and_share_every_panel():
@@ -200,7 +200,7 @@ def test_film_layers_cling_and_share_every_panel():
     frozen_at_rest(net, layout)
     film = MATERIALS["lldpe"]
     assert len(net.sliding) == 0
-    assert net.panels.break_force == pytest.approx(film.break_force_n_per_m
+    assert net.panels.break_force_n == pytest.approx(film.break_force_n_per_m
                                                    * net.panel_spec.web_metres)
 
 
@@ -274,10 +274,10 @@ def test_under_a_weak_card_a_corner_tears_where_the_faces_hold(edge_factor):
         for face in ("face -y", "face +x", "face +y", "face -x"):
             assert places[face].utilisation == pytest.approx(1 / edge_factor(card, radius),
                                                              rel=1e-3)
-        assert net.rings.peak_force[0] == pytest.approx(
-            net.rings.break_force[0] / edge_factor(card, radius), rel=1e-3)
+        assert net.rings.peak_force_n[0] == pytest.approx(
+            net.rings.break_force_n[0] / edge_factor(card, radius), rel=1e-3)
     assert moved_carton < moved_bottle
-    assert bottle.rings.peak_force[0] / carton.rings.peak_force[0] == pytest.approx(
+    assert bottle.rings.peak_force_n[0] / carton.rings.peak_force_n[0] == pytest.approx(
         edge_factor(card, 0.003) / edge_factor(card, 0.045), rel=1e-3)
 
 
