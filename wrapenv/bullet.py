@@ -106,7 +106,7 @@ def rotation_matrices(quat: np.ndarray) -> np.ndarray:
 
 
 def _step_velocities(pos0: np.ndarray, quat0: np.ndarray, pos1: np.ndarray, quat1: np.ndarray,
-                     dt: float) -> tuple[np.ndarray, np.ndarray]:
+                     dt_s: float) -> tuple[np.ndarray, np.ndarray]:
     """Linear and angular (world frame) velocities that carry poses 0 to poses 1 in one step:
     (x1 - x0) / dt, and the rotation vector of q1 conj(q0) over dt."""
     x0, y0, z0, w0 = (-quat0[:, 0], -quat0[:, 1], -quat0[:, 2], quat0[:, 3])  # conj(q0)
@@ -120,7 +120,7 @@ def _step_velocities(pos0: np.ndarray, quat0: np.ndarray, pos1: np.ndarray, quat
     # angle / sin(angle / 2), with its limit 2 for no rotation
     scale = 2 * np.arctan2(sin_half, np.abs(w)) / np.where(sin_half > 0, sin_half, 1.0)
     scale[sin_half == 0] = 2.0
-    return (pos1 - pos0) / dt, turn * (scale / dt)[:, None]
+    return (pos1 - pos0) / dt_s, turn * (scale / dt_s)[:, None]
 
 
 def saved_empty_world(path: Path) -> tuple[bytearray, int]:
@@ -313,11 +313,11 @@ class BulletWorld:
             turned = [w + dw for w, dw in zip(omega, turn, strict=True)]
             pb.resetBaseVelocity(body, angularVelocity=turned, physicsClientId=cid)
 
-    def push(self, index: int, force: Sequence[float]) -> None:
+    def push(self, index: int, force_n: Sequence[float]) -> None:
         """A force at the body's centre (world frame) for the next step only."""
         body = self._ids[index]
         centre = self._client.getBasePositionAndOrientation(body)[0]
-        self._client.applyExternalForce(body, -1, list(force), centre, pb.WORLD_FRAME)
+        self._client.applyExternalForce(body, -1, list(force_n), centre, pb.WORLD_FRAME)
 
     def set_friction(self, index: int, coefficient: float) -> None:
         """Set a body's own coefficient; Bullet multiplies the two bodies' values per contact."""
@@ -410,11 +410,12 @@ class BulletWorld:
         return max(0.0, -min(cp[8] for cp in contacts))
 
     # -- drawing --------------------------------------------------------------------------
-    def set_pose(self, index: int, position: Sequence[float], quat: Sequence[float]) -> None:
+    def set_pose(self, index: int, position_m: Sequence[float], quat: Sequence[float]) -> None:
         """Place a body at a recorded pose (quaternion x y z w): for drawing states, not for
         simulating (velocities are left as they are)."""
         self._last_state = None
-        self._client.resetBasePositionAndOrientation(self._ids[index], list(position), list(quat))
+        self._client.resetBasePositionAndOrientation(self._ids[index], list(position_m),
+                                                     list(quat))
 
     def camera_image(
         self,

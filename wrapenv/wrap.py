@@ -329,21 +329,21 @@ class WrapFormat:
 
     # --- what the membrane sees ----------------------------------------------------------------
 
-    def layers_at(self, z: float) -> float:
+    def layers_at(self, z_m: float) -> float:
         """Layers of web at height z, averaged round the load."""
-        return sum(b.layers_at(z) for b in self.bands)
+        return sum(b.layers_at(z_m) for b in self.bands)
 
-    def layers_over(self, z0: float, z1: float) -> float:
+    def layers_over(self, z0_m: float, z1_m: float) -> float:
         """Average number of web layers over [z0, z1]; overlapping bands add up."""
-        return sum(b.layer_metres(z0, z1) for b in self.bands) / _span(z0, z1)
+        return sum(b.layer_metres(z0_m, z1_m) for b in self.bands) / _span(z0_m, z1_m)
 
-    def line_tension_n_per_m(self, z0: float, z1: float) -> float:
+    def line_tension_n_per_m(self, z0_m: float, z1_m: float) -> float:
         """Average hoop pretension over [z0, z1], newtons per metre of height."""
-        total = sum(b.tension_n * b.layer_metres(z0, z1) for b in self.bands)
-        return total / self.web_width_m / _span(z0, z1)
+        total = sum(b.tension_n * b.layer_metres(z0_m, z1_m) for b in self.bands)
+        return total / self.web_width_m / _span(z0_m, z1_m)
 
-    def covers(self, z0: float, z1: float) -> bool:
-        return any(b.layer_metres(z0, z1) > 1e-12 for b in self.bands)
+    def covers(self, z0_m: float, z1_m: float) -> bool:
+        return any(b.layer_metres(z0_m, z1_m) > 1e-12 for b in self.bands)
 
     # --- what it costs -------------------------------------------------------------------------
 
