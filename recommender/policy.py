@@ -513,7 +513,7 @@ def propose(policy_path: Path | PPO, load: LoadUnit, material: str, target_g: fl
 
 
 @dataclass(frozen=True)
-class Trial:
+class PolicyTrial:
     """One format tested on one unit at the target level."""
 
     load: str
@@ -526,7 +526,7 @@ class Trial:
 
 
 def evaluate(policy_or_none: PPO | Path | None, loads: list[LoadUnit], material: str,
-             target_g: float, seed: int) -> list[Trial]:
+             target_g: float, seed: int) -> list[PolicyTrial]:
     """Each unit tested (target level only) with the policy's proposal, or with a uniformly
     random action from np.random.default_rng(seed) when the policy is None (one draw per unit,
     in order): the per-unit detail behind `pass_rate`, for comparing material too."""
@@ -542,7 +542,7 @@ def evaluate(policy_or_none: PPO | Path | None, loads: list[LoadUnit], material:
             else:
                 action = _action(model, obs)
             _, reward, _, _, info = env.step(action)
-            trials.append(Trial(load.name, env.decode(action), bool(info["passed"]),
+            trials.append(PolicyTrial(load.name, env.decode(action), bool(info["passed"]),
                                 bool(info["valid"]), float(info["margin"]),
                                 float(info["material_used"]["mass_kg"]), float(reward)))
         finally:
@@ -571,5 +571,5 @@ def held_out_loads(n: int, seed: int) -> list[LoadUnit]:
         env.close()
 
 
-__all__ = ["TrainSettings", "Trial", "evaluate", "held_out_loads", "load_policy", "pass_rate",
+__all__ = ["TrainSettings", "PolicyTrial", "evaluate", "held_out_loads", "load_policy", "pass_rate",
            "propose", "train"]
