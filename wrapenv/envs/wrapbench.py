@@ -196,33 +196,22 @@ class WrapBenchEnv(gym.Env):
     ) -> None:
         super().__init__()
         self.metadata = {"render_modes": ["rgb_array"], "render_fps": 20}
-        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
-            raise InputError("arguments", "render_mode",
-                             f"must be None or 'rgb_array' (got {render_mode!r})")
-        self.render_mode = render_mode
-        if not isinstance(material, str) or material not in MATERIALS:
-            raise InputError("arguments", "material",
-                             f"must be one of {', '.join(map(repr, MATERIALS))} (got {material!r})")
-        self.material = material
+        self.render_mode = _one_of("render_mode", render_mode, (None, "rgb_array"))
+        self.material = _one_of("material", material, tuple(MATERIALS))
         self.target_g = _level("target_g", target_g)
         self.start_g = None if start_g is None else _level("start_g", start_g)
         try:
             self._sequence = eumos_levels(self.target_g, self.start_g)
         except InputError as exc:  # the sequence names the argument it rejects
             raise InputError("arguments", exc.field, exc.message) from None
-        if levels not in LEVEL_MODES:
-            raise InputError("arguments", "levels",
-                             f"must be one of {', '.join(map(repr, LEVEL_MODES))} (got {levels!r})")
-        self.levels = levels
+        self.levels = _one_of("levels", levels, LEVEL_MODES)
         if not (is_finite_number(material_weight) and material_weight >= 0):
             raise InputError("arguments", "material_weight",
                              f"must be a finite number >= 0 (got {material_weight!r})")
         self.material_weight = float(material_weight)
-        if settings is None:
-            settings = SimSettings()
-        if not isinstance(settings, SimSettings):
+        self.settings = SimSettings() if settings is None else settings
+        if not isinstance(self.settings, SimSettings):
             raise TypeError(f"settings must be a wrapenv.bench.SimSettings (got {settings!r})")
-        self.settings = settings
         self.calibration = _calibration(calibration)
 
         self.action_space: spaces.Box = spaces.Box(-1.0, 1.0, (N_PARAMS,), np.float32)
@@ -396,6 +385,14 @@ def reward_terms(verdict: Verdict, material_ratio: float,
     else:
         term = -1.0 + max(margin, -1.0)
     return {"verdict": term, "material": -material_weight * material_ratio}
+
+
+def _one_of(name: str, value: Any, allowed: tuple[Any, ...]) -> Any:
+    """An argument that must be one of a few values (an unhashable one is none of them)."""
+    if not any(value is a or (isinstance(value, str) and value == a) for a in allowed):
+        raise InputError("arguments", name, f"must be one of "
+                         f"{', '.join(map(repr, allowed))} (got {value!r})")
+    return value
 
 
 def _level(name: str, value: Any) -> float:
