@@ -74,6 +74,8 @@ class Page:
     #: What the command warned about on stderr (a web that does not close, a calibration
     #: accepted knowingly, a policy's extrapolation): a page handed on must say it too.
     warnings: tuple[str, ...] = ()
+    #: How the levels were run (`recommender.text.conditions_text`): a report states them.
+    conditions: str = ""
 
 
 def _t(text: object, limit: int = 300) -> str:
@@ -299,6 +301,8 @@ def render(page: Page) -> str:
     tested = "".join(_levels_section(t) for t in page.tested)
     robust = _robust_section(page.robustness) if page.robustness is not None else ""
     warned = _warnings_section(page.warnings)
+    conditions = (f'<p class="note">Test conditions: {_t(page.conditions, 1000)}.</p>'
+                  if page.conditions else "")
     return f"""<!DOCTYPE html>
 <html lang="en"><head><meta charset="utf-8">
 <meta name="viewport" content="width=device-width, initial-scale=1">
@@ -310,7 +314,7 @@ def render(page: Page) -> str:
 {_t(__version__)}: a simulation, not a physical test. Inputs:</p><ul>{inputs}</ul></header>
 {_verdict(page)}{warned}{robust}{_load_section(page.load, page.tested[0].layout)}
 {_wrap_section(page.wrap, page.tested[0].layout, page.hours_since_wrapping)}
-<section><h2>EUMOS 40509 levels</h2>{tested}</section>
+<section><h2>EUMOS 40509 levels</h2>{conditions}{tested}</section>
 {_figures_section(page.figures)}{_video_section(page.video_still)}
 </body></html>
 """

@@ -10,11 +10,12 @@ from __future__ import annotations
 
 import shutil
 import tempfile
-from collections.abc import Callable, Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from pathlib import Path
 
 from recommender.html_page import VIDEO_FILES, Figure, OrientationRun, Page, Robustness, render
 from recommender.search import Evaluation, Problem, SearchState, Verification
+from recommender.text import conditions_text
 from wrapenv.bench import BenchRun
 from wrapenv.config import (
     InputError,
@@ -24,6 +25,7 @@ from wrapenv.config import (
     write_together,
 )
 from wrapenv.load import Layout, LoadUnit, Orientation
+from wrapenv.profile import Profile, PulseProfile
 from wrapenv.wrap import WrapFormat
 
 PAGE = "report.html"
@@ -71,15 +73,16 @@ def _video(run: BenchRun, layout: Layout, wrap: WrapFormat | None, stage: Path) 
 
 def simulate_page(stage: Path, load: LoadUnit, run: BenchRun, laid: WrapFormat | None,
                   simulated: WrapFormat | None, orientation: Orientation | None, hours: float,
-                  inputs: Mapping[str, Path | None], warnings: tuple[str, ...] = ()) -> Page:
-    """`simulate --report`: the levels run, the wrap as entered (`laid`) and as simulated
-    (calibrated, relaxed) for the video, and the warnings the command gave."""
+                  inputs: Mapping[str, Path | None], warnings: tuple[str, ...] = (),
+                  profiles: Sequence[Profile] = ()) -> Page:
+    """`simulate --report`: the levels run (on `profiles`), the wrap as entered (`laid`) and
+    as simulated (calibrated, relaxed) for the video, and the warnings the command gave."""
     layout = load.layout(orientation)
     figures = (_displacement(run, stage, load.name, "the levels in the table above"),
                _tension_map(run, layout, stage, load.name))
     return Page("Bench test report", load, (OrientationRun(orientation, layout, run),), laid, hours,
                 _inputs(inputs), figures, _video(run, layout, simulated, stage),
-                warnings=warnings)
+                warnings=warnings, conditions=conditions_text(profiles, run))
 
 
 def recommend_page(stage: Path, problem: Problem, check: Verification, best: Evaluation,
@@ -107,7 +110,8 @@ def recommend_page(stage: Path, problem: Problem, check: Verification, best: Eva
                         None if state is None else len(state.history))
     return Page("Recommended wrapping program", load, tested, best.wrap,
                 s.hours_since_wrapping, _inputs(inputs), figures,
-                _video(run, layout, problem.simulated(best.wrap), stage), robust, warnings)
+                _video(run, layout, problem.simulated(best.wrap), stage), robust, warnings,
+                conditions_text((PulseProfile(s.target_g),), run))
 
 
 def check_report_folder(folder: Path, inputs: Iterable[str | Path], flag: str = "--report") -> None:

@@ -141,7 +141,7 @@ def run_simulate(args: argparse.Namespace) -> int:
                  "sled profile": args.profile}
         write_report(args.report, lambda stage: simulate_page(
             stage, load, run, laid, wrap, args.orientation, args.hours_since_wrapping, named,
-            tuple(said)))
+            tuple(said), levels))
     files = {}
     if args.json:
         files[Path(args.json)] = _json(args, given, run)

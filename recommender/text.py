@@ -3,12 +3,15 @@ operator enters it, with the web it lays and the time it takes."""
 
 from __future__ import annotations
 
-from wrapenv.bench import BenchRun
+from collections.abc import Sequence
+
+from wrapenv.bench import BenchRun, SimSettings
 from wrapenv.calibrated import Calibration
 from wrapenv.config import printable
 from wrapenv.eumos import EUMOS_CRITERIA, NO_DAMAGE, LevelVerdict, Verdict
 from wrapenv.load import Layout, LoadUnit, Orientation
 from wrapenv.material import NO_RELAXATION, Material
+from wrapenv.profile import Profile
 from wrapenv.program import Pass, Program
 from wrapenv.wrap import WrapFormat
 
@@ -176,6 +179,17 @@ def program_text(wrap: WrapFormat, layout: Layout) -> str:
                  f"carriage up to {m.carriage_speed_mps:g} m/s, {m.handling_s:.0f} s to change "
                  "pallets)")
     return "\n".join(lines)
+
+
+def conditions_text(profiles: Sequence[Profile], run: BenchRun) -> str:
+    """How the levels were run (at the bench's default settings, as `simulate` and
+    `recommend` run them), as a test report states its conditions: the sled's motion, the
+    unit's settling, the bench's time step and solve."""
+    settings = SimSettings()
+    motions = list(dict.fromkeys(p.describe() for p in profiles))
+    return (f"sled: {'; '.join(motions)}; the unit first settles {settings.settle_s:g} s on the "
+            f"still sled; bench: PyBullet, time step 1/{1 / settings.timestep_s:.0f} s, "
+            f"{run.solver_iterations} solver iterations")
 
 
 def age_text(material: Material, hours_since_wrapping: float) -> str:

@@ -87,6 +87,11 @@ class PulseProfile:
     def duration_s(self) -> float:
         return self._phases()[3]
 
+    def describe(self) -> str:
+        """The pulse's shape, as a test report states its conditions."""
+        return (f"the level reached in {self.ramp_s:g} s, held {self.dwell_s:g} s, then braked "
+                f"at {self.decel_ratio:g} of it to a stop")
+
     def accel(self, t: float | np.ndarray) -> np.ndarray:
         t1, t2, t3, t4, d = self._phases()
         a = self.peak_mps2
@@ -147,6 +152,11 @@ class MeasuredProfile:
     @property
     def duration_s(self) -> float:
         return float(self.t_s[-1] - self.t_s[0])
+
+    def describe(self) -> str:
+        """Where the sled's motion came from, as a test report states its conditions."""
+        return (f"the sled's measured profile {self.source} ({self.duration_s:.2f} s, peak "
+                f"{self.level_g:.3f} g)")
 
     def warnings(self) -> tuple[str, ...]:
         """What the file holds that a bench test hardly does (`profile_warnings`)."""

@@ -234,3 +234,10 @@ def test_what_the_command_warned_about_is_on_the_page_too():
     assert ("section", {"class": "warnings"}) in Parsed(html).tags
     assert "the web does not close round the load from 0.13 to 0.22 m &lt;b&gt;" in html
     assert 'class="warnings"' not in render(page())
+
+
+def test_the_page_states_its_test_conditions_when_given():
+    said = "sled: the level reached in 0.05 s <held>"
+    assert "Test conditions: sled: the level reached in 0.05 s &lt;held&gt;." in render(
+        page(conditions=said))
+    assert "Test conditions" not in render(page())

@@ -263,6 +263,7 @@ def test_a_simulate_report_repeats_the_warnings_given_on_stderr(tmp_path, capsys
     assert section is not None
     assert re.findall(r"<li>(.*?)</li>", section.group(1)) == [
         w.replace("'", "&#x27;") for w in warned]
+    assert "Test conditions: sled: the level reached in 0.05 s, held 0.5 s," in page
 
 
 def test_simulate_report_writes_the_page_its_figures_and_both_videos(simulated_report):

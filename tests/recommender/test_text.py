@@ -5,8 +5,11 @@ from __future__ import annotations
 
 from dataclasses import replace
 
+import numpy as np
+
 from recommender.text import (
     TIGHT_WRAP_HINT,
+    conditions_text,
     g_text,
     level_result,
     program_text,
@@ -15,6 +18,7 @@ from recommender.text import (
 from wrapenv.bench import BenchRun
 from wrapenv.eumos import LevelVerdict, Verdict
 from wrapenv.load import LoadUnit
+from wrapenv.profile import MeasuredProfile, PulseProfile
 from wrapenv.wrap import WrapFormat
 from wrapenv.wrap_report import WrapReport
 
@@ -89,3 +93,17 @@ def test_a_failed_level_names_its_criteria_as_the_limits_line_does():
     row = verdict_table(LoadUnit.from_toml("examples/pet_2layer_columnar.toml"),
                         BenchRun(Verdict(0.804, (failed,)), (), 20), None).splitlines()[-2]
     assert row.endswith("permanent max, lowest 20 cm permanent")
+
+
+def test_the_test_conditions_name_the_sled_s_motion_the_settling_and_the_solve():
+    """What a lab report states besides its figures: the pulse (EUMOS 40509 asks the level to
+    be held at least 0.3 s; the bench holds 0.5 s), or the measured profile driven."""
+    run = BenchRun(Verdict(0.804, (level(True),)), (), 50)
+    pulses = conditions_text([PulseProfile(0.2), PulseProfile(0.3)], run)
+    assert pulses == ("sled: the level reached in 0.05 s, held 0.5 s, then braked at 0.25 of it "
+                      "to a stop; the unit first settles 0.3 s on the still sled; bench: "
+                      "PyBullet, time step 1/240 s, 50 solver iterations")
+    measured = MeasuredProfile(np.array([0.0, 0.5, 1.0]), np.array([0.0, 4.905, 0.0]),
+                               "lab/profile.csv")
+    assert conditions_text([measured], run).startswith(
+        "sled: the sled's measured profile lab/profile.csv (1.00 s, peak 0.500 g);")
