@@ -115,7 +115,9 @@ def _side(t: OrientationRun) -> str:
     return f"{t.orientation} side ({along:.3f} m) along the motion"
 
 
-def _load_section(load: LoadUnit, layout: Layout) -> str:
+def _load_section(load: LoadUnit, layout: Layout, calibrated: bool) -> str:
+    """The unit as simulated; its friction says where it came from (a load file's may be a
+    guess, a calibration's was measured)."""
     p, b, s = load.pallet, load.bundle, load.stack
     per_layer = sum(1 for x in layout.bundles if x.layer == 1)
     facts = [
@@ -129,7 +131,8 @@ def _load_section(load: LoadUnit, layout: Layout) -> str:
     friction = [(name.replace("_", "–"), f"{load.friction.pair(name).static:.3f}",
                  f"{load.friction.pair(name).kinetic:.3f}") for name in PAIRS]
     return ("<section><h2>Load unit</h2>" + _facts(facts)
-            + _table(["Friction pair", "static", "kinetic"], friction, "num") + "</section>\n")
+            + _table([f"Friction pair ({'calibrated' if calibrated else 'the load file'})",
+                      "static", "kinetic"], friction, "num") + "</section>\n")
 
 
 def _program_rows(wrap: WrapFormat) -> list[tuple[str, str]]:
@@ -301,6 +304,7 @@ def render(page: Page) -> str:
     tested = "".join(_levels_section(t) for t in page.tested)
     robust = _robust_section(page.robustness) if page.robustness is not None else ""
     warned = _warnings_section(page.warnings)
+    calibrated = any(what == "calibration" for what, _ in page.inputs)
     conditions = (f'<p class="note">Test conditions: {_t(page.conditions, 1000)}.</p>'
                   if page.conditions else "")
     return f"""<!DOCTYPE html>
@@ -312,7 +316,7 @@ def render(page: Page) -> str:
 <p class="name">{_t(page.load.name)}</p>
 <p class="note">EUMOS 40509 test on the virtual ESTL acceleration bench of wrapbench
 {_t(__version__)}: a simulation, not a physical test. Inputs:</p><ul>{inputs}</ul></header>
-{_verdict(page)}{warned}{robust}{_load_section(page.load, page.tested[0].layout)}
+{_verdict(page)}{warned}{robust}{_load_section(page.load, page.tested[0].layout, calibrated)}
 {_wrap_section(page.wrap, page.tested[0].layout, page.hours_since_wrapping)}
 <section><h2>EUMOS 40509 levels</h2>{conditions}{tested}</section>
 {_figures_section(page.figures)}{_video_section(page.video_still)}

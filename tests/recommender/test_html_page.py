@@ -168,7 +168,7 @@ def test_sections_name_the_load_the_program_as_entered_the_web_and_the_cycle():
     assert Parsed(render(page(wrap=bands))).facts()["band 1"] == "0.000–0.450 m, 3 layers at 250 N"
     assert "None: the unit was tested unwrapped." in render(page(wrap=None))
     friction = parsed.table("num")  # the first: friction pairs, then the program's steps
-    assert friction[0] == ["Friction pair", "static", "kinetic"]
+    assert friction[0] == ["Friction pair (the load file)", "static", "kinetic"]
     assert ["sled–pallet", "0.450", "0.340"] in friction
 
 
@@ -241,3 +241,11 @@ def test_the_page_states_its_test_conditions_when_given():
     assert "Test conditions: sled: the level reached in 0.05 s &lt;held&gt;." in render(
         page(conditions=said))
     assert "Test conditions" not in render(page())
+
+
+def test_the_friction_table_says_whether_it_was_calibrated():
+    """A load file's friction may be a guess (CONTRACTS' example values); a report must not
+    show it as if measured."""
+    calibrated = page(inputs=(("load unit", "load.toml"), ("calibration", "cal.json")))
+    heads = [t["rows"][0][0] for t in Parsed(render(calibrated)).tables]
+    assert "Friction pair (calibrated)" in heads
