@@ -106,11 +106,6 @@ def layer_shift_criterion(fraction: float) -> Criterion:
     return Criterion(LAYER_SHIFT, "Layer shift", "layer_shift_max_m", fraction, True, False)
 
 
-#: The least limit on the shift between layers: 0.1 % of a 0.8 m unit is 0.8 mm, about what the
-#: bench reproduces of itself; below it a figure is a fraction given for a percentage.
-MIN_LAYER_SHIFT_FRACTION = 0.001
-
-
 @dataclass(frozen=True)
 class Limits:
     """Which criteria judge a level: EUMOS 40509's, and optionally a limit on the permanent
@@ -120,9 +115,9 @@ class Limits:
 
     def __post_init__(self) -> None:
         f = self.layer_shift_fraction
-        if f is not None and not (is_finite_number(f) and MIN_LAYER_SHIFT_FRACTION <= f <= 1):
-            raise InputError("criteria", "layer_shift_fraction", f"must be in "
-                             f"[{MIN_LAYER_SHIFT_FRACTION:g}, 1] of the load height (got {f})")
+        if f is not None and not (is_finite_number(f) and 0 < f <= 1):
+            raise InputError("criteria", "layer_shift_fraction",
+                             f"must be in (0, 1] of the load height (got {f})")
 
     def criteria(self) -> tuple[Criterion, ...]:
         if self.layer_shift_fraction is None:

@@ -18,7 +18,6 @@ from wrapenv.eumos import (
     FALL_DROP_M,
     LAYER_SHIFT,
     LOW_ZONE,
-    MIN_LAYER_SHIFT_FRACTION,
     PERMANENT,
     Limits,
     Verdict,
@@ -203,8 +202,8 @@ def test_the_layer_shift_criterion_is_judged_only_when_asked():
     assert "layer_shift" in loose.to_json()["criteria"] and "limits" not in loose.to_json()
 
 
-@pytest.mark.parametrize("fraction", [0.0, MIN_LAYER_SHIFT_FRACTION / 2, 1.5, math.nan])
-def test_a_layer_shift_limit_outside_0_1_percent_to_all_of_the_height_is_refused(
+@pytest.mark.parametrize("fraction", [0.0, -0.02, 1.5, math.nan])
+def test_a_layer_shift_limit_outside_none_to_all_of_the_height_is_refused(
         fraction, assert_input_error):
     with pytest.raises(InputError) as info:
         Limits(layer_shift_fraction=fraction)
