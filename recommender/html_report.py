@@ -73,8 +73,8 @@ def _video(run: BenchRun, layout: Layout, wrap: WrapFormat | None, stage: Path) 
 
 def simulate_page(stage: Path, load: LoadUnit, run: BenchRun, laid: WrapFormat | None,
                   simulated: WrapFormat | None, orientation: Orientation | None, hours: float,
-                  inputs: Mapping[str, Path | None], warnings: tuple[str, ...] = (),
-                  profiles: Sequence[Profile] = ()) -> Page:
+                  inputs: Mapping[str, Path | None], warnings: tuple[str, ...],
+                  profiles: Sequence[Profile]) -> Page:
     """`simulate --report`: the levels run (on `profiles`), the wrap as entered (`laid`) and
     as simulated (calibrated, relaxed) for the video, and the warnings the command gave."""
     layout = load.layout(orientation)
@@ -87,7 +87,7 @@ def simulate_page(stage: Path, load: LoadUnit, run: BenchRun, laid: WrapFormat |
 
 def recommend_page(stage: Path, problem: Problem, check: Verification, best: Evaluation,
                    state: SearchState | None, inputs: Mapping[str, Path | None],
-                   warnings: tuple[str, ...] = ()) -> Page:
+                   warnings: tuple[str, ...]) -> Page:
     """`recommend --report`: the verified EUMOS sequence of every orientation, how sure the
     recommendation is, the search (none for a policy's proposal); the figures and the video of
     the weakest orientation; the warnings the command gave."""
