@@ -25,6 +25,7 @@ from wrapenv.config import printable
 from wrapenv.eumos import EUMOS_CRITERIA, NO_DAMAGE, Criterion, LevelVerdict, Verdict
 from wrapenv.load import PAIRS, Layout, LoadUnit, Orientation
 from wrapenv.wrap import WrapFormat, program_to_dict
+from wrapenv.wrap_report import WrapReport
 
 #: The page's style, inlined into it (screen, and A4 print without cut tables or figures).
 CSS = Path(__file__).resolve().parent / "data" / "report.css"
@@ -191,15 +192,29 @@ def _level_row(verdict: Verdict, level: LevelVerdict, criteria: tuple[Criterion,
     ok = level.criteria.get(NO_DAMAGE, False) and level.valid
     cells.append(f'{_t(", ".join(level.damage) or "none")} {_check(ok)}')
     cells.append(_mm(level.pallet_slip_m))
-    w = level.wrap
-    cells.append("—" if w is None else (
-        f"{100 * w.peak_utilisation:.0f} % of strength"
-        + (f", torn at {', '.join(f'{z:.2f}' for z in w.torn_at_m)} m" if w.torn else "")))
+    cells.append(_wrap_cell(level.wrap))
     result = level_result(verdict, level)
     why = level.invalid_reason or level.stopped_early or level.not_at_rest
     reason = f" ({_t(why)})" if why else ""
     cells.append(f'<b class="{"ok" if result == "PASS" else "bad"}">{result}</b>{reason}')
     return cells
+
+
+def _wrap_cell(w: WrapReport | None) -> str:
+    """The level's peak wrap force, where and when: a peak before the pulse is the tension
+    as laid (on a roped program, the rope's at every level), one during it what the test
+    added."""
+    if w is None:
+        return "—"
+    text = f"{100 * w.peak_utilisation:.0f} % of strength"
+    if w.critical:
+        place = w.critical[0]
+        laid = place.t_s is None or place.t_s <= 0.0   # settling, or the level's first step
+        when = "as laid" if laid else f"at {place.t_s:.2f} s"
+        text += f", {when} ({_t(place.element)} {_t(place.where)}, {place.height_m:.2f} m)"
+    if w.torn:
+        text += f", torn at {', '.join(f'{z:.2f}' for z in w.torn_at_m)} m"
+    return text
 
 
 def _highest(t: OrientationRun) -> str:

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import base64
 import re
+from dataclasses import replace
 from html.parser import HTMLParser
 from importlib import metadata
 from typing import Any
@@ -20,6 +21,7 @@ from wrapenv.bench import BenchRun
 from wrapenv.eumos import LevelVerdict, Verdict
 from wrapenv.load import LoadUnit
 from wrapenv.wrap import WrapFormat
+from wrapenv.wrap_report import Place, WrapReport
 
 #: A name that would break the page, its title or a plot if it were written raw.
 HOSTILE = '<script>alert("x")</script><img src=x onerror=alert(1)> & $\\frac{$ \x1b[31m'
@@ -249,3 +251,23 @@ def test_the_friction_table_says_whether_it_was_calibrated():
     calibrated = page(inputs=(("load unit", "load.toml"), ("calibration", "cal.json")))
     heads = [t["rows"][0][0] for t in Parsed(render(calibrated)).tables]
     assert "Friction pair (calibrated)" in heads
+
+
+def test_the_wrap_cell_says_where_the_peak_was_and_whether_the_test_added_it():
+    """A roped program's rope bears its laid tension at every level: a peak at the level's
+    first instant is the tension as laid, not what the pulse added."""
+    def report(t_s: float | None) -> WrapReport:
+        rope = Place("ring", "corner -x-y", 0.115, 0.11, 217.7, t_s, 0.0, 0.0, 0.115, 0.115)
+        return WrapReport((), 0.11, 0.0, places=(rope,))
+
+    def cell(w: WrapReport) -> str:
+        v = replace(level(0.5, 0.01, 0.005, 0.004), wrap=w)
+        run = BenchRun(Verdict(0.804, (v,)), (), 50)
+        rows = Parsed(render(page(tested=(OrientationRun(None, LoadUnit.from_dict(LOAD).layout(),
+                                                                 run),)))).tables
+        levels = next(t for t in rows if t["class"] == "levels")
+        return str(levels["rows"][1][-2])
+
+    assert cell(report(0.0)) == "11 % of strength, as laid (ring corner -x-y, 0.12 m)"
+    assert cell(report(None)).startswith("11 % of strength, as laid")
+    assert cell(report(0.42)) == "11 % of strength, at 0.42 s (ring corner -x-y, 0.12 m)"
