@@ -20,7 +20,7 @@ from recommender.search import Trial
 from recommender.text import TIGHT_WRAP_HINT, level_result, sequence_text, step_cells, wrapped
 from recommender.uncertainty import PassProbability
 from wrapenv import __version__
-from wrapenv.bench import BenchRun
+from wrapenv.bench import BenchRun, SimSettings
 from wrapenv.config import printable
 from wrapenv.eumos import EUMOS_CRITERIA, NO_DAMAGE, Criterion, LevelVerdict, Verdict
 from wrapenv.load import PAIRS, Layout, LoadUnit, Orientation
@@ -209,7 +209,8 @@ def _wrap_cell(w: WrapReport | None) -> str:
     text = f"{100 * w.peak_utilisation:.0f} % of strength"
     if w.critical:
         place = w.critical[0]
-        laid = place.t_s is None or place.t_s <= 0.0   # settling, or the level's first step
+        # settling, or the level's first step (the report's runs are at the default step)
+        laid = place.t_s is None or place.t_s <= SimSettings().timestep_s + 1e-9
         when = "as laid" if laid else f"at {place.t_s:.2f} s"
         text += f", {when} ({_t(place.element)} {_t(place.where)}, {place.height_m:.2f} m)"
     if w.torn:

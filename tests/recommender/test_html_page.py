@@ -268,6 +268,6 @@ def test_the_wrap_cell_says_where_the_peak_was_and_whether_the_test_added_it():
         levels = next(t for t in rows if t["class"] == "levels")
         return str(levels["rows"][1][-2])
 
-    assert cell(report(0.0)) == "11 % of strength, as laid (ring corner -x-y, 0.12 m)"
+    assert cell(report(1 / 240)) == "11 % of strength, as laid (ring corner -x-y, 0.12 m)"
     assert cell(report(None)).startswith("11 % of strength, as laid")
     assert cell(report(0.42)) == "11 % of strength, at 0.42 s (ring corner -x-y, 0.12 m)"
