@@ -189,7 +189,7 @@ def report(name: str, method: str, result: FitResult, truth: Truth, wall: float,
                          f"{1e3 * c.spread_m:.1f} mm ({pct}); over the calibration's "
                          f"uncertainty {1e3 * c.uncertain_m:.1f} ± "
                          f"{1e3 * c.uncertain_spread_m:.1f} mm ({c.uncertain_spreads:.1f} "
-                         f"spreads: {'explained' if c.explained else 'NOT explained'})"
+                         f"spreads: {'within' if c.explained else 'outside'} the spread)"
                          f"{_reproduced(c)}")
             cells.append(f"layer {layer} {what} {pct.removesuffix(' (beyond goal)')}")
     lines += [f"  advice: {k}: {v}" for k, v in result.advice.items()]

@@ -419,7 +419,7 @@ def _fitted_and_written(args: argparse.Namespace, observations: list, held_out: 
         print("the refused fit (not written):\n" + _summary(result))
         hint = (" (a larger --max-residual-mm accepts it knowingly, and CAL.json says so)"
                 if settings.max_residual_m < result.verdict.rms_m < math.inf else "")
-        sys.stderr.write("wrapbench calibrate: the fit did not converge: "
+        sys.stderr.write("wrapbench calibrate: the fit is refused: "
                          f"{printable(result.reason, MESSAGE_CHARS)}; "
                          f"nothing written{hint}\n")
         return 1
@@ -512,7 +512,7 @@ def _validation_summary(check: Validation) -> str:
              "support at "
              "the end of the predictable frames, mm; 'uncertain': replayed with the calibrated "
              "values drawn within their standard deviations",
-             "  object      recorded  predicted ± spread   error       uncertain ± spread"]
+             "  object      recorded  predicted ± spread   error                uncertain ± spread"]
     rows = [*check.objects.items(), *((f"layer {k}", c) for k, c in check.layers.items())]
     lines += [_validation_row(name, c) for name, c in rows]
     if any(layer > 1 for layer in check.layers_on_pallet):   # the first layer's is its slip
@@ -523,8 +523,8 @@ def _validation_summary(check: Validation) -> str:
              f"the pallet, slid {1e3 * c.recorded_m:.1f} mm on the sled")
     lines.append(f"  {moved}: {c.uncertain_spreads:.1f} spreads from the prediction over the "
                  "calibration's uncertainty, "
-                 + ("explained" if c.explained else "NOT explained by it: the recording shows "
-                    "something the calibrated bench does not do"))
+                 + ("within that spread" if c.explained else "outside that spread: the "
+                    "recording shows something the calibrated bench does not do"))
     if c.reproduced is not None:
         lines.append(f"  {c.reproduced:.0%} of the replays with the calibrated values come within "
                      f"{REPRODUCED_SHARE:.0%} of it (a unit near a threshold has several outcomes"
@@ -539,7 +539,17 @@ def _signed_pct(value: float) -> str:
 
 
 def _validation_row(name: str, c: Check) -> str:
-    pct = f" ({_signed_pct(c.error_pct)} %)" if c.error_pct is not None else ""
     return (f"  {name:10s}  {1e3 * c.recorded_m:8.1f}  {1e3 * c.predicted_m:8.1f} ± "
-            f"{1e3 * c.spread_m:5.1f}  {1e3 * c.error_m:+7.1f}{pct:8s}  "
+            f"{1e3 * c.spread_m:5.1f}  {1e3 * c.error_m:+7.1f}{_error_words(c):17s}  "
             f"{1e3 * c.uncertain_m:8.1f} ± {1e3 * c.uncertain_spread_m:5.1f}")
+
+
+def _error_words(c: Check) -> str:
+    """The error as a share of the recorded slide, and which way: a slide backwards (-x) is
+    negative, so a signed share alone reads an over-prediction as an under-prediction."""
+    if c.error_pct is None:
+        return ""
+    if c.predicted_m * c.recorded_m > 0 and abs(c.error_pct) >= 0.5:
+        longer = abs(c.predicted_m) > abs(c.recorded_m)
+        return f" ({abs(c.error_pct):.0f} % {'longer' if longer else 'shorter'})"
+    return f" ({_signed_pct(c.error_pct)} %)"

@@ -531,7 +531,8 @@ def _failure(rms: float, verdict: acceptance.Unexplained, replays: int, simulati
     if verdict.rms_m > settings.max_residual_m:
         excused = (f" (excused as a rare mode: {', '.join(verdict.excused)})"
                    if verdict.excused else "")
-        return (f"{verdict.source} is left {1e3 * verdict.rms_m:.1f} mm unexplained > "
+        return (f"its values do not reproduce {verdict.source}, which is left "
+                f"{1e3 * verdict.rms_m:.1f} mm unexplained > "
                 f"{1e3 * settings.max_residual_m:g} mm by the scatter of its {replays} "
                 f"replays{excused}; "
                 f"residual RMS of all recordings {1e3 * rms:.1f} mm after {simulations} "

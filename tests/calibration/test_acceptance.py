@@ -89,7 +89,8 @@ def test_small_units_excuse_no_body():
 def test_a_refusal_names_the_recording_and_the_excused_body():
     verdict = acceptance.Unexplained("rec-0.45g", 0.0237, ("L2C2R1",))
     reason = _failure(0.05, verdict, 24, 300, _Fitted(Friction()), FitSettings())
-    assert reason.startswith("rec-0.45g is left 23.7 mm unexplained > 10 mm by the scatter of "
+    assert reason.startswith("its values do not reproduce rec-0.45g, which is left 23.7 mm "
+                             "unexplained > 10 mm by the scatter of "
                              "its 24 replays")
     assert "L2C2R1" in reason
     explained = dataclasses.replace(verdict, rms_m=0.009)
