@@ -209,6 +209,9 @@ def calibration_text(source: str, calibration: Calibration, simulated: LoadUnit,
     only bounds below the load file's value, keeps the load file's)."""
     pairs = ", ".join(f"{name} {simulated.friction.pair(name).static:.3f} / "
                       f"{simulated.friction.pair(name).kinetic:.3f}"
+                      + _unidentified(calibration.friction[name].static,
+                                      simulated.friction.pair(name).static,
+                                      calibration.friction[name].identified)
                       for name in calibration.friction)
     parts = [f"friction (static / kinetic) {pairs}" if pairs else "no friction pair"]
     if wrapped:
@@ -217,6 +220,15 @@ def calibration_text(source: str, calibration: Calibration, simulated: LoadUnit,
     if calibration.give_scale != 1.0:
         parts.append(f"the load's give x {calibration.give_scale:.2f}")
     return f"calibrated by {printable(source)}: " + "; ".join(parts)
+
+
+def _unidentified(bound: float, simulated: float, identified: bool) -> str:
+    """Where a pair the recordings never saw slip got its value: CAL.json only bounds it."""
+    if identified:
+        return ""
+    if simulated > bound + 1e-12:
+        return f" (not identified: the load file's, above CAL.json's bound {bound:.3f})"
+    return " (not identified: CAL.json's lower bound)"
 
 
 def program_summary(program: Program) -> str:

@@ -197,6 +197,22 @@ def test_a_calibrated_run_says_which_values_it_put_in_place(load_file, tmp_path,
     assert json.loads(out_json.read_text())["calibration"] == str(cal)
 
 
+def test_a_pair_a_calibration_only_bounds_is_not_credited_to_it(load_file, tmp_path, capsys):
+    """A pair that never slipped in the recordings keeps the load file's friction above the
+    bound CAL.json gives (the default sled-pallet 0.45 / 0.34 here), and the bound where the
+    load file's is lower."""
+    cal = tmp_path / "cal.json"
+    cal.write_text(json.dumps({"friction": {
+        "sled_pallet": {"static": 0.1125, "kinetic": 0.1, "identified": False},
+        "pallet_bundle": {"static": 0.9, "kinetic": 0.8, "identified": False}}}))
+    assert run(["simulate", str(load_file(base=TINY_LOAD)), "--level", "0.2", "--calibration",
+                str(cal)]) == 0
+    out = capsys.readouterr().out
+    assert ("sled_pallet 0.450 / 0.340 (not identified: the load file's, above CAL.json's "
+            "bound 0.113)") in out
+    assert "pallet_bundle 0.900 / 0.800 (not identified: CAL.json's lower bound)" in out
+
+
 def test_bad_calibration_exits_2_naming_the_file_and_field(load_file, tmp_path, capsys):
     cal = tmp_path / "CAL.json"
     cal.write_text(json.dumps({"friction": {"sled_pallet": {"static": 0.3, "kinetic": 0.5}}}))
