@@ -476,9 +476,10 @@ def _summary(result: FitResult) -> str:
     lines = (["pair            static         kinetic        identified"] if cal.friction
              else ["friction: not fitted (the load file's values)"])
     for name, p in cal.friction.items():
-        if p.identified:
+        if p.identified:   # a pair the advice names is identified but not resolved
             lines.append(f"{name:14s}  {p.static:.3f} ± {p.static_std:.3f}  "
-                         f"{p.kinetic:.3f} ± {p.kinetic_std:.3f}  yes")
+                         f"{p.kinetic:.3f} ± {p.kinetic_std:.3f}  yes"
+                         + (", not resolved (advice)" if name in result.advice else ""))
         else:
             lines.append(f"{name:14s}  >= {p.static:.3f}      (never slipped)  no")
     scales = (("stiffness", "stiffness scale", cal.stiffness_scale, cal.stiffness_scale_std),
@@ -495,7 +496,8 @@ def _summary(result: FitResult) -> str:
     spread = (f" (replays scatter {1e3 * result.spread_rms_m:.2f} mm about their mean)"
               if result.spread_rms_m else "")
     lines.append(f"residual RMS {1e3 * result.residual_rms_m:.2f} mm{spread}; one replay of "
-                 f"the fitted values {1e3 * result.replay_rms_m:.2f} mm")
+                 f"the fitted values {1e3 * result.replay_rms_m:.2f} mm (what the acceptance "
+                 "judges is what the replays' scatter leaves unexplained, next line)")
     v = result.verdict
     if v.source:
         excused = f", {' '.join(v.excused)} excused" if v.excused else ""
