@@ -104,23 +104,28 @@ def _level_above(g: float) -> float:
     return math.ceil((g + LEVEL_MARGIN_G) / LEVEL_STEP_G - 1e-9) * LEVEL_STEP_G
 
 
+#: Said of a test on another set-up: its load file differs, and `calibrate` fits takes of
+#: different loads together only when asked.
+OTHER_LOAD = " (another load file: fit its take with these using --mixed-loads)"
+
+
 def advice_unslipped(name: str, bound: Bound) -> str:
     """The test that would make a pair that never slipped slip."""
     if bound.limited_by == "braking":
         return (f"never slipped: the stopper held the pallet, only the braking loaded it "
                 f"({bound.demand_g:.2f} g); test without the pallet stopper at "
-                f"{_level_above(bound.demand_g):.2f} g or more")
+                f"{_level_above(bound.demand_g):.2f} g or more{OTHER_LOAD}")
     if bound.limited_by == "toppling":
         unit = ("a one-layer unit (bundles on the pallet only)" if name == "pallet_bundle"
                 else "a unit of fewer layers")
         return (f"never slipped up to {bound.demand_g:.2f} g while its bundles stood: columns "
                 f"toppled first, and a higher level topples them sooner; test {unit} at "
-                f"{_level_above(bound.demand_g):.2f} g or more")
+                f"{_level_above(bound.demand_g):.2f} g or more{OTHER_LOAD}")
     if bound.limited_by != "level":
         unit = SHIELD_REMOVED[bound.limited_by]
         return (f"never slipped: {bound.limited_by} slipped first and passed up at most "
                 f"{bound.demand_g:.2f} g; a higher level does not load it more; test "
-                f"{unit} at {_level_above(bound.demand_g):.2f} g or more")
+                f"{unit} at {_level_above(bound.demand_g):.2f} g or more{OTHER_LOAD}")
     return (f"never slipped up to {bound.demand_g:.2f} g; test at "
             f"{_level_above(bound.demand_g):.2f} g or more")
 
