@@ -393,3 +393,21 @@ def test_profile_shorter_than_video(two_layer: Recording, tmp_path: Path) -> Non
 def test_fps_mismatch(two_layer: Recording) -> None:
     with pytest.raises(InputError, match="recording.fps"):
         track(replace(two_layer, fps=two_layer.fps * 1.5))
+
+
+def test_a_lone_frame_found_between_lost_ones_is_left_out_as_lost():
+    """A falling bundle's patch can score above the lost threshold for one frame on whatever it
+    lands on; that frame's pose is not the bundle's (a recorded take: 284 mm off)."""
+    from calibration.track import _Poses
+    from calibration.vision.tracking import LOST_SCORE, Pose
+
+    poses = _Poses({"L2C1R1": Pose(0.0, 0.0, 0.0), "L1C1R1": Pose(0.0, 0.0, 0.0)})
+    good, bad = LOST_SCORE + 0.1, LOST_SCORE - 0.1
+    scores = {1: good, 2: bad, 3: good, 4: bad, 5: bad, 6: good, 7: good}
+    for index, score in scores.items():
+        poses.record(index, {"L2C1R1": (Pose(float(index), 0.0, 0.0), score),
+                             "L1C1R1": (Pose(float(index), 0.0, 0.0), good)})
+    poses.drop_lone_finds()
+    assert [i for i, _ in poses.found["L2C1R1"]] == [0, 1, 6, 7]   # frame 3 stood alone
+    assert poses.lost["L2C1R1"] == [2, 3, 4, 5]
+    assert [i for i, _ in poses.found["L1C1R1"]] == list(range(8)) and not poses.lost["L1C1R1"]
