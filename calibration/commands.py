@@ -415,13 +415,19 @@ def _fitted_and_written(args: argparse.Namespace, observations: list, held_out: 
     wall = time.perf_counter() - t0
     if not result.converged:
         # what the refused fit found, and the advice: which test would pin what it missed
-        checkpoint.unlink()
         print("the refused fit (not written):\n" + _summary(result))
-        hint = (" (a larger --max-residual-mm accepts it knowingly, and CAL.json says so)"
-                if settings.max_residual_m < result.verdict.rms_m < math.inf else "")
+        acceptable = settings.max_residual_m < result.verdict.rms_m < math.inf
+        # a checkpoint the engineer named is theirs: kept, a looser bound re-judges its replays
+        kept = acceptable and args.checkpoint is not None
+        if not kept:
+            checkpoint.unlink()
+        hint = (" (a larger --max-residual-mm accepts it knowingly, and CAL.json says so"
+                + (f"; {printable(str(checkpoint))} keeps this fit's replays: with --resume "
+                   "it is judged again without simulating them" if kept else "")
+                + ")" if acceptable else "")
+        written = "nothing written but the checkpoint" if kept else "nothing written"
         sys.stderr.write("wrapbench calibrate: the fit is refused: "
-                         f"{printable(result.reason, MESSAGE_CHARS)}; "
-                         f"nothing written{hint}\n")
+                         f"{printable(result.reason, MESSAGE_CHARS)}; {written}{hint}\n")
         return 1
     try:
         with ProcessPool(args.workers) as pool:

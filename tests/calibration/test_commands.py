@@ -220,11 +220,22 @@ def test_calibrate_that_does_not_converge_writes_nothing(slide_dir, tmp_path, ca
     assert any(line.startswith("refused: the least explained recording") for line in found)
     assert list(out.iterdir()) == []
 
+    # a checkpoint the engineer names is kept, so that accepting the fit knowingly (below)
+    # re-judges its replays instead of simulating them again
+    kept = tmp_path / "fit.jsonl"
+    assert main(["calibrate", str(rec), "--out", str(out / "cal.json"), "--budget", "10",
+                 "--checkpoint", str(kept)]) == 1
+    err = capsys.readouterr().err
+    assert "nothing written but the checkpoint" in err and f"{kept} keeps this fit's" in err
+    assert kept.exists() and list(out.iterdir()) == []
+
     # the engineer may accept it knowingly, under a looser bound: CAL.json then says so
     assert main(["calibrate", str(rec), "--out", str(out / "cal.json"), "--budget", "10",
-                 "--max-residual-mm", "100"]) == 0
-    assert "accepted under --max-residual-mm 100, looser than the default 10 mm" in \
-        capsys.readouterr().out
+                 "--max-residual-mm", "100", "--checkpoint", str(kept), "--resume"]) == 0
+    printed = capsys.readouterr().out
+    assert "accepted under --max-residual-mm 100, looser than the default 10 mm" in printed
+    assert re.search(r"(\d+) replays from the checkpoint", printed), printed
+    assert not kept.exists()
     acceptance = json.loads((out / "cal.json").read_text())["acceptance"]
     assert acceptance["max_residual_m"] == 0.1
     assert 0.01 < acceptance["unexplained_rms_m"] <= 0.1
