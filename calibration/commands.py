@@ -421,13 +421,10 @@ def _fitted_and_written(args: argparse.Namespace, observations: list, held_out: 
         kept = acceptable and args.checkpoint is not None
         if not kept:
             checkpoint.unlink()
-        hint = (" (a larger --max-residual-mm accepts it knowingly, and CAL.json says so"
-                + (f"; {printable(str(checkpoint))} keeps this fit's replays: with --resume "
-                   "it is judged again without simulating them" if kept else "")
-                + ")" if acceptable else "")
         written = "nothing written but the checkpoint" if kept else "nothing written"
         sys.stderr.write("wrapbench calibrate: the fit is refused: "
-                         f"{printable(result.reason, MESSAGE_CHARS)}; {written}{hint}\n")
+                         f"{printable(result.reason, MESSAGE_CHARS)}; {written}"
+                         f"{_refusal_hint(checkpoint if kept else None) if acceptable else ''}\n")
         return 1
     try:
         with ProcessPool(args.workers) as pool:
@@ -475,6 +472,14 @@ def _acceptance(result: FitResult, settings: FitSettings) -> dict:
 def _parts(simulations_by_part: dict[str, int]) -> str:
     """'search 282, final replays 18, ...': where a fit's simulations went."""
     return ", ".join(f"{part.replace('_', ' ')} {n}" for part, n in simulations_by_part.items())
+
+
+def _refusal_hint(kept: Path | None) -> str:
+    """How a fit refused on a take a looser bound would accept can be accepted knowingly
+    (`kept`: the checkpoint holding its replays, if the engineer named one)."""
+    resume = (f"; {printable(str(kept))} keeps this fit's replays: with --resume it is judged "
+              "again without simulating them" if kept is not None else "")
+    return f" (a larger --max-residual-mm accepts it knowingly, and CAL.json says so{resume})"
 
 
 def _summary(result: FitResult) -> str:
