@@ -400,7 +400,7 @@ def run_calibrate(args: argparse.Namespace) -> int:
 def _fitted_and_written(args: argparse.Namespace, observations: list, held_out: list,
                         settings: FitSettings, checkpoint: Path) -> int:
     """Fit (the search's replays kept in `checkpoint`), validate and write; the checkpoint is
-    removed once the fit has ended, written or refused."""
+    removed once the fit has ended, written or refused (`_refused` may keep a named one)."""
     from calibration.checkpoint import ReplayLog
     from calibration.fit import fit
     from calibration.report import loss_png, overlay_png
@@ -414,18 +414,7 @@ def _fitted_and_written(args: argparse.Namespace, observations: list, held_out: 
         result = fit(observations, settings, lambda n: bar.update(n - bar.n), log)
     wall = time.perf_counter() - t0
     if not result.converged:
-        # what the refused fit found, and the advice: which test would pin what it missed
-        print("the refused fit (not written):\n" + _summary(result))
-        acceptable = settings.max_residual_m < result.verdict.rms_m < math.inf
-        # a checkpoint the engineer named is theirs: kept, a looser bound re-judges its replays
-        kept = acceptable and args.checkpoint is not None
-        if not kept:
-            checkpoint.unlink()
-        written = "nothing written but the checkpoint" if kept else "nothing written"
-        sys.stderr.write("wrapbench calibrate: the fit is refused: "
-                         f"{printable(result.reason, MESSAGE_CHARS)}; {written}"
-                         f"{_refusal_hint(checkpoint if kept else None) if acceptable else ''}\n")
-        return 1
+        return _refused(result, settings, checkpoint, named=args.checkpoint is not None)
     try:
         with ProcessPool(args.workers) as pool:
             checks = validate(held_out, result.calibration, pool)
@@ -472,6 +461,22 @@ def _acceptance(result: FitResult, settings: FitSettings) -> dict:
 def _parts(simulations_by_part: dict[str, int]) -> str:
     """'search 282, final replays 18, ...': where a fit's simulations went."""
     return ", ".join(f"{part.replace('_', ' ')} {n}" for part, n in simulations_by_part.items())
+
+
+def _refused(result: FitResult, settings: FitSettings, checkpoint: Path, named: bool) -> int:
+    """Say what the refused fit found, with the advice (which test would pin what it missed),
+    and why it is refused; exit status 1. The checkpoint goes, unless the engineer `named` it
+    and a looser bound would accept the fit: then it keeps the replays to judge again."""
+    print("the refused fit (not written):\n" + _summary(result))
+    acceptable = settings.max_residual_m < result.verdict.rms_m < math.inf
+    kept = acceptable and named
+    if not kept:
+        checkpoint.unlink()
+    written = "nothing written but the checkpoint" if kept else "nothing written"
+    sys.stderr.write("wrapbench calibrate: the fit is refused: "
+                     f"{printable(result.reason, MESSAGE_CHARS)}; {written}"
+                     f"{_refusal_hint(checkpoint if kept else None) if acceptable else ''}\n")
+    return 1
 
 
 def _refusal_hint(kept: Path | None) -> str:
