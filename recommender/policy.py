@@ -49,7 +49,7 @@ from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecEnv
 import wrapenv  # noqa: F401  (registers the env ids used by gym.make)
 from wrapenv.bench import SimSettings
 from wrapenv.calibrated import Calibration
-from wrapenv.config import InputError, write_atomic
+from wrapenv.config import InputError, is_finite_number, write_atomic
 from wrapenv.design import N_PARAMS, NAMES
 from wrapenv.envs import WrapBenchEnv, WrapBenchRandomEnv
 from wrapenv.envs.observation import OBS_NAMES, material_features
@@ -463,7 +463,7 @@ def _check_card(path: Path, meta: dict[str, Any]) -> None:
         return
     now = material_features(MATERIALS[name])
     if not (isinstance(recorded, list) and len(recorded) == len(now)
-            and all(isinstance(v, (int, float)) for v in recorded)
+            and all(is_finite_number(v) for v in recorded)
             and np.allclose(recorded, now, rtol=1e-9, atol=0.0)):
         raise InputError(str(path), "material_features", f"the policy was trained on the "
                          f"{name} card's figures of another version of wrapbench: train a new one")

@@ -8,7 +8,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from wrapenv.config import InputError, Table, is_finite_number
+from wrapenv.config import InputError, Table, is_finite_number, is_real_number
 
 #: Strains at or above this are typos (1000 %), not materials.
 MAX_STRAIN = 10.0
@@ -281,7 +281,7 @@ MAX_HOURS_SINCE_WRAPPING = 8760.0
 def check_hours_since_wrapping(hours: float) -> None:
     """How long a wrap stood before its test: 0 to a year."""
     if not (is_finite_number(hours) and 0 <= hours <= MAX_HOURS_SINCE_WRAPPING):
-        number = isinstance(hours, int | float)
+        number = is_real_number(hours)
         late = number and hours > MAX_HOURS_SINCE_WRAPPING
         unit = ": hours, not seconds or minutes" if late else ""
         raise InputError("wrap", "hours_since_wrapping", f"must be from 0 to "

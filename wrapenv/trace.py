@@ -25,9 +25,9 @@ class Trace:
     bottom_z_m: np.ndarray      # (n,) height of each bundle's underside at rest
     t_s: np.ndarray             # (T,)
     sled_accel_mps2: np.ndarray  # (T,)
-    pallet_pos_m: np.ndarray      # (T, 3)
+    pallet_pos_m: np.ndarray    # (T, 3)
     pallet_rot: np.ndarray      # (T, 3, 3) rotation matrices
-    bundle_pos_m: np.ndarray      # (T, n, 3)
+    bundle_pos_m: np.ndarray    # (T, n, 3)
     bundle_rot: np.ndarray      # (T, n, 3, 3)
     valid: bool = True
     invalid_reason: str = ""
@@ -72,21 +72,22 @@ class Trace:
         return largest
 
     def _end_in_pallet(self) -> np.ndarray:
-        return in_pallet_frame(self.pallet_pos_m[-1], self.pallet_rot[-1], self.bundle_pos_m[-1])
+        return self._in_pallet(-1)
+
+    def _in_pallet(self, i: int) -> np.ndarray:
+        """(n, 3) bundle centres in the pallet's frame at sample i."""
+        return in_pallet_frame(self.pallet_pos_m[i], self.pallet_rot[i], self.bundle_pos_m[i])
 
     def moved_before_m(self) -> float:
         """How far the bundle that had moved most stood, when this level began, from where
         the unit was put on the sled (0: a first level): what a later level of a cumulative
         sequence adds to its own displacements before the permanent limit judges them."""
-        start = in_pallet_frame(self.pallet_pos_m[0], self.pallet_rot[0], self.bundle_pos_m[0])
-        moved = (start - self.origin())[:, :2]
+        moved = (self._in_pallet(0) - self.origin())[:, :2]
         return float(np.linalg.norm(moved, axis=1).max(initial=0.0))
 
     def origin(self) -> np.ndarray:
         """(n, 3) bundle centres in the pallet's frame when the unit was first put on the sled."""
-        if self.origin_m is not None:
-            return self.origin_m
-        return in_pallet_frame(self.pallet_pos_m[0], self.pallet_rot[0], self.bundle_pos_m[0])
+        return self.origin_m if self.origin_m is not None else self._in_pallet(0)
 
     def pallet_slip_m(self) -> float:
         """Permanent horizontal displacement of the pallet on the sled."""
