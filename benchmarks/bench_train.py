@@ -1,6 +1,6 @@
 """PPO training throughput: episodes per second of the training envs, settings side by side.
 
-The vector env `wrapbench train` builds (`wrapenv/WrapBenchRandom-v2`, target level only, a new
+The vector env `wrapbench train` builds (`wrapenv/WrapBenchRandom-v3`, target level only, a new
 random unit every one-step episode) stepped with uniformly random actions, as PPO's rollouts
 step it (the policy's forward pass and its update take well under 1 % of a rollout here).
 Both settings of a vector env see the same units and actions (seeded); the configurations are

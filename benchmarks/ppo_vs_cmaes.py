@@ -1,6 +1,6 @@
 """A trained PPO policy against random actions and against the CMA-ES search.
 
-1. Held-out random units (drawn like `WrapBenchRandom-v2` draws them, from a stream no training
+1. Held-out random units (drawn like `WrapBenchRandom-v3` draws them, from a stream no training
    env uses), target level only: pass rate and mean material of the policy's proposals and of
    uniformly random actions.
 2. `--search N`: the first N held-out units also searched with `wrapbench recommend` (CMA-ES,

@@ -191,7 +191,7 @@ def _add_recommend_run(rec: argparse.ArgumentParser) -> None:
 
 def _add_train(sub: argparse._SubParsersAction) -> None:
     tr = sub.add_parser("train", help="train a PPO policy on random load units "
-                                      "(wrapenv/WrapBenchRandom-v2)")
+                                      "(wrapenv/WrapBenchRandom-v3)")
     tr.add_argument("--out", type=Path, required=True, metavar="DIR",
                     help="folder for policy.zip, checkpoints/ and log.csv")
     tr.add_argument("--timesteps", type=int, default=2048,

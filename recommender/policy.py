@@ -1,7 +1,7 @@
 """A PPO policy that proposes a wrapping program for a load unit at once, trained on random units.
 
 The robust search (`recommender.search`) spends hundreds of simulations on one unit; a policy
-trained once on `wrapenv/WrapBenchRandom-v2` (a new random unit every one-step episode) answers
+trained once on `wrapenv/WrapBenchRandom-v3` (a new random unit every one-step episode) answers
 for any unit in milliseconds, and the caller then verifies its proposal in simulation. The
 episode is a contextual bandit: the observation describes the unit, the action is a program of
 `wrapenv.design.ProgramSpace`, the reward is the env's (pass, margin, web laid).
@@ -57,7 +57,7 @@ from wrapenv.load import LoadUnit
 from wrapenv.material import MATERIALS
 from wrapenv.wrap import WrapFormat
 
-ENV_ID = "wrapenv/WrapBenchRandom-v2"
+ENV_ID = "wrapenv/WrapBenchRandom-v3"
 #: The file inside every policy zip that says what the policy was trained on.
 POLICY_META = "wrapbench.json"
 #: What the env workers pass to gym.make: the "module:id" form imports wrapenv (which registers
@@ -218,7 +218,7 @@ class TimeBudget(BaseCallback):
 
 
 def train(settings: TrainSettings, out_dir: Path, resume: bool = False) -> Path:
-    """Train PPO on wrapenv/WrapBenchRandom-v2 for `settings.timesteps` (or until its
+    """Train PPO on wrapenv/WrapBenchRandom-v3 for `settings.timesteps` (or until its
     `max_minutes`); writes out_dir/policy.zip (final), periodic
     out_dir/checkpoints/policy_<steps>_steps.zip (`Checkpoints`), and out_dir/log.csv (one row
     per episode: timesteps, reward, passed, margin, material_kg, valid — via a small callback
@@ -441,7 +441,7 @@ def _check_meta(path: Path, meta: dict[str, Any], material: str | None,
         raise InputError(str(path), "observation", f"the policy was trained on "
                          f"{meta.get('env_id', 'another env')}, which observes or acts otherwise"
                          f" than {ENV_ID}: train a new one")
-    if meta.get("env_id") != ENV_ID:  # the same names, other ranges (e.g. v1's bottom wraps)
+    if meta.get("env_id") != ENV_ID:  # the same names, other programs (e.g. v2's bottom wraps)
         raise InputError(str(path), "env_id", f"the policy was trained on {meta.get('env_id')},"
                          f" whose actions are other programs than {ENV_ID}'s: train a new one")
     if material is not None and meta.get("material") != material:

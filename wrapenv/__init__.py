@@ -8,8 +8,8 @@ __version__ = "0.1.0"
 
 #: The Gymnasium ids this package registers (entry points are imported only by `gym.make`).
 ENV_IDS = {
-    "wrapenv/WrapBench-v2": "wrapenv.envs:WrapBenchEnv",
-    "wrapenv/WrapBenchRandom-v2": "wrapenv.envs:WrapBenchRandomEnv",
+    "wrapenv/WrapBench-v3": "wrapenv.envs:WrapBenchEnv",
+    "wrapenv/WrapBenchRandom-v3": "wrapenv.envs:WrapBenchRandomEnv",
 }
 
 for _id, _entry_point in ENV_IDS.items():

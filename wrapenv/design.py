@@ -6,27 +6,30 @@ integer variables, for pycma's integer handling); a policy acts in [-1, 1]^9, wh
 maps linearly onto the ranges, rounding the wraps.
 
     index  parameter              range
-    0      bottom_wraps           1 .. 6 revolutions parked at the sled surface (whole)
+    0      bottom_wraps           1 .. 6 revolutions parked low, the web's lower edge
+                                  `ONTO_PALLET_M` below the pallet's top (whole)
     1      top_wraps              1 .. 6 revolutions parked high (whole)
     2      reinforcement_wraps    0 .. 4 revolutions parked at index 4's height (whole; 0: none)
     3      up_overlap             0 .. 0.75 of the web: a spiral of 1 to 4 layers (from what the
                                   carriage can rise a revolution, `min_overlap`)
-    4      reinforcement_from_m   0 .. load top - web width: where the reinforcement's web starts
+    4      reinforcement_from_m   the bottom wraps' height .. load top - web width: where the
+                                  reinforcement's web starts
     5-8    tension of the bottom, middle (spiral), top and reinforcement wraps: 5 % .. 50 % of
            one layer's yield force (machines keep about half the limit for the corners, P4)
 
-Fixed for every program of the space: at least one bottom wrap, from the sled surface. It ties
-the pallet to the load and holds the web's head: the machine's clamp lets the head go after the
-first revolution, and paper does not cling, so only a revolution laid over the head keeps the
-web anchored (without it a search found 0.7 of a revolution "holding" a 323 kg unit, the web
-never closing round it). At least one top wrap, whose web ends `TOP_OVERHANG_M` above the load
-and folds over: with a bottom and a top wrap the web closes round the load at every height (a
-spiral lays at least one layer where its helix is complete, and its ends lie under the parked
-wraps), so no part of the load is held by part of a turn, which the bench would average round
-the load (`wrapenv.program`) although it presses on some faces only. No spiral down (a higher
-overlap lays the same layers in one pass); the web (its card and width) and the machine's
-speeds, which are the space's `Web`: a named card on the 0.5 m web and the default machine, or
-those of a WRAP.toml (`Web.from_toml`).
+Fixed for every program of the space: at least one bottom wrap, its web a few cm onto the pallet
+(`ONTO_PALLET_M`: over the deck, clear of the fork entries, which forks would tear the web at
+before the unit reaches the bench). It ties the pallet to the load and holds the web's head: the
+machine's clamp lets the head go after the first revolution, and paper does not cling, so only a
+revolution laid over the head keeps the web anchored (without it a search found 0.7 of a
+revolution "holding" a 323 kg unit, the web never closing round it). At least one top wrap,
+whose web ends `TOP_OVERHANG_M` above the load and folds over: with a bottom and a top wrap the
+web closes round the load at every height (a spiral lays at least one layer where its helix is
+complete, and its ends lie under the parked wraps), so no part of the load is held by part of a
+turn, which the bench would average round the load (`wrapenv.program`) although it presses on
+some faces only. No spiral down (a higher overlap lays the same layers in one pass); the web
+(its card and width) and the machine's speeds, which are the space's `Web`: a named card on the
+0.5 m web and the default machine, or those of a WRAP.toml (`Web.from_toml`).
 """
 
 from __future__ import annotations
@@ -48,6 +51,10 @@ MIN_BOTTOM_WRAPS = 1
 MIN_TOP_WRAPS = 1
 MAX_REINFORCEMENT_WRAPS = 4
 MAX_OVERLAP = 0.75
+#: The bottom wraps' web reaches this far down onto the pallet [A]: "a few cm onto the pallet"
+#: (docs/materials.md [30]); on a EUR pallet its deck, 22 mm boards on 22 mm cross boards
+#: ([38]), above the fork entries (the top 44 mm of its 144).
+ONTO_PALLET_M = 0.044
 #: The top wraps' web reaches this far above the load and folds over its edge [A]: enough to
 #: tie the top layer's corners without laying web into the air.
 TOP_OVERHANG_M = 0.05
@@ -72,11 +79,20 @@ class ProgramSpace:
 
     web: Web
     load_height_m: float
+    #: The bottom wraps' web's lower edge (`bottom_from_m`, see `for_layout`).
+    bottom_from_m: float
 
     @classmethod
     def for_layout(cls, layout: Layout, web: Web | str) -> ProgramSpace:
-        """The space of a unit for a web, or for a named card on the default web."""
-        return cls(Web.named(web) if isinstance(web, str) else web, layout.load_height_m)
+        """The space of a unit for a web, or for a named card on the default web. The bottom
+        wraps' web starts `ONTO_PALLET_M` below the pallet's top, or lower where the top wraps'
+        web (`TOP_OVERHANG_M` above the load) does: on a unit lower than the web is wide, both
+        are parked at one height and the carriage never travels down."""
+        w = Web.named(web) if isinstance(web, str) else web
+        h = layout.load_height_m
+        top_from_m = max(0.0, h + TOP_OVERHANG_M - w.width_m)
+        onto_pallet_m = max(0.0, layout.pallet_size_m[2] - ONTO_PALLET_M)
+        return cls(w, h, round(min(onto_pallet_m, top_from_m), HEIGHT_DECIMALS))
 
     @property
     def material(self) -> Material:
@@ -107,13 +123,13 @@ class ProgramSpace:
     @property
     def low(self) -> np.ndarray:
         t0, _ = self.tension_range_n
-        return np.array([MIN_BOTTOM_WRAPS, MIN_TOP_WRAPS, 0, self.min_overlap, 0.0,
-                         t0, t0, t0, t0])
+        return np.array([MIN_BOTTOM_WRAPS, MIN_TOP_WRAPS, 0, self.min_overlap,
+                         self.bottom_from_m, t0, t0, t0, t0])
 
     @property
     def high(self) -> np.ndarray:
         _, t1 = self.tension_range_n
-        reach = max(0.0, self.load_height_m - self.web_width_m)
+        reach = max(self.bottom_from_m, self.load_height_m - self.web_width_m)
         return np.array([MAX_WRAPS, MAX_WRAPS, MAX_REINFORCEMENT_WRAPS, MAX_OVERLAP, reach,
                          t1, t1, t1, t1])
 
@@ -126,7 +142,7 @@ class ProgramSpace:
         reinforcement = (Reinforcement(round(float(v[4]), HEIGHT_DECIMALS), wraps[2], tension[3]),
                          ) if wraps[2] else ()
         return Program(
-            bottom_wraps=wraps[0], bottom_tension_n=tension[0],
+            bottom_wraps=wraps[0], bottom_from_m=self.bottom_from_m, bottom_tension_n=tension[0],
             up_overlap=round(float(v[3]), OVERLAP_DECIMALS), middle_tension_n=tension[1],
             top_wraps=wraps[1], top_overhang_m=TOP_OVERHANG_M,
             top_tension_n=tension[2], reinforcements=reinforcement,
@@ -156,10 +172,11 @@ class ProgramSpace:
                          program.top_tension_n, r.tension_n if r else t0], float)
 
     def machine_default(self) -> Program:
-        """What a wrapper does out of the box: 3 bottom wraps, a spiral up at 50 % overlap, 3
-        top wraps, every tension at half the web's yield force."""
+        """What a wrapper does out of the box: 3 bottom wraps (from the space's bottom height), a
+        spiral up at 50 % overlap, 3 top wraps, every tension at half the web's yield force."""
         half = self.material.yield_force_n_per_m * self.web_width_m / 2
-        return Program(bottom_wraps=3, bottom_tension_n=half, up_overlap=0.5,
+        return Program(bottom_wraps=3, bottom_from_m=self.bottom_from_m, bottom_tension_n=half,
+                       up_overlap=0.5,
                        middle_tension_n=half, top_wraps=3, top_overhang_m=TOP_OVERHANG_M,
                        top_tension_n=half)
 

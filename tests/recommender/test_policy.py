@@ -4,7 +4,7 @@ and is refused by a bench it does not fit, without unpickling anything; held-out
 reproducible and differ from the training envs'; and (slow) a short training run beats random
 actions on held-out units.
 
-Every step of `wrapenv/WrapBenchRandom-v2` simulates a random unit of 1-3 layers, about 1-3 s
+Every step of `wrapenv/WrapBenchRandom-v3` simulates a random unit of 1-3 layers, about 1-3 s
 each on one core, so the fast training test runs only 8 timesteps (about 20-30 s).
 """
 
@@ -219,7 +219,7 @@ def test_every_policy_file_says_what_it_was_trained_on(trained):
     for file in [path, *sorted((out / CHECKPOINT_DIR).iterdir())]:
         with zipfile.ZipFile(file) as archive:
             meta = json.loads(archive.read(POLICY_META))
-        assert meta["material"] == "kraft" and meta["env_id"] == "wrapenv/WrapBenchRandom-v2"
+        assert meta["material"] == "kraft" and meta["env_id"] == "wrapenv/WrapBenchRandom-v3"
         assert len(meta["observation"]) == 31 and len(meta["action"]) == N_PARAMS
 
 
@@ -257,15 +257,16 @@ def test_a_policy_of_another_observation_is_refused_in_one_line(trained, tmp_pat
 
 def test_a_policy_of_an_earlier_env_version_is_refused_in_one_line(trained, tmp_path,
                                                                   assert_input_error):
-    """v1's actions had the same names and meant other programs (bottom wraps from 0)."""
+    """v2's actions had the same names and meant other programs (bottom wraps from the sled
+    surface)."""
     path, _ = trained
     with zipfile.ZipFile(path) as archive:
         meta = json.loads(archive.read(POLICY_META))
-    v1 = _rewritten(path, tmp_path / "v1.zip", meta={**meta,
-                                                     "env_id": "wrapenv/WrapBenchRandom-v1"})
+    v2 = _rewritten(path, tmp_path / "v2.zip", meta={**meta,
+                                                     "env_id": "wrapenv/WrapBenchRandom-v2"})
     with pytest.raises(InputError) as info:
-        load_policy(v1)
-    assert_input_error(info.value, str(v1), "env_id")
+        load_policy(v2)
+    assert_input_error(info.value, str(v2), "env_id")
 
 
 def test_a_policy_trained_on_a_card_whose_figures_have_since_changed_is_refused(
@@ -294,10 +295,10 @@ def test_recommend_refuses_such_a_policy_before_warning_about_its_proposal(train
     path, _ = trained
     with zipfile.ZipFile(path) as archive:
         meta = json.loads(archive.read(POLICY_META))
-    v1 = _rewritten(path, tmp_path / "v1.zip", meta={**meta,
-                                                     "env_id": "wrapenv/WrapBenchRandom-v1"})
+    v2 = _rewritten(path, tmp_path / "v2.zip", meta={**meta,
+                                                     "env_id": "wrapenv/WrapBenchRandom-v2"})
     assert main(["recommend", "examples/pet_3layer_half_pallet.toml", "--method", "ppo",
-                 "--policy", str(v1)]) == 2
+                 "--policy", str(v2)]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "env_id" in err[0], err
 

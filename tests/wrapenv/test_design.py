@@ -35,14 +35,50 @@ def test_the_web_of_every_program_closes_round_the_load_at_every_height(load_hei
                                                                         web_width_m):
     """A bottom and a top wrap cover a spiral's ends; where its helix is complete a spiral lays
     at least one layer: no height is held by part of a turn. Checked on random programs,
-    reinforcements included, every 5 mm from the sled to the load's top."""
-    space = ProgramSpace(Web(MATERIALS["kraft"], "kraft", web_width_m), load_height_m)
+    reinforcements included, every 5 mm from the bottom wraps' edge to the load's top."""
+    space = ProgramSpace(Web(MATERIALS["kraft"], "kraft", web_width_m), load_height_m, 0.1)
     rng = np.random.default_rng(0)
     for _ in range(200):
         wrap = space.wrap(space.low + rng.random(N_PARAMS) * (space.high - space.low))
-        heights = np.arange(0.0, load_height_m, 0.005)
+        heights = np.arange(0.1, load_height_m, 0.005)
         assert min(wrap.layers_at(float(z)) for z in heights) >= 1 - 1e-9, wrap.program
         assert wrap.warnings() == ()
+
+
+def test_the_bottom_wraps_lie_on_the_pallet_s_deck_clear_of_its_fork_entries(space):
+    """A EUR pallet (144 mm) has its fork entries up to 100 mm, under 22 mm deck boards on 22 mm
+    cross boards: every program's web reaches down over the deck and no lower, so forks lifting
+    the unit onto the bench do not tear it, and a reinforcement is parked no lower either."""
+    assert space.bottom_from_m == pytest.approx(0.144 - 0.044)
+    rng = np.random.default_rng(1)
+    for _ in range(50):
+        wrap = space.wrap(space.low + rng.random(N_PARAMS) * (space.high - space.low))
+        assert wrap.layers_at(0.099) == 0.0 and wrap.layers_at(0.101) >= 1.0, wrap.program
+        assert min(p.start_m for p in wrap.passes) == pytest.approx(0.1)
+    assert space.laid(space.machine_default()).passes[0].start_m == pytest.approx(0.1)
+
+
+def test_the_web_starts_at_the_sled_under_a_pallet_no_taller_than_a_deck(load_file):
+    """A 30 mm slip-sheet-like pallet has no fork entries to keep clear; a 1200 x 1000 pallet
+    of 162 mm starts the web 44 mm below its top, like the EUR pallet."""
+    thin = LoadUnit.from_toml(load_file({"pallet.height_m": 0.03}))
+    assert ProgramSpace.for_layout(thin.layout(), "kraft").bottom_from_m == 0.0
+    tall = LoadUnit.from_toml(load_file({"pallet.height_m": 0.162}))
+    assert ProgramSpace.for_layout(tall.layout(), "kraft").bottom_from_m == pytest.approx(0.118)
+
+
+def test_on_a_unit_lower_than_the_web_the_bottom_and_top_wraps_share_one_height(load_file):
+    """One layer of 0.25 m bundles on a EUR pallet is 0.394 m high: the top wraps' web, 5 cm
+    above it, starts at 0.394 + 0.05 - 0.5 < 0, i.e. at the sled, and so do the bottom wraps
+    (the carriage would otherwise travel down to the top wraps). A 0.52 m unit's top wraps start
+    at 0.07 m, below the deck's 0.100 m: its bottom wraps too."""
+    low = LoadUnit.from_toml(load_file({"stack.layers": 1, "bundle.height_m": 0.25}))
+    space = ProgramSpace.for_layout(low.layout(), "kraft")
+    assert space.bottom_from_m == 0.0
+    assert [p.zone for p in space.wrap(space.low).passes] == ["bottom", "top"]
+    mid = LoadUnit.from_toml(load_file({"stack.layers": 2, "bundle.height_m": 0.188}))
+    assert mid.layout().load_height_m == pytest.approx(0.52)
+    assert ProgramSpace.for_layout(mid.layout(), "kraft").bottom_from_m == pytest.approx(0.07)
 
 
 def test_tension_spans_5_to_50_percent_of_a_layer_s_yield_force(space):
@@ -83,7 +119,8 @@ def test_a_machine_s_own_web_sets_the_tensions_the_width_laid_and_the_cycle():
     assert space.tension_range_n == pytest.approx((135.0, 1350.0))
     wrap = space.wrap(space.low)
     assert wrap.web_width_m == 0.75 and wrap.material == card and wrap.machine.rpm == 10.0
-    assert wrap.passes[0].start_m == 0.0 and wrap.bands[0].to_m == pytest.approx(0.75)
+    assert wrap.passes[0].start_m == 0.1
+    assert wrap.bands[0].to_m == pytest.approx(min(0.1 + 0.75, load.layout().load_height_m))
 
 
 def test_no_program_asks_a_spiral_the_carriage_cannot_rise():

@@ -1,5 +1,5 @@
 """Gymnasium environments of the virtual bench (registered by ``import wrapenv``):
-``wrapenv/WrapBench-v2`` (`WrapBenchEnv`) and ``wrapenv/WrapBenchRandom-v2``
+``wrapenv/WrapBench-v3`` (`WrapBenchEnv`) and ``wrapenv/WrapBenchRandom-v3``
 (`WrapBenchRandomEnv`); what they observe is `wrapenv.envs.observation`."""
 
 from wrapenv.envs.observation import OBS_NAMES

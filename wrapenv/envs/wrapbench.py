@@ -131,7 +131,7 @@ class WrapBenchEnv(gym.Env):
     revolutions), "cycle_time_s", "passed", "margin", "valid", "material_ratio", "reward_terms".
 
     ## Arguments
-    `gymnasium.make("wrapenv/WrapBench-v2", **kwargs)`, all keyword-only and checked at
+    `gymnasium.make("wrapenv/WrapBench-v3", **kwargs)`, all keyword-only and checked at
     construction: `InputError` (a `ValueError`) for a bad value of a number or a name, a string
     given for a number included; `TypeError` for a `load`, `calibration` or `settings` of
     another type:
@@ -166,6 +166,9 @@ class WrapBenchEnv(gym.Env):
     torn are drawn torn).
 
     ## Version History
+    * v3: the bottom wraps' web starts a few cm onto the pallet (`wrapenv.design.ONTO_PALLET_M`
+      below its top), clear of its fork entries, and a reinforcement no lower; it started at
+      the sled surface, covering them.
     * v2: every program has at least one bottom and one top wrap (actions 0 and 1 map onto
       1 ... 6, were 0 ... 6): paper's head is held only by a revolution laid over it, and the
       web then closes round the load at every height (`wrapenv.design`).
@@ -353,6 +356,7 @@ class WrapBenchRandomEnv(WrapBenchEnv):
     As `WrapBenchEnv`, without `load`. The material is fixed per env instance.
 
     ## Version History
+    * v3: the bottom wraps' web from a few cm onto the pallet (see `WrapBenchEnv`).
     * v2: at least one bottom and one top wrap (see `WrapBenchEnv`).
     * v1: programs instead of bands, material observed by its card (see `WrapBenchEnv`).
     * v0: initial version.

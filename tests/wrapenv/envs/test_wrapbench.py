@@ -27,8 +27,8 @@ from wrapenv.envs import OBS_NAMES, WrapBenchEnv, WrapBenchRandomEnv
 from wrapenv.envs.random_units import outside
 from wrapenv.load import Friction, FrictionPair, LoadUnit
 
-ENV_ID = "wrapenv/WrapBench-v2"
-RANDOM_ID = "wrapenv/WrapBenchRandom-v2"
+ENV_ID = "wrapenv/WrapBench-v3"
+RANDOM_ID = "wrapenv/WrapBenchRandom-v3"
 TINY_LOAD = """name = "tiny"
 [pallet]
 preset = "EUR"
@@ -72,10 +72,12 @@ def test_import_registers_both_ids_and_reimport_is_silent():
         importlib.reload(wrapenv)
 
 
-@pytest.mark.parametrize("old", ["wrapenv/WrapBench-v1", "wrapenv/WrapBenchRandom-v0"])
+@pytest.mark.parametrize("old", ["wrapenv/WrapBench-v2", "wrapenv/WrapBench-v1",
+                                 "wrapenv/WrapBenchRandom-v0"])
 def test_an_earlier_version_names_the_current_one(old):
-    """v1's actions meant other programs (no bottom or top wrap needed); v0 laid bands."""
-    with pytest.raises(gym.error.DeprecatedEnv, match="-v2"), warnings.catch_warnings():
+    """v2's bottom wraps covered the fork entries; v1's actions meant other programs (no bottom
+    or top wrap needed); v0 laid bands."""
+    with pytest.raises(gym.error.DeprecatedEnv, match="-v3"), warnings.catch_warnings():
         warnings.simplefilter("ignore", DeprecationWarning)
         gym.make(old)
 
@@ -242,10 +244,11 @@ def test_cheaper_passing_program_scores_higher(tiny):
         assert terms["verdict"] == pytest.approx(1 + min(info["margin"], 0.5))
         ratio = info["material_used"]["mass_kg"] / env.reference_mass_kg
         assert terms["material"] == pytest.approx(-ratio)
-    # the machine's default program is the reference
+    # the machine's default program is the reference; on this 0.474 m unit the bottom wraps lie
+    # where the top wraps' web (5 cm above the load) starts: 0.474 + 0.05 - 0.5 m
     default = env.step(DEFAULT)[4]
     assert default["format"]["program"] == {
-        "bottom_wraps": 3, "bottom_from_m": 0.0, "bottom_tension_n": 800.0, "up_overlap": 0.5,
+        "bottom_wraps": 3, "bottom_from_m": 0.024, "bottom_tension_n": 800.0, "up_overlap": 0.5,
         "middle_tension_n": 800.0, "top_wraps": 3, "top_overhang_m": 0.05,
         "top_tension_n": 800.0}
     assert default["reward_terms"]["material"] == pytest.approx(-1)
