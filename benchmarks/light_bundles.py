@@ -37,7 +37,7 @@ def _wrap(load: LoadUnit, program: str) -> WrapFormat:
     if program == "default":
         return WrapFormat.from_toml(DEFAULT_PROGRAM, load.load_height_m)
     space = ProgramSpace.for_layout(load.layout(), "kraft")
-    return space.laid(lightest(float(program)))
+    return space.laid(lightest(space, float(program)))
 
 
 def case(args: tuple[float, str]) -> str:

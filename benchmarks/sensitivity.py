@@ -1,21 +1,24 @@
 """How much the verdicts lean on the assumptions docs/materials.md marks [A]: the examples'
 friction, Kraft's glued seam, LLDPE's applied stiffness, the web's cross-direction share of
-its machine-direction law (`cd_ratio`, which the panels between the rings have), and the
-pulse's shape where no source gives it (the ramp to the level, the sled's braking after it).
+its machine-direction law (`cd_ratio`, which the panels between the rings have), the pulse's
+shape where no source gives it (the ramp to the level, the sled's braking after it), and how
+far down onto the pallet the bottom wraps' web reaches (`ONTO_PALLET_M`).
 
 The programs are the answers that matter: on Kraft, the least web of `recommend`'s space (one
 bottom wrap, a touching spiral, one top wrap), which it answers on the examples, here at half
 the yield force (its margin is about the same at 20-50 %: benchmarks/tension_cap.py); on LLDPE,
-the machine's default program
-(examples/program_lldpe_default.toml). Each runs on the 2- and 3-layer columnar examples, both
-sides along the motion, 16 h after wrapping (relaxed, as `recommend` judges), through the EUMOS
-sequence to 0.5 g on the nominal load. Variants: the examples' friction (nominal), the bench's
-default friction (the CTU Code's figures), the examples' pallet-bundle and bundle-bundle
-coefficients 0.05 and 0.10 lower (kinetic in the same ratio), a seam of 1000 N/m (the low end
-of P5's range) instead of 3000, LLDPE's stiffness halved and doubled, either web's
-`cd_ratio` halved, and, for either web, the pulse ramped to its level in 0.02 or 0.15 s
-instead of 0.05 s and the sled braking at 0.125 or 0.5 of the level instead of 0.25. Prints a
-Markdown table: the highest level passed and the margin at 0.5 g.
+the machine's default program (examples/program_lldpe_default.toml, its bottom wraps where the
+search lays them). Each runs on the 2- and 3-layer columnar examples, both sides along the
+motion, 16 h after wrapping (relaxed, as `recommend` judges), through the EUMOS sequence to 0.5
+g on the nominal load. Variants: the examples' friction (nominal), the bench's default friction
+(the CTU Code's figures), the examples' pallet-bundle and bundle-bundle coefficients 0.05 and
+0.10 lower (kinetic in the same ratio), a seam of 1000 N/m (the low end of P5's range) instead
+of 3000, LLDPE's stiffness halved and doubled, either web's `cd_ratio` halved, and, for either
+web, the pulse ramped to its level in 0.02 or 0.15 s instead of 0.05 s, the sled braking at
+0.125 or 0.5 of the level instead of 0.25, and the bottom wraps' web from the sled surface (the
+pallet's whole side) or over 22 mm of it (its deck boards) instead of 44 mm (the deck boards and
+the cross boards under them). Prints a Markdown table: the highest level passed and the margin
+at 0.5 g.
 
     python -m benchmarks.sensitivity [--workers 2]
 """
@@ -32,9 +35,10 @@ from benchmarks.tension_cap import (
     print_table,
     to_target,
 )
-from wrapenv.design import ProgramSpace
+from wrapenv.design import ONTO_PALLET_M, ProgramSpace
 from wrapenv.load import ORIENTATIONS, Friction, FrictionPair, LoadUnit, Orientation
 from wrapenv.profile import PulseProfile
+from wrapenv.program import Program
 from wrapenv.wrap import WrapFormat
 
 EXAMPLES = ("examples/pet_2layer_columnar.toml", "examples/pet_3layer_columnar.toml")
@@ -46,13 +50,19 @@ PULSES: dict[str, Callable[[float], PulseProfile]] = {
     "braking 0.125 x the level": lambda g: PulseProfile(g, decel_ratio=0.125),
     "braking 0.5 x the level": lambda g: PulseProfile(g, decel_ratio=0.5),
 }
+#: Where the bottom wraps' web starts, against the space's (`ONTO_PALLET_M` below the pallet's
+#: top) [A]: over the whole pallet side, as until 2026-11-27, or over its deck boards only.
+BOTTOM_FROM: dict[str, Callable[[float], float]] = {
+    "bottom wraps from the sled surface": lambda z: 0.0,
+    "bottom wraps 22 mm onto the pallet": lambda z: z + ONTO_PALLET_M - 0.022,
+}
 #: (material, variant): what each variant changes is in `variant`.
 VARIANTS = (("kraft", "nominal"), ("kraft", "CTU default friction"),
             ("kraft", "friction -0.05"), ("kraft", "friction -0.10"), ("kraft", "seam 1000 N/m"),
             ("kraft", "cross direction x 0.5"), ("lldpe", "nominal"),
             ("lldpe", "stiffness x 0.5"), ("lldpe", "stiffness x 2"),
             ("lldpe", "cross direction x 0.5"),
-            *((m, v) for m in ("kraft", "lldpe") for v in PULSES))
+            *((m, v) for m in ("kraft", "lldpe") for v in (*PULSES, *BOTTOM_FROM)))
 
 
 def _lower(friction: Friction, delta: float) -> Friction:
@@ -64,13 +74,23 @@ def _lower(friction: Friction, delta: float) -> Friction:
                    bundle_bundle=lowered(friction.bundle_bundle))
 
 
+def _program(space: ProgramSpace, material: str, variant: str) -> Program:
+    """The answer that matters on `material`, its bottom wraps where `variant` lays them."""
+    if material == "kraft":
+        program = lightest(space, 0.5 * space.material.yield_force_n_per_m * space.web_width_m)
+    else:
+        given = WrapFormat.from_toml(LLDPE_PROGRAM, space.load_height_m).program
+        assert given is not None
+        program = replace(given, bottom_from_m=space.bottom_from_m)
+    if variant in BOTTOM_FROM:
+        program = replace(program, bottom_from_m=BOTTOM_FROM[variant](space.bottom_from_m))
+    return program
+
+
 def _unit_and_wrap(load_path: str, material: str, variant: str) -> tuple[LoadUnit, WrapFormat]:
     load = LoadUnit.from_toml(load_path)
-    if material == "kraft":
-        space = ProgramSpace.for_layout(load.layout(), "kraft")
-        wrap = space.laid(lightest(0.5 * space.material.yield_force_n_per_m * space.web_width_m))
-    else:
-        wrap = WrapFormat.from_toml(LLDPE_PROGRAM, load.load_height_m)
+    space = ProgramSpace.for_layout(load.layout(), material)
+    wrap = space.laid(_program(space, material, variant))
     if variant == "CTU default friction":
         load = load.with_friction(replace(Friction(), sled_pallet=load.friction.sled_pallet))
     elif variant.startswith("friction -"):

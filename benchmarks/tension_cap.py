@@ -19,7 +19,7 @@ from multiprocessing import Pool
 from typing import Any
 
 from wrapenv.bench import run_levels
-from wrapenv.design import MIN_BOTTOM_WRAPS, MIN_TOP_WRAPS, TOP_OVERHANG_M, ProgramSpace
+from wrapenv.design import ProgramSpace
 from wrapenv.eumos import LevelVerdict, level_margin
 from wrapenv.load import ORIENTATIONS, LoadUnit, Orientation
 from wrapenv.profile import PulseProfile, eumos_levels
@@ -33,11 +33,12 @@ TARGET_G = 0.5
 HOURS_SINCE_WRAPPING = 16.0  # recommend's default (ASTM D5414's rest)
 
 
-def lightest(tension_n: float) -> Program:
-    """One bottom wrap, a touching spiral and one top wrap, every zone at `tension_n`."""
-    return Program(bottom_wraps=MIN_BOTTOM_WRAPS, bottom_tension_n=tension_n, up_overlap=0.0,
-                   middle_tension_n=tension_n, top_wraps=MIN_TOP_WRAPS,
-                   top_overhang_m=TOP_OVERHANG_M, top_tension_n=tension_n)
+def lightest(space: ProgramSpace, tension_n: float) -> Program:
+    """The least web of `space` (one bottom wrap where the space lays it, a spiral at its least
+    overlap, one top wrap), every zone at `tension_n`."""
+    values = space.low.copy()
+    values[5:] = tension_n
+    return space.program(values)
 
 
 def to_target(load_path: str, load: LoadUnit, wrap: WrapFormat, orientation: Orientation,
@@ -62,7 +63,7 @@ def case(args: tuple[str, float, Orientation]) -> str:
     load = LoadUnit.from_toml(load_path)
     space = ProgramSpace.for_layout(load.layout(), "kraft")
     tension = fraction * space.material.yield_force_n_per_m * space.web_width_m
-    wrap = space.laid(lightest(tension)).relaxed(HOURS_SINCE_WRAPPING)
+    wrap = space.laid(lightest(space, tension)).relaxed(HOURS_SINCE_WRAPPING)
     row, last = to_target(load_path, load, wrap, orientation)
     peak = f"{last.wrap.peak_utilisation:.2f}" if last and last.wrap else "–"
     return row.format(f"{fraction:.0%} ({tension:.0f} N) | {orientation}") + f" {peak} |"
