@@ -260,8 +260,6 @@ def _check_outputs(args: argparse.Namespace) -> Path | None:
 
 
 def run_recommend(args: argparse.Namespace) -> int:
-    from recommender.search import RobustSearch
-
     load = LoadUnit.from_toml(args.load)
     said: list[str] = []
     calibration = (read_calibration(args.calibration, "recommend", said) if args.calibration
@@ -272,18 +270,32 @@ def run_recommend(args: argparse.Namespace) -> int:
     problem = Problem.build(load, settings, calibration)
     samples = max(8, args.samples)
     if args.method == "ppo":
-        t0 = time.perf_counter()
-        best, check = _propose_with_policy(args, problem, samples, said)
-        refused = _refused_proposal(problem, best, check)
-        _print_recommendation(problem, best, check, recommended=not refused,
-                              margin_of="nominal")   # no search: the proposal's own runs
-        print(f"policy proposal verified in {time.perf_counter() - t0:.0f} s")
-        if refused:   # as a search that finds no pass: nothing to enter, nothing written
-            print(f"the policy's proposal {refused}: nothing written; search with --method "
-                  f"cmaes")
-            return 1
-        _write_outputs(args, problem, best, check, 1, None, said)
-        return 0
+        return _recommend_by_policy(args, problem, samples, said)
+    return _recommend_by_search(args, problem, checkpoint, samples, said)
+
+
+def _recommend_by_policy(args: argparse.Namespace, problem: Problem, samples: int,
+                         said: list[str]) -> int:
+    """The policy's proposal, verified as a search's answer is (exit 1 if it fails)."""
+    t0 = time.perf_counter()
+    best, check = _propose_with_policy(args, problem, samples, said)
+    refused = _refused_proposal(problem, best, check)
+    _print_recommendation(problem, best, check, recommended=not refused,
+                          margin_of="nominal")   # no search: the proposal's own runs
+    print(f"policy proposal verified in {time.perf_counter() - t0:.0f} s")
+    if refused:   # as a search that finds no pass: nothing to enter, nothing written
+        print(f"the policy's proposal {refused}: nothing written; search with --method cmaes")
+        return 1
+    _write_outputs(args, problem, best, check, 1, None, said)
+    return 0
+
+
+def _recommend_by_search(args: argparse.Namespace, problem: Problem, checkpoint: Path | None,
+                         samples: int, said: list[str]) -> int:
+    """The robust search, its answer verified; an interrupt keeps the checkpoint and says so."""
+    from recommender.search import RobustSearch
+
+    settings = problem.settings
     search = RobustSearch(problem, checkpoint)
     state = search.resume() if args.resume else search.start()
     t0 = time.perf_counter()
@@ -519,9 +531,7 @@ def _observable_calibration(path: Path | None) -> Calibration | None:
     return calibration
 
 
-def run_train(args: argparse.Namespace) -> int:
-    from recommender.policy import TrainSettings, last_checkpoint, train
-
+def _check_train_numbers(args: argparse.Namespace) -> None:
     for flag, value in (("--timesteps", args.timesteps), ("--envs", args.envs)):
         if value < 1:
             raise InputError("arguments", flag, f"must be >= 1 (got {value})")
@@ -531,25 +541,38 @@ def run_train(args: argparse.Namespace) -> int:
                                                 "env is a process simulating on a core")
     if args.minutes is not None and not (math.isfinite(args.minutes) and args.minutes > 0):
         raise InputError("arguments", "--minutes", f"must be > 0 (got {args.minutes})")
+
+
+def _run_folder(out: Path, resume: bool) -> bool:
+    """The training run's folder, made if missing and checked; whether it was made (a refusal
+    leaves no folder behind)."""
+    if out.exists() and not out.is_dir():
+        raise InputError(str(out), "--out", "exists and is not a folder")
+    made = not out.exists()
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise InputError(str(out), "--out", f"cannot be created ({exc.strerror})") from None
+    try:
+        check_output(out / "policy.zip", "--out")
+        _check_run_folder(out, resume)
+    except InputError:
+        if made:
+            out.rmdir()
+        raise
+    return made
+
+
+def run_train(args: argparse.Namespace) -> int:
+    from recommender.policy import TrainSettings, last_checkpoint, train
+
+    _check_train_numbers(args)
     _material(args.material)
     _target(args.target)
     calibration = _observable_calibration(args.calibration)
     if calibration is not None:
         warn("train", calibration.warnings())
-    if args.out.exists() and not args.out.is_dir():
-        raise InputError(str(args.out), "--out", "exists and is not a folder")
-    made = not args.out.exists()
-    try:
-        args.out.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise InputError(str(args.out), "--out", f"cannot be created ({exc.strerror})") from None
-    try:
-        check_output(args.out / "policy.zip", "--out")
-        _check_run_folder(args.out, args.resume)
-    except InputError:
-        if made:   # refused: leave no folder behind either
-            args.out.rmdir()
-        raise
+    made = _run_folder(args.out, args.resume)
     settings = TrainSettings(timesteps=args.timesteps, n_envs=args.envs, material=args.material,
                              target_g=args.target, seed=args.seed, max_minutes=args.minutes,
                              calibration=calibration)

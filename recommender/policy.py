@@ -244,13 +244,7 @@ def train(settings: TrainSettings, out_dir: Path, resume: bool = False) -> Path:
     with contextlib.ExitStack() as cleanup:  # undone in reverse, also when a step fails
         cleanup.callback(torch.set_num_threads, torch.get_num_threads())
         torch.set_num_threads(1)
-        vec_env = make_vec_env(
-            MAKE_ID, n_envs=settings.n_envs, seed=settings.seed + done,
-            env_kwargs={"material": settings.material, "target_g": settings.target_g,
-                        "levels": settings.levels, "settings": settings.sim,
-                        "calibration": settings.calibration},
-            vec_env_cls=SubprocVecEnv if settings.n_envs > 1 else DummyVecEnv,
-        )
+        vec_env = _training_envs(settings, seed=settings.seed + done)
         cleanup.callback(close_envs, vec_env)
         log = EpisodeLog(out_dir / LOG_FILE, kept=done if start else None)
         cleanup.callback(log.close)
@@ -270,6 +264,17 @@ def train(settings: TrainSettings, out_dir: Path, resume: bool = False) -> Path:
         path = out_dir / POLICY_FILE
         save_stamped(model, path, meta)
         return path
+
+
+def _training_envs(settings: TrainSettings, seed: int) -> VecEnv:
+    """`settings.n_envs` random-unit envs, in worker processes when there are several."""
+    return make_vec_env(
+        MAKE_ID, n_envs=settings.n_envs, seed=seed,
+        env_kwargs={"material": settings.material, "target_g": settings.target_g,
+                    "levels": settings.levels, "settings": settings.sim,
+                    "calibration": settings.calibration},
+        vec_env_cls=SubprocVecEnv if settings.n_envs > 1 else DummyVecEnv,
+    )
 
 
 def close_envs(vec_env: VecEnv) -> None:
