@@ -53,7 +53,7 @@ MAX_REINFORCEMENT_WRAPS = 4
 MAX_OVERLAP = 0.75
 #: The bottom wraps' web reaches this far down onto the pallet [A]: "a few cm onto the pallet"
 #: (docs/materials.md [30]); on a EUR pallet its deck, 22 mm boards on 22 mm cross boards
-#: ([38]), above the fork entries (the top 44 mm of its 144).
+#: ([40]), above the fork entries (the top 44 mm of its 144).
 ONTO_PALLET_M = 0.044
 #: The top wraps' web reaches this far above the load and folds over its edge [A]: enough to
 #: tie the top layer's corners without laying web into the air.
