@@ -25,6 +25,7 @@ at 0.5 g.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from dataclasses import replace
 
@@ -35,7 +36,7 @@ from benchmarks.tension_cap import (
     print_table,
     to_target,
 )
-from wrapenv.design import ONTO_PALLET_M, ProgramSpace
+from wrapenv.design import ProgramSpace
 from wrapenv.load import ORIENTATIONS, Friction, FrictionPair, LoadUnit, Orientation
 from wrapenv.profile import PulseProfile
 from wrapenv.program import Program
@@ -50,11 +51,11 @@ PULSES: dict[str, Callable[[float], PulseProfile]] = {
     "braking 0.125 x the level": lambda g: PulseProfile(g, decel_ratio=0.125),
     "braking 0.5 x the level": lambda g: PulseProfile(g, decel_ratio=0.5),
 }
-#: Where the bottom wraps' web starts, against the space's (`ONTO_PALLET_M` below the pallet's
-#: top) [A]: over the whole pallet side, as until 2026-11-27, or over its deck boards only.
-BOTTOM_FROM: dict[str, Callable[[float], float]] = {
-    "bottom wraps from the sled surface": lambda z: 0.0,
-    "bottom wraps 22 mm onto the pallet": lambda z: z + ONTO_PALLET_M - 0.022,
+#: How far down onto the pallet the bottom wraps' web reaches, against the space's
+#: `ONTO_PALLET_M` [A]: the whole pallet side, as until 2026-11-27, or its deck boards only.
+ONTO_PALLET: dict[str, float] = {
+    "bottom wraps from the sled surface": math.inf,
+    "bottom wraps 22 mm onto the pallet": 0.022,
 }
 #: (material, variant): what each variant changes is in `variant`.
 VARIANTS = (("kraft", "nominal"), ("kraft", "CTU default friction"),
@@ -62,7 +63,7 @@ VARIANTS = (("kraft", "nominal"), ("kraft", "CTU default friction"),
             ("kraft", "cross direction x 0.5"), ("lldpe", "nominal"),
             ("lldpe", "stiffness x 0.5"), ("lldpe", "stiffness x 2"),
             ("lldpe", "cross direction x 0.5"),
-            *((m, v) for m in ("kraft", "lldpe") for v in (*PULSES, *BOTTOM_FROM)))
+            *((m, v) for m in ("kraft", "lldpe") for v in (*PULSES, *ONTO_PALLET)))
 
 
 def _lower(friction: Friction, delta: float) -> Friction:
@@ -74,7 +75,8 @@ def _lower(friction: Friction, delta: float) -> Friction:
                    bundle_bundle=lowered(friction.bundle_bundle))
 
 
-def _program(space: ProgramSpace, material: str, variant: str) -> Program:
+def _program(space: ProgramSpace, pallet_height_m: float, material: str, variant: str
+             ) -> Program:
     """The answer that matters on `material`, its bottom wraps where `variant` lays them."""
     if material == "kraft":
         program = lightest(space, 0.5 * space.material.yield_force_n_per_m * space.web_width_m)
@@ -82,15 +84,16 @@ def _program(space: ProgramSpace, material: str, variant: str) -> Program:
         given = WrapFormat.from_toml(LLDPE_PROGRAM, space.load_height_m).program
         assert given is not None
         program = replace(given, bottom_from_m=space.bottom_from_m)
-    if variant in BOTTOM_FROM:
-        program = replace(program, bottom_from_m=BOTTOM_FROM[variant](space.bottom_from_m))
+    if variant in ONTO_PALLET:
+        program = replace(program,
+                          bottom_from_m=max(0.0, pallet_height_m - ONTO_PALLET[variant]))
     return program
 
 
 def _unit_and_wrap(load_path: str, material: str, variant: str) -> tuple[LoadUnit, WrapFormat]:
     load = LoadUnit.from_toml(load_path)
     space = ProgramSpace.for_layout(load.layout(), material)
-    wrap = space.laid(_program(space, material, variant))
+    wrap = space.laid(_program(space, load.pallet.height_m, material, variant))
     if variant == "CTU default friction":
         load = load.with_friction(replace(Friction(), sled_pallet=load.friction.sled_pallet))
     elif variant.startswith("friction -"):

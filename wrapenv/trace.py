@@ -53,7 +53,7 @@ class Trace:
     def permanent_total_m(self) -> np.ndarray:
         """(n,) horizontal displacement of each bundle centre in the pallet's frame from where
         it stood when the unit was first put on the sled to where it rests at the end."""
-        moved = self._end_in_pallet() - self.origin()
+        moved = self._in_pallet(-1) - self.origin()
         return np.linalg.norm(moved[:, :2], axis=1)
 
     def layer_shift_m(self) -> float:
@@ -61,7 +61,7 @@ class Trace:
         relative to the pallet) since the unit was first put on the sled: per layer, the
         displacement of the mean of its bundle centres in the pallet's frame, less the lower
         layer's."""
-        moved = (self._end_in_pallet() - self.origin())[:, :2]
+        moved = (self._in_pallet(-1) - self.origin())[:, :2]
         layers = self.layers if self.layers is not None else np.ones(len(moved), int)
         below = np.zeros(2)  # the pallet does not move in its own frame
         largest = 0.0
@@ -70,9 +70,6 @@ class Trace:
             largest = max(largest, float(np.linalg.norm(mean - below)))
             below = mean
         return largest
-
-    def _end_in_pallet(self) -> np.ndarray:
-        return self._in_pallet(-1)
 
     def _in_pallet(self, i: int) -> np.ndarray:
         """(n, 3) bundle centres in the pallet's frame at sample i."""
@@ -96,7 +93,7 @@ class Trace:
     def dropped_m(self) -> np.ndarray:
         """(n,) how far each bundle centre ends below where it stood when the unit was first
         put on the sled, in the pallet's frame."""
-        return self.origin()[:, 2] - self._end_in_pallet()[:, 2]
+        return self.origin()[:, 2] - self._in_pallet(-1)[:, 2]
 
     def tilt_rad(self) -> np.ndarray:
         """(n,) final tilt of each bundle: angle between its vertical axis and the world's."""
