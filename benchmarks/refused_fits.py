@@ -7,7 +7,8 @@ takes (the 2-layer example's friction drawn with jitter, hidden from the fit), e
 run as a user would, `wrapbench calibrate ... --max-residual-mm 35` (the default 10 mm refuses
 five of the six: docs/calibration.md); then `wrapbench recommend` answers with each CAL.json,
 with the true friction and with the load file's own, and `wrapbench simulate --eumos` tests
-every answer on the true unit, both sides, 16 h after wrapping, as `recommend` verifies.
+every answer on the true unit, both sides, 16 h after wrapping, as `recommend` verifies; a
+holding answer's cell gives the largest share of a criterion's limit any level reached.
 
     python -m benchmarks.refused_fits [--seed 0 1 2 3 4 5] [--workers 2]
 """
@@ -23,6 +24,7 @@ from dataclasses import replace
 from pathlib import Path
 
 from benchmarks.bench_calibrate import CASES, observation
+from wrapenv.eumos import EUMOS_CRITERIA
 from wrapenv.load import Friction, FrictionPair, LoadUnit
 
 #: The bound the fits are accepted under (their unexplained takes: 10.8-30.1 mm).
@@ -33,9 +35,13 @@ HOURS = 16.0
 
 
 def wrapbench(*argv: str) -> int:
-    """One command as a user types it; its output is not needed, only its files."""
-    return subprocess.run([sys.executable, "-m", "recommender.cli", *argv],
-                          capture_output=True, text=True).returncode
+    """One command as a user types it; its exit status and files are what is read (a crash,
+    whose exit status 1 would read as "nothing passed", is raised)."""
+    done = subprocess.run([sys.executable, "-m", "recommender.cli", *argv],
+                          capture_output=True, text=True)
+    if "Traceback" in done.stderr:
+        raise RuntimeError(f"wrapbench {' '.join(argv)} crashed:\n{done.stderr[-2000:]}")
+    return done.returncode
 
 
 def true_load(folder: Path, out: Path) -> Path:
@@ -66,9 +72,9 @@ def answer(work: Path, name: str, load: Path, material: str, target: float,
                          "--hours-since-wrapping", str(HOURS), "--json", str(verdict))
         if code != 0:
             return f"{mass:.3f} kg, FAILS the true unit ({side} side)"
-        level = json.loads(verdict.read_text())["levels"][-1]
-        worst = max(worst, level["permanent_max_pct"] / 5.0, level["elastic_max_pct"] / 10.0,
-                    level["permanent_low20_m"] / 0.04)  # each criterion's share of its limit
+        run = json.loads(verdict.read_text())
+        worst = max(worst, *(level[c.figure] / c.limit_m(run["load_height_m"])
+                             for level in run["levels"] for c in EUMOS_CRITERIA))
     return f"{mass:.3f} kg, holds ({worst:.0%} of a limit)"
 
 
