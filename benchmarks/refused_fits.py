@@ -20,10 +20,10 @@ import json
 import subprocess
 import sys
 import tempfile
-from dataclasses import replace
 from pathlib import Path
 
 from benchmarks.bench_calibrate import CASES, observation
+from calibration.recording import Truth
 from wrapenv.eumos import EUMOS_CRITERIA
 from wrapenv.load import Friction, FrictionPair, LoadUnit
 
@@ -44,13 +44,12 @@ def wrapbench(*argv: str) -> int:
     return done.returncode
 
 
-def true_load(folder: Path, out: Path) -> Path:
+def true_load(folder: Path, truth: Truth, out: Path) -> Path:
     """The take's load file with the friction the take was made with (to 3 decimals)."""
-    unit = LoadUnit.from_toml(folder / "load.toml")
-    drawn = json.loads((folder / "truth.json").read_text())["params"]["friction"]
     pairs = {k: FrictionPair(round(v["static"], 3), round(v["kinetic"], 3))
-             for k, v in drawn.items()}
-    out.write_text(replace(unit, friction=Friction(**pairs)).to_toml())
+             for k, v in truth.params["friction"].items()}
+    unit = LoadUnit.from_toml(folder / "load.toml")
+    out.write_text(unit.with_friction(Friction(**pairs)).to_toml())
     return out
 
 
@@ -84,11 +83,11 @@ def main() -> None:
     parser.add_argument("--workers", type=int, default=2)
     args = parser.parse_args()
     takes = [t.folder() for t in CASES["columnar2"][0]]
-    for take in CASES["columnar2"][0]:
-        observation(take)  # made and tracked into the cache if missing
+    # made and tracked into the cache if missing; the takes share one draw of friction
+    truths = [observation(take)[1] for take in CASES["columnar2"][0]]
     with tempfile.TemporaryDirectory() as folder:
         work = Path(folder)
-        truth = true_load(takes[0], work / "true.toml")
+        truth = true_load(takes[0], truths[0], work / "true.toml")
         nominal = takes[0] / "load.toml"
         rows: list[tuple[str, Path, Path | None]] = [("true friction", truth, None),
                                                      ("the load file's", nominal, None)]

@@ -424,6 +424,7 @@ def test_short_training_beats_random_actions_on_held_out_units(tmp_path):
     Until that commit the test asked for no lower pass rate than random actions'; on -v3 this
     192-episode run misses that by the one unit, whose programs -v3 did not change (it is too
     low for the bottom wraps to move).
+
     Measured (2026-11-24, commit 602edac, 2 cores shared with other tests; training 299 s,
     1.29 simulations/s with 2 envs, evaluation 39 s): pass rate policy 12/12, random 12/12;
     mean material policy 0.415 kg, random 1.639 kg (-75 %); no invalid run; the same verdict
