@@ -5,12 +5,14 @@ how it is scored) and every generation as it was told to CMA-ES: the candidates 
 their objective, margins and verdicts per sample, and the fidelity each was judged with
 ("screening", "default", or "dominated": not simulated, see `recommender.search`). A resumed
 search replays the generations into a new CMA-ES with the same seed, without simulating, and
-refuses a file of another search.
+refuses a file of another search. A search in a later round (`SearchSettings.in_round`) also
+records its round and what the rounds before it spent ("round"; absent: the first round).
 """
 
 from __future__ import annotations
 
 import json
+from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
 
@@ -25,23 +27,54 @@ CHECKPOINT_FORMAT = FORMAT_FAMILY + "2"
 GENERATION_KEYS = ("x", "objective", "margins", "passed", "fidelity")
 
 
-def save(path: Path | None, identity: dict[str, Any],
-         generations: list[dict[str, Any]]) -> None:
+@dataclass(frozen=True)
+class Round:
+    """The search round under way, and the candidates and levels simulated by the rounds
+    before it (their passes all failed their verification: nothing of them is replayed)."""
+
+    number: int = 1
+    earlier_candidates: int = 0
+    earlier_simulations: int = 0
+
+    def next(self, candidates: int, simulations: int) -> Round:
+        """The round after this one, which spent `candidates` and `simulations`."""
+        return Round(self.number + 1, self.earlier_candidates + candidates,
+                     self.earlier_simulations + simulations)
+
+
+#: The round every search starts in.
+FIRST_ROUND = Round()
+
+
+def save(path: Path | None, identity: dict[str, Any], generations: list[dict[str, Any]],
+         round_: Round = FIRST_ROUND) -> None:
     """Write the checkpoint atomically (nothing half-written if interrupted); None: nowhere."""
     if path is None:
         return
-    data = {"format": CHECKPOINT_FORMAT, "problem": identity, "generations": generations}
+    data = {"format": CHECKPOINT_FORMAT, "problem": identity, "generations": generations,
+            **({} if round_ == FIRST_ROUND else {"round": asdict(round_)})}
     write_atomic(path, (json.dumps(data) + "\n").encode())
+
+
+def read_round(path: Path | None) -> Round:
+    """The round the checkpoint at `path` was written in (its format is checked by `load`)."""
+    given = _read(path).get("round", {})
+    fields = tuple(asdict(Round()))
+    if not (isinstance(given, dict) and set(given) <= set(fields)
+            and all(isinstance(given.get(k, 0), int) and not isinstance(given.get(k), bool)
+                    for k in fields)):
+        raise InputError(str(path), "round", f"must be an object of whole numbers "
+                                             f"({', '.join(fields)})")
+    round_ = Round(**given)
+    if round_.number < 1 or round_.earlier_candidates < 0 or round_.earlier_simulations < 0:
+        raise InputError(str(path), "round", "holds a number the search never writes (a round "
+                                             "is >= 1, what earlier rounds spent >= 0)")
+    return round_
 
 
 def load(path: Path | None, identity: dict[str, Any]) -> list[dict[str, Any]]:
     """The generations of the checkpoint at `path`, if it is this search's (`identity`)."""
-    if path is None or not path.exists():
-        raise InputError(str(path), "resume", "no checkpoint to resume from")
-    data = read_json(path)
-    if data.get("format") != CHECKPOINT_FORMAT:
-        raise InputError(str(path), "format", f"not a wrapbench search checkpoint of this "
-                                              f"version ({CHECKPOINT_FORMAT})")
+    data = _read(path)
     problem = data.get("problem")
     if not isinstance(problem, dict):
         raise InputError(str(path), "problem", "must be an object")
@@ -61,6 +94,17 @@ def load(path: Path | None, identity: dict[str, Any]) -> list[dict[str, Any]]:
     return generations
 
 
+def _read(path: Path | None) -> dict[str, Any]:
+    """The checkpoint file's data, if it is one of this version."""
+    if path is None or not path.exists():
+        raise InputError(str(path), "resume", "no checkpoint to resume from")
+    data = read_json(path)
+    if data.get("format") != CHECKPOINT_FORMAT:
+        raise InputError(str(path), "format", f"not a wrapbench search checkpoint of this "
+                                              f"version ({CHECKPOINT_FORMAT})")
+    return data
+
+
 def _check_values(generation: dict[str, Any], where: str, source: str) -> None:
     """What the search tells CMA-ES must be what it wrote: finite numbers and real booleans (a
     NaN margin would rank first, and "false" is a true string)."""
@@ -78,4 +122,5 @@ def _check_values(generation: dict[str, Any], where: str, source: str) -> None:
         raise InputError(source, f"{where}.simulations", "must be a whole number >= 0")
 
 
-__all__ = ["CHECKPOINT_FORMAT", "FORMAT_FAMILY", "load", "save"]
+__all__ = ["CHECKPOINT_FORMAT", "FIRST_ROUND", "FORMAT_FAMILY", "Round", "load", "read_round",
+           "save"]

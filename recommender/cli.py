@@ -143,6 +143,10 @@ def _add_recommend_problem(rec: argparse.ArgumentParser) -> None:
                      help="wanted EUMOS margin of the worst sample (default 0.2)")
     rec.add_argument("--budget", type=int, metavar="N",
                      help="most candidate programs to try (default 48)")
+    rec.add_argument("--rounds", type=int, metavar="R",
+                     help="search rounds at most (default 2): when every pass of a round fails "
+                          "its verification, the next searches again with one more sample and "
+                          "twice the budget")
     rec.add_argument("--workers", type=int, default=os.cpu_count() or 1,
                      help="parallel simulations (default: all cores)")
     rec.add_argument("--backend", choices=BACKENDS, default="process",

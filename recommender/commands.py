@@ -19,6 +19,7 @@ from typing import Any
 
 from tqdm import tqdm
 
+from recommender.checkpoint import FIRST_ROUND, Round, read_round
 from recommender.checkpoint import FORMAT_FAMILY as SEARCH_CHECKPOINT
 from recommender.html_report import (
     check_report_folder,
@@ -145,7 +146,11 @@ def _targets(args: argparse.Namespace) -> tuple[tuple[Orientation, float], ...]:
 
 #: The flags that only steer a search, and their arguments (None: not given, the search's
 #: default).
-SEARCH_FLAGS = {"--margin": "margin", "--budget": "budget", "--cycle-weight": "cycle_weight"}
+SEARCH_FLAGS = {"--margin": "margin", "--budget": "budget", "--cycle-weight": "cycle_weight",
+                "--rounds": "rounds"}
+#: Search rounds at most (`SearchSettings.in_round`): a second round, with one more sample and
+#: twice the budget, runs only when every pass of the first failed its verification.
+DEFAULT_ROUNDS = 2
 
 
 def _settings(args: argparse.Namespace) -> SearchSettings:
@@ -156,7 +161,7 @@ def _settings(args: argparse.Namespace) -> SearchSettings:
                     else given["cycle_weight"])
     for flag, value, low in (("--samples", args.samples, 1),
                              ("--budget", budget, len(TIGHT_PROGRAMS)),
-                             ("--workers", args.workers, 1)):
+                             ("--workers", args.workers, 1), ("--rounds", rounds(args), 1)):
         if value < low:
             why = (": the first generation tries the lightest program at three tensions"
                    if flag == "--budget" else "")
@@ -180,6 +185,11 @@ def _settings(args: argparse.Namespace) -> SearchSettings:
                           max_cycle_s=args.max_cycle_s, cycle_weight=cycle_weight,
                           hours_since_wrapping=args.hours_since_wrapping,
                           limits=criteria_limits(args), fresh=args.fresh)
+
+
+def rounds(args: argparse.Namespace) -> int:
+    """Search rounds at most: --rounds, or `DEFAULT_ROUNDS`."""
+    return DEFAULT_ROUNDS if args.rounds is None else int(args.rounds)
 
 
 #: The least limit on the shift between layers the flag takes: 0.1 % of a 0.8 m unit is 0.8 mm,
@@ -292,32 +302,29 @@ def _recommend_by_policy(args: argparse.Namespace, problem: Problem, samples: in
 
 def _recommend_by_search(args: argparse.Namespace, problem: Problem, checkpoint: Path | None,
                          samples: int, said: list[str]) -> int:
-    """The robust search, its answer verified; an interrupt keeps the checkpoint and says so."""
-    from recommender.search import RobustSearch
-
-    settings = problem.settings
-    search = RobustSearch(problem, checkpoint)
-    state = search.resume() if args.resume else search.start()
+    """The robust search, its answer verified, in rounds while every pass of a round fails its
+    verification (`_search_rounds`); an interrupt keeps the checkpoint and says so."""
     t0 = time.perf_counter()
     try:
-        state = _run_search(search, state, settings)
-        chosen = _verified(problem, state, samples, args.workers)
-    except KeyboardInterrupt as exc:  # in the search or its answer's verification
+        round_, current, state, chosen = _search_rounds(args, problem, checkpoint, samples)
+    except KeyboardInterrupt as exc:  # in a search or its answer's verification
         if checkpoint is not None and checkpoint.exists():
             exc.add_note(f"interrupted, nothing written; the search so far is kept in "
                          f"{checkpoint} (--resume continues it)")
         raise
     if chosen is None:
-        print(_nothing_passed(state, settings, args.samples, samples))
+        print(_nothing_passed(state, current.settings, round_.number, samples))
         _forget(checkpoint)
         return 1
     best, check = chosen
-    _print_recommendation(problem, best, check)
-    simulations = state.simulations
-    print(f"searched {len(state.history)} candidates ({simulations} simulations) in "
-          f"{time.perf_counter() - t0:.0f} s ({args.workers} workers, {args.backend})")
+    _print_recommendation(current, best, check)
+    candidates = round_.earlier_candidates + len(state.history)
+    simulations = round_.earlier_simulations + state.simulations
+    print(f"searched {candidates} candidates ({simulations} simulations) in "
+          f"{time.perf_counter() - t0:.0f} s ({args.workers} workers, {args.backend}"
+          f"{_rounds_text(round_, current.settings)})")
     try:
-        _write_outputs(args, problem, best, check, simulations, state, said)
+        _write_outputs(args, current, best, check, simulations, state, said, round_)
     except KeyboardInterrupt as exc:
         if checkpoint is not None:
             exc.add_note(f"interrupted: --json and --wrap-out not written; the search is "
@@ -327,25 +334,73 @@ def _recommend_by_search(args: argparse.Namespace, problem: Problem, checkpoint:
     return 0
 
 
+def _search_rounds(args: argparse.Namespace, problem: Problem, checkpoint: Path | None,
+                   samples: int) -> tuple[Round, Problem, SearchState,
+                                          tuple[Evaluation, Verification] | None]:
+    """Search and verify; while every pass of a round failed its verification, search again in
+    the next round (`SearchSettings.in_round`), up to --rounds. A resumed search continues the
+    round its checkpoint was written in. Returns the last round, its problem, its search and
+    the verified answer (None: none)."""
+    from recommender.search import RobustSearch
+
+    round_ = read_round(checkpoint) if args.resume else FIRST_ROUND
+    resume = args.resume
+    while True:
+        current = problem.in_round(round_.number)
+        search = RobustSearch(current, checkpoint, round_)
+        state = search.resume() if resume else search.start()
+        if round_.number > 1 and not resume:
+            search.save()   # from now on an interrupt resumes this round, not the last
+        state = _run_search(search, state, current.settings, round_.number)
+        chosen = _verified(current, state, samples, args.workers)
+        if (chosen is not None or round_.number >= rounds(args)
+                or not state.to_verify(current.settings.margin_goal)):
+            return round_, current, state, chosen
+        round_, resume = round_.next(len(state.history), state.simulations), False
+        following = problem.settings.in_round(round_.number)
+        print(f"round {round_.number - 1}: "
+              f"{_failed_verification(state, current.settings, samples)}; searching again "
+              f"with {following.samples} samples and a budget of {following.max_candidates} "
+              f"candidates (round {round_.number} of at most {rounds(args)})", flush=True)
+
+
+def _rounds_text(round_: Round, settings: SearchSettings) -> str:
+    """'', or how many rounds the answer took and why."""
+    if round_.number == 1:
+        return ""
+    return (f"; round {round_.number}, {settings.samples} samples a candidate: the passes of "
+            f"the round before failed their verification")
+
+
 def _forget(checkpoint: Path | None) -> None:
     """A search that answered needs no checkpoint (removed once the answer is written)."""
     if checkpoint is not None:
         checkpoint.unlink(missing_ok=True)
 
 
-def _nothing_passed(state: SearchState, settings: SearchSettings, samples: int,
-                    verification_samples: int) -> str:
-    """Why no program is recommended: the search's passes failed their verification, or every
-    candidate failed, or was over the cycle-time limit and never simulated (nor were
-    candidates heavier than a pass that later failed its verification: they are not slow)."""
-    history = state.history
+def _failed_verification(state: SearchState, settings: SearchSettings,
+                         verification_samples: int) -> str:
+    """How a round's passes failed their verification."""
     passes = len(state.to_verify(settings.margin_goal))
-    if passes:
-        tried = min(passes, VERIFY_CANDIDATES)
-        return (f"no program recommended: the {tried} lightest of the {passes} programs that "
-                f"passed the search's {samples} samples failed their verification (the whole "
-                f"EUMOS sequence, or one of {verification_samples} samples); more --samples "
-                f"(or --budget) make the search's passes sturdier")
+    tried = min(passes, VERIFY_CANDIDATES)
+    samples = f"{settings.samples} sample{'s' if settings.samples != 1 else ''}"
+    return (f"the {tried} lightest of the {passes} programs that passed the search's "
+            f"{samples} failed their verification (the whole EUMOS sequence, "
+            f"or one of {verification_samples} samples)")
+
+
+def _nothing_passed(state: SearchState, settings: SearchSettings, round_number: int,
+                    verification_samples: int) -> str:
+    """Why no program is recommended (`settings`: those of the last round, `round_number`):
+    the search's passes failed their verification, or every candidate failed, or was over the
+    cycle-time limit and never simulated (nor were candidates heavier than a pass that later
+    failed its verification: they are not slow)."""
+    history = state.history
+    last = f" in round {round_number}" if round_number > 1 else ""
+    if state.to_verify(settings.margin_goal):
+        return (f"no program recommended: "
+                f"{_failed_verification(state, settings, verification_samples)}{last}; more "
+                f"--samples, --budget or --rounds make the search's passes sturdier")
     slow = [e for e in history if e.cycle_s > settings.max_cycle_s]
     if history and len(slow) == len(history):
         return (f"no program within the cycle-time limit of {settings.max_cycle_s:g} s: all "
@@ -353,15 +408,17 @@ def _nothing_passed(state: SearchState, settings: SearchSettings, samples: int,
                 f"{min(e.cycle_s for e in slow):.0f} s)")
     over = f", {len(slow)} of them over the cycle-time limit" if slow else ""
     return (f"no program passed the EUMOS sequence ({_targets_text(settings)}) after "
-            f"{len(history)} candidates x {samples} samples{over}")
+            f"{len(history)} candidates x {settings.samples} samples{over}{last}")
 
 
 def _targets_text(settings: SearchSettings) -> str:
     return ", ".join(f"{side} side {g:.2f} g" for side, g in settings.targets)
 
 
-def _run_search(search: Any, state: SearchState, settings: SearchSettings) -> SearchState:
-    with tqdm(total=settings.max_candidates, desc="candidates", unit="program",
+def _run_search(search: Any, state: SearchState, settings: SearchSettings,
+                round_number: int) -> SearchState:
+    desc = "candidates" if round_number == 1 else f"candidates (round {round_number})"
+    with tqdm(total=settings.max_candidates, desc=desc, unit="program",
               file=sys.stderr, disable=None) as bar:
         bar.update(len(state.history))
 
@@ -481,12 +538,13 @@ def _print_recommendation(problem: Problem, best: Evaluation, check: Verificatio
 
 def _write_outputs(args: argparse.Namespace, problem: Problem, best: Evaluation,
                    check: Verification, evaluations: int, state: SearchState | None,
-                   said: list[str]) -> None:
+                   said: list[str], round_: Round = FIRST_ROUND) -> None:
     """The report first (the slowest to make; nothing of it shows until it is whole), then
-    --json and --wrap-out together: an interrupt leaves the report at most."""
+    --json and --wrap-out together: an interrupt leaves the report at most. `round_`: the
+    search round that answered (`evaluations` counts every round's simulations)."""
     if args.report:
         _write_report(args, problem, check, best, state, said)
-    candidates = None if state is None else len(state.history)
+    candidates = None if state is None else round_.earlier_candidates + len(state.history)
     files = {}
     if args.json:
         weakest = check.runs[check.weakest]
@@ -502,6 +560,8 @@ def _write_outputs(args: argparse.Namespace, problem: Problem, best: Evaluation,
                "worst_sample": asdict(check.worst) if check.worst is not None else None,
                "robust_samples": check.probability.samples, "search_margin": best.margin,
                "evaluations": evaluations, "candidates": candidates,
+               **({} if state is None else {"rounds": round_.number,
+                                            "search_samples": problem.settings.samples}),
                "method": args.method, "target_g": problem.settings.target_g}
         files[Path(args.json)] = result_json(out)
     if args.wrap_out:

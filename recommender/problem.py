@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import math
 import os
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -80,6 +80,18 @@ class SearchSettings:
         """The highest target of any orientation."""
         return max(g for _, g in self.targets)
 
+    def in_round(self, number: int) -> SearchSettings:
+        """The settings of search round `number` (1: these). A round follows one whose passes
+        all failed their verification: those passes held in the search's few samples by chance,
+        so each round tries every candidate in one more sample, with twice the budget for the
+        sturdier passes to be found (film on the 2-layer columnar example: no answer at 3
+        samples and 48 candidates, 0.076 kg at 4 and 96; docs/recommend.md)."""
+        if number < 1:
+            raise ValueError(f"a search round is numbered from 1 (got {number})")
+        extra = number - 1
+        return replace(self, samples=self.samples + extra,
+                        max_candidates=self.max_candidates * 2 ** extra)
+
     def identity(self) -> dict[str, Any]:
         """What makes two searches the same search (a checkpoint must match it)."""
         return {"targets": [list(t) for t in self.targets], "material": self.web.identity(),
@@ -120,6 +132,10 @@ class Problem:
         heaviest = space.wrap(space.high).material_used_on(layout).mass_kg / reference
         uncertainty = Uncertainty.of(calibration, settings.hours_since_wrapping)
         return cls(load, layout, uncertainty, space, settings, reference, heaviest)
+
+    def in_round(self, number: int) -> Problem:
+        """The problem of search round `number` (`SearchSettings.in_round`)."""
+        return replace(self, settings=self.settings.in_round(number))
 
     def values(self, x: np.ndarray) -> np.ndarray:
         """ProgramSpace values of a search vector: wraps as they are, the continuous

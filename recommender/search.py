@@ -44,6 +44,7 @@ import cma
 import numpy as np
 
 from recommender import checkpoint
+from recommender.checkpoint import FIRST_ROUND, Round
 from recommender.parallel import executor
 from recommender.problem import Problem, SearchSettings
 from recommender.uncertainty import PassProbability
@@ -189,8 +190,11 @@ Progress = Callable[[int, int, SearchState], None]
 class RobustSearch:
     """CMA-ES over programs; `run()` returns the final state (see `SearchState.best`)."""
 
-    def __init__(self, problem: Problem, checkpoint: Path | None = None) -> None:
-        self.problem, self.checkpoint = problem, checkpoint
+    def __init__(self, problem: Problem, checkpoint: Path | None = None,
+                 round_: Round = FIRST_ROUND) -> None:
+        """`round_`: the search round this is (its problem is `Problem.in_round`'s), written
+        into the checkpoint with what the rounds before it spent."""
+        self.problem, self.checkpoint, self.round = problem, checkpoint, round_
         #: Every generation as data: what was asked ("x") and how each candidate scored.
         self._generations: list[dict[str, Any]] = []
         self._simulations = 0  # levels simulated in the generation under way
@@ -270,10 +274,15 @@ class RobustSearch:
         with executor(s.backend, s.workers, s.ray_address) as pool:
             while not state.finished(s):
                 self._generation(state, pool)
-                checkpoint.save(self.checkpoint, self._identity(), self._generations)
+                self.save()
                 if progress is not None:
                     progress(len(state.history), s.max_candidates, state)
         return state
+
+    def save(self) -> None:
+        """Checkpoint the generations told so far (a round's first save holds none: resumed,
+        the round starts again rather than the one before it)."""
+        checkpoint.save(self.checkpoint, self._identity(), self._generations, self.round)
 
     def _generation(self, state: SearchState, pool: Executor) -> None:
         """Ask; screen (or simulate at the default fidelity without screening) and confirm

@@ -555,11 +555,12 @@ def test_nothing_passed_counts_only_slow_candidates_as_over_the_limit():
 
     from recommender.commands import _nothing_passed
 
-    settings = SimpleNamespace(max_cycle_s=40.0, targets=(("long", 0.5),), margin_goal=0.2)
+    settings = SimpleNamespace(max_cycle_s=40.0, targets=(("long", 0.5),), margin_goal=0.2,
+                               samples=3)
     history = [SimpleNamespace(cycle_s=c, passed=p)
                for c, p in ((35.0, (False,)), (38.0, ()), (45.0, ()))]
     state = SimpleNamespace(history=history, to_verify=lambda goal: [])
-    text = _nothing_passed(state, settings, 3, 8)
+    text = _nothing_passed(state, settings, 1, 8)
     assert text.endswith("after 3 candidates x 3 samples, 1 of them over the cycle-time limit")
 
 
@@ -585,8 +586,9 @@ def test_a_search_pass_that_fails_a_verification_sample_is_not_recommended(monke
     assert _verified(problem, both, 8, 1)[0] is sturdy
     alone = SimpleNamespace(to_verify=lambda goal: [fragile], history=[fragile])
     assert _verified(problem, alone, 8, 1) is None
-    settings = SimpleNamespace(margin_goal=0.2, max_cycle_s=40.0, targets=(("long", 0.5),))
-    assert _nothing_passed(alone, settings, 2, 8).startswith(
+    settings = SimpleNamespace(margin_goal=0.2, max_cycle_s=40.0, targets=(("long", 0.5),),
+                               samples=2)
+    assert _nothing_passed(alone, settings, 1, 8).startswith(
         "no program recommended: the 1 lightest of the 1 programs that passed the search's 2 "
         "samples failed their verification")
 

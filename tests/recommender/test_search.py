@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 import tomli_w
 
-from recommender.checkpoint import CHECKPOINT_FORMAT
+from recommender.checkpoint import CHECKPOINT_FORMAT, FIRST_ROUND, Round, read_round
 from recommender.cli import EXAMPLE_LOAD, main
 from recommender.search import (
     DEFAULT,
@@ -442,6 +442,110 @@ def test_resume_refuses_a_checkpoint_of_another_calibration_s_give(small_load, t
         RobustSearch(wide, ckpt).resume()
 
 
+def test_a_later_round_tries_each_candidate_in_one_more_sample_with_twice_the_budget():
+    assert FAST.in_round(1) == FAST
+    second, third = FAST.in_round(2), FAST.in_round(3)
+    assert (second.samples, second.max_candidates) == (FAST.samples + 1, 2 * FAST.max_candidates)
+    assert (third.samples, third.max_candidates) == (FAST.samples + 2, 4 * FAST.max_candidates)
+    assert replace(second, samples=FAST.samples, max_candidates=FAST.max_candidates) == FAST
+    with pytest.raises(ValueError):
+        FAST.in_round(0)
+
+
+def test_a_checkpoint_keeps_its_round_and_what_the_earlier_rounds_spent(small_load, tmp_path):
+    """A first round's checkpoint says nothing of rounds (as every checkpoint before them); a
+    later round's is refused as another search's when resumed as the first round's."""
+    ckpt = tmp_path / "search.json"
+    one = SearchSettings(**{**FAST.__dict__, "max_candidates": 4})
+    first = RobustSearch(Problem.build(small_load, one), ckpt)
+    first.run(first.start())
+    assert "round" not in json.loads(ckpt.read_text()) and read_round(ckpt) == FIRST_ROUND
+    spent = FIRST_ROUND.next(candidates=4, simulations=9)
+    assert spent == Round(number=2, earlier_candidates=4, earlier_simulations=9)
+    second = Problem.build(small_load, one).in_round(2)
+    RobustSearch(second, ckpt, spent).save()
+    assert read_round(ckpt) == spent
+    assert RobustSearch(second, ckpt, spent).resume().history == []
+    with pytest.raises(InputError, match="problem.samples"):
+        RobustSearch(Problem.build(small_load, one), ckpt).resume()
+
+
+@pytest.mark.parametrize("round_", [{"number": 0}, {"number": "2"}, {"number": True},
+                                    {"earlier_candidates": -4}, {"turn": 2}, [2]])
+def test_a_checkpoint_s_round_holds_only_what_the_search_writes(round_, tmp_path,
+                                                                 assert_input_error):
+    ckpt = tmp_path / "search.json"
+    ckpt.write_text(json.dumps({"format": CHECKPOINT_FORMAT, "problem": {}, "generations": [],
+                                "round": round_}))
+    with pytest.raises(InputError) as info:
+        read_round(ckpt)
+    assert_input_error(info.value, str(ckpt), "round")
+
+
+def _failing_first_rounds(monkeypatch, interrupt_second: bool = False) -> None:
+    """Verification as the search has it, except that every program fails the verification of
+    the first round (a search of one sample), as film's passes on the columnar examples fail
+    theirs; with `interrupt_second`, Ctrl-C in the second round's verification."""
+    from recommender import search
+    from recommender.uncertainty import PassProbability
+
+    real = search.verify
+
+    def verify(problem, wrap, samples, workers=1):
+        if problem.settings.samples == 1:
+            check = real(problem, wrap, samples, workers)
+            return replace(check, probability=PassProbability(0, samples))
+        if interrupt_second:
+            raise KeyboardInterrupt
+        return real(problem, wrap, samples, workers)
+
+    monkeypatch.setattr(search, "verify", verify)
+
+
+def test_a_round_whose_passes_all_fail_their_verification_is_followed_by_a_sturdier_one(
+        monkeypatch, load_file, tmp_path, capsys):
+    load = load_file(base=SMALL)
+    _failing_first_rounds(monkeypatch)
+    argv = ["recommend", str(load), "--budget", "8", "--samples", "1", "--workers", "2"]
+    out = tmp_path / "rec.json"
+    assert main([*argv, "--json", str(out)]) == 0
+    text = capsys.readouterr().out
+    assert ("failed their verification (the whole EUMOS sequence, or one of 8 samples); "
+            "searching again with 2 samples and a budget of 16 candidates (round 2 of at most "
+            "2)") in text
+    assert "round 2, 2 samples a candidate" in text
+    result = json.loads(out.read_text())
+    assert result["rounds"] == 2 and result["search_samples"] == 2
+    assert 8 < result["candidates"] <= 8 + 16
+    assert main([*argv, "--rounds", "1"]) == 1
+    text = capsys.readouterr().out
+    assert "failed their verification" in text and "more --samples, --budget or --rounds" in text
+    assert "searching again" not in text
+
+
+def test_an_interrupted_second_round_resumes_in_that_round(monkeypatch, load_file, tmp_path,
+                                                            capsys):
+    """Its checkpoint holds the second round's search and what the first spent: resumed, the
+    first round is not searched again and the answer counts both rounds' candidates."""
+    load = load_file(base=SMALL)
+    argv = ["recommend", str(load), "--budget", "8", "--samples", "1", "--workers", "2",
+            "--json", str(tmp_path / "rec.json")]
+    _failing_first_rounds(monkeypatch, interrupt_second=True)
+    assert main(argv) == 130
+    assert "--resume continues it" in capsys.readouterr().err
+    ckpt = tmp_path / "rec.checkpoint.json"
+    kept = read_round(ckpt)
+    assert kept.number == 2 and 0 < kept.earlier_candidates <= 8
+    capsys.readouterr()
+    monkeypatch.undo()   # the verification as it is: the first round is not searched again
+    assert main([*argv, "--resume"]) == 0
+    text = capsys.readouterr().out
+    assert "searching again" not in text and "round 2, 2 samples a candidate" in text
+    result = json.loads((tmp_path / "rec.json").read_text())
+    assert result["rounds"] == 2 and result["candidates"] > kept.earlier_candidates
+    assert not ckpt.exists()
+
+
 def test_resume_without_a_checkpoint_is_a_clear_error(small_load, tmp_path):
     search = RobustSearch(Problem.build(small_load, FAST), tmp_path / "none.ckpt")
     with pytest.raises(InputError, match="no checkpoint"):
@@ -555,6 +659,7 @@ def test_a_bad_web_file_is_named_with_its_field(load_file, tmp_path, capsys):
     (["--resume"], "--resume"),
     (["--max-cycle-s", "0"], "--max-cycle-s"),
     (["--cycle-weight", "-1"], "--cycle-weight"),
+    (["--rounds", "0"], "--rounds"),
 ])
 def test_bad_recommend_arguments_exit_2_with_one_line(argv, field, load_file, tmp_path, capsys):
     load = load_file(base=SMALL)
@@ -679,6 +784,7 @@ def test_a_proposal_is_recommended_only_if_it_passes_every_sample():
     (["recommend", "--method", "ppo", "--policy", "OUT", "--budget", "8"], "--budget"),
     (["recommend", "--method", "ppo", "--policy", "OUT", "--cycle-weight", "1"],
      "--cycle-weight"),
+    (["recommend", "--method", "ppo", "--policy", "OUT", "--rounds", "3"], "--rounds"),
     (["train", "--out", "OUT", "--timesteps", "0"], "--timesteps"),
     (["train", "--out", "OUT", "--material", "cotton"], "--material"),
     (["train", "--out", "OUT", "--target", "2.0"], "--target"),
