@@ -9,6 +9,7 @@ from __future__ import annotations
 import argparse
 import logging  # noqa: F401  its fork hooks first: `_Forking` brackets them
 import math
+import multiprocessing
 import os
 import signal
 import sys
@@ -26,6 +27,7 @@ from recommender.uncertainty import TRANSPORT_HOURS
 from wrapenv import __version__
 from wrapenv.config import InputError
 from wrapenv.load import EXAMPLE_LOAD, ORIENTATIONS
+from wrapenv.pool import stop
 
 
 class _Parser(argparse.ArgumentParser):
@@ -274,6 +276,14 @@ def _ignore_interrupts() -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
+def _stop_children() -> None:
+    """Any worker process an interrupted command still has, stopped (`wrapenv.pool.stop`). Its
+    pools stop theirs, but once in the test suite (2026-11-27) an idle worker outlived an
+    interrupted search, and Python joins every child process at exit: the command waited for
+    it forever. The command's process owns its children; none has work left to finish."""
+    stop(multiprocessing.active_children())
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     command = {"simulate": simulate.run_simulate,
@@ -292,6 +302,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 2
     except KeyboardInterrupt as exc:
         _ignore_interrupts()  # a second Ctrl-C: no traceback
+        _stop_children()
         notes = getattr(exc, "__notes__", None) or ["interrupted, nothing written"]
         sys.stderr.write(f"wrapbench {args.command}: {notes[-1]}\n")
         return 128 + (signal.SIGTERM if isinstance(exc, _Terminated) else signal.SIGINT)

@@ -6,7 +6,9 @@ from __future__ import annotations
 
 import signal
 import threading
+from collections.abc import Sequence
 from concurrent.futures import ProcessPoolExecutor
+from multiprocessing.process import BaseProcess
 from types import TracebackType
 
 
@@ -17,6 +19,24 @@ def _worker_signals() -> None:
     simulation's result and goes on to the next queued call, so `terminate()` did not stop it."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
+
+
+#: Seconds a terminated process has to end before it is killed.
+GRACE_S = 1.0
+
+
+def stop(processes: Sequence[BaseProcess]) -> None:
+    """Terminate `processes`, then kill any still alive after `GRACE_S`. A worker signalled
+    before its initializer ran still has its parent's SIGTERM handler, which may be raised where
+    Python drops it (inside the fork's hooks): that worker then idled on, and the parent, which
+    joins every child at exit, waited for it forever (once in the test suite, 2026-11-27)."""
+    for process in processes:
+        process.terminate()
+    for process in processes:
+        process.join(timeout=GRACE_S)
+        if process.is_alive():
+            process.kill()
+            process.join()
 
 
 class ProcessPool(ProcessPoolExecutor):
@@ -48,10 +68,7 @@ class ProcessPool(ProcessPoolExecutor):
             # (shutdown forgets it; typeshed types the attribute as the pipe, hence getattr)
             manager: threading.Thread | None = getattr(self, "_executor_manager_thread", None)
             self.shutdown(wait=False, cancel_futures=True)
-            for process in workers:
-                process.terminate()
-            for process in workers:
-                process.join(timeout=5)
+            stop(workers)
             if manager is not None:
                 manager.join(timeout=5)
         finally:

@@ -74,14 +74,18 @@ def _start(tmp_path: Path) -> tuple[subprocess.Popen, Path, Path]:
     return proc, out, checkpoint
 
 
-def _hung(proc: subprocess.Popen) -> str:
+def _hung(proc: subprocess.Popen, marker: str) -> str:
     """Fail with where a search that did not exit is stuck: SIGABRT makes faulthandler print
-    every thread's Python stack (an intermittent hang seen on 2026-11-24 left none)."""
+    every thread's Python stack (an intermittent hang seen on 2026-11-24 left none). Its worker
+    processes (naming `marker`) are killed first: one holding the stderr pipe open made reading
+    it wait forever (2026-11-27)."""
     proc.send_signal(signal.SIGABRT)
     try:
         proc.wait(timeout=10)
     except subprocess.TimeoutExpired:
         proc.kill()
+    for pid in _processes_naming(marker):
+        os.kill(pid, signal.SIGKILL)
     stacks = proc.stderr.read() if proc.stderr else ""
     pytest.fail(f"the interrupted search hung; its threads:\n{stacks[-6000:]}")
 
@@ -94,7 +98,7 @@ def test_an_interrupted_search_stops_its_workers_and_keeps_its_checkpoint(tmp_pa
     try:
         proc.wait(timeout=HANG_S)
     except subprocess.TimeoutExpired:
-        _hung(proc)
+        _hung(proc, str(tmp_path))
     err = proc.stderr.read() if proc.stderr else ""
     assert proc.returncode == code
     assert "Traceback" not in err and len(err.strip().splitlines()) == 1, err
@@ -114,7 +118,7 @@ def test_a_second_ctrl_c_prints_no_traceback(tmp_path):
     try:
         proc.wait(timeout=HANG_S)
     except subprocess.TimeoutExpired:
-        _hung(proc)
+        _hung(proc, str(tmp_path))
     err = proc.stderr.read() if proc.stderr else ""
     assert "Traceback" not in err and proc.returncode == 130, err
 

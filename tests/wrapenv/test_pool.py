@@ -66,3 +66,28 @@ def test_leaving_by_an_exception_runs_none_of_the_queue(tmp_path):
         pass
     time.sleep(1.0)  # what a worker still alive would have finished by now
     assert list(tmp_path.iterdir()) == []
+
+
+def _deaf_to_sigterm(ready) -> None:
+    """A worker whose SIGTERM went astray: raised inside the fork's hooks, where Python drops
+    the exception, before its initializer gave it the default action."""
+    signal.signal(signal.SIGTERM, signal.SIG_IGN)
+    ready.set()
+    while True:
+        time.sleep(1)
+
+
+def test_a_process_that_outlives_its_sigterm_is_killed():
+    """Python joins every child at exit: one that survived `terminate()` kept an interrupted
+    search waiting at its exit forever (once in the test suite, 2026-11-27)."""
+    import multiprocessing
+
+    from wrapenv.pool import stop
+
+    context = multiprocessing.get_context("fork")
+    ready = context.Event()
+    deaf = context.Process(target=_deaf_to_sigterm, args=(ready,))
+    deaf.start()
+    assert ready.wait(timeout=30)
+    stop([deaf])
+    assert not deaf.is_alive() and deaf.exitcode == -signal.SIGKILL
