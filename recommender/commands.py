@@ -542,9 +542,9 @@ def _write_outputs(args: argparse.Namespace, problem: Problem, best: Evaluation,
     """The report first (the slowest to make; nothing of it shows until it is whole), then
     --json and --wrap-out together: an interrupt leaves the report at most. `round_`: the
     search round that answered (`evaluations` counts every round's simulations)."""
-    if args.report:
-        _write_report(args, problem, check, best, state, said)
     candidates = None if state is None else round_.earlier_candidates + len(state.history)
+    if args.report:
+        _write_report(args, problem, check, best, state, candidates, said)
     files = {}
     if args.json:
         weakest = check.runs[check.weakest]
@@ -570,11 +570,13 @@ def _write_outputs(args: argparse.Namespace, problem: Problem, best: Evaluation,
 
 
 def _write_report(args: argparse.Namespace, problem: Problem, check: Verification,
-                  best: Evaluation, state: SearchState | None, said: list[str]) -> None:
-    """report.html and its files (state None: a policy's proposal, no search)."""
+                  best: Evaluation, state: SearchState | None, candidates: int | None,
+                  said: list[str]) -> None:
+    """report.html and its files (state None: a policy's proposal, no search; `candidates`:
+    tried in every round)."""
     given = {"load unit": args.load, "calibration": args.calibration, "policy": args.policy}
     write_report(args.report, lambda stage: recommend_page(stage, problem, check, best, state,
-                                                           given, tuple(said)))
+                                                           given, tuple(said), candidates))
 
 
 # --- train -------------------------------------------------------------------------------------

@@ -87,10 +87,11 @@ def simulate_page(stage: Path, load: LoadUnit, run: BenchRun, laid: WrapFormat |
 
 def recommend_page(stage: Path, problem: Problem, check: Verification, best: Evaluation,
                    state: SearchState | None, inputs: Mapping[str, Path | None],
-                   warnings: tuple[str, ...]) -> Page:
+                   warnings: tuple[str, ...], candidates: int | None = None) -> Page:
     """`recommend --report`: the verified EUMOS sequence of every orientation, how sure the
-    recommendation is, the search (none for a policy's proposal); the figures and the video of
-    the weakest orientation; the warnings the command gave."""
+    recommendation is, the search (none for a policy's proposal; `candidates`: those tried in
+    every round, default the answering round's); the figures and the video of the weakest
+    orientation; the warnings the command gave."""
     from recommender.report import plot_search
 
     s, load, weakest = problem.settings, problem.load, check.weakest
@@ -103,11 +104,14 @@ def recommend_page(stage: Path, problem: Problem, check: Verification, best: Eva
                      "search") if state is None else
               Figure("Search", _staged(stage / "search.png",
                                        plot_search(state.history, best, s.margin_goal)),
-                     "every candidate's web against its worst sample's EUMOS margin"))
+                     "every candidate's web against its worst sample's EUMOS margin"
+                     + ("" if candidates in (None, len(state.history))
+                        else " (the round that answered)")))
     figures = (_displacement(run, stage, load.name, which),
                _tension_map(run, layout, stage, load.name), search)
     robust = Robustness(check.probability, check.worst, best.margin, s.margin_goal,
-                        None if state is None else len(state.history))
+                        None if state is None
+                        else len(state.history) if candidates is None else candidates)
     return Page("Recommended wrapping program", load, tested, best.wrap,
                 s.hours_since_wrapping, _inputs(inputs), figures,
                 _video(run, layout, problem.simulated(best.wrap), stage), robust, warnings,
