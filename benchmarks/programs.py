@@ -90,7 +90,8 @@ def main() -> None:
             if wrap is None:
                 web = CARDS[material].name.split(" (")[0]
                 print(f"| {Path(load_path).stem} | {web} | recommended for 0.5 g | none "
-                      f"passes within the budget and rounds (exit 1) | | | | | {wall:.0f} s |", flush=True)
+                      f"passes within the budget and rounds (exit 1) | | | | | {wall:.0f} s |",
+                      flush=True)
             else:
                 print(row(load_path, "recommended for 0.5 g", wrap, f"{wall:.0f} s"), flush=True)
 
