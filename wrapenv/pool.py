@@ -26,10 +26,12 @@ GRACE_S = 1.0
 
 
 def stop(processes: Sequence[BaseProcess]) -> None:
-    """Terminate `processes`, then kill any still alive after `GRACE_S`. A worker signalled
-    before its initializer ran still has its parent's SIGTERM handler, which may be raised where
-    Python drops it (inside the fork's hooks): that worker then idled on, and the parent, which
-    joins every child at exit, waited for it forever (once in the test suite, 2026-11-27)."""
+    """Terminate `processes`, then kill any still alive after `GRACE_S`. Python joins every
+    child at exit, so one that outlives its SIGTERM keeps its parent waiting forever: once in the
+    test suite (2026-11-27) an idle worker outlived an interrupted search so. One way it happens
+    (seen in tests/recommender/test_cli.py's interrupted command): a worker signalled before its
+    initializer ran still has its parent's SIGTERM handler, whose exception can be raised where
+    Python drops it."""
     for process in processes:
         process.terminate()
     for process in processes:
