@@ -507,8 +507,8 @@ def test_a_round_whose_passes_all_fail_their_verification_is_followed_by_a_sturd
     load = load_file(base=SMALL)
     _failing_first_rounds(monkeypatch)
     argv = ["recommend", str(load), "--budget", "8", "--samples", "1", "--workers", "2"]
-    out = tmp_path / "rec.json"
-    assert main([*argv, "--json", str(out)]) == 0
+    out, report = tmp_path / "rec.json", tmp_path / "report"
+    assert main([*argv, "--json", str(out), "--report", str(report)]) == 0
     text = capsys.readouterr().out
     assert ("failed their verification (the whole EUMOS sequence, or one of 8 samples); "
             "searching again with 2 samples and a budget of 16 candidates (round 2 of at most "
@@ -517,6 +517,9 @@ def test_a_round_whose_passes_all_fail_their_verification_is_followed_by_a_sturd
     result = json.loads(out.read_text())
     assert result["rounds"] == 2 and result["search_samples"] == 2
     assert 8 < result["candidates"] <= 8 + 16
+    page = (report / "report.html").read_text()
+    assert f"{result['candidates']} candidate programs" in page   # both rounds'
+    assert "EUMOS margin (the round that answered)" in page       # the figure: the second's
     assert main([*argv, "--rounds", "1"]) == 1
     text = capsys.readouterr().out
     assert "failed their verification" in text and "more --samples, --budget or --rounds" in text
