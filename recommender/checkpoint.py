@@ -59,10 +59,9 @@ def save(path: Path | None, identity: dict[str, Any], generations: list[dict[str
 def read_round(path: Path | None) -> Round:
     """The round the checkpoint at `path` was written in (its format is checked by `load`)."""
     given = _read(path).get("round", {})
-    fields = tuple(asdict(Round()))
+    fields = tuple(asdict(FIRST_ROUND))
     if not (isinstance(given, dict) and set(given) <= set(fields)
-            and all(isinstance(given.get(k, 0), int) and not isinstance(given.get(k), bool)
-                    for k in fields)):
+            and all(type(v) is int for v in given.values())):   # a bool is no count
         raise InputError(str(path), "round", f"must be an object of whole numbers "
                                              f"({', '.join(fields)})")
     round_ = Round(**given)

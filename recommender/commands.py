@@ -161,7 +161,7 @@ def _settings(args: argparse.Namespace) -> SearchSettings:
                     else given["cycle_weight"])
     for flag, value, low in (("--samples", args.samples, 1),
                              ("--budget", budget, len(TIGHT_PROGRAMS)),
-                             ("--workers", args.workers, 1), ("--rounds", rounds(args), 1)):
+                             ("--workers", args.workers, 1), ("--rounds", _rounds(args), 1)):
         if value < low:
             why = (": the first generation tries the lightest program at three tensions"
                    if flag == "--budget" else "")
@@ -187,7 +187,7 @@ def _settings(args: argparse.Namespace) -> SearchSettings:
                           limits=criteria_limits(args), fresh=args.fresh)
 
 
-def rounds(args: argparse.Namespace) -> int:
+def _rounds(args: argparse.Namespace) -> int:
     """Search rounds at most: --rounds, or `DEFAULT_ROUNDS`."""
     return DEFAULT_ROUNDS if args.rounds is None else int(args.rounds)
 
@@ -353,7 +353,7 @@ def _search_rounds(args: argparse.Namespace, problem: Problem, checkpoint: Path 
             search.save()   # from now on an interrupt resumes this round, not the last
         state = _run_search(search, state, current.settings, round_.number)
         chosen = _verified(current, state, samples, args.workers)
-        if (chosen is not None or round_.number >= rounds(args)
+        if (chosen is not None or round_.number >= _rounds(args)
                 or not state.to_verify(current.settings.margin_goal)):
             return round_, current, state, chosen
         round_, resume = round_.next(len(state.history), state.simulations), False
@@ -361,7 +361,7 @@ def _search_rounds(args: argparse.Namespace, problem: Problem, checkpoint: Path 
         print(f"round {round_.number - 1}: "
               f"{_failed_verification(state, current.settings, samples)}; searching again "
               f"with {following.samples} samples and a budget of {following.max_candidates} "
-              f"candidates (round {round_.number} of at most {rounds(args)})", flush=True)
+              f"candidates (round {round_.number} of at most {_rounds(args)})", flush=True)
 
 
 def _rounds_text(round_: Round, settings: SearchSettings) -> str:

@@ -95,6 +95,8 @@ def recommend_page(stage: Path, problem: Problem, check: Verification, best: Eva
     from recommender.report import plot_search
 
     s, load, weakest = problem.settings, problem.load, check.weakest
+    plotted = None if state is None else len(state.history)
+    tried = plotted if candidates is None else candidates
     targets = dict(s.targets)
     tested = tuple(OrientationRun(o, load.layout(o), run, targets[o])
                    for o, run in check.runs.items())
@@ -105,13 +107,10 @@ def recommend_page(stage: Path, problem: Problem, check: Verification, best: Eva
               Figure("Search", _staged(stage / "search.png",
                                        plot_search(state.history, best, s.margin_goal)),
                      "every candidate's web against its worst sample's EUMOS margin"
-                     + ("" if candidates in (None, len(state.history))
-                        else " (the round that answered)")))
+                     + ("" if tried == plotted else " (the round that answered)")))
     figures = (_displacement(run, stage, load.name, which),
                _tension_map(run, layout, stage, load.name), search)
-    robust = Robustness(check.probability, check.worst, best.margin, s.margin_goal,
-                        None if state is None
-                        else len(state.history) if candidates is None else candidates)
+    robust = Robustness(check.probability, check.worst, best.margin, s.margin_goal, tried)
     return Page("Recommended wrapping program", load, tested, best.wrap,
                 s.hours_since_wrapping, _inputs(inputs), figures,
                 _video(run, layout, problem.simulated(best.wrap), stage), robust, warnings,
