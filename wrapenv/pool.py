@@ -4,7 +4,10 @@ leaving a `with` block by an exception runs every one of them first."""
 
 from __future__ import annotations
 
+import ctypes
+import os
 import signal
+import sys
 import threading
 from collections.abc import Sequence
 from concurrent.futures import ProcessPoolExecutor
@@ -12,13 +15,32 @@ from multiprocessing.process import BaseProcess
 from types import TracebackType
 
 
-def _worker_signals() -> None:
+def _worker_signals(parent_pid: int) -> None:
     """A worker's signals: it leaves interrupts to its parent (a Ctrl-C reaches the whole
-    process group) and dies of SIGTERM. Forked workers inherit the CLI's handler, which turns
-    SIGTERM into an exception; `ProcessPoolExecutor`'s worker loop returns that exception as the
-    simulation's result and goes on to the next queued call, so `terminate()` did not stop it."""
+    process group), dies of SIGTERM, and dies with its parent. Forked workers inherit the CLI's
+    handler, which turns SIGTERM into an exception; `ProcessPoolExecutor`'s worker loop returns
+    that exception as the simulation's result and goes on to the next queued call, so
+    `terminate()` did not stop it."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    _die_with(parent_pid)
+
+
+#: prctl(2)'s option: a signal the kernel sends this process when the thread that forked it ends.
+_PR_SET_PDEATHSIG = 1
+
+
+def _die_with(parent_pid: int) -> None:
+    """Killed by the kernel when its parent ends, however it ends. An idle worker that outlived
+    an interrupted search (three times in the test suite, 2026-11-24 to 11-27, once hanging CI
+    for its whole 90 minutes) held the command's stderr open, and whoever read it waited
+    forever; its parent's `stop` cannot reach a worker the parent never registered (a signal
+    between `fork` and the pool's bookkeeping). Linux only; elsewhere `stop` is all there is.
+    The signal follows the forking thread: pools are used by the thread that made them."""
+    if sys.platform.startswith("linux"):
+        ctypes.CDLL(None, use_errno=True).prctl(_PR_SET_PDEATHSIG, signal.SIGKILL)
+    if os.getppid() != parent_pid:   # the parent ended before the request was made
+        os._exit(1)
 
 
 #: Seconds a terminated process has to end before it is killed.
@@ -50,7 +72,8 @@ class ProcessPool(ProcessPoolExecutor):
     """
 
     def __init__(self, max_workers: int) -> None:
-        super().__init__(max_workers=max_workers, initializer=_worker_signals)
+        super().__init__(max_workers=max_workers, initializer=_worker_signals,
+                         initargs=(os.getpid(),))
 
     def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None,
                  tb: TracebackType | None) -> None:

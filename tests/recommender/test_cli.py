@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import signal
 import subprocess
 import sys
@@ -348,13 +349,13 @@ def test_a_reader_that_stops_reading_ends_the_run_without_traceback(load_file, t
     assert err == b""
 
 
-def _idle_worker() -> None:
+def _idle_worker(parent_pid: int) -> None:
     """A worker waiting for work that never comes, with the signals of the pools' workers."""
     import time
 
     from wrapenv.pool import _worker_signals
 
-    _worker_signals()
+    _worker_signals(parent_pid)
     while True:
         time.sleep(1)
 
@@ -367,7 +368,8 @@ def test_an_interrupted_command_leaves_no_worker_behind(monkeypatch, load_file, 
 
     from recommender import commands as bench_commands
 
-    worker = multiprocessing.get_context("fork").Process(target=_idle_worker)
+    worker = multiprocessing.get_context("fork").Process(target=_idle_worker,
+                                                           args=(os.getpid(),))
 
     def interrupted(args):
         worker.start()

@@ -3,6 +3,7 @@ their parent, and an interrupted caller stops them at once instead of running it
 
 from __future__ import annotations
 
+import os
 import signal
 import threading
 import time
@@ -91,3 +92,40 @@ def test_a_process_that_outlives_its_sigterm_is_killed():
     assert ready.wait(timeout=30)
     stop([deaf])
     assert not deaf.is_alive() and deaf.exitcode == -signal.SIGKILL
+
+
+def _pool_then_sudden_death(pids) -> None:
+    """A parent that dies without stopping its pool (SIGKILL, a crash, `os._exit`)."""
+    pool = ProcessPool(1)
+    pids.put(pool.submit(os.getpid).result())
+    os._exit(0)
+
+
+def _alive(pid: int) -> bool:
+    try:
+        with open(f"/proc/{pid}/stat") as stat:
+            return stat.read().rsplit(")", 1)[1].split()[0] != "Z"
+    except FileNotFoundError:
+        return False
+
+
+def test_a_worker_dies_with_its_parent():
+    """However its parent ends, a worker goes too: an idle one that outlived an interrupted
+    search held the command's stderr open, and the test reading it waited until CI's 90 minutes
+    ran out (2026-11-27). Here the parent ends by `os._exit`, stopping nothing."""
+    import multiprocessing
+
+    context = multiprocessing.get_context("fork")
+    pids = context.SimpleQueue()   # written at once: the parent ends without flushing a Queue
+    parent = context.Process(target=_pool_then_sudden_death, args=(pids,))
+    parent.start()
+    parent.join(timeout=60)
+    assert parent.exitcode == 0
+    worker = pids.get()
+    deadline = time.monotonic() + 10
+    while _alive(worker) and time.monotonic() < deadline:
+        time.sleep(0.1)
+    alive = _alive(worker)
+    if alive:
+        os.kill(worker, signal.SIGKILL)
+    assert not alive
