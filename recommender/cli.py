@@ -234,6 +234,9 @@ class _Forking:
     these bracket them."""
 
     now = False
+    #: The process whose handlers these are (`main` sets it). A process forked from it has them
+    #: too until its pool's initializer gives it a worker's (`wrapenv.pool`).
+    owner_pid = os.getpid()
 
     @classmethod
     def starts(cls) -> None:
@@ -248,6 +251,19 @@ os.register_at_fork(before=_Forking.starts, after_in_parent=_Forking.ended,
                     after_in_child=_Forking.ended)
 
 
+def _in_a_new_worker(signum: int) -> bool:
+    """A worker not yet started takes a worker's action: it dies of SIGTERM and leaves Ctrl-C
+    to its parent. With the command's handler, its pool's SIGTERM raised `_Terminated` in its
+    start-up and printed a traceback on the command's stderr (the interrupt tests, once in 15
+    runs, 2026-11-28: a verification's pool was starting)."""
+    if os.getpid() == _Forking.owner_pid:
+        return False
+    if signum == signal.SIGTERM:
+        signal.signal(signum, signal.SIG_DFL)
+        os.kill(os.getpid(), signum)
+    return True
+
+
 def _deferred(signum: int) -> bool:
     """Inside a fork: the signal is sent again a moment later, to be raised where it can be."""
     if not _Forking.now:
@@ -257,7 +273,7 @@ def _deferred(signum: int) -> bool:
 
 
 def _terminate(signum: int, frame: object) -> None:
-    if _deferred(signum):
+    if _in_a_new_worker(signum) or _deferred(signum):
         return
     _ignore_interrupts()
     raise _Terminated
@@ -266,7 +282,7 @@ def _terminate(signum: int, frame: object) -> None:
 def _interrupt(signum: int, frame: object) -> None:
     """Ctrl-C, raised once: a second one while the command winds down is ignored, not raised
     inside whatever runs then."""
-    if _deferred(signum):
+    if _in_a_new_worker(signum) or _deferred(signum):
         return
     _ignore_interrupts()
     raise KeyboardInterrupt
@@ -291,6 +307,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                "train": bench_commands.run_train,
                "synth": commands.run_synth, "track": commands.run_track,
                "calibrate": commands.run_calibrate}[args.command]
+    _Forking.owner_pid = os.getpid()
     handlers = {signal.SIGTERM: signal.signal(signal.SIGTERM, _terminate),
                 signal.SIGINT: signal.getsignal(signal.SIGINT)}
     if handlers[signal.SIGINT] is signal.default_int_handler:   # not when ignored (`cmd &`)
