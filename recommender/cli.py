@@ -255,7 +255,7 @@ def _in_a_new_worker(signum: int) -> bool:
     """A worker not yet started takes a worker's action: it dies of SIGTERM and leaves Ctrl-C
     to its parent. With the command's handler, its pool's SIGTERM raised `_Terminated` in its
     start-up and printed a traceback on the command's stderr (the interrupt tests, once in 15
-    runs, 2026-11-28: a verification's pool was starting)."""
+    runs, 2026-11-27: a verification's pool was starting)."""
     if os.getpid() == _Forking.owner_pid:
         return False
     if signum == signal.SIGTERM:

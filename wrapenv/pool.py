@@ -31,12 +31,13 @@ _PR_SET_PDEATHSIG = 1
 
 
 def _die_with(parent_pid: int) -> None:
-    """Killed by the kernel when its parent ends, however it ends. An idle worker that outlived
-    an interrupted search (three times in the test suite, 2026-11-24 to 11-27, once hanging CI
-    for its whole 90 minutes) held the command's stderr open, and whoever read it waited
-    forever; its parent's `stop` cannot reach a worker the parent never registered (a signal
-    between `fork` and the pool's bookkeeping). Linux only; elsewhere `stop` is all there is.
-    The signal follows the forking thread: pools are used by the thread that made them."""
+    """Killed by the kernel when its parent ends, however it ends. An idle worker outlived an
+    interrupted search once in the test suite (2026-11-27), and a worker left so holds the
+    command's stderr open: whoever reads it waits forever (CI's run of e24a2f0 stopped in an
+    interrupt test whose only waits without a timeout were such reads, until its 90 minutes
+    ran out). The parent's `stop` cannot reach a worker it never registered (a signal between
+    `fork` and the pool's bookkeeping). Linux only; elsewhere `stop` is all there is. The
+    signal follows the forking thread: pools are used by the thread that made them."""
     if sys.platform.startswith("linux"):
         ctypes.CDLL(None, use_errno=True).prctl(_PR_SET_PDEATHSIG, signal.SIGKILL)
     if os.getppid() != parent_pid:   # the parent ended before the request was made
