@@ -34,14 +34,27 @@ ASKS = (("kraft", 0.5), ("kraft", 0.8), ("lldpe", 0.5))
 HOURS = 16.0
 
 
-def wrapbench(*argv: str) -> int:
-    """One command as a user types it; its exit status and files are what is read (a crash,
-    whose exit status 1 would read as "nothing passed", is raised)."""
+def wrapbench(*argv: str) -> subprocess.CompletedProcess:
+    """One command as a user types it; its exit status, output and files are what is read (a
+    crash, whose exit status 1 would read as "nothing passed", is raised)."""
     done = subprocess.run([sys.executable, "-m", "recommender.cli", *argv],
                           capture_output=True, text=True)
     if "Traceback" in done.stderr:
         raise RuntimeError(f"wrapbench {' '.join(argv)} crashed:\n{done.stderr[-2000:]}")
-    return done.returncode
+    return done
+
+
+#: `recommend`'s reasons for recommending nothing (recommender/commands.py), as a cell says them.
+NONE_BECAUSE = {"no program recommended": "its passes failed their verification",
+                "no program passed": "nothing passed",
+                "no program within the cycle-time limit": "every candidate too slow"}
+
+
+def why_none(stdout: str) -> str:
+    """Why `recommend` recommended nothing, and in which round, from the line it printed."""
+    line = next((ln for ln in stdout.splitlines() if ln.startswith("no program")), "")
+    reason = next((v for k, v in NONE_BECAUSE.items() if line.startswith(k)), "exit 1")
+    return reason + (" in round 2" if "in round 2" in line else "")
 
 
 def true_load(folder: Path, truth: Truth, out: Path) -> Path:
@@ -58,17 +71,20 @@ def answer(work: Path, name: str, load: Path, material: str, target: float,
     """`recommend`'s program (mass) and how it fares on the true unit, as one table cell."""
     stem = work / f"{name}-{material}-{target}"
     cal = ["--calibration", str(calibration)] if calibration else []
-    code = wrapbench("recommend", str(load), "--material", material, "--target", str(target),
+    done = wrapbench("recommend", str(load), "--material", material, "--target", str(target),
                      "--json", f"{stem}.json", "--wrap-out", f"{stem}.toml", *cal)
-    if code != 0:
-        return f"none (exit {code})"
+    if done.returncode == 1:
+        return f"none ({why_none(done.stdout)})"
+    if done.returncode != 0:
+        return f"none (exit {done.returncode})"
     mass = json.loads(Path(f"{stem}.json").read_text())["material_used"]["mass_kg"]
     worst = 0.0
     for side in ("long", "short"):
         verdict = Path(f"{stem}-{side}.json")
         code = wrapbench("simulate", str(checked_on), "--wrap", f"{stem}.toml", "--eumos",
                          "--target", str(target), "--orientation", side,
-                         "--hours-since-wrapping", str(HOURS), "--json", str(verdict))
+                         "--hours-since-wrapping", str(HOURS), "--json",
+                         str(verdict)).returncode
         if code != 0:
             return f"{mass:.3f} kg, FAILS the true unit ({side} side)"
         run = json.loads(verdict.read_text())
@@ -95,7 +111,7 @@ def main() -> None:
             cal = work / f"cal-{seed}.json"
             code = wrapbench("calibrate", *map(str, takes), "--out", str(cal), "--seed",
                              str(seed), "--workers", str(args.workers),
-                             "--max-residual-mm", str(MAX_RESIDUAL_MM))
+                             "--max-residual-mm", str(MAX_RESIDUAL_MM)).returncode
             rows.append((f"fit seed {seed}" if code == 0 else f"fit seed {seed} (exit {code})",
                          nominal, cal if code == 0 else None))
         print("| friction | " + " | ".join(f"{m} {g} g" for m, g in ASKS) + " |")
