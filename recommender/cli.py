@@ -227,8 +227,9 @@ class _Terminated(KeyboardInterrupt):
 
 
 class _Forking:
-    """Whether the process is inside `os.fork` (a worker pool starting). A signal that comes
-    then is handled in the first Python code after the fork, the fork hooks (logging's lock
+    """Forks and the command's signals: whether the process is inside `os.fork` (a worker pool
+    starting), and which process the handlers are the command's in. A signal that comes during
+    a fork is handled in the first Python code after it, the fork hooks (logging's lock
     release), where an exception cannot be raised: Python prints it, 'Exception ignored in
     <function _releaseLock>' with a traceback, and drops it. Registered after logging's hooks,
     these bracket them."""
