@@ -61,7 +61,7 @@ class Search:
                 [sys.executable, "-m", "recommender.cli", "recommend", str(LOAD), "--budget",
                  "48", "--samples", "2", "--workers", "2", "--orientation", "long", "--json",
                  str(self.out)],
-                stdout=subprocess.DEVNULL, stderr=stderr, text=True,
+                stdout=subprocess.DEVNULL, stderr=stderr,
                 cwd=REPO, start_new_session=True,
                 # a hung search dumps every thread's stack on SIGABRT (see `ended`)
                 env={**os.environ, "PYTHONFAULTHANDLER": "1"}, preexec_fn=_as_from_a_terminal)
