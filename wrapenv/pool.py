@@ -51,10 +51,9 @@ GRACE_S = 1.0
 def stop(processes: Sequence[BaseProcess]) -> None:
     """Terminate `processes`, then kill any still alive after `GRACE_S`. Python joins every
     child at exit, so one that outlives its SIGTERM keeps its parent waiting forever: once in the
-    test suite (2026-11-27) an idle worker outlived an interrupted search so. One way it happens
-    (seen in tests/recommender/test_cli.py's interrupted command): a worker signalled before its
-    initializer ran still has its parent's SIGTERM handler, whose exception can be raised where
-    Python drops it."""
+    test suite (2026-11-27) an idle worker outlived an interrupted search so. The way seen then, a
+    worker signalled before its initializer ran, the CLI's handlers now close
+    (`recommender.cli._in_a_new_worker`); this stays the backstop for any other."""
     for process in processes:
         process.terminate()
     for process in processes:
