@@ -11,10 +11,17 @@ alternated in rounds so a busy machine disturbs each alike:
   margins stand from the former's on the same episodes;
 - the training settings with rigid boxes (`SimSettings.rigid_boxes`);
 - `DummyVecEnv` (1 env, in this process) and `SubprocVecEnv` with 2 and 4 env processes (a
-  vector step waits for its slowest env; more envs than cores let the others use the wait).
+  vector step waits for its slowest env; more envs than cores let the others use the wait);
+- with `--pooled`, what `wrapbench train` runs since 2026-11-28: `PooledVecEnv`, a rollout of
+  `TrainSettings.n_envs` one-step episodes handed to one worker per core as each comes free
+  (`--episodes` then a multiple of it).
 
-    python -m benchmarks.bench_train [--episodes 32] [--rounds 2] [--envs 1 2 4 8]
-                                     [--settings default training rigid]
+`--policy RUN/policy.zip` takes the actions from a trained policy, sampled as its own training
+rollouts sample them, instead of uniformly at random: the programs a training run simulates
+once it has learned (lighter ones, whose layers slide longer).
+
+    python -m benchmarks.bench_train [--episodes 32] [--rounds 2] [--envs 1 2 4 8] [--pooled]
+                                     [--settings default training rigid] [--policy FILE]
 """
 
 from __future__ import annotations
@@ -25,12 +32,16 @@ import resource
 import time
 from dataclasses import replace
 from pathlib import Path
+from typing import Any
 
 import numpy as np
+import torch
+from stable_baselines3 import PPO
 from stable_baselines3.common.env_util import make_vec_env
 from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv
 
-from recommender.policy import MAKE_ID, TrainSettings
+from recommender.episodes import PooledVecEnv
+from recommender.policy import MAKE_ID, TrainSettings, load_policy
 from wrapenv.bench import SimSettings
 from wrapenv.design import N_PARAMS
 
@@ -40,49 +51,65 @@ SETTINGS = {"default": ("default SimSettings()", SimSettings()),
             "rigid": ("the same, rigid boxes", replace(TrainSettings().sim, rigid_boxes=True))}
 
 
-def vec_env_name(n_envs: int) -> str:
-    """How `make_vec_env` runs `n_envs` envs here: in this process when 1, else one process
-    each."""
-    return "DummyVecEnv x 1" if n_envs == 1 else f"SubprocVecEnv x {n_envs}"
+#: A vector env to measure: its name, its class, its envs, and the workers of a pooled one.
+VecConfig = tuple[str, type[DummyVecEnv] | type[SubprocVecEnv], int, dict[str, Any]]
+
+
+def vec_configs(envs: list[int], pooled: bool) -> list[VecConfig]:
+    """`make_vec_env` with each of `envs` (in this process when 1, else one process each) and,
+    if `pooled`, the vector env `wrapbench train` builds, one worker per core."""
+    out: list[VecConfig] = [("DummyVecEnv x 1", DummyVecEnv, 1, {}) if n == 1 else
+                            (f"SubprocVecEnv x {n}", SubprocVecEnv, n, {}) for n in envs]
+    if pooled:
+        workers = os.cpu_count() or 1
+        out.append((f"PooledVecEnv {TrainSettings().n_envs}/{workers}", PooledVecEnv,
+                    TrainSettings().n_envs, {"workers": workers}))
+    return out
 
 
 Outcome = tuple[bool, float, bool]  # an episode's (passed, margin, valid)
 
 
-def episodes_per_s(sim: SimSettings, n_envs: int, cls: type[DummyVecEnv] | type[SubprocVecEnv],
-                   episodes: int, seed: int) -> tuple[float, float, float, list[Outcome]]:
+def episodes_per_s(sim: SimSettings, vec_config: VecConfig, episodes: int, seed: int,
+                   policy: PPO | None) -> tuple[float, float, float, list[Outcome]]:
     """Episodes per second of wall time, episodes per CPU second of the whole process tree
     (env workers included, their start-up too; Linux), the mean reward and each episode's
-    outcome, over `episodes` (a multiple of `n_envs`) with seeded random actions."""
+    outcome, over `episodes` (a multiple of the envs) with seeded random actions, or the
+    `policy`'s."""
+    _, cls, n_envs, vec_kwargs = vec_config
     settings = TrainSettings()
     cpu0 = _cpu_s()
     vec = make_vec_env(MAKE_ID, n_envs=n_envs, seed=seed, vec_env_cls=cls,
+                       vec_env_kwargs=vec_kwargs,
                        env_kwargs={"material": settings.material, "target_g": settings.target_g,
                                    "levels": settings.levels, "settings": sim})
     rng = np.random.default_rng(seed)
+    torch.manual_seed(seed)
     rewards = []
     outcomes: list[Outcome] = []
     try:
-        vec.reset()
+        obs = vec.reset()
         t0 = time.perf_counter()
         for _ in range(episodes // n_envs):
-            actions = rng.uniform(-1, 1, (n_envs, N_PARAMS)).astype(np.float32)
-            _, reward, _, infos = vec.step(actions)
+            actions = (rng.uniform(-1, 1, (n_envs, N_PARAMS)).astype(np.float32)
+                       if policy is None
+                       else policy.predict(np.asarray(obs), deterministic=False)[0])
+            obs, reward, _, infos = vec.step(actions)
             rewards.extend(reward.tolist())
             outcomes.extend((bool(i["passed"]), float(i["margin"]), bool(i["valid"]))
                             for i in infos)
         wall = time.perf_counter() - t0
-        cpu = _cpu_s() - cpu0 + sum(_process_cpu_s(p.pid)
-                                    for p in getattr(vec, "processes", []))
+        workers = sum(_process_cpu_s(p.pid) for p in getattr(vec, "processes", []))
     finally:
         vec.close()
+    cpu = _cpu_s() - cpu0 + workers   # a pool's workers, this process's children: once closed
     return len(rewards) / wall, len(rewards) / cpu, float(np.mean(rewards)), outcomes
 
 
 def _cpu_s() -> float:
-    """This process's CPU time."""
-    own = resource.getrusage(resource.RUSAGE_SELF)
-    return own.ru_utime + own.ru_stime
+    """This process's CPU time and its ended children's."""
+    return sum(u.ru_utime + u.ru_stime for u in (resource.getrusage(resource.RUSAGE_SELF),
+                                                 resource.getrusage(resource.RUSAGE_CHILDREN)))
 
 
 def _process_cpu_s(pid: int) -> float:
@@ -98,23 +125,29 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--rounds", type=int, default=2)
     parser.add_argument("--envs", type=int, nargs="+", default=[1, 2, 4],
                         help="vector env sizes (default 1 2 4)")
+    parser.add_argument("--pooled", action="store_true",
+                        help="also the vector env `wrapbench train` builds (PooledVecEnv)")
     parser.add_argument("--settings", nargs="+", choices=list(SETTINGS), default=list(SETTINGS),
                         help="the first is the reference of the ratios and agreements")
+    parser.add_argument("--policy", type=Path, help="a trained policy.zip to take actions from")
     args = parser.parse_args(argv)
-    if any(n < 1 or args.episodes % n for n in args.envs):
-        parser.error("every --envs must be >= 1 and divide --episodes")
+    configs = vec_configs(args.envs, args.pooled)
+    if any(n < 1 or args.episodes % n for _, _, n, _ in configs):
+        parser.error("every vector env's envs must be >= 1 and divide --episodes")
+    policy = None if args.policy is None else load_policy(args.policy, TrainSettings().material)
+    torch.set_num_threads(1)   # as in training: the workers have the cores
     settings = {SETTINGS[key][0]: SETTINGS[key][1] for key in args.settings}
     print(f"{os.cpu_count()} cores; {args.episodes} episodes per configuration and round, "
-          f"{args.rounds} rounds (goal >= 5 episodes/s on 2 cores)")
+          f"{args.rounds} rounds (goal >= 5 episodes/s on 2 cores); actions "
+          f"{'uniformly random' if policy is None else f'sampled from {args.policy}'}")
     rates: dict[tuple[str, str], list[tuple[float, float]]] = {}
     outcomes: dict[str, list[Outcome]] = {name: [] for name in settings}
     for round_ in range(args.rounds):
-        for n_envs in args.envs:
-            vec_name = vec_env_name(n_envs)
-            cls = DummyVecEnv if n_envs == 1 else SubprocVecEnv
+        for config in configs:
+            vec_name = config[0]
             for sim_name, sim in settings.items():
-                wall, cpu, reward, seen = episodes_per_s(sim, n_envs, cls, args.episodes,
-                                                         seed=round_)
+                wall, cpu, reward, seen = episodes_per_s(sim, config, args.episodes,
+                                                         seed=round_, policy=policy)
                 rates.setdefault((vec_name, sim_name), []).append((wall, cpu))
                 outcomes[sim_name].extend(seen)
                 print(f"  round {round_}: {vec_name:18s} {sim_name:22s} {wall:5.2f} episodes/s, "
@@ -122,7 +155,7 @@ def main(argv: list[str] | None = None) -> None:
     print("\nepisodes/s of wall time (episodes per CPU second); ratios of the wall figures to "
           "the defaults'")
     print(f"{'vector env':18s} " + " ".join(f"{name:>24s}" for name in settings) + "  ratios")
-    for vec_name in map(vec_env_name, args.envs):
+    for vec_name, *_ in configs:
         mean = [np.mean(rates[vec_name, sim_name], axis=0) for sim_name in settings]
         print(f"{vec_name:18s} " + " ".join(f"{w:11.2f} ({c:.2f} /CPU s)" for w, c in mean)
               + "  " + ", ".join(f"{m[0] / mean[0][0]:.2f} x" for m in mean[1:]))

@@ -204,7 +204,7 @@ def _add_train(sub: argparse._SubParsersAction) -> None:
                     help="units tested, one program each (rounded up to whole rollouts; "
                          "default 2048)")
     tr.add_argument("--envs", type=int, default=os.cpu_count() or 1,
-                    help="parallel environments (default: all cores)")
+                    help="processes simulating the episodes (default: all cores)")
     tr.add_argument("--material", default="kraft",
                     help="the web the policy programs: kraft (default) or lldpe")
     tr.add_argument("--target", type=level_g, default=0.5, metavar="G",

@@ -600,7 +600,7 @@ def _check_train_numbers(args: argparse.Namespace) -> None:
     most = MAX_WORKERS_PER_CORE * (os.cpu_count() or 1)
     if args.envs > most:
         raise InputError("arguments", "--envs", f"must be <= {most} (got {args.envs}): each "
-                                                "env is a process simulating on a core")
+                                                "is a process simulating on a core")
     if args.minutes is not None and not (math.isfinite(args.minutes) and args.minutes > 0):
         raise InputError("arguments", "--minutes", f"must be > 0 (got {args.minutes})")
 
@@ -635,12 +635,12 @@ def run_train(args: argparse.Namespace) -> int:
     if calibration is not None:
         warn("train", calibration.warnings())
     made = _run_folder(args.out, args.resume)
-    settings = TrainSettings(timesteps=args.timesteps, n_envs=args.envs, material=args.material,
+    settings = TrainSettings(timesteps=args.timesteps, workers=args.envs, material=args.material,
                              target_g=args.target, seed=args.seed, max_minutes=args.minutes,
                              calibration=calibration)
     if settings.rollout_timesteps != settings.timesteps:
         print(f"training {settings.rollout_timesteps} timesteps: PPO collects whole rollouts of "
-              f"{settings.n_steps} steps x {settings.n_envs} envs")
+              f"{settings.n_steps * settings.n_envs} episodes")
     try:
         path = train(settings, args.out, resume=args.resume)
     except KeyboardInterrupt as exc:

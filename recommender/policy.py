@@ -44,9 +44,10 @@ from stable_baselines3.common.callbacks import BaseCallback, CallbackList
 from stable_baselines3.common.env_util import make_vec_env
 from stable_baselines3.common.logger import configure as configure_logger
 from stable_baselines3.common.policies import ActorCriticPolicy
-from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecEnv
+from stable_baselines3.common.vec_env import VecEnv
 
 import wrapenv  # noqa: F401  (registers the env ids used by gym.make)
+from recommender.episodes import PooledVecEnv
 from wrapenv.bench import SimSettings
 from wrapenv.calibrated import Calibration
 from wrapenv.config import InputError, is_finite_number, write_atomic
@@ -60,9 +61,9 @@ from wrapenv.wrap import WrapFormat
 ENV_ID = "wrapenv/WrapBenchRandom-v3"
 #: The file inside every policy zip that says what the policy was trained on.
 POLICY_META = "wrapbench.json"
-#: What the env workers pass to gym.make: the "module:id" form imports wrapenv (which registers
-#: the id) in a SubprocVecEnv worker too, whose fresh interpreter has not imported it when the
-#: parent's main module is not ours (under pytest, or any host program).
+#: What the envs pass to gym.make: the "module:id" form imports wrapenv (which registers the id)
+#: in a SubprocVecEnv worker too (`benchmarks/bench_train.py` compares them), whose fresh
+#: interpreter has not imported it when the parent's main module is not ours.
 MAKE_ID = f"wrapenv:{ENV_ID}"
 POLICY_FILE = "policy.zip"
 CHECKPOINT_DIR = "checkpoints"
@@ -82,7 +83,11 @@ class TrainSettings:
     (1-3 layers); throughput of the training envs: benchmarks/bench_train.py."""
 
     timesteps: int = 2048
-    n_envs: int = 2                # vector envs (SubprocVecEnv when > 1, DummyVecEnv when 1)
+    #: Envs of the vector env, each stepped once per vector step: with `n_steps` 1, a rollout
+    #: is `n_envs` one-step episodes, which `workers` processes simulate as they come free
+    #: (`recommender.episodes.PooledVecEnv`).
+    n_envs: int = 128
+    workers: int = 2               # processes that simulate the episodes (1: this one)
     material: str = "kraft"
     target_g: float = 0.5
     levels: str = "target"         # env levels mode: "target" is 3-4x faster than "eumos"
@@ -97,7 +102,7 @@ class TrainSettings:
     sim: SimSettings = SimSettings.training()
     seed: int = 0
     checkpoint_every: int = 512    # timesteps between policy checkpoints
-    n_steps: int = 64              # PPO rollout length per env (one-step episodes)
+    n_steps: int = 1               # PPO rollout length per env (one-step episodes)
     batch_size: int = 64
     learning_rate: float = 3e-4
     progress_bar: bool = True
@@ -117,7 +122,8 @@ class TrainSettings:
     def check(self) -> None:
         """Reject settings SB3 would fail on late (or silently misuse), before any process
         is started."""
-        for name in ("timesteps", "n_envs", "checkpoint_every", "n_steps", "batch_size"):
+        for name in ("timesteps", "n_envs", "workers", "checkpoint_every", "n_steps",
+                     "batch_size"):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, int) or value < 1:
                 raise ValueError(f"TrainSettings.{name} must be an integer >= 1 (got {value!r})")
@@ -245,10 +251,12 @@ def train(settings: TrainSettings, out_dir: Path, resume: bool = False) -> Path:
         cleanup.callback(torch.set_num_threads, torch.get_num_threads())
         torch.set_num_threads(1)
         vec_env = _training_envs(settings, seed=settings.seed + done)
-        cleanup.callback(close_envs, vec_env)
+        cleanup.callback(vec_env.close)
         log = EpisodeLog(out_dir / LOG_FILE, kept=done if start else None)
         cleanup.callback(log.close)
-        model = (_load(start[0], resumed, trusted, vec_env) if start else
+        # a run checkpointed before 2026-11-28 collected 64 steps of 2 envs a rollout
+        model = (_load(start[0], resumed, trusted, vec_env, n_steps=settings.n_steps)
+                 if start else
                  PPO("MlpPolicy", vec_env, n_steps=settings.n_steps,
                      batch_size=settings.batch_size, learning_rate=settings.learning_rate,
                      seed=settings.seed, device="cpu", verbose=0))
@@ -267,32 +275,14 @@ def train(settings: TrainSettings, out_dir: Path, resume: bool = False) -> Path:
 
 
 def _training_envs(settings: TrainSettings, seed: int) -> VecEnv:
-    """`settings.n_envs` random-unit envs, in worker processes when there are several."""
+    """`settings.n_envs` random-unit envs, stepped by `settings.workers` processes."""
     return make_vec_env(
         MAKE_ID, n_envs=settings.n_envs, seed=seed,
         env_kwargs={"material": settings.material, "target_g": settings.target_g,
                     "levels": settings.levels, "settings": settings.sim,
                     "calibration": settings.calibration},
-        vec_env_cls=SubprocVecEnv if settings.n_envs > 1 else DummyVecEnv,
+        vec_env_cls=PooledVecEnv, vec_env_kwargs={"workers": settings.workers},
     )
-
-
-def close_envs(vec_env: VecEnv) -> None:
-    """Close a vector env, also one interrupted within a step. SB3's `SubprocVecEnv.close`
-    first reads every worker's answer to the step under way, and an interrupt can come after
-    some of them were read: it then waits forever for an answer already taken (a SIGTERM, which
-    reaches this process and not its workers, hung `wrapbench train`). Its workers are ended
-    instead; they hold nothing to keep."""
-    if isinstance(vec_env, SubprocVecEnv) and vec_env.waiting and not vec_env.closed:
-        for process in vec_env.processes:
-            process.terminate()
-        for process in vec_env.processes:
-            process.join()
-        for remote in vec_env.remotes:
-            remote.close()
-        vec_env.closed = True
-    else:
-        vec_env.close()
 
 
 def policy_meta(settings: TrainSettings) -> dict[str, Any]:
@@ -400,7 +390,7 @@ def read_meta(path: Path, content: bytes | None = None) -> dict[str, Any]:
 
 
 #: Most rollout steps a policy file may ask SB3 to allocate a buffer for on loading
-#: (n_steps x n_envs; `wrapbench train` writes 64 x its envs).
+#: (n_steps x n_envs; `wrapbench train` writes 1 x 128).
 MAX_ROLLOUT_STEPS = 1 << 20
 
 
@@ -474,11 +464,13 @@ def _check_card(path: Path, meta: dict[str, Any]) -> None:
                          f"{name} card's figures of another version of wrapbench: train a new one")
 
 
-def _load(path: Path, content: bytes, trusted: dict[str, Any], env: Any = None) -> PPO:
+def _load(path: Path, content: bytes, trusted: dict[str, Any], env: Any = None,
+          **overrides: Any) -> PPO:
     """The policy file's weights (and optimizer state) from its checked bytes, nothing
-    unpickled from them."""
+    unpickled from them; `overrides`: attributes set anew (a resumed run's rollout shape)."""
     try:
-        model = PPO.load(io.BytesIO(content), env=env, device="cpu", custom_objects=trusted)
+        model = PPO.load(io.BytesIO(content), env=env, device="cpu", custom_objects=trusted,
+                         **overrides)
     except (OSError, ValueError, KeyError, RuntimeError, TypeError, AttributeError) as exc:
         raise InputError(str(path), "policy", f"cannot be loaded ({exc})") from None
     if not all(bool(p.isfinite().all()) for p in model.policy.parameters()):

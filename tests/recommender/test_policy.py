@@ -24,13 +24,13 @@ import pytest
 
 import recommender.policy
 from recommender.cli import main
+from recommender.episodes import PooledVecEnv
 from recommender.policy import (
     CHECKPOINT_DIR,
     LOG_COLUMNS,
     POLICY_META,
     EpisodeLog,
     TrainSettings,
-    close_envs,
     evaluate,
     held_out_loads,
     last_checkpoint,
@@ -75,7 +75,8 @@ def test_default_settings_are_a_sane_short_run():
     s.check()
 
 
-@pytest.mark.parametrize("field, value", [("timesteps", 0), ("n_envs", 0), ("batch_size", 1.5),
+@pytest.mark.parametrize("field, value", [("timesteps", 0), ("n_envs", 0), ("workers", 0),
+                                          ("batch_size", 1.5),
                                           ("learning_rate", float("nan")),
                                           ("max_minutes", -1.0), ("max_minutes", float("nan"))])
 def test_bad_settings_are_rejected_before_any_process_starts(tmp_path, field, value):
@@ -132,8 +133,8 @@ def test_a_training_that_fails_to_start_closes_its_envs_and_gives_torch_its_thre
     closed, and torch's thread count, lowered to one for training, is the caller's again."""
     torch = pytest.importorskip("torch")
     closed = []
-    monkeypatch.setattr(recommender.policy, "close_envs",
-                        lambda vec_env: (closed.append(vec_env), vec_env.close()))
+    close = PooledVecEnv.close
+    monkeypatch.setattr(PooledVecEnv, "close", lambda self: (closed.append(self), close(self)))
 
     def full_disk(*args, **kwargs):
         raise OSError("No space left on device")
@@ -186,10 +187,10 @@ def test_a_policy_trained_on_a_calibration_observes_its_uncertainty_and_says_so(
     assert obs[OBS_NAMES.index("friction_pallet_bundle_static_std")] > 0
 
 
-def test_train_with_two_subprocess_envs(tmp_path):
-    """The default: SubprocVecEnv workers, which import nothing of the parent's but the env."""
-    settings = TrainSettings(timesteps=4, n_envs=2, n_steps=1, batch_size=2, checkpoint_every=2,
-                             seed=7, progress_bar=False)
+def test_train_with_two_worker_processes(tmp_path):
+    """The default: the episodes simulated by worker processes, logged in the envs' order."""
+    settings = TrainSettings(timesteps=4, n_envs=2, workers=2, n_steps=1, batch_size=2,
+                             checkpoint_every=2, seed=7, progress_bar=False)
     path = train(settings, tmp_path)
     assert path.is_file()
     # two rollouts of a vector step: the checkpoint between their updates, then policy.zip
@@ -552,25 +553,6 @@ def test_a_new_run_into_an_interrupted_one_names_resume(trained, capsys):
     _, out = trained
     assert main(["train", "--out", str(out)]) == 2
     assert "--resume" in capsys.readouterr().err
-
-
-def test_envs_interrupted_within_a_step_close_without_waiting_for_answers_already_read():
-    """SIGTERM reaches `wrapbench train` and not its env workers: interrupted after reading one
-    worker's answer to a step, SB3's own close() would wait forever for it again."""
-    import threading
-
-    import gymnasium as gym
-    from stable_baselines3.common.vec_env import SubprocVecEnv
-
-    vec = SubprocVecEnv([lambda: gym.make("CartPole-v1")] * 2)
-    vec.reset()
-    vec.step_async(np.zeros(2, dtype=int))
-    vec.remotes[0].recv()                # the step's first answer, read before the interrupt
-    closing = threading.Thread(target=close_envs, args=(vec,), daemon=True)
-    closing.start()
-    closing.join(timeout=30)
-    assert not closing.is_alive(), "close_envs waited for an answer already read"
-    assert vec.closed and not any(p.is_alive() for p in vec.processes)
 
 
 def test_a_training_interrupted_before_its_first_checkpoint_leaves_nothing(tmp_path,
