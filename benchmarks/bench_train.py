@@ -123,7 +123,7 @@ def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--episodes", type=int, default=32, help="per configuration and round")
     parser.add_argument("--rounds", type=int, default=2)
-    parser.add_argument("--envs", type=int, nargs="+", default=[1, 2, 4],
+    parser.add_argument("--envs", type=int, nargs="*", default=[1, 2, 4],
                         help="vector env sizes (default 1 2 4)")
     parser.add_argument("--pooled", action="store_true",
                         help="also the vector env `wrapbench train` builds (PooledVecEnv)")
