@@ -40,7 +40,7 @@ import torch
 from stable_baselines3 import PPO
 from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.buffers import RolloutBuffer
-from stable_baselines3.common.callbacks import BaseCallback, CallbackList
+from stable_baselines3.common.callbacks import BaseCallback, CallbackList, ProgressBarCallback
 from stable_baselines3.common.env_util import make_vec_env
 from stable_baselines3.common.logger import configure as configure_logger
 from stable_baselines3.common.policies import ActorCriticPolicy
@@ -203,9 +203,11 @@ class EpisodeLog(BaseCallback):
 class TimeBudget(BaseCallback):
     """Ends training once `minutes` have passed since it started, at the end of the rollout
     in which they did: PPO learns from that rollout, then the next one's first vector step
-    returns False (SB3 stops when a callback does). Stopped inside a rollout, PPO would drop
-    up to a rollout of episodes unlearned (128 at the defaults, over a minute), and a budget
-    that ended in the first one would write the untrained policy."""
+    returns False (SB3 stops when a callback does; no callback runs before a rollout's first
+    step can stop it, so that step's episodes are simulated and logged unlearned: at the
+    defaults the whole next rollout, 128 episodes, half a minute). Stopped inside a rollout,
+    PPO would drop what it had collected of it, and a budget that ended in the first one would
+    write the untrained policy."""
 
     def __init__(self, minutes: float) -> None:
         super().__init__()
@@ -267,11 +269,25 @@ def train(settings: TrainSettings, out_dir: Path, resume: bool = False) -> Path:
                                                      checkpoints), log]
         if settings.max_minutes is not None:
             callbacks.append(TimeBudget(settings.max_minutes))
+        if settings.progress_bar:
+            bar = ProgressBarCallback()
+            callbacks.append(bar)
+            cleanup.callback(close_bar, bar)
         model.learn(max(0, settings.rollout_timesteps - done), callback=CallbackList(callbacks),
-                    progress_bar=settings.progress_bar, reset_num_timesteps=start is None)
+                    reset_num_timesteps=start is None)
         path = out_dir / POLICY_FILE
         save_stamped(model, path, meta)
         return path
+
+
+def close_bar(bar: ProgressBarCallback) -> None:
+    """Close the progress bar, also of an interrupted training (SB3 closes it only when
+    training ends). Left to the interpreter's exit, rich's refresh thread, a daemon, can be
+    stopped holding the bar's lock, and the exit then waits for that lock for ever: `wrapbench
+    train` ended by SIGTERM once hung so (2026-11-28)."""
+    pbar = getattr(bar, "pbar", None)   # made when training starts
+    if pbar is not None:
+        pbar.close()
 
 
 def _training_envs(settings: TrainSettings, seed: int) -> VecEnv:

@@ -151,6 +151,23 @@ def test_a_training_that_fails_to_start_closes_its_envs_and_gives_torch_its_thre
     assert len(closed) == 1
 
 
+def test_an_interrupted_training_closes_its_progress_bar(tmp_path, monkeypatch):
+    """Left open to the interpreter's exit, the bar's refresh thread could be stopped holding
+    its lock, and the exit waited for it for ever (a SIGTERM'd `wrapbench train`)."""
+    closed = []
+    close = recommender.policy.close_bar
+    monkeypatch.setattr(recommender.policy, "close_bar",
+                        lambda bar: (close(bar), closed.append(bar.pbar.disable)))
+    monkeypatch.setattr(EpisodeLog, "_on_step", lambda self: _raise(KeyboardInterrupt()))
+    with pytest.raises(KeyboardInterrupt):
+        train(replace(TINY, progress_bar=True), tmp_path)
+    assert closed == [True]
+
+
+def _raise(exc: BaseException) -> bool:
+    raise exc
+
+
 def test_a_time_budget_ends_training_early_and_still_writes_the_policy(tmp_path):
     """A budget that has passed by the first step still lets PPO learn from the rollout it
     ends in, then stops it at the next one's first step (SB3 ends `learn` when a callback
