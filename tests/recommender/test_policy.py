@@ -151,6 +151,7 @@ def test_a_training_that_fails_to_start_closes_its_envs_and_gives_torch_its_thre
     assert len(closed) == 1
 
 
+@pytest.mark.filterwarnings("ignore:rich is experimental")  # tqdm's, SB3's bar silences it
 def test_an_interrupted_training_closes_its_progress_bar(tmp_path, monkeypatch):
     """Left open to the interpreter's exit, the bar's refresh thread could be stopped holding
     its lock, and the exit waited for it for ever (a SIGTERM'd `wrapbench train`)."""
