@@ -61,9 +61,9 @@ def vec_configs(envs: list[int], pooled: bool) -> list[VecConfig]:
     out: list[VecConfig] = [("DummyVecEnv x 1", DummyVecEnv, 1, {}) if n == 1 else
                             (f"SubprocVecEnv x {n}", SubprocVecEnv, n, {}) for n in envs]
     if pooled:
-        workers = os.cpu_count() or 1
-        out.append((f"PooledVecEnv {TrainSettings().n_envs}/{workers}", PooledVecEnv,
-                    TrainSettings().n_envs, {"workers": workers}))
+        workers, n_envs = os.cpu_count() or 1, TrainSettings().n_envs
+        out.append((f"PooledVecEnv {n_envs}/{workers}", PooledVecEnv, n_envs,
+                    {"workers": workers}))
     return out
 
 

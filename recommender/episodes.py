@@ -11,8 +11,7 @@ workers one at a time, so every core stays busy until the last episode ends
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
-from copy import deepcopy
+from collections.abc import Callable
 from typing import Any
 
 import gymnasium as gym
@@ -45,7 +44,7 @@ class PooledVecEnv(DummyVecEnv):
     def step_wait(self) -> VecEnvStepReturn:
         if self.pool is None:
             return super().step_wait()
-        results: Sequence[tuple[Any, ...]] = list(self.pool.map(_step, self.envs, self.actions))
+        results = self.pool.map(_step, self.envs, self.actions)
         for i, (obs, reward, terminated, truncated, info) in enumerate(results):
             self.buf_rews[i], self.buf_infos[i] = reward, info
             self.buf_dones[i] = terminated or truncated
@@ -54,8 +53,9 @@ class PooledVecEnv(DummyVecEnv):
                 info["terminal_observation"] = obs
                 obs, self.reset_infos[i] = self.envs[i].reset()
             self._save_obs(i, obs)
+        # the infos are the workers' answers, unpickled anew: no copy needed to keep them apart
         return (self._obs_from_buf(), np.copy(self.buf_rews), np.copy(self.buf_dones),
-                deepcopy(self.buf_infos))
+                list(self.buf_infos))
 
     def close(self) -> None:
         """Stop the workers without waiting for a step under way (an interrupt can come
