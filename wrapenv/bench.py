@@ -111,8 +111,8 @@ class SimSettings:
         policy's proposal is verified at the defaults. (A shorter settling, a quarter of a
         trained policy's episode, laid the wrap with a jolt: a two-bundle unit's margin 0.17
         lower at 0.2 s, 0.37 at 0.15 s; settled at a 2 x longer step, it failed at 0.3 g:
-        docs/speed.md.) Agreement and speed-up on random units and on the
-        screening cases: benchmarks/bench_train.py, benchmarks/bench_screening.py."""
+        docs/speed.md.) Agreement and speed-up on random units and on the screening cases:
+        benchmarks/bench_train.py, benchmarks/bench_screening.py."""
         return replace(cls.screening(), timestep_s=1 / 160, rest_hold_s=0.05)
 
 
