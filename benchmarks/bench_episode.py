@@ -26,7 +26,7 @@ import numpy as np
 import torch
 
 import wrapenv  # noqa: F401  (registers the environments)
-from recommender.policy import MAKE_ID, TrainSettings, load_policy
+from recommender.policy import MAKE_ID, TrainSettings, env_kwargs, load_policy
 from wrapenv.bench import BenchUnit
 from wrapenv.bullet import BulletWorld
 from wrapenv.design import N_PARAMS
@@ -72,8 +72,7 @@ def main(argv: list[str] | None = None) -> None:
     args = parser.parse_args(argv)
     settings = TrainSettings()
     policy = load_policy(args.policy) if args.policy else None
-    env = gym.make(MAKE_ID, material=settings.material, target_g=settings.target_g,
-                   levels=settings.levels, settings=settings.sim)
+    env = gym.make(MAKE_ID, **env_kwargs(settings))
     obs, _ = env.reset(seed=args.seed)
     rng = np.random.default_rng(args.seed)
     torch.manual_seed(args.seed)

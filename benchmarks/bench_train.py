@@ -41,7 +41,7 @@ from stable_baselines3.common.env_util import make_vec_env
 from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv
 
 from recommender.episodes import PooledVecEnv
-from recommender.policy import MAKE_ID, TrainSettings, load_policy
+from recommender.policy import MAKE_ID, TrainSettings, env_kwargs, load_policy
 from wrapenv.bench import SimSettings
 from wrapenv.design import N_PARAMS
 
@@ -77,12 +77,10 @@ def episodes_per_s(sim: SimSettings, vec_config: VecConfig, episodes: int, seed:
     outcome, over `episodes` (a multiple of the envs) with seeded random actions, or the
     `policy`'s."""
     _, cls, n_envs, vec_kwargs = vec_config
-    settings = TrainSettings()
     cpu0 = _cpu_s()
     vec = make_vec_env(MAKE_ID, n_envs=n_envs, seed=seed, vec_env_cls=cls,
                        vec_env_kwargs=vec_kwargs,
-                       env_kwargs={"material": settings.material, "target_g": settings.target_g,
-                                   "levels": settings.levels, "settings": sim})
+                       env_kwargs=env_kwargs(TrainSettings(sim=sim)))
     rng = np.random.default_rng(seed)
     torch.manual_seed(seed)
     rewards = []

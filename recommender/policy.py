@@ -290,15 +290,18 @@ def close_bar(bar: ProgressBarCallback) -> None:
         pbar.close()
 
 
+def env_kwargs(settings: TrainSettings) -> dict[str, Any]:
+    """What each training env is made with (`gym.make(MAKE_ID, **env_kwargs(settings))`)."""
+    return {"material": settings.material, "target_g": settings.target_g,
+            "levels": settings.levels, "settings": settings.sim,
+            "calibration": settings.calibration}
+
+
 def _training_envs(settings: TrainSettings, seed: int) -> VecEnv:
     """`settings.n_envs` random-unit envs, stepped by `settings.workers` processes."""
-    return make_vec_env(
-        MAKE_ID, n_envs=settings.n_envs, seed=seed,
-        env_kwargs={"material": settings.material, "target_g": settings.target_g,
-                    "levels": settings.levels, "settings": settings.sim,
-                    "calibration": settings.calibration},
-        vec_env_cls=PooledVecEnv, vec_env_kwargs={"workers": settings.workers},
-    )
+    return make_vec_env(MAKE_ID, n_envs=settings.n_envs, seed=seed,
+                        env_kwargs=env_kwargs(settings), vec_env_cls=PooledVecEnv,
+                        vec_env_kwargs={"workers": settings.workers})
 
 
 def policy_meta(settings: TrainSettings) -> dict[str, Any]:

@@ -14,15 +14,12 @@ from gymnasium import spaces
 from stable_baselines3.common.env_util import make_vec_env
 
 from recommender.episodes import PooledVecEnv
-from recommender.policy import MAKE_ID, TrainSettings
+from recommender.policy import MAKE_ID, TrainSettings, env_kwargs
 
 
 def _random_unit_envs(workers: int) -> PooledVecEnv:
-    settings = TrainSettings()
     vec = make_vec_env(MAKE_ID, n_envs=4, seed=3, vec_env_cls=PooledVecEnv,
-                       vec_env_kwargs={"workers": workers},
-                       env_kwargs={"material": settings.material, "target_g": settings.target_g,
-                                   "levels": settings.levels, "settings": settings.sim})
+                       vec_env_kwargs={"workers": workers}, env_kwargs=env_kwargs(TrainSettings()))
     assert isinstance(vec, PooledVecEnv)
     return vec
 
