@@ -33,9 +33,8 @@ from pathlib import Path
 
 import numpy as np
 
-from recommender.policy import PolicyTrial, evaluate, held_out_loads
+from recommender.policy import PolicyTrial, evaluate, held_out_loads, run_trial
 from recommender.text import program_summary
-from wrapenv.envs.wrapbench import WrapBenchEnv
 from wrapenv.load import LoadUnit
 from wrapenv.program import Program, Reinforcement
 
@@ -49,18 +48,7 @@ ONE_PROGRAM = np.array([-1, -1, -1, -1, 0, 0, 0, 0, 0], np.float32)
 
 def one_program(loads: list[LoadUnit], material: str, target_g: float) -> list[PolicyTrial]:
     """`ONE_PROGRAM` on each unit, tested as `evaluate` tests a policy's proposal."""
-    trials = []
-    for load in loads:
-        env = WrapBenchEnv(load=load, material=material, target_g=target_g, levels="target")
-        try:
-            env.reset(seed=0)
-            _, reward, _, _, info = env.step(ONE_PROGRAM)
-            trials.append(PolicyTrial(load.name, env.decode(ONE_PROGRAM), bool(info["passed"]),
-                                      bool(info["valid"]), float(info["margin"]),
-                                      float(info["material_used"]["mass_kg"]), float(reward)))
-        finally:
-            env.close()
-    return trials
+    return [run_trial(load, lambda _: ONE_PROGRAM, material, target_g) for load in loads]
 
 
 def settings(program: Program) -> tuple[object, ...]:

@@ -31,6 +31,7 @@ import os
 import re
 import time
 import zipfile
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import IO, Any
@@ -548,22 +549,29 @@ def evaluate(policy_or_none: PPO | Path | None, loads: list[LoadUnit], material:
     in order): the per-unit detail behind `pass_rate`, for comparing material too."""
     model = None if policy_or_none is None else _policy(policy_or_none, material)
     rng = np.random.default_rng(seed)
-    trials = []
-    for load in loads:
-        env = _env(load, material, target_g)
-        try:
-            obs, _ = env.reset(seed=0)
-            if model is None:
-                action = rng.uniform(-1.0, 1.0, N_PARAMS).astype(np.float32)
-            else:
-                action = _action(model, obs)
-            _, reward, _, _, info = env.step(action)
-            trials.append(PolicyTrial(load.name, env.decode(action), bool(info["passed"]),
-                                bool(info["valid"]), float(info["margin"]),
-                                float(info["material_used"]["mass_kg"]), float(reward)))
-        finally:
-            env.close()
-    return trials
+
+    def choose(obs: np.ndarray) -> np.ndarray:
+        if model is None:
+            return rng.uniform(-1.0, 1.0, N_PARAMS).astype(np.float32)
+        return _action(model, obs)
+
+    return [run_trial(load, choose, material, target_g) for load in loads]
+
+
+def run_trial(load: LoadUnit, choose: Callable[[np.ndarray], np.ndarray], material: str,
+              target_g: float) -> PolicyTrial:
+    """One unit tested (target level only, as training tests it) with the action `choose`
+    picks from the unit's observation."""
+    env = _env(load, material, target_g)
+    try:
+        obs, _ = env.reset(seed=0)
+        action = choose(obs)
+        _, reward, _, _, info = env.step(action)
+        return PolicyTrial(load.name, env.decode(action), bool(info["passed"]),
+                           bool(info["valid"]), float(info["margin"]),
+                           float(info["material_used"]["mass_kg"]), float(reward))
+    finally:
+        env.close()
 
 
 def pass_rate(policy_or_none: PPO | Path | None, loads: list[LoadUnit], material: str,
@@ -588,4 +596,4 @@ def held_out_loads(n: int, seed: int) -> list[LoadUnit]:
 
 
 __all__ = ["TrainSettings", "PolicyTrial", "evaluate", "held_out_loads", "load_policy", "pass_rate",
-           "propose", "train"]
+           "propose", "run_trial", "train"]

@@ -38,6 +38,7 @@ from recommender.policy import (
     pass_rate,
     policy_meta,
     propose,
+    run_trial,
     stamp,
     train,
 )
@@ -416,6 +417,23 @@ def test_pass_rate_counts_passes_of_random_or_policy_actions(trained):
     assert [t.wrap for t in mine] == [propose(path, u, "kraft", 0.3) for u in loads]
     assert pass_rate(path, loads, "kraft", 0.3, seed=99) == sum(t.passed for t in mine) / 2
 
+
+
+def test_a_trial_tests_the_action_chosen_from_the_units_observation():
+    load = LoadUnit.from_dict(TINY_LOAD)
+    seen = []
+    least_web = np.array([-1, -1, -1, -1, 0, 0, 0, 0, 0], np.float32)
+
+    def choose(obs: np.ndarray) -> np.ndarray:
+        seen.append(obs)
+        return least_web
+
+    trial = run_trial(load, choose, "kraft", 0.3)
+    assert len(seen) == 1 and seen[0].shape == (len(OBS_NAMES),)
+    space = ProgramSpace.for_layout(load.layout(), "kraft")
+    assert trial.wrap == space.decode(least_web)
+    assert trial.wrap.program is not None and trial.wrap.program.bottom_wraps == 1
+    assert trial.load == "tiny" and trial.valid and trial.material_kg > 0
 
 #: The slow test's run: 384 timesteps = 6 PPO updates of 64 episodes (32 per env, 2 envs), at
 #: a higher learning rate than the default so that a run short enough for a test (~11 min) moves
