@@ -418,7 +418,6 @@ def test_pass_rate_counts_passes_of_random_or_policy_actions(trained):
     assert pass_rate(path, loads, "kraft", 0.3, seed=99) == sum(t.passed for t in mine) / 2
 
 
-
 def test_a_trial_tests_the_action_chosen_from_the_units_observation():
     load = LoadUnit.from_dict(TINY_LOAD)
     seen = []
@@ -434,6 +433,7 @@ def test_a_trial_tests_the_action_chosen_from_the_units_observation():
     assert trial.wrap == space.decode(least_web)
     assert trial.wrap.program is not None and trial.wrap.program.bottom_wraps == 1
     assert trial.load == "tiny" and trial.valid and trial.material_kg > 0
+
 
 #: The slow test's run: 384 timesteps = 6 PPO updates of 64 episodes (32 per env, 2 envs), at
 #: a higher learning rate than the default so that a run short enough for a test (~11 min) moves
