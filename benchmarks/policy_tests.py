@@ -19,10 +19,10 @@ import time
 from pathlib import Path
 
 from recommender.policy import held_out_loads, load_policy, propose
-from recommender.uncertainty import TRANSPORT_HOURS
 from wrapenv.bench import SimSettings, run_levels
 from wrapenv.load import LoadUnit, Orientation
 from wrapenv.profile import eumos_levels
+from wrapenv.uncertainty import TRANSPORT_HOURS
 from wrapenv.wrap import WrapFormat
 
 #: The margin `recommend` asks of its worst sample (`recommender.problem.Problem.margin_goal`).

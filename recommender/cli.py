@@ -23,11 +23,11 @@ from calibration.commands import level_g, seed
 from recommender import commands as bench_commands
 from recommender import simulate
 from recommender.parallel import BACKENDS
-from recommender.uncertainty import TRANSPORT_HOURS
 from wrapenv import __version__
 from wrapenv.config import InputError
 from wrapenv.load import EXAMPLE_LOAD, ORIENTATIONS
 from wrapenv.pool import stop
+from wrapenv.uncertainty import TRANSPORT_HOURS
 
 
 class _Parser(argparse.ArgumentParser):

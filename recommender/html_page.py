@@ -18,12 +18,12 @@ from typing import Any
 
 from recommender.search import Trial
 from recommender.text import TIGHT_WRAP_HINT, level_result, sequence_text, step_cells, wrapped
-from recommender.uncertainty import PassProbability
 from wrapenv import __version__
 from wrapenv.bench import BenchRun, SimSettings
 from wrapenv.config import printable
 from wrapenv.eumos import EUMOS_CRITERIA, NO_DAMAGE, Criterion, LevelVerdict, Verdict
 from wrapenv.load import PAIRS, Layout, LoadUnit, Orientation
+from wrapenv.uncertainty import PassProbability
 from wrapenv.wrap import WrapFormat, program_to_dict
 from wrapenv.wrap_report import WrapReport
 

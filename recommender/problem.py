@@ -16,13 +16,13 @@ from typing import Any
 
 import numpy as np
 
-from recommender.uncertainty import TRANSPORT_HOURS, Sample, Uncertainty
 from wrapenv.bench import SimSettings
 from wrapenv.calibrated import Calibration
 from wrapenv.design import INTEGER_INDICES, ProgramSpace
 from wrapenv.eumos import EUMOS_LIMITS, Limits
 from wrapenv.load import Layout, LoadUnit, Orientation
 from wrapenv.profile import PulseProfile
+from wrapenv.uncertainty import TRANSPORT_HOURS, Sample, Uncertainty
 from wrapenv.wrap import Web, WrapFormat
 
 #: Objective penalty per unit of margin shortfall (below the margin goal): a tenth of margin is

@@ -5,7 +5,7 @@ reinforcement wraps (integer variables: pycma rounds them in `ask` and keeps the
 collapsing below one wrap, its integer handling), a spiral overlap, a reinforcement height and
 four tensions. It counts as passing only if it passes the target level of every orientation
 searched (long and short side along the motion, each with its target) in each of K samples of
-the uncertain parameters (`recommender.uncertainty`: friction, masses, the web's stiffness and
+the uncertain parameters (`wrapenv.uncertainty`: friction, masses, the web's stiffness and
 tension, its relaxation since wrapping). The settings, the problem and its objective (web laid,
 margin shortfall, cycle time) are in `recommender.problem`. A blown-up simulation is a failure.
 
@@ -47,12 +47,12 @@ from recommender import checkpoint
 from recommender.checkpoint import FIRST_ROUND, Round
 from recommender.parallel import executor
 from recommender.problem import Problem, SearchSettings
-from recommender.uncertainty import PassProbability
 from wrapenv.bench import BenchRun, SimSettings, run_levels
 from wrapenv.config import InputError
 from wrapenv.design import INTEGER_INDICES, MIN_BOTTOM_WRAPS, MIN_TOP_WRAPS, N_PARAMS
 from wrapenv.load import Orientation
 from wrapenv.profile import eumos_levels
+from wrapenv.uncertainty import PassProbability
 from wrapenv.wrap import WrapFormat
 
 #: Where the search starts (ProgramSpace values, continuous ones as fractions of their range):

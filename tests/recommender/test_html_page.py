@@ -16,10 +16,10 @@ import numpy as np
 
 from recommender.html_page import Figure, OrientationRun, Page, Robustness, render
 from recommender.search import Trial
-from recommender.uncertainty import PassProbability
 from wrapenv.bench import BenchRun
 from wrapenv.eumos import LevelVerdict, Verdict
 from wrapenv.load import LoadUnit
+from wrapenv.uncertainty import PassProbability
 from wrapenv.wrap import WrapFormat
 from wrapenv.wrap_report import Place, WrapReport
 

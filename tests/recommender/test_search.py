@@ -32,13 +32,13 @@ from recommender.search import (
     verify,
     weakest,
 )
-from recommender.uncertainty import MASS_SPREAD
 from wrapenv.calibrated import Calibration
 from wrapenv.config import InputError
 from wrapenv.design import N_PARAMS
 from wrapenv.eumos import LAYER_SHIFT, Limits
 from wrapenv.load import LoadUnit
 from wrapenv.material import MATERIALS
+from wrapenv.uncertainty import MASS_SPREAD
 from wrapenv.wrap import Web, WrapFormat
 
 #: One layer of four PET bundles: each bench run takes a fraction of a second.
@@ -487,7 +487,7 @@ def _failing_first_rounds(monkeypatch, interrupt_second: bool = False) -> None:
     the first round (a search of one sample), as film's passes on the columnar examples fail
     theirs; with `interrupt_second`, Ctrl-C in the second round's verification."""
     from recommender import search
-    from recommender.uncertainty import PassProbability
+    from wrapenv.uncertainty import PassProbability
 
     real = search.verify
 
@@ -762,7 +762,7 @@ def test_a_policy_asked_about_a_unit_unlike_its_training_units_is_warned_about(
 def test_a_proposal_is_recommended_only_if_it_passes_every_sample():
     """A proposal must pass every sample of its verification, as a search's answer must."""
     from recommender.commands import _refused_proposal
-    from recommender.uncertainty import PassProbability
+    from wrapenv.uncertainty import PassProbability
 
     problem = SimpleNamespace(settings=SearchSettings(max_cycle_s=100.0))
     best = SimpleNamespace(cycle_s=60.0)

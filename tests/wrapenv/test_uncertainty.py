@@ -6,16 +6,16 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from recommender.uncertainty import (
+from wrapenv.calibrated import Calibration
+from wrapenv.load import LoadUnit
+from wrapenv.material import MATERIALS
+from wrapenv.uncertainty import (
     DEFAULT_GIVE_STD,
     DEFAULT_SCALE_STD,
     MASS_SPREAD,
     PassProbability,
     Uncertainty,
 )
-from wrapenv.calibrated import Calibration
-from wrapenv.load import LoadUnit
-from wrapenv.material import MATERIALS
 from wrapenv.wrap import Band, WrapFormat
 
 LOAD = LoadUnit.from_dict({"name": "x", "pallet": {"preset": "EUR"},

@@ -6,7 +6,8 @@ bundles' mass (±5 %), the web's stiffness and the tension the machine really la
 or assumed ±10 %), the load's give under the web (its bundles' edge stiffness: calibrated, or
 assumed ±25 %), and how much of that tension is left when the load travels (its material's
 relaxation law, ±5 % of the tension [A]). Every draw is seeded, so the same seed gives the same
-sample in any process.
+sample in any process. It belongs to the bench, not the search: the search verifies its answers
+in these samples and the environments can test a program in one (`WrapBenchEnv`'s `uncertain`).
 """
 
 from __future__ import annotations
