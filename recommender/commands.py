@@ -637,7 +637,7 @@ def run_train(args: argparse.Namespace) -> int:
     made = _run_folder(args.out, args.resume)
     settings = TrainSettings(timesteps=args.timesteps, workers=args.envs, material=args.material,
                              target_g=args.target, seed=args.seed, max_minutes=args.minutes,
-                             calibration=calibration)
+                             calibration=calibration, test=args.test)
     if settings.rollout_timesteps != settings.timesteps:
         print(f"training {settings.rollout_timesteps} timesteps: PPO collects whole rollouts of "
               f"{settings.n_steps * settings.n_envs} episodes")

@@ -57,6 +57,7 @@ from wrapenv.envs import WrapBenchEnv, WrapBenchRandomEnv
 from wrapenv.envs.observation import OBS_NAMES, material_features
 from wrapenv.load import LoadUnit
 from wrapenv.material import MATERIALS
+from wrapenv.uncertainty import TRANSPORT_HOURS
 from wrapenv.wrap import WrapFormat
 
 ENV_ID = "wrapenv/WrapBenchRandom-v3"
@@ -76,6 +77,17 @@ LOG_COLUMNS = ("timesteps", "reward", "passed", "margin", "material_kg", "valid"
 #: (seed, seed + 1, ...), whose streams a two-word seed sequence with a non-zero second word
 #: never reproduces, so held-out units are never units the policy was trained on.
 HELD_OUT_STREAM = 40509
+#: The tests an episode's program can be judged by, as the env's keywords. "nominal": the
+#: nominal unit's long side, freshly wrapped (the default; policies trained before 2026-11-28
+#: record no test and were trained so). "verified": the test `recommend --method ppo` verifies
+#: a proposal on, one episode at a time: a side drawn at random, one sample of what the bench
+#: does not know, the wrap relaxed as it is on the road (the verification asks both sides, every
+#: sample and a margin at once; the reward's margin term asks for one).
+TESTS: dict[str, dict[str, Any]] = {
+    "nominal": {"orientation": None, "hours_since_wrapping": 0.0, "uncertain": False},
+    "verified": {"orientation": "random", "hours_since_wrapping": TRANSPORT_HOURS,
+                 "uncertain": True},
+}
 
 
 @dataclass(frozen=True)
@@ -101,6 +113,8 @@ class TrainSettings:
     #: -1 however far it would have gone. Held-out evaluations (`evaluate`) and proposals run
     #: at the defaults.
     sim: SimSettings = SimSettings.training()
+    #: The test each episode's program is judged by (a key of `TESTS`).
+    test: str = "nominal"
     seed: int = 0
     checkpoint_every: int = 512    # timesteps between policy checkpoints
     n_steps: int = 1               # PPO rollout length per env (one-step episodes)
@@ -131,6 +145,9 @@ class TrainSettings:
         if not (math.isfinite(self.learning_rate) and self.learning_rate > 0):
             raise ValueError(f"TrainSettings.learning_rate must be > 0 "
                              f"(got {self.learning_rate!r})")
+        if self.test not in TESTS:
+            raise ValueError(f"TrainSettings.test must be one of {', '.join(TESTS)} "
+                             f"(got {self.test!r})")
         if self.max_minutes is not None and not (math.isfinite(self.max_minutes)
                                                  and self.max_minutes >= 0):
             raise ValueError(f"TrainSettings.max_minutes must be >= 0 or None "
@@ -295,7 +312,7 @@ def env_kwargs(settings: TrainSettings) -> dict[str, Any]:
     """What each training env is made with (`gym.make(MAKE_ID, **env_kwargs(settings))`)."""
     return {"material": settings.material, "target_g": settings.target_g,
             "levels": settings.levels, "settings": settings.sim,
-            "calibration": settings.calibration}
+            "calibration": settings.calibration, **TESTS[settings.test]}
 
 
 def _training_envs(settings: TrainSettings, seed: int) -> VecEnv:
@@ -310,7 +327,8 @@ def policy_meta(settings: TrainSettings) -> dict[str, Any]:
     return {"env_id": ENV_ID, "material": settings.material, "target_g": settings.target_g,
             "observation": list(OBS_NAMES), "action": list(NAMES),
             "calibrated": settings.calibration is not None,
-            "material_features": material_features(MATERIALS[settings.material])}
+            "material_features": material_features(MATERIALS[settings.material]),
+            "test": settings.test}
 
 
 def stamp(path: Path, meta: dict[str, Any]) -> None:
@@ -442,7 +460,8 @@ def _check_resumable(path: Path, content: bytes, meta: dict[str, Any],
     one-line error."""
     found = read_meta(path, content)
     _check_meta(path, found, meta["material"], trusted)
-    for key in ("target_g", "calibrated"):
+    found.setdefault("test", "nominal")   # written before the test was recorded
+    for key in ("target_g", "calibrated", "test"):
         if found.get(key) != meta[key]:
             raise InputError(str(path), key, f"the run was trained with {key} "
                              f"{found.get(key)!r}, not {meta[key]!r}: resume it as it was started")

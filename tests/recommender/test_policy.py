@@ -79,7 +79,8 @@ def test_default_settings_are_a_sane_short_run():
 @pytest.mark.parametrize("field, value", [("timesteps", 0), ("n_envs", 0), ("workers", 0),
                                           ("batch_size", 1.5),
                                           ("learning_rate", float("nan")),
-                                          ("max_minutes", -1.0), ("max_minutes", float("nan"))])
+                                          ("max_minutes", -1.0), ("max_minutes", float("nan")),
+                                          ("test", "easy")])
 def test_bad_settings_are_rejected_before_any_process_starts(tmp_path, field, value):
     with pytest.raises(ValueError, match=field):
         train(TrainSettings(**{field: value}), tmp_path / "out")
@@ -204,6 +205,27 @@ def test_a_policy_trained_on_a_calibration_observes_its_uncertainty_and_says_so(
     obs, _ = env.reset(seed=0)
     env.close()
     assert obs[OBS_NAMES.index("friction_pallet_bundle_static_std")] > 0
+
+
+def test_a_policy_trained_on_the_verified_test_is_judged_as_recommend_verifies(tmp_path,
+                                                                               monkeypatch):
+    """Each episode: a side drawn at random, one sample of what the bench does not know, the
+    wrap relaxed as on the road (16 h); the policy file says so, and by default none of it."""
+    settings = TrainSettings(timesteps=2, n_envs=1, n_steps=2, batch_size=2, checkpoint_every=2,
+                             progress_bar=False, test="verified")
+    made = recommender.policy.make_vec_env
+    env_kwargs = []
+    monkeypatch.setattr(recommender.policy, "make_vec_env",
+                        lambda *a, **k: env_kwargs.append(k["env_kwargs"]) or made(*a, **k))
+    path = train(settings, tmp_path)
+    (kwargs,) = env_kwargs
+    assert (kwargs["orientation"], kwargs["hours_since_wrapping"], kwargs["uncertain"]) == (
+        "random", 16.0, True)
+    with zipfile.ZipFile(path) as archive:
+        assert json.loads(archive.read(POLICY_META))["test"] == "verified"
+    assert policy_meta(TrainSettings())["test"] == "nominal"
+    with (tmp_path / "log.csv").open() as f:
+        assert len(list(csv.DictReader(f))) == 2
 
 
 def test_train_with_two_worker_processes(tmp_path):
@@ -558,7 +580,8 @@ def test_a_run_is_resumed_only_as_it_was_started(trained, tmp_path, assert_input
     for name in ("log.csv", f"{CHECKPOINT_DIR}/policy_4_steps.zip"):
         (run / name).write_bytes((out / name).read_bytes())
     for settings, field in ((replace(TINY, material="lldpe"), "material"),
-                            (replace(TINY, target_g=0.8), "target_g")):
+                            (replace(TINY, target_g=0.8), "target_g"),
+                            (replace(TINY, test="verified"), "test")):
         with pytest.raises(InputError) as info:
             train(settings, run, resume=True)
         assert_input_error(info.value, str(run / CHECKPOINT_DIR / "policy_4_steps.zip"), field)

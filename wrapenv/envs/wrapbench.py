@@ -25,15 +25,19 @@ from wrapenv.design import N_PARAMS, ProgramSpace
 from wrapenv.envs import random_units
 from wrapenv.envs.observation import OBS_FEATURES, OBS_NAMES, observe
 from wrapenv.eumos import Verdict
-from wrapenv.load import EXAMPLE_LOAD, Layout, LoadUnit
-from wrapenv.material import MATERIALS
+from wrapenv.load import EXAMPLE_LOAD, Layout, LoadUnit, Orientation
+from wrapenv.material import MATERIALS, check_hours_since_wrapping
 from wrapenv.profile import eumos_levels
 from wrapenv.render import Renderer, fitting_camera, rest_state, torn_net
 from wrapenv.scene import BUNDLES, PALLET
 from wrapenv.trace import Trace
+from wrapenv.uncertainty import Sample, Uncertainty
 from wrapenv.wrap import WrapFormat
 
 LEVEL_MODES: tuple[str, ...] = ("eumos", "target")
+#: None: the side the load file lays along the motion; "random": one drawn at every reset.
+ORIENTATIONS: tuple[str | None, ...] = (None, "long", "short", "random")
+SIDES: tuple[Orientation, ...] = ("long", "short")
 
 #: Rendered frames: a small side camera (the recordings' camera model, wrapenv.render).
 RENDER_SIZE = (480, 300)
@@ -114,9 +118,14 @@ class WrapBenchEnv(gym.Env):
     The two terms are returned in `info["reward_terms"]` (keys "verdict" and "material").
 
     ## Starting State
-    The load unit stacked on the still sled, unwrapped. `WrapBenchEnv` has no randomness: every
-    reset returns the same observation. (`WrapBenchRandomEnv` draws a new unit from
-    `self.np_random`.)
+    The load unit stacked on the still sled, unwrapped. At the defaults `WrapBenchEnv` has no
+    randomness: every reset returns the same observation. (`WrapBenchRandomEnv` draws a new unit
+    from `self.np_random`.) With `orientation="random"` each reset draws the side that meets the
+    motion, and with `uncertain=True` one sample of what the bench does not know
+    (`wrapenv.uncertainty`: friction, bundle mass, the web's stiffness and laid tension, the
+    load's give, relaxation), both from `self.np_random`. Neither is observed: the observation
+    is the unit as its file gives it, so a policy trained so learns one program that holds on
+    either side and whatever the sample, which is how `recommend --method ppo` verifies it.
 
     ## Episode End
     After one step: `terminated=True`, `truncated=False`. Stepping again without a reset tests
@@ -125,10 +134,12 @@ class WrapBenchEnv(gym.Env):
     `gymnasium.make` too.
 
     ## Info
-    `reset`: "load" (the unit's name), "reference_mass_kg". `step`: "format" (the program and
-    the bands it laid, before calibration scaling), "verdict" (the run's verdict,
-    `Verdict.to_json`), "material_used" (area_m2, mass_kg, web_length_m, roll_length_m,
-    revolutions), "cycle_time_s", "passed", "margin", "valid", "material_ratio", "reward_terms".
+    `reset`: "load" (the unit's name), "reference_mass_kg", "orientation" (the side tested:
+    "long", "short", or None for the file's own), "sample" (`Sample.to_json`, or None). `step`:
+    "format" (the program and the bands it laid, before calibration scaling), "verdict" (the
+    run's verdict, `Verdict.to_json`), "material_used" (area_m2, mass_kg, web_length_m,
+    roll_length_m, revolutions), "cycle_time_s", "passed", "margin", "valid", "material_ratio",
+    "reward_terms", "orientation", "sample".
 
     ## Arguments
     `gymnasium.make("wrapenv/WrapBench-v3", **kwargs)`, all keyword-only and checked at
@@ -148,6 +159,12 @@ class WrapBenchEnv(gym.Env):
     |                   |                                   | spec); "target": the target only     |
     |                   |                                   | (3-4x faster, for training)          |
     | `material_weight` | 1.0                               | weight of the material term (>= 0)   |
+    | `orientation`     | None: as the load file lays it    | "long", "short" side along the       |
+    |                   |                                   | motion, or "random" (drawn per reset)|
+    | `hours_since_wrapping` | 0.0                          | the wrap tested after relaxing this  |
+    |                   |                                   | long (16: `recommend`'s transport)   |
+    | `uncertain`       | False                             | True: each reset draws one sample of |
+    |                   |                                   | what the bench does not know         |
     | `render_mode`     | None                              | None or "rgb_array"                  |
     | `settings`        | `SimSettings()`                   | numerical settings of the bench      |
 
@@ -194,6 +211,9 @@ class WrapBenchEnv(gym.Env):
         start_g: float | None = None,
         levels: str = "eumos",
         material_weight: float = 1.0,
+        orientation: str | None = None,
+        hours_since_wrapping: float = 0.0,
+        uncertain: bool = False,
         render_mode: str | None = None,
         settings: SimSettings | None = None,
     ) -> None:
@@ -216,6 +236,14 @@ class WrapBenchEnv(gym.Env):
         if not isinstance(self.settings, SimSettings):
             raise TypeError(f"settings must be a wrapenv.bench.SimSettings (got {settings!r})")
         self.calibration = _calibration(calibration)
+        self.orientation = _one_of("orientation", orientation, ORIENTATIONS)
+        try:
+            check_hours_since_wrapping(hours_since_wrapping)
+        except InputError as exc:
+            raise InputError("arguments", exc.field, exc.message) from None
+        self.hours_since_wrapping = float(hours_since_wrapping)
+        self.uncertain = _one_of("uncertain", uncertain, (False, True))
+        self.uncertainty = Uncertainty.of(self.calibration, self.hours_since_wrapping)
 
         self.action_space: spaces.Box = spaces.Box(-1.0, 1.0, (N_PARAMS,), np.float32)
         high = np.array([h for _, h in OBS_FEATURES], np.float32)
@@ -223,7 +251,11 @@ class WrapBenchEnv(gym.Env):
                                                         dtype=np.float32)
 
         self._renderer: Renderer | None = None
-        self._last: tuple[Trace, WrapFormat] | None = None
+        self._last: tuple[Trace, WrapFormat, Layout] | None = None
+        #: The side and the sample of the episode: fixed, or drawn at reset (`_draw_test`).
+        self._side: Orientation | None = self.orientation if self.orientation in SIDES else None
+        self._sample: Sample | None = None
+        self._drawn = not (self.orientation == "random" or self.uncertain)
         self.unit: LoadUnit | None = None  # the unit as simulated (calibration applied)
         self.layout: Layout | None = None
         self.program_space: ProgramSpace | None = None
@@ -247,9 +279,6 @@ class WrapBenchEnv(gym.Env):
             i = int(outside[0])
             raise InputError(unit.name, "load", f"observation feature {i} ({OBS_NAMES[i]}) is "
                              f"{obs[i]:.3f}, outside [0, {self.observation_space.high[i]:g}]")
-        if self.layout is not None and self.layout != layout and self._renderer is not None:
-            self._renderer.close()
-            self._renderer = None
         self.unit, self.layout, self.program_space = unit, layout, space
         self.reference_mass_kg = space.reference_mass_kg(layout)
         self._obs = obs
@@ -260,15 +289,39 @@ class WrapBenchEnv(gym.Env):
             raise ResetNeeded("call reset() before step() or render(): the load unit is drawn "
                               "at reset")
 
+    def _draw_test(self) -> None:
+        """The episode's side and sample, when drawn (after the unit, from the same stream)."""
+        assert self.unit is not None
+        if self.orientation == "random":
+            self._side = SIDES[int(self.np_random.integers(len(SIDES)))]
+        if self.uncertain:
+            seed = int(self.np_random.integers(2**63 - 1))
+            self._sample = self.uncertainty.draw(self.unit, seed)
+        self._drawn = True
+
+    def tested(self, wrap: WrapFormat) -> tuple[LoadUnit, WrapFormat]:
+        """The unit and the wrap as the bench tests them this episode: the sample's, or the
+        nominal ones (calibration scaling, relaxation)."""
+        assert self.unit is not None
+        if self._sample is not None:
+            return self._sample.load(self.unit), self._sample.wrap(wrap)
+        return self.unit, self.uncertainty.nominal(wrap)
+
     # -- Gymnasium API --------------------------------------------------------------------
     def reset(self, *, seed: int | None = None,
               options: dict[str, Any] | None = None) -> tuple[np.ndarray, dict[str, Any]]:
         super().reset(seed=seed)
         self._new_unit()
+        self._draw_test()
         self._last = None
         assert self.unit is not None
         return self._obs.copy(), {"load": self.unit.name,
-                                  "reference_mass_kg": self.reference_mass_kg}
+                                  "reference_mass_kg": self.reference_mass_kg,
+                                  **self._test_info()}
+
+    def _test_info(self) -> dict[str, Any]:
+        return {"orientation": self._side,
+                "sample": None if self._sample is None else self._sample.to_json()}
 
     def _new_unit(self) -> None:
         """The unit of a new episode: the same one (here), a drawn one (WrapBenchRandomEnv)."""
@@ -281,19 +334,19 @@ class WrapBenchEnv(gym.Env):
 
     def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
         wrap = self.decode(action)
-        assert self.unit is not None and self.layout is not None
-        simulated = wrap
-        if self.calibration is not None:
-            simulated = wrap.scaled(self.calibration.stiffness_scale,
-                                    self.calibration.tension_scale)
+        if not self._drawn:
+            raise ResetNeeded("call reset() before step(): the side tested or the sample is "
+                              "drawn at reset")
+        assert self.layout is not None
+        unit, simulated = self.tested(wrap)
         sequence = self._sequence if self.levels == "eumos" else [self.target_g]
-        run: BenchRun = run_levels(self.unit, sequence, self.settings, stop_at_failure=True,
-                                   wrap=simulated)
+        run: BenchRun = run_levels(unit, sequence, self.settings, orientation=self._side,
+                                   stop_at_failure=True, wrap=simulated)
         verdict = run.verdict
         used = wrap.material_used_on(self.layout)
         ratio = used.mass_kg / self.reference_mass_kg
         terms = reward_terms(verdict, ratio, self.material_weight)
-        self._last = (run.traces[-1], simulated)
+        self._last = (run.traces[-1], simulated, unit.layout(self._side))
         info = {
             "format": wrap.to_json(),
             "verdict": verdict.to_json(),
@@ -304,6 +357,7 @@ class WrapBenchEnv(gym.Env):
             "valid": verdict.valid,
             "material_ratio": ratio,
             "reward_terms": terms,
+            **self._test_info(),
         }
         return self._obs.copy(), float(sum(terms.values())), True, False, info
 
@@ -313,20 +367,30 @@ class WrapBenchEnv(gym.Env):
                             "render_mode='rgb_array'")
             return None
         self._require_unit()
-        layout = self.layout
-        assert layout is not None
-        if self._renderer is None:
-            self._renderer = Renderer(layout, fitting_camera(layout, *RENDER_SIZE))
+        assert self.unit is not None
         if self._last is None:
+            layout = self.unit.layout(self._side)
+            renderer = self._renderer_of(layout)
             pos, rot = rest_state(layout)
-            return self._renderer.frame(pos[PALLET], rot[PALLET], pos[BUNDLES], rot[BUNDLES])
-        trace, wrap = self._last
+            return renderer.frame(pos[PALLET], rot[PALLET], pos[BUNDLES], rot[BUNDLES])
+        trace, wrap, layout = self._last
+        renderer = self._renderer_of(layout)
         finite = np.flatnonzero([np.isfinite(trace.pallet_pos_m[i]).all()
                                  and np.isfinite(trace.bundle_pos_m[i]).all()
                                  and np.isfinite(trace.bundle_rot[i]).all()
                                  for i in range(len(trace.t_s))])
         index = int(finite[-1]) if len(finite) else 0
-        return self._renderer.trace_frame(trace, index, torn_net(wrap, layout, trace))
+        return renderer.trace_frame(trace, index, torn_net(wrap, layout, trace))
+
+    def _renderer_of(self, layout: Layout) -> Renderer:
+        """The renderer of `layout`, built anew when the layout changed (another unit, or
+        another side along the motion)."""
+        if self._renderer is not None and self._renderer.layout != layout:
+            self._renderer.close()
+            self._renderer = None
+        if self._renderer is None:
+            self._renderer = Renderer(layout, fitting_camera(layout, *RENDER_SIZE))
+        return self._renderer
 
     def close(self) -> None:
         if self._renderer is not None:

@@ -19,7 +19,7 @@ from gymnasium.utils.env_checker import check_env as gym_check_env
 from stable_baselines3.common.env_checker import check_env as sb3_check_env
 
 import wrapenv
-from wrapenv.bench import SimSettings
+from wrapenv.bench import SimSettings, run_levels
 from wrapenv.calibrated import CalibratedPair, Calibration
 from wrapenv.config import InputError
 from wrapenv.design import N_PARAMS
@@ -157,7 +157,8 @@ def test_numpy_numbers_are_taken_as_numbers(tiny):
     {"material": "paper"}, {"target_g": 1.5}, {"target_g": 0.5, "start_g": 0.7},
     {"levels": "all"}, {"material_weight": -1.0}, {"render_mode": "human"},
     {"load": "/nonexistent/LOAD.toml"}, {"material_weight": np.float32("nan")},
-    {"target_g": np.bool_(True)},
+    {"target_g": np.bool_(True)}, {"orientation": "diagonal"}, {"hours_since_wrapping": -1.0},
+    {"hours_since_wrapping": float("nan")}, {"uncertain": "yes"},
 ])
 def test_bad_kwargs_raise_at_construction(tiny, kwargs):
     with pytest.raises(ValueError) as err:
@@ -435,3 +436,85 @@ def test_random_env_passes_the_checkers():
     gym_check_env(env.unwrapped, skip_render_check=False)
     sb3_check_env(env.unwrapped)
     env.close()
+
+
+# -- the test a program is verified on: either side, relaxed, in a sample ------------------------
+
+@pytest.mark.parametrize("side", ["long", "short"])
+def test_a_side_asked_for_is_the_side_tested(tiny, side):
+    """The env's verdict is the bench's own run of that side (the tiny unit's two bundles stand
+    along x: turned, they meet the motion side by side)."""
+    env = make(tiny, orientation=side)
+    _, info0 = env.reset(seed=0)
+    *_, info = env.step(DEFAULT)
+    unit, wrap = env.tested(env.decode(DEFAULT))
+    expected = run_levels(unit, [0.3], orientation=side, stop_at_failure=True, wrap=wrap)
+    assert info0["orientation"] == info["orientation"] == side
+    assert info["verdict"] == expected.verdict.to_json()
+    env.close()
+
+
+def test_a_random_side_is_drawn_at_every_reset_and_follows_the_seed(tiny):
+    def sides(seed: int) -> list[str]:
+        env = make(tiny, orientation="random")
+        drawn = [env.reset(seed=seed)[1]["orientation"]] + [
+            env.reset()[1]["orientation"] for _ in range(15)]
+        env.close()
+        return drawn
+
+    assert sides(5) == sides(5) != sides(6)
+    assert set(sides(5)) == {"long", "short"}
+
+
+def test_a_relaxed_wrap_is_tested_at_the_tension_its_material_keeps(tiny):
+    """16 h after wrapping Kraft keeps 88.5 % of its tension (docs/materials.md, relaxation);
+    the program, and so the web costed, is the one entered into the machine."""
+    fresh, relaxed = make(tiny), make(tiny, hours_since_wrapping=16.0)
+    for env in (fresh, relaxed):
+        env.reset(seed=0)
+    program = fresh.decode(DEFAULT)
+    (_, as_laid), (_, after) = fresh.tested(program), relaxed.tested(program)
+    kept = [b.tension_n / a.tension_n for a, b in zip(as_laid.bands, after.bands, strict=True)]
+    assert kept == pytest.approx([0.885] * len(kept), abs=5e-4)
+    assert as_laid == program  # no calibration, fresh: the program as it is
+    _, _, _, _, info = relaxed.step(DEFAULT)
+    assert info["material_used"] == fresh.step(DEFAULT)[4]["material_used"]
+    for env in (fresh, relaxed):
+        env.close()
+
+
+def test_an_uncertain_env_tests_one_unobserved_sample_per_reset(tiny):
+    nominal, env = make(tiny), make(tiny, uncertain=True, hours_since_wrapping=16.0)
+    obs_nominal, _ = nominal.reset(seed=1)
+    obs, info0 = env.reset(seed=1)
+    np.testing.assert_array_equal(obs, obs_nominal)  # the sample is not observed
+    sample = env.uncertainty.draw(env.unit, 0)  # any draw: how a sample changes what is tested
+    env._sample = sample
+    unit, wrap = env.tested(env.decode(DEFAULT))
+    assert unit == sample.load(env.unit) and wrap == sample.wrap(env.decode(DEFAULT))
+    assert unit.friction != env.unit.friction and unit.bundle.mass_kg != env.unit.bundle.mass_kg
+    _, again = env.reset(seed=1)
+    assert again["sample"] == info0["sample"] != env.reset()[1]["sample"]
+    *_, info = env.step(DEFAULT)
+    assert info["sample"]["hours_since_wrapping"] == 16.0
+    nominal.close()
+    env.close()
+
+
+@pytest.mark.parametrize("kwargs", [{"orientation": "random"}, {"uncertain": True}])
+def test_a_drawn_test_needs_a_reset_before_the_first_step(tiny, kwargs):
+    env = make(tiny, **kwargs)
+    with pytest.raises(gym.error.ResetNeeded, match="drawn at reset"):
+        env.step(DEFAULT)
+    env.close()
+
+
+def test_the_short_side_renders_turned(tiny):
+    long_env = make(tiny, orientation="long", render_mode="rgb_array")
+    short_env = make(tiny, orientation="short", render_mode="rgb_array")
+    frames = []
+    for env in (long_env, short_env):
+        env.reset(seed=0)
+        frames.append(env.render())
+        env.close()
+    assert not np.array_equal(*frames)
