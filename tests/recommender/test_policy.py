@@ -228,6 +228,16 @@ def test_a_policy_trained_on_the_verified_test_is_judged_as_recommend_verifies(t
         assert len(list(csv.DictReader(f))) == 2
 
 
+@pytest.mark.parametrize("flags, test", [((), "nominal"), (("--test", "verified"), "verified")])
+def test_wrapbench_train_judges_episodes_by_the_test_asked(tmp_path, monkeypatch, flags, test):
+    trained = []
+    monkeypatch.setattr(recommender.policy, "train",
+                        lambda settings, folder, resume=False:
+                        trained.append(settings) or folder / "policy.zip")
+    assert main(["train", "--out", str(tmp_path / "run"), "--timesteps", "1", *flags]) == 0
+    assert [s.test for s in trained] == [test]
+
+
 def test_train_with_two_worker_processes(tmp_path):
     """The default: the episodes simulated by worker processes, logged in the envs' order."""
     settings = TrainSettings(timesteps=4, n_envs=2, workers=2, n_steps=1, batch_size=2,
