@@ -213,12 +213,12 @@ def _add_train(sub: argparse._SubParsersAction) -> None:
     tr.add_argument("--calibration", type=Path,
                     help="CAL.json: random units spread about its friction, and the policy "
                          "observes its uncertainty (for `recommend --method ppo --calibration`)")
-    tr.add_argument("--test", choices=("nominal", "verified"), default="nominal",
-                    help="what each episode's program is judged by: nominal (default: the unit's "
-                         "long side as given, freshly wrapped) or verified (the test `recommend "
-                         "--method ppo` verifies on, one episode at a time: a side drawn at "
-                         "random, one sample of what the bench does not know, the wrap relaxed "
-                         "16 h)")
+    tr.add_argument("--test", choices=("verified", "nominal"), default="verified",
+                    help="what each episode's program is judged by: verified (default: the test "
+                         "`recommend --method ppo` verifies on, one episode at a time: a side "
+                         "drawn at random, one sample of what the bench does not know, the wrap "
+                         "relaxed 16 h) or nominal (the unit's long side as given, freshly "
+                         "wrapped, as policies trained before 2026-11-28 were)")
     tr.add_argument("--minutes", type=float, default=None, metavar="M",
                     help="stop after M minutes of training and write the policy learned so far "
                          "(default: run all --timesteps)")

@@ -209,10 +209,10 @@ def test_a_policy_trained_on_a_calibration_observes_its_uncertainty_and_says_so(
 
 def test_a_policy_trained_on_the_verified_test_is_judged_as_recommend_verifies(tmp_path,
                                                                                monkeypatch):
-    """Each episode: a side drawn at random, one sample of what the bench does not know, the
-    wrap relaxed as on the road (16 h); the policy file says so, and by default none of it."""
+    """Each episode (by default): a side drawn at random, one sample of what the bench does
+    not know, the wrap relaxed as on the road (16 h); the policy file says so."""
     settings = TrainSettings(timesteps=2, n_envs=1, n_steps=2, batch_size=2, checkpoint_every=2,
-                             progress_bar=False, test="verified")
+                             progress_bar=False)
     made = recommender.policy.make_vec_env
     env_kwargs = []
     monkeypatch.setattr(recommender.policy, "make_vec_env",
@@ -223,12 +223,12 @@ def test_a_policy_trained_on_the_verified_test_is_judged_as_recommend_verifies(t
         "random", 16.0, True)
     with zipfile.ZipFile(path) as archive:
         assert json.loads(archive.read(POLICY_META))["test"] == "verified"
-    assert policy_meta(TrainSettings())["test"] == "nominal"
+    assert policy_meta(TrainSettings(test="nominal"))["test"] == "nominal"
     with (tmp_path / "log.csv").open() as f:
         assert len(list(csv.DictReader(f))) == 2
 
 
-@pytest.mark.parametrize("flags, test", [((), "nominal"), (("--test", "verified"), "verified")])
+@pytest.mark.parametrize("flags, test", [((), "verified"), (("--test", "nominal"), "nominal")])
 def test_wrapbench_train_judges_episodes_by_the_test_asked(tmp_path, monkeypatch, flags, test):
     trained = []
     monkeypatch.setattr(recommender.policy, "train",
@@ -591,7 +591,7 @@ def test_a_run_is_resumed_only_as_it_was_started(trained, tmp_path, assert_input
         (run / name).write_bytes((out / name).read_bytes())
     for settings, field in ((replace(TINY, material="lldpe"), "material"),
                             (replace(TINY, target_g=0.8), "target_g"),
-                            (replace(TINY, test="verified"), "test")):
+                            (replace(TINY, test="nominal"), "test")):
         with pytest.raises(InputError) as info:
             train(settings, run, resume=True)
         assert_input_error(info.value, str(run / CHECKPOINT_DIR / "policy_4_steps.zip"), field)
