@@ -1,7 +1,8 @@
-"""Where a policy's proposals stand between training's test and `recommend`'s verification.
+"""Where a policy's proposals stand between training's nominal test and `recommend`'s verification.
 
-Training tests a proposal on one side (the pallet's long side along the motion), freshly
-wrapped, at the target level alone, at the unit's nominal values, with no margin asked.
+Training's nominal test (`wrapbench train --test nominal`) tests a proposal on one side (the
+pallet's long side along the motion), freshly wrapped, at the target level alone, at the unit's
+nominal values, with no margin asked.
 `recommend --method ppo` verifies it on both sides, 16 h after wrapping, through the EUMOS
 sequence up to the target, in samples of what the bench does not know, with a margin of 0.2.
 This runs the policy's proposals for held-out units through the tests in between, one

@@ -8,8 +8,8 @@
 2. `--search N`: the first N held-out units also searched with `wrapbench recommend` (CMA-ES,
    its defaults), and per unit the policy's material against the search's (issue 15's goal: the
    policy passes >= 90 % of held-out units with at most 1.5 x the material the search finds).
-   Part 1 tests a proposal as training does (the nominal unit, the target level, long side
-   along the motion); the search's answer is held to more (both sides, 16 h after wrapping,
+   Part 1 tests a proposal on training's nominal test (the nominal unit, the target level, long
+   side along the motion); the search's answer is held to more (both sides, 16 h after wrapping,
    every sample of what the bench does not know, a margin of 0.2), so each of these units is
    also run with `wrapbench recommend --method ppo`, which holds the policy's proposal to the
    same verification (it exits 1 when the proposal fails it).

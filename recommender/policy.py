@@ -581,7 +581,7 @@ def evaluate(policy_or_none: PPO | Path | None, loads: list[LoadUnit], material:
 
 def run_trial(load: LoadUnit, choose: Callable[[np.ndarray], np.ndarray], material: str,
               target_g: float) -> PolicyTrial:
-    """One unit tested (target level only, as training tests it) with the action `choose`
+    """One unit tested (target level only, training's nominal test) with the action `choose`
     picks from the unit's observation."""
     env = _env(load, material, target_g)
     try:
