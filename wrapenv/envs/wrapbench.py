@@ -251,7 +251,8 @@ class WrapBenchEnv(gym.Env):
                                                         dtype=np.float32)
 
         self._renderer: Renderer | None = None
-        self._last: tuple[Trace, WrapFormat, Layout] | None = None
+        #: The last step's final trace, the wrap and the unit it tested (laid out for rendering)
+        self._last: tuple[Trace, WrapFormat, LoadUnit] | None = None
         #: The side and the sample of the episode: fixed, or drawn at reset (`_draw_test`).
         self._side: Orientation | None = self.orientation if self.orientation in SIDES else None
         self._sample: Sample | None = None
@@ -346,7 +347,7 @@ class WrapBenchEnv(gym.Env):
         used = wrap.material_used_on(self.layout)
         ratio = used.mass_kg / self.reference_mass_kg
         terms = reward_terms(verdict, ratio, self.material_weight)
-        self._last = (run.traces[-1], simulated, unit.layout(self._side))
+        self._last = (run.traces[-1], simulated, unit)
         info = {
             "format": wrap.to_json(),
             "verdict": verdict.to_json(),
@@ -373,7 +374,8 @@ class WrapBenchEnv(gym.Env):
             renderer = self._renderer_of(layout)
             pos, rot = rest_state(layout)
             return renderer.frame(pos[PALLET], rot[PALLET], pos[BUNDLES], rot[BUNDLES])
-        trace, wrap, layout = self._last
+        trace, wrap, tested = self._last
+        layout = tested.layout(self._side)
         renderer = self._renderer_of(layout)
         finite = np.flatnonzero([np.isfinite(trace.pallet_pos_m[i]).all()
                                  and np.isfinite(trace.bundle_pos_m[i]).all()
