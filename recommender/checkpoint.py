@@ -6,7 +6,8 @@ their objective, margins and verdicts per sample, and the fidelity each was judg
 ("screening", "default", or "dominated": not simulated, see `recommender.search`). A resumed
 search replays the generations into a new CMA-ES with the same seed, without simulating, and
 refuses a file of another search. A search in a later round (`SearchSettings.in_round`) also
-records its round and what the rounds before it spent ("round"; absent: the first round).
+records its round, what the rounds before it spent and the program it started from ("round";
+absent: the first round).
 """
 
 from __future__ import annotations
@@ -17,6 +18,7 @@ from pathlib import Path
 from typing import Any
 
 from wrapenv.config import InputError, is_finite_number, read_json, write_atomic
+from wrapenv.design import N_PARAMS
 
 #: Every version of the format starts so: what an existing file must be to be overwritten.
 FORMAT_FAMILY = "wrapbench-search/"
@@ -30,16 +32,21 @@ GENERATION_KEYS = ("x", "objective", "margins", "passed", "fidelity")
 @dataclass(frozen=True)
 class Round:
     """The search round under way, and the candidates and levels simulated by the rounds
-    before it (their passes all failed their verification: nothing of them is replayed)."""
+    before it (they found no pass, or their passes all failed their verification: nothing of
+    them is replayed)."""
 
     number: int = 1
     earlier_candidates: int = 0
     earlier_simulations: int = 0
+    #: The search vector the round starts from, chosen by the rounds before it (None: the
+    #: first round's, `recommender.search.LIGHT_START`).
+    start: tuple[float, ...] | None = None
 
-    def next(self, candidates: int, simulations: int) -> Round:
-        """The round after this one, which spent `candidates` and `simulations`."""
+    def next(self, candidates: int, simulations: int, start: tuple[float, ...]) -> Round:
+        """The round after this one, which spent `candidates` and `simulations`, starting from
+        `start`."""
         return Round(self.number + 1, self.earlier_candidates + candidates,
-                     self.earlier_simulations + simulations)
+                     self.earlier_simulations + simulations, tuple(start))
 
 
 #: The round every search starts in.
@@ -59,15 +66,22 @@ def save(path: Path | None, identity: dict[str, Any], generations: list[dict[str
 def read_round(path: Path | None) -> Round:
     """The round the checkpoint at `path` was written in (its format is checked by `load`)."""
     given = _read(path).get("round", {})
-    fields = tuple(asdict(FIRST_ROUND))
-    if not (isinstance(given, dict) and set(given) <= set(fields)
-            and all(type(v) is int for v in given.values())):   # a bool is no count
+    counts = ("number", "earlier_candidates", "earlier_simulations")
+    if not (isinstance(given, dict) and set(given) <= set(asdict(FIRST_ROUND))
+            and all(type(given[k]) is int for k in counts if k in given)):  # a bool is no count
         raise InputError(str(path), "round", f"must be an object of whole numbers "
-                                             f"({', '.join(fields)})")
-    round_ = Round(**given)
+                                             f"({', '.join(counts)}) and a start")
+    start = given.get("start")
+    if start is not None and not (isinstance(start, list) and len(start) == N_PARAMS
+                                  and all(map(is_finite_number, start))):
+        raise InputError(str(path), "round.start", f"must be a list of {N_PARAMS} finite "
+                                                   f"numbers (a search vector)")
+    round_ = Round(**{**given, "start": None if start is None else tuple(map(float, start))})
     if round_.number < 1 or round_.earlier_candidates < 0 or round_.earlier_simulations < 0:
         raise InputError(str(path), "round", "holds a number the search never writes (a round "
                                              "is >= 1, what earlier rounds spent >= 0)")
+    if (round_.start is None) != (round_.number == 1):
+        raise InputError(str(path), "round.start", "a later round has a start, the first none")
     return round_
 
 

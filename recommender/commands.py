@@ -28,6 +28,7 @@ from recommender.html_report import (
     write_report,
 )
 from recommender.search import (
+    STRONGEST_PROGRAM,
     TIGHT_PROGRAMS,
     Evaluation,
     Problem,
@@ -313,7 +314,8 @@ def _recommend_by_search(args: argparse.Namespace, problem: Problem, checkpoint:
                          f"{checkpoint} (--resume continues it)")
         raise
     if chosen is None:
-        print(_nothing_passed(state, current.settings, round_.number, samples))
+        print(_nothing_passed(state, current.settings, round_.number, samples,
+                              round_.start))
         _forget(checkpoint)
         return 1
     best, check = chosen
@@ -341,7 +343,7 @@ def _search_rounds(args: argparse.Namespace, problem: Problem, checkpoint: Path 
     the next round (`SearchSettings.in_round`), up to --rounds. A resumed search continues the
     round its checkpoint was written in. Returns the last round, its problem, its search and
     the verified answer (None: none)."""
-    from recommender.search import RobustSearch
+    from recommender.search import RobustSearch, next_start
 
     round_ = read_round(checkpoint) if args.resume else FIRST_ROUND
     resume = args.resume
@@ -353,23 +355,28 @@ def _search_rounds(args: argparse.Namespace, problem: Problem, checkpoint: Path 
             search.save()   # from now on an interrupt resumes this round, not the last
         state = _run_search(search, state, current.settings, round_.number)
         chosen = _verified(current, state, samples, args.workers)
-        if (chosen is not None or round_.number >= _rounds(args)
-                or not state.to_verify(current.settings.margin_goal)):
+        start = next_start(state, current.settings)
+        if chosen is not None or round_.number >= _rounds(args) or start is None:
             return round_, current, state, chosen
-        round_, resume = round_.next(len(state.history), state.simulations), False
+        passes = bool(state.to_verify(current.settings.margin_goal))
+        round_, resume = round_.next(len(state.history), state.simulations, start), False
         following = problem.settings.in_round(round_.number)
-        print(f"round {round_.number - 1}: "
-              f"{_failed_verification(state, current.settings, samples)}; searching again "
-              f"with {following.samples} samples and a budget of {following.max_candidates} "
-              f"candidates (round {round_.number} of at most {_rounds(args)})", flush=True)
+        why = (_failed_verification(state, current.settings, samples) if passes else
+               f"no program passed the search's {_samples_text(current.settings.samples)}")
+        print(f"round {round_.number - 1}: {why}; searching again with {following.samples} "
+              f"samples and a budget of {following.max_candidates} candidates (round "
+              f"{round_.number} of at most {_rounds(args)}), every tension at the top of its "
+              f"range ({problem.space.tension_range_n[1]:.0f} N), from "
+              f"{'the lightest of them' if passes else 'the strongest program of the space'}",
+              flush=True)
 
 
 def _rounds_text(round_: Round, settings: SearchSettings) -> str:
     """'', or how many rounds the answer took and why."""
     if round_.number == 1:
         return ""
-    return (f"; round {round_.number}, {settings.samples} samples a candidate: the passes of "
-            f"the round before failed their verification")
+    return (f"; round {round_.number}, {settings.samples} samples a candidate, every tension at "
+            f"the top: the round before found no pass that held its verification")
 
 
 def _forget(checkpoint: Path | None) -> None:
@@ -383,18 +390,22 @@ def _failed_verification(state: SearchState, settings: SearchSettings,
     """How a round's passes failed their verification."""
     passes = len(state.to_verify(settings.margin_goal))
     tried = min(passes, VERIFY_CANDIDATES)
-    samples = f"{settings.samples} sample{'s' if settings.samples != 1 else ''}"
     return (f"the {tried} lightest of the {passes} programs that passed the search's "
-            f"{samples} failed their verification (the whole EUMOS sequence, "
-            f"or one of {verification_samples} samples)")
+            f"{_samples_text(settings.samples)} failed their verification (the whole EUMOS "
+            f"sequence, or one of {verification_samples} samples)")
+
+
+def _samples_text(samples: int) -> str:
+    return f"{samples} sample{'s' if samples != 1 else ''}"
 
 
 def _nothing_passed(state: SearchState, settings: SearchSettings, round_number: int,
-                    verification_samples: int) -> str:
-    """Why no program is recommended (`settings`: those of the last round, `round_number`):
-    the search's passes failed their verification, or every candidate failed, or was over the
-    cycle-time limit and never simulated (nor were candidates heavier than a pass that later
-    failed its verification: they are not slow)."""
+                    verification_samples: int, start: tuple[float, ...] | None = None) -> str:
+    """Why no program is recommended (`settings`: those of the last round, `round_number`,
+    `start`: where it started): the search's passes failed their verification, or every
+    candidate failed (the strongest program of the space too, if the round started there), or
+    was over the cycle-time limit and never simulated (nor were candidates heavier than a pass
+    that later failed its verification: they are not slow)."""
     history = state.history
     last = f" in round {round_number}" if round_number > 1 else ""
     if state.to_verify(settings.margin_goal):
@@ -407,8 +418,11 @@ def _nothing_passed(state: SearchState, settings: SearchSettings, round_number: 
                 f"{len(history)} candidates take longer (the fastest "
                 f"{min(e.cycle_s for e in slow):.0f} s)")
     over = f", {len(slow)} of them over the cycle-time limit" if slow else ""
+    strongest = (f", the strongest program of the space ({history[0].mass_kg:.3f} kg, every "
+                 f"tension at the top) among them" if start == STRONGEST_PROGRAM and history
+                 else "")
     return (f"no program passed the EUMOS sequence ({_targets_text(settings)}) after "
-            f"{len(history)} candidates x {settings.samples} samples{over}{last}")
+            f"{len(history)} candidates x {settings.samples} samples{over}{last}{strongest}")
 
 
 def _targets_text(settings: SearchSettings) -> str:

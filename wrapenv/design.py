@@ -69,6 +69,7 @@ NAMES = ("bottom_wraps", "top_wraps", "reinforcement_wraps", "up_overlap",
          "reinforcement_from_m", "bottom_tension_n", "middle_tension_n", "top_tension_n",
          "reinforcement_tension_n")
 INTEGER_INDICES = (0, 1, 2)
+TENSION_INDICES = (5, 6, 7, 8)
 N_PARAMS = len(NAMES)
 
 
@@ -138,7 +139,7 @@ class ProgramSpace:
         panel takes: whole wraps and newtons, whole percent of overlap, millimetres)."""
         v = np.clip(_finite(values), self.low, self.high)
         wraps = [int(round(float(x))) for x in v[list(INTEGER_INDICES)]]
-        tension = [round(float(x), TENSION_DECIMALS) for x in v[5:9]]
+        tension = [round(float(x), TENSION_DECIMALS) for x in v[list(TENSION_INDICES)]]
         reinforcement = (Reinforcement(round(float(v[4]), HEIGHT_DECIMALS), wraps[2], tension[3]),
                          ) if wraps[2] else ()
         return Program(

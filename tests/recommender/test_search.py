@@ -23,11 +23,13 @@ from recommender.search import (
     DEFAULT,
     DOMINATED,
     SCREENING,
+    STRONGEST_PROGRAM,
     TIGHT_PROGRAMS,
     Problem,
     RobustSearch,
     SearchSettings,
     Trial,
+    next_start,
     stale_generations,
     verify,
     weakest,
@@ -447,9 +449,63 @@ def test_a_later_round_tries_each_candidate_in_one_more_sample_with_twice_the_bu
     second, third = FAST.in_round(2), FAST.in_round(3)
     assert (second.samples, second.max_candidates) == (FAST.samples + 1, 2 * FAST.max_candidates)
     assert (third.samples, third.max_candidates) == (FAST.samples + 2, 4 * FAST.max_candidates)
-    assert replace(second, samples=FAST.samples, max_candidates=FAST.max_candidates) == FAST
+    assert not FAST.top_tension and second.top_tension and third.top_tension
+    assert replace(second, samples=FAST.samples, max_candidates=FAST.max_candidates,
+                   top_tension=False) == FAST
     with pytest.raises(ValueError):
         FAST.in_round(0)
+
+
+def test_a_later_round_lays_every_zone_at_the_top_tension_and_changes_nothing_else(small_load):
+    """Tension costs no web: a later round searches wraps, overlap and the reinforcement's
+    height, each zone at the top of the range, whatever the vector's tension coordinates."""
+    first, second = Problem.build(small_load, FAST), Problem.build(small_load, FAST).in_round(2)
+    x = np.array([3.0, 2.0, 1.0, 0.4, 0.5, 0.0, 0.2, 0.4, 0.6])
+    low, top = first.space.tension_range_n
+    gentle, tight = first.wrap(x).program, second.wrap(x).program
+    assert [gentle.bottom_tension_n, gentle.middle_tension_n, gentle.top_tension_n] == [
+        round(low + f * (top - low)) for f in (0.0, 0.2, 0.4)]
+    assert {tight.bottom_tension_n, tight.middle_tension_n, tight.top_tension_n,
+            tight.reinforcements[0].tension_n} == {top}
+    assert replace(tight, bottom_tension_n=gentle.bottom_tension_n,
+                   middle_tension_n=gentle.middle_tension_n, top_tension_n=gentle.top_tension_n,
+                   reinforcements=gentle.reinforcements) == gentle
+    assert "top_tension" in RobustSearch(second)._identity()
+    assert "top_tension" not in RobustSearch(first)._identity()
+
+
+def _history(*evaluations: tuple[float, bool]) -> SimpleNamespace:
+    """A search's end as `next_start` reads it: (cycle time, passed) per candidate, the
+    passes as `to_verify` ranks them."""
+    history = [SimpleNamespace(cycle_s=c, vector=(2.0, 1.0, 0.0, 0.3, 0.5, 0.1, 0.2, 0.3, 0.4),
+                               passed=p) for c, p in evaluations]
+    return SimpleNamespace(history=history,
+                           to_verify=lambda goal: [e for e in history if e.passed])
+
+
+def test_the_round_after_one_with_passes_starts_from_the_best_at_the_top_tension():
+    start = next_start(_history((30.0, False), (40.0, True)), FAST)
+    assert start == (2.0, 1.0, 0.0, 0.3, 0.5, 1.0, 1.0, 1.0, 1.0)
+
+
+def test_the_round_after_one_without_a_pass_starts_from_the_strongest_program(small_load):
+    """A screened failure stops at a margin of about -1, so a round with no pass sees only
+    that lighter failures cost less, and drifts light: the next starts at the other end."""
+    assert next_start(_history((30.0, False), (90.0, False)), FAST) == STRONGEST_PROGRAM
+    problem = Problem.build(small_load, FAST)
+    strongest = problem.wrap(np.array(STRONGEST_PROGRAM))
+    assert strongest.material_used_on(problem.layout).mass_kg == pytest.approx(
+        problem.heaviest_ratio * problem.reference_mass_kg, rel=0.05)
+    slow = replace(FAST, max_cycle_s=20.0)
+    assert next_start(_history((30.0, False), (90.0, False)), slow) is None  # nothing to gain
+
+
+def test_a_later_round_first_tries_the_program_it_starts_from(small_load):
+    second = Problem.build(small_load, FAST).in_round(2)
+    begun = Round(2, 8, 20, STRONGEST_PROGRAM)
+    asked = np.array(RobustSearch(second, round_=begun).start().es.ask())
+    assert np.allclose(asked[0], STRONGEST_PROGRAM)
+    assert np.allclose(asked[1], TIGHT_PROGRAMS[0])    # the lightest, its tensions the top
 
 
 def test_a_checkpoint_keeps_its_round_and_what_the_earlier_rounds_spent(small_load, tmp_path):
@@ -460,8 +516,9 @@ def test_a_checkpoint_keeps_its_round_and_what_the_earlier_rounds_spent(small_lo
     first = RobustSearch(Problem.build(small_load, one), ckpt)
     first.run(first.start())
     assert "round" not in json.loads(ckpt.read_text()) and read_round(ckpt) == FIRST_ROUND
-    spent = FIRST_ROUND.next(candidates=4, simulations=9)
-    assert spent == Round(number=2, earlier_candidates=4, earlier_simulations=9)
+    spent = FIRST_ROUND.next(candidates=4, simulations=9, start=STRONGEST_PROGRAM)
+    assert spent == Round(number=2, earlier_candidates=4, earlier_simulations=9,
+                          start=STRONGEST_PROGRAM)
     second = Problem.build(small_load, one).in_round(2)
     RobustSearch(second, ckpt, spent).save()
     assert read_round(ckpt) == spent
@@ -480,6 +537,20 @@ def test_a_checkpoint_s_round_holds_only_what_the_search_writes(round_, tmp_path
     with pytest.raises(InputError) as info:
         read_round(ckpt)
     assert_input_error(info.value, str(ckpt), "round")
+
+
+@pytest.mark.parametrize("round_", [{"number": 2}, {"number": 2, "start": [1.0] * 8},
+                                    {"number": 2, "start": [1.0] * 8 + ["1"]},
+                                    {"number": 2, "start": [1.0] * 8 + [math.nan]},
+                                    {"number": 1, "start": list(STRONGEST_PROGRAM)}])
+def test_a_later_round_s_checkpoint_holds_the_vector_it_started_from(round_, tmp_path,
+                                                                    assert_input_error):
+    ckpt = tmp_path / "search.json"
+    ckpt.write_text(json.dumps({"format": CHECKPOINT_FORMAT, "problem": {}, "generations": [],
+                                "round": round_}))
+    with pytest.raises(InputError) as info:
+        read_round(ckpt)
+    assert_input_error(info.value, str(ckpt), "round.start")
 
 
 def _failing_first_rounds(monkeypatch, interrupt_second: bool = False) -> None:
@@ -524,6 +595,43 @@ def test_a_round_whose_passes_all_fail_their_verification_is_followed_by_a_sturd
     text = capsys.readouterr().out
     assert "failed their verification" in text and "more --samples, --budget or --rounds" in text
     assert "searching again" not in text
+
+
+def test_a_round_that_found_no_pass_is_followed_by_one_from_the_strongest_program(
+        load_file, tmp_path, capsys):
+    """Film at 0.7 g on the small unit: the first round (the lightest program at three
+    tensions) finds no pass; the second starts from the strongest program, every tension at
+    the top, and answers. Without a second round, no program."""
+    load = load_file(base=SMALL)
+    argv = ["recommend", str(load), "--material", "lldpe", "--target", "0.7", "--budget", "3",
+            "--samples", "1", "--workers", "2"]
+    out = tmp_path / "rec.json"
+    assert main([*argv, "--json", str(out)]) == 0
+    text = capsys.readouterr().out
+    assert ("round 1: no program passed the search's 1 sample; searching again with 2 samples "
+            "and a budget of 6 candidates (round 2 of at most 2), every tension at the top of "
+            "its range (94 N), from the strongest program of the space") in text
+    result = json.loads(out.read_text())
+    program = result["program"]
+    assert result["rounds"] == 2 and result["robust_pass_rate"] == 1.0
+    assert program["bottom_tension_n"] == program["middle_tension_n"] == 94.0
+    assert main([*argv, "--rounds", "1"]) == 1
+    assert capsys.readouterr().out.strip().splitlines()[-1] == (
+        "no program passed the EUMOS sequence (long side 0.70 g, short side 0.70 g) after 3 "
+        "candidates x 1 samples")
+
+
+def test_no_program_says_so_when_even_the_strongest_failed():
+    from recommender.commands import _nothing_passed
+
+    settings = SimpleNamespace(max_cycle_s=math.inf, targets=(("long", 0.5),), margin_goal=0.2,
+                               samples=4)
+    history = [SimpleNamespace(cycle_s=90.0, mass_kg=0.152, passed=(False,)),
+               SimpleNamespace(cycle_s=30.0, mass_kg=0.02, passed=(False,))]
+    state = SimpleNamespace(history=history, to_verify=lambda goal: [])
+    assert _nothing_passed(state, settings, 2, 8, STRONGEST_PROGRAM).endswith(
+        "after 2 candidates x 4 samples in round 2, the strongest program of the space "
+        "(0.152 kg, every tension at the top) among them")
 
 
 def test_an_interrupted_second_round_resumes_in_that_round(monkeypatch, load_file, tmp_path,
