@@ -91,8 +91,9 @@ class SearchSettings:
         example: no answer at 3 samples and 48 candidates, 0.076 kg at 4 and 96;
         docs/recommend.md), and lays every zone at the top of the tension range. Tension costs
         no web, and a search's tensions drift low (nothing in its few samples asks for more,
-        and its tie-breaker prefers the gentler): on a film unit of the held-out set a pass
-        at 58 N held in 4 of 8 verification samples, the same wraps at 94 N in 8 of 8."""
+        and its tie-breaker prefers the gentler): on a 1-layer film unit of the held-out set
+        five bottom wraps and a top wrap at 58 N held in 4 of 8 verification samples, at 94 N
+        in 8 of 8, and the first round's three passes (37-90 N) in 4-6 of 8."""
         if number < 1:
             raise ValueError(f"a search round is numbered from 1 (got {number})")
         extra = number - 1
