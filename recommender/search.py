@@ -78,9 +78,10 @@ TIGHT_PROGRAMS = tuple((float(MIN_BOTTOM_WRAPS), float(MIN_TOP_WRAPS), 0.0, 0.0,
 #: wrap, the spiral at its largest overlap, the reinforcement halfway up its range), every
 #: tension at the top. A round's screened failures all score about the same (a level stops
 #: once it has failed, at a margin of about -1), so among them CMA-ES only sees that the lighter
-#: costs less, and a search with no pass drifts light, away from where the passes are: on 5 of
-#: 12 held-out film units whose first round found none, the strongest program held 8 of 8
-#: verification samples on 3 and 7 of 8 on 2 (2026-11-28).
+#: costs less, and a search with no pass drifts light, away from where the passes are: on the 6
+#: of 12 held-out film units whose first round found none, the strongest program held 8 of 8
+#: verification samples on 3 (a round from it answers all 3), 7 of 8 on 2 and 3 of 8 on one
+#: (2026-11-28, docs/recommend.md).
 STRONGEST_PROGRAM = (float(MAX_WRAPS), float(MAX_WRAPS), float(MAX_REINFORCEMENT_WRAPS), 1.0,
                      0.5, 1.0, 1.0, 1.0, 1.0)
 #: Initial spread per coordinate, times `sigma0`: wraps by whole revolutions, the rest by a
