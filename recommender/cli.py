@@ -147,8 +147,9 @@ def _add_recommend_problem(rec: argparse.ArgumentParser) -> None:
                      help="most candidate programs to try (default 48)")
     rec.add_argument("--rounds", type=int, metavar="R",
                      help="search rounds at most (default 2): when every pass of a round fails "
-                          "its verification, the next searches again with one more sample and "
-                          "twice the budget")
+                          "its verification, or it found none, the next searches again with one "
+                          "more sample, twice the budget and every tension at the top (after no "
+                          "pass, from the strongest program, only if that holds)")
     rec.add_argument("--workers", type=int, default=os.cpu_count() or 1,
                      help="parallel simulations (default: all cores)")
     rec.add_argument("--backend", choices=BACKENDS, default="process",

@@ -17,6 +17,7 @@ from dataclasses import asdict
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 from tqdm import tqdm
 
 from recommender.checkpoint import FIRST_ROUND, Round, read_round
@@ -359,16 +360,47 @@ def _search_rounds(args: argparse.Namespace, problem: Problem, checkpoint: Path 
         if chosen is not None or round_.number >= _rounds(args) or start is None:
             return round_, current, state, chosen
         passes = bool(state.to_verify(current.settings.margin_goal))
-        round_, resume = round_.next(len(state.history), state.simulations, start), False
-        following = problem.settings.in_round(round_.number)
         why = (_failed_verification(state, current.settings, samples) if passes else
                f"no program passed the search's {_samples_text(current.settings.samples)}")
+        weak = "" if passes else _strongest_fails(problem.in_round(round_.number + 1), start,
+                                                  samples, args.workers)
+        if weak:
+            print(f"round {round_.number}: {why}, and {weak}: no lighter program is searched",
+                  flush=True)
+            return round_, current, state, None
+        round_, resume = round_.next(len(state.history), state.simulations, start), False
+        following = problem.settings.in_round(round_.number)
         print(f"round {round_.number - 1}: {why}; searching again with {following.samples} "
               f"samples and a budget of {following.max_candidates} candidates (round "
               f"{round_.number} of at most {_rounds(args)}), every tension at the top of its "
               f"range ({problem.space.tension_range_n[1]:.0f} N), from "
               f"{'the lightest of them' if passes else 'the strongest program of the space'}",
               flush=True)
+
+
+def _strongest_fails(problem: Problem, start: tuple[float, ...], samples: int,
+                     workers: int) -> str:
+    """Why the strongest program of the space (`start`, in the round it would start) does not
+    hold its verification ("": it holds, or it is over the cycle-time limit and a lighter one
+    may not be). A round from it searches lighter, weaker programs: on the three of 12
+    held-out film units where it did not hold, that round found nothing in 56-561 s
+    (2026-11-28, docs/recommend.md)."""
+    from recommender.search import verify
+
+    wrap = problem.wrap(np.array(start))
+    if problem.too_slow(wrap) is not None:
+        return ""
+    check = verify(problem, wrap, samples, workers=workers)
+    p = check.probability
+    if check.passed and p.passed == p.samples:
+        return ""
+    failed = [side for side, run in check.runs.items() if not run.verdict.passed]
+    how = (f"fails the EUMOS sequence on the {' and '.join(failed)} side"
+           f"{'s' if len(failed) > 1 else ''}, and holds in {p.passed} of {p.samples} samples"
+           if failed else f"holds in only {p.passed} of {p.samples} samples")
+    mass = wrap.material_used_on(problem.layout).mass_kg
+    return (f"the strongest program of the space ({mass:.3f} kg, every tension at the top of "
+            f"its range, {problem.space.tension_range_n[1]:.0f} N) {how}")
 
 
 def _rounds_text(round_: Round, settings: SearchSettings) -> str:

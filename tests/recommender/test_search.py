@@ -614,6 +614,53 @@ def test_a_round_that_found_no_pass_is_followed_by_one_from_the_strongest_progra
         "candidates x 1 samples")
 
 
+def test_no_round_follows_one_without_a_pass_when_even_the_strongest_program_fails(
+        load_file, capsys):
+    """Film at 1 g on the small unit stacked 3 high: the first round finds no pass, and the
+    strongest program of the space, every tension at the top, fails its verification too. A
+    round from it would search lighter, weaker programs: none is searched, and the answer is
+    no."""
+    load = load_file({"stack.layers": 3}, base=SMALL)
+    argv = ["recommend", str(load), "--material", "lldpe", "--target", "1.0", "--budget",
+            "3", "--samples", "1", "--workers", "2"]
+    assert main(argv) == 1
+    text = capsys.readouterr().out
+    why, last = text.strip().splitlines()[-2:]
+    assert why.startswith("round 1: no program passed the search's 1 sample, and the strongest "
+                          "program of the space (")
+    assert why.endswith("every tension at the top of its range, 94 N) fails the EUMOS "
+                        "sequence on the long and short sides, and holds in 0 of 8 samples: no "
+                        "lighter program is searched")
+    assert "searching again" not in text
+    assert last == ("no program passed the EUMOS sequence (long side 1.00 g, short side "
+                    "1.00 g) after 3 candidates x 1 samples")
+
+
+def test_the_strongest_program_must_hold_every_sample_for_a_round_to_start_from_it(
+        monkeypatch, load_file, capsys):
+    """The film case above whose second round answers, but with one of the strongest
+    program's 8 verification samples made to fail: it is refused as a start as when it fails
+    its nominal sequence."""
+    from recommender import search
+    from wrapenv.uncertainty import PassProbability
+
+    real = search.verify
+
+    def verify(problem, wrap, samples, workers=1):
+        check = real(problem, wrap, samples, workers)
+        if problem.settings.top_tension:
+            return replace(check, probability=PassProbability(samples - 1, samples))
+        return check
+
+    monkeypatch.setattr(search, "verify", verify)
+    load = load_file(base=SMALL)
+    assert main(["recommend", str(load), "--material", "lldpe", "--target", "0.7", "--budget",
+                 "3", "--samples", "1", "--workers", "2"]) == 1
+    why = capsys.readouterr().out.strip().splitlines()[-2]
+    assert why.endswith("every tension at the top of its range, 94 N) holds in only 7 of 8 "
+                        "samples: no lighter program is searched")
+
+
 def test_no_program_says_so_when_even_the_strongest_failed():
     from recommender.commands import _nothing_passed
 
