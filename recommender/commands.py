@@ -304,8 +304,8 @@ def _recommend_by_policy(args: argparse.Namespace, problem: Problem, samples: in
 
 def _recommend_by_search(args: argparse.Namespace, problem: Problem, checkpoint: Path | None,
                          samples: int, said: list[str]) -> int:
-    """The robust search, its answer verified, in rounds while every pass of a round fails its
-    verification (`_search_rounds`); an interrupt keeps the checkpoint and says so."""
+    """The robust search, its answer verified, in rounds while a round has no pass that holds
+    its verification (`_search_rounds`); an interrupt keeps the checkpoint and says so."""
     t0 = time.perf_counter()
     try:
         round_, current, state, chosen = _search_rounds(args, problem, checkpoint, samples)
@@ -340,10 +340,11 @@ def _recommend_by_search(args: argparse.Namespace, problem: Problem, checkpoint:
 def _search_rounds(args: argparse.Namespace, problem: Problem, checkpoint: Path | None,
                    samples: int) -> tuple[Round, Problem, SearchState,
                                           tuple[Evaluation, Verification] | None]:
-    """Search and verify; while every pass of a round failed its verification, search again in
-    the next round (`SearchSettings.in_round`), up to --rounds. A resumed search continues the
-    round its checkpoint was written in. Returns the last round, its problem, its search and
-    the verified answer (None: none)."""
+    """Search and verify; while every pass of a round failed its verification, or it found
+    none, search again in the next round (`SearchSettings.in_round`), up to --rounds, from
+    `next_start` (after no pass, the strongest program, and only if it holds its verification:
+    `_strongest_fails`). A resumed search continues the round its checkpoint was written in.
+    Returns the last round, its problem, its search and the verified answer (None: none)."""
     from recommender.search import RobustSearch, next_start
 
     round_ = read_round(checkpoint) if args.resume else FIRST_ROUND
