@@ -395,13 +395,19 @@ def _strongest_fails(problem: Problem, start: tuple[float, ...], samples: int,
     p = check.probability
     if check.passed and p.passed == p.samples:
         return ""
-    failed = [side for side, run in check.runs.items() if not run.verdict.passed]
-    how = (f"fails the EUMOS sequence on the {' and '.join(failed)} side"
-           f"{'s' if len(failed) > 1 else ''}, and holds in {p.passed} of {p.samples} samples"
-           if failed else f"holds in only {p.passed} of {p.samples} samples")
+    failed = [f"the {side} side ({_passed_to(run.verdict.highest_passed_g)})"
+              for side, run in check.runs.items() if not run.verdict.passed]
+    how = (f"fails the EUMOS sequence on {' and '.join(failed)}, and holds in {p.passed} of "
+           f"{p.samples} samples" if failed else
+           f"holds in only {p.passed} of {p.samples} samples")
     mass = wrap.material_used_on(problem.layout).mass_kg
     return (f"the strongest program of the space ({mass:.3f} kg, every tension at the top of "
             f"its range, {problem.space.tension_range_n[1]:.0f} N) {how}")
+
+
+def _passed_to(level_g: float | None) -> str:
+    """How far a failed sequence got: what tells an engineer how near the target a unit is."""
+    return "no level passed" if level_g is None else f"passed to {level_g:.2f} g"
 
 
 def _rounds_text(round_: Round, settings: SearchSettings) -> str:

@@ -629,8 +629,9 @@ def test_no_round_follows_one_without_a_pass_when_even_the_strongest_program_fai
     assert why.startswith("round 1: no program passed the search's 1 sample, and the strongest "
                           "program of the space (")
     assert why.endswith("every tension at the top of its range, 94 N) fails the EUMOS "
-                        "sequence on the long and short sides, and holds in 0 of 8 samples: no "
-                        "lighter program is searched")
+                        "sequence on the long side (passed to 0.80 g) and the short side "
+                        "(passed to 0.40 g), and holds in 0 of 8 samples: no lighter program "
+                        "is searched")
     assert "searching again" not in text
     assert last == ("no program passed the EUMOS sequence (long side 1.00 g, short side "
                     "1.00 g) after 3 candidates x 1 samples")
