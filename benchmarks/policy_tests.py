@@ -66,8 +66,7 @@ def verified(load: LoadUnit, wrap: WrapFormat, material: str, target_g: float,
     margins = [run.verdict.margin for run in check.runs.values()]
     if check.worst is not None:
         margins.append(check.worst.margin)
-    held = check.passed and check.probability.passed == check.probability.samples
-    return held, float(min(margins))
+    return check.holds, float(min(margins))
 
 
 def main() -> None:

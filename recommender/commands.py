@@ -392,9 +392,9 @@ def _strongest_fails(problem: Problem, start: tuple[float, ...], samples: int,
     if problem.too_slow(wrap) is not None:
         return ""
     check = verify(problem, wrap, samples, workers=workers)
-    p = check.probability
-    if check.passed and p.passed == p.samples:
+    if check.holds:
         return ""
+    p = check.probability
     failed = [f"the {side} side ({_passed_to(run.verdict.highest_passed_g)})"
               for side, run in check.runs.items() if not run.verdict.passed]
     how = (f"fails the EUMOS sequence on {' and '.join(failed)}, and holds in {p.passed} of "
@@ -495,7 +495,7 @@ def _verified(problem: Problem, state: SearchState, samples: int,
 
     for candidate in state.to_verify(problem.settings.margin_goal)[:VERIFY_CANDIDATES]:
         check = verify(problem, candidate.wrap, samples, workers=workers)
-        if check.passed and check.probability.passed == check.probability.samples:
+        if check.holds:
             return candidate, check
     return None
 

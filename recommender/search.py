@@ -444,6 +444,11 @@ class Verification:
         return all(run.verdict.passed for run in self.runs.values())
 
     @property
+    def holds(self) -> bool:
+        """What an answer must do: pass every nominal sequence and every sample."""
+        return self.passed and self.probability.passed == self.probability.samples
+
+    @property
     def weakest(self) -> Orientation:
         """The orientation with the smallest nominal margin."""
         return min(self.runs, key=lambda o: self.runs[o].verdict.margin)

@@ -606,11 +606,11 @@ def test_a_search_pass_that_fails_a_verification_sample_is_not_recommended(monke
 
     from recommender import search
     from recommender.commands import _nothing_passed, _verified
+    from wrapenv.uncertainty import PassProbability
 
     def verify(problem, wrap, samples, workers=1):
-        passed = {"fragile": 3, "sturdy": 8}[wrap]
-        return SimpleNamespace(passed=True, probability=SimpleNamespace(passed=passed,
-                                                                         samples=samples))
+        passed = {"fragile": 3, "sturdy": 8}[wrap]   # no nominal run fails: only the samples
+        return search.Verification({}, PassProbability(passed, samples), None)
 
     monkeypatch.setattr(search, "verify", verify)
     problem = SimpleNamespace(settings=SimpleNamespace(margin_goal=0.2))
