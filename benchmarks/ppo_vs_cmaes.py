@@ -12,7 +12,8 @@
    side along the motion); the search's answer is held to more (both sides, 16 h after wrapping,
    every sample of what the bench does not know, a margin of 0.2), so each of these units is
    also run with `wrapbench recommend --method ppo`, which holds the policy's proposal to the
-   same verification (it exits 1 when the proposal fails it).
+   same verification, and searches from it when it fails (its answer and wall time beside the
+   search's: does a proposal that fails make a better start than the search's own?).
 3. Every example load: `wrapbench recommend` with CMA-ES (its defaults) and with
    `--method ppo --policy`, run as a user runs them: exit status, material, highest EUMOS level
    passed, robust pass rate, evaluations and wall time.
@@ -84,13 +85,20 @@ def held_out(policy: Path, n: int, target_g: float, material: str, searched: int
             path = Path(tmp) / "load.toml"
             path.write_text(load.to_toml())
             searched_kg, result = search_material(str(path), target_g, material)
-            verified, _ = run_recommend(str(path), ppo, target_g, material)
-        verified_units += verified is not None
+            answer, said = run_recommend(str(path), ppo, target_g, material)
+        # the proposal held if it is the answer: no round searched from it
+        holds = answer is not None and "rounds" not in answer
+        verified_units += holds
         ratio = f"{trial.material_kg / searched_kg:.2f} x" if searched_kg else "-"
+        from_it = ("" if holds else
+                   f"; `recommend --method ppo` searched from it: {said}" if answer is None else
+                   f"; `recommend --method ppo` searched from it: "
+                   f"{answer['material_used']['mass_kg']:.3f} kg (round {answer['rounds']}), "
+                   f"{said}")
         print(f"held-out unit {k} ({load.stack.layers} layers, {load.stack.pattern}): policy "
               f"{'pass' if trial.passed else 'FAIL'} {trial.material_kg:.3f} kg, verified as "
-              f"`recommend --method ppo` verifies it: {'holds' if verified else 'fails'}; "
-              f"search {result}; policy / search {ratio}", flush=True)
+              f"`recommend --method ppo` verifies it: {'holds' if holds else 'fails'}; "
+              f"search {result}; policy / search {ratio}{from_it}", flush=True)
     if searched:
         print(f"the policy's proposal holds its verification on {verified_units} of "
               f"{min(searched, n)} units", flush=True)

@@ -135,7 +135,8 @@ def _add_recommend_problem(rec: argparse.ArgumentParser) -> None:
     rec.add_argument("--target", type=level_g, default=0.5, metavar="G", help="default 0.5 g")
     rec.add_argument("--method", choices=("cmaes", "ppo"), default="cmaes",
                      help="cmaes: robust search (default); ppo: a trained policy's proposal, "
-                          "verified in simulation (needs --policy)")
+                          "verified in simulation, and searched from if it does not hold "
+                          "(needs --policy)")
     rec.add_argument("--policy", type=Path, metavar="FILE",
                      help="policy.zip written by `wrapbench train` (with --method ppo)")
     rec.add_argument("--samples", type=int, default=3, metavar="K",
@@ -149,7 +150,8 @@ def _add_recommend_problem(rec: argparse.ArgumentParser) -> None:
                      help="search rounds at most (default 2): when every pass of a round fails "
                           "its verification, or it found none, the next searches again with one "
                           "more sample, twice the budget and every tension at the top (after no "
-                          "pass, from the strongest program, only if that holds)")
+                          "pass, from the strongest program, only if that holds); with --method "
+                          "ppo round 1 is the policy's proposal (--rounds 1: it alone)")
     rec.add_argument("--workers", type=int, default=os.cpu_count() or 1,
                      help="parallel simulations (default: all cores)")
     rec.add_argument("--backend", choices=BACKENDS, default="process",

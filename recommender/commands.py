@@ -49,6 +49,7 @@ from wrapenv.config import (
     result_json,
     write_together,
 )
+from wrapenv.design import TENSION_INDICES
 from wrapenv.eumos import EUMOS_LIMITS, Limits
 from wrapenv.load import ORIENTATIONS, Layout, LoadUnit, Orientation
 from wrapenv.material import check_hours_since_wrapping
@@ -241,16 +242,16 @@ def _check_flags(args: argparse.Namespace) -> None:
                "needs --backend ray"),
               ("--policy", args.policy is not None and args.method != "ppo",
                "needs --method ppo (a search proposes its own program)"),
-              ("--resume", args.resume and args.method == "ppo",
-               "resumes a search; --method ppo does not search"),
-              ("--checkpoint", args.checkpoint is not None and args.method == "ppo",
-               "keeps a search's state; --method ppo does not search"),
               ("--web", args.web is not None and args.method == "ppo",
                "a policy proposes for the card and the 0.5 m web it was trained on "
                "(--material); search for another web with --method cmaes")]
-    unused += [(flag, getattr(args, name) is not None and args.method == "ppo",
-                "steers a search; --method ppo does not search")
-               for flag, name in SEARCH_FLAGS.items()]
+    unused += [(flag, wasted and args.method == "ppo" and _rounds(args) == 1,
+                "steers a search; --method ppo with --rounds 1 does not search")
+               for flag, wasted in (("--resume", args.resume),
+                                    ("--checkpoint", args.checkpoint is not None),
+                                    *((flag, getattr(args, name) is not None)
+                                      for flag, name in SEARCH_FLAGS.items()
+                                      if flag != "--rounds"))]
     for flag, wasted, why in unused:
         if wasted:
             raise InputError("arguments", flag, why)
@@ -281,34 +282,59 @@ def run_recommend(args: argparse.Namespace) -> int:
     checkpoint = _check_outputs(args)
     problem = Problem.build(load, settings, calibration)
     samples = max(8, args.samples)
-    if args.method == "ppo":
-        return _recommend_by_policy(args, problem, samples, said)
+    if args.method == "ppo" and not args.resume:   # resumed: its proposal was refused
+        return _recommend_by_policy(args, problem, checkpoint, samples, said)
     return _recommend_by_search(args, problem, checkpoint, samples, said)
 
 
-def _recommend_by_policy(args: argparse.Namespace, problem: Problem, samples: int,
-                         said: list[str]) -> int:
-    """The policy's proposal, verified as a search's answer is (exit 1 if it fails)."""
+def _recommend_by_policy(args: argparse.Namespace, problem: Problem, checkpoint: Path | None,
+                         samples: int, said: list[str]) -> int:
+    """The policy's proposal, verified as a search's answer is. It is round 1: if it does not
+    hold, and --rounds allows, the next round searches from it (`_from_proposal`), else
+    nothing is written (exit 1)."""
     t0 = time.perf_counter()
     best, check = _propose_with_policy(args, problem, samples, said)
     refused = _refused_proposal(problem, best, check)
     _print_recommendation(problem, best, check, recommended=not refused,
                           margin_of="nominal")   # no search: the proposal's own runs
     print(f"policy proposal verified in {time.perf_counter() - t0:.0f} s")
-    if refused:   # as a search that finds no pass: nothing to enter, nothing written
-        print(f"the policy's proposal {refused}: nothing written; search with --method cmaes")
+    if not refused:
+        _write_outputs(args, problem, best, check, 1, None, said)
+        return 0
+    if _rounds(args) == 1:   # as a search that finds no pass: nothing to enter, nothing written
+        print(f"the policy's proposal {refused}: nothing written (--rounds 1); search from it "
+              f"with more --rounds")
         return 1
-    _write_outputs(args, problem, best, check, 1, None, said)
-    return 0
+    first = _from_proposal(problem, best.wrap)
+    following = problem.settings.in_round(first.number)
+    print(f"round 1: the policy's proposal {refused}; searching from it with "
+          f"{following.samples} samples and a budget of {following.max_candidates} candidates "
+          f"(round 2 of at most {_rounds(args)}), every tension at the top of its range "
+          f"({problem.space.tension_range_n[1]:.0f} N)", flush=True)
+    return _recommend_by_search(args, problem, checkpoint, samples, said, first)
+
+
+def _from_proposal(problem: Problem, proposal: WrapFormat) -> Round:
+    """The round after a policy's proposal that did not hold: a search from it, every tension
+    at the top, as from a first round's pass that failed its verification (`next_start`). A
+    film policy's proposals pass training's test on most units and fail the verification's
+    samples on half (docs/recommend.md): near a pass, rather than at the light end where a
+    first round starts."""
+    x = list(problem.vector(proposal))
+    for i in TENSION_INDICES:
+        x[i] = 1.0
+    return FIRST_ROUND.next(0, 0, tuple(x))
 
 
 def _recommend_by_search(args: argparse.Namespace, problem: Problem, checkpoint: Path | None,
-                         samples: int, said: list[str]) -> int:
+                         samples: int, said: list[str], first: Round = FIRST_ROUND) -> int:
     """The robust search, its answer verified, in rounds while a round has no pass that holds
-    its verification (`_search_rounds`); an interrupt keeps the checkpoint and says so."""
+    its verification (`_search_rounds`, from `first`); an interrupt keeps the checkpoint and
+    says so."""
     t0 = time.perf_counter()
     try:
-        round_, current, state, chosen = _search_rounds(args, problem, checkpoint, samples)
+        round_, current, state, chosen = _search_rounds(args, problem, checkpoint, samples,
+                                                        first)
     except KeyboardInterrupt as exc:  # in a search or its answer's verification
         if checkpoint is not None and checkpoint.exists():
             exc.add_note(f"interrupted, nothing written; the search so far is kept in "
@@ -325,7 +351,7 @@ def _recommend_by_search(args: argparse.Namespace, problem: Problem, checkpoint:
     simulations = round_.earlier_simulations + state.simulations
     print(f"searched {candidates} candidates ({simulations} simulations) in "
           f"{time.perf_counter() - t0:.0f} s ({args.workers} workers, {args.backend}"
-          f"{_rounds_text(round_, current.settings)})")
+          f"{_rounds_text(round_, current.settings, args.method)})")
     try:
         _write_outputs(args, current, best, check, simulations, state, said, round_)
     except KeyboardInterrupt as exc:
@@ -338,8 +364,8 @@ def _recommend_by_search(args: argparse.Namespace, problem: Problem, checkpoint:
 
 
 def _search_rounds(args: argparse.Namespace, problem: Problem, checkpoint: Path | None,
-                   samples: int) -> tuple[Round, Problem, SearchState,
-                                          tuple[Evaluation, Verification] | None]:
+                   samples: int, first: Round = FIRST_ROUND
+                   ) -> tuple[Round, Problem, SearchState, tuple[Evaluation, Verification] | None]:
     """Search and verify; while every pass of a round failed its verification, or it found
     none, search again in the next round (`SearchSettings.in_round`), up to --rounds, from
     `next_start` (after no pass, the strongest program, and only if it holds its verification:
@@ -347,7 +373,7 @@ def _search_rounds(args: argparse.Namespace, problem: Problem, checkpoint: Path 
     Returns the last round, its problem, its search and the verified answer (None: none)."""
     from recommender.search import RobustSearch, next_start
 
-    round_ = read_round(checkpoint) if args.resume else FIRST_ROUND
+    round_ = read_round(checkpoint) if args.resume else first
     resume = args.resume
     while True:
         current = problem.in_round(round_.number)
@@ -410,12 +436,16 @@ def _passed_to(level_g: float | None) -> str:
     return "no level passed" if level_g is None else f"passed to {level_g:.2f} g"
 
 
-def _rounds_text(round_: Round, settings: SearchSettings) -> str:
-    """'', or how many rounds the answer took and why."""
+def _rounds_text(round_: Round, settings: SearchSettings, method: str) -> str:
+    """'', or how many rounds the answer took and why (with --method ppo round 1 is the
+    policy's proposal)."""
     if round_.number == 1:
         return ""
+    before = ("the policy's proposal did not hold its verification"
+              if method == "ppo" and round_.number == 2 else
+              "the round before found no pass that held its verification")
     return (f"; round {round_.number}, {settings.samples} samples a candidate, every tension at "
-            f"the top: the round before found no pass that held its verification")
+            f"the top: {before}")
 
 
 def _forget(checkpoint: Path | None) -> None:

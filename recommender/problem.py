@@ -158,6 +158,19 @@ class Problem:
             v[list(TENSION_INDICES)] = hi[list(TENSION_INDICES)]
         return v
 
+    def vector(self, wrap: WrapFormat) -> tuple[float, ...]:
+        """The search vector of a program of this space (`values`' inverse), where a search
+        starts from a policy's proposal. A coordinate whose range is a single value (a unit
+        too low for a reinforcement's height to vary) is 0."""
+        if wrap.program is None:
+            raise ValueError("a search starts from a program, not from bands")
+        v = self.space.values(wrap.program)
+        lo, hi = self.space.low, self.space.high
+        span = np.where(hi > lo, hi - lo, 1.0)
+        x = np.clip((v - lo) / span, 0.0, 1.0)
+        x[list(INTEGER_INDICES)] = v[list(INTEGER_INDICES)]
+        return tuple(float(c) for c in x)
+
     def wrap(self, x: np.ndarray) -> WrapFormat:
         """The program to enter into the machine (what `--wrap-out` writes)."""
         return self.space.wrap(self.values(x))

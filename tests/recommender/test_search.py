@@ -169,6 +169,22 @@ def test_the_first_generation_also_tries_the_least_web_at_three_tensions(small_l
         assert search.problem.wrap(x).material_used_on(small_load.layout()).mass_kg > least
 
 
+def test_a_program_of_the_space_has_a_search_vector_that_lays_it_again(small_load):
+    """Where a search starts from a policy's proposal: the vector of any program of the space
+    lays that program (wraps as they are, the rest as fractions of their range)."""
+    problem = Problem.build(small_load, FAST)
+    rng = np.random.default_rng(3)
+    for _ in range(20):
+        x = rng.uniform(0.0, 1.0, 9)
+        x[:3] = rng.integers([1, 1, 0], [7, 7, 5])
+        wrap = problem.wrap(x)
+        again = problem.vector(wrap)
+        assert all(0.0 <= c <= 1.0 for c in again[3:]) and again[:3] == tuple(x[:3])
+        assert problem.wrap(np.array(again)) == wrap
+    with pytest.raises(ValueError, match="not from bands"):
+        problem.vector(replace(wrap, program=None))
+
+
 def test_programs_over_the_cycle_limit_are_not_simulated_and_score_worst(small_load):
     # the start (2 bottom wraps, a spiral of 0.94 turns, 1 top wrap) takes 35 s at 12 rpm
     slow = SearchSettings(**{**FAST.__dict__, "max_cycle_s": 38.0, "max_candidates": 8})
@@ -822,7 +838,7 @@ def test_bad_recommend_arguments_exit_2_with_one_line(argv, field, load_file, tm
     assert not (tmp_path / "out.json").exists()
 
 
-def fixed_policy(load: Path, action: float, path: Path) -> Path:
+def fixed_policy(load: Path, action: float, path: Path, material: str = "kraft") -> Path:
     """A policy.zip whose every proposal is the action `action` in each parameter: an
     untrained PPO model whose action head is only its bias."""
     import gymnasium as gym
@@ -831,14 +847,14 @@ def fixed_policy(load: Path, action: float, path: Path) -> Path:
 
     from recommender.policy import TrainSettings, policy_meta, stamp
 
-    env = gym.make("wrapenv/WrapBench-v3", load=str(load))
+    env = gym.make("wrapenv/WrapBench-v3", load=str(load), material=material)
     model = PPO("MlpPolicy", env, n_steps=64, batch_size=32, device="cpu", seed=0)
     with torch.no_grad():
         head: torch.nn.Linear = model.policy.action_net  # type: ignore[assignment]
         head.weight.zero_()
         head.bias.fill_(action)
     model.save(path.with_suffix(""))
-    stamp(path, policy_meta(TrainSettings()))
+    stamp(path, policy_meta(TrainSettings(material=material)))
     env.close()
     return path
 
@@ -860,11 +876,40 @@ def test_ppo_method_answers_from_a_policy_and_verifies_it(load_file, tmp_path, c
     assert result["robust_pass_rate"] == 1.0
     # the same proposal over a cycle-time limit is not recommended, as a search would not
     code = main(["recommend", str(load), "--method", "ppo", "--policy", str(policy),
-                 "--samples", "2", "--workers", "2", "--max-cycle-s", "10",
+                 "--samples", "2", "--workers", "2", "--max-cycle-s", "10", "--rounds", "1",
                  "--json", str(tmp_path / "slow.json")])
     printed = capsys.readouterr().out
     assert code == 1 and "over the cycle-time limit of 10 s: nothing written" in printed
     assert "recommended" not in printed and not (tmp_path / "slow.json").exists()
+
+
+def test_a_proposal_that_does_not_hold_is_searched_from(load_file, tmp_path, capsys):
+    """Film at 0.7 g on the small unit, the short side: a policy proposing 2 bottom wraps, a
+    15 % spiral, a reinforcement wrap and 2 top wraps at 26 N fails its verification. Its
+    proposal is round 1: the second searches from it, every tension at the top, and answers
+    (the JSON says the policy's method, in 2 rounds). With --rounds 1 the proposal is all
+    there is: nothing is written."""
+    load = load_file(base=SMALL)
+    policy = fixed_policy(load, -0.6, tmp_path / "weak.zip", material="lldpe")
+    argv = ["recommend", str(load), "--material", "lldpe", "--target", "0.7", "--orientation",
+            "short", "--method", "ppo", "--policy", str(policy), "--samples", "1", "--workers",
+            "2"]
+    out = tmp_path / "rec.json"
+    assert main([*argv, "--budget", "3", "--json", str(out)]) == 0
+    text = capsys.readouterr().out
+    assert "the policy's proposal for small: fails short side 0.70 g" in text
+    assert ("round 1: the policy's proposal fails; searching from it with 2 samples and a "
+            "budget of 6 candidates (round 2 of at most 2), every tension at the top of its "
+            "range (94 N)") in text
+    assert "the policy's proposal did not hold its verification)" in text
+    result = json.loads(out.read_text())
+    assert result["method"] == "ppo" and result["rounds"] == 2
+    assert result["robust_pass_rate"] == 1.0 and result["program"]["middle_tension_n"] == 94.0
+    assert main([*argv, "--rounds", "1", "--json", str(tmp_path / "one.json")]) == 1
+    assert capsys.readouterr().out.strip().splitlines()[-1] == (
+        "the policy's proposal fails: nothing written (--rounds 1); search from it with more "
+        "--rounds")
+    assert not (tmp_path / "one.json").exists()
 
 
 def test_a_policy_used_with_a_calibration_it_was_not_trained_on_is_warned_about(
@@ -930,13 +975,17 @@ def test_a_proposal_is_recommended_only_if_it_passes_every_sample():
     (["recommend", "--method", "ppo"], "--policy"),
     (["recommend", "--ray-address", "ray://x:1"], "--ray-address"),      # process backend
     (["recommend", "--policy", "OUT"], "--policy"),                        # a search
-    (["recommend", "--method", "ppo", "--policy", "OUT", "--resume"], "--resume"),
-    (["recommend", "--method", "ppo", "--policy", "OUT", "--checkpoint", "C"], "--checkpoint"),
-    (["recommend", "--method", "ppo", "--policy", "OUT", "--margin", "0.3"], "--margin"),
-    (["recommend", "--method", "ppo", "--policy", "OUT", "--budget", "8"], "--budget"),
-    (["recommend", "--method", "ppo", "--policy", "OUT", "--cycle-weight", "1"],
-     "--cycle-weight"),
-    (["recommend", "--method", "ppo", "--policy", "OUT", "--rounds", "3"], "--rounds"),
+    # with --rounds 1 the proposal is all --method ppo does: nothing steers a search
+    (["recommend", "--method", "ppo", "--policy", "OUT", "--rounds", "1", "--resume"],
+     "--resume"),
+    (["recommend", "--method", "ppo", "--policy", "OUT", "--rounds", "1", "--checkpoint", "C"],
+     "--checkpoint"),
+    (["recommend", "--method", "ppo", "--policy", "OUT", "--rounds", "1", "--margin", "0.3"],
+     "--margin"),
+    (["recommend", "--method", "ppo", "--policy", "OUT", "--rounds", "1", "--budget", "8"],
+     "--budget"),
+    (["recommend", "--method", "ppo", "--policy", "OUT", "--rounds", "1", "--cycle-weight",
+      "1"], "--cycle-weight"),
     (["train", "--out", "OUT", "--timesteps", "0"], "--timesteps"),
     (["train", "--out", "OUT", "--material", "cotton"], "--material"),
     (["train", "--out", "OUT", "--target", "2.0"], "--target"),
