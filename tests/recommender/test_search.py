@@ -912,6 +912,24 @@ def test_a_proposal_that_does_not_hold_is_searched_from(load_file, tmp_path, cap
     assert not (tmp_path / "one.json").exists()
 
 
+def test_no_round_follows_a_proposal_when_even_the_strongest_program_fails(
+        load_file, tmp_path, capsys):
+    """Film at 1 g on the small unit stacked 3 high, where nothing holds (a search says so
+    above): the policy's proposal fails, and so does the strongest program of the space, so no
+    round searches lighter programs from the proposal, and the answer is no."""
+    load = load_file({"stack.layers": 3}, base=SMALL)
+    policy = fixed_policy(load, -0.6, tmp_path / "weak.zip", material="lldpe")
+    assert main(["recommend", str(load), "--material", "lldpe", "--target", "1.0", "--method",
+                 "ppo", "--policy", str(policy), "--samples", "1", "--workers", "2"]) == 1
+    text = capsys.readouterr().out
+    last = text.strip().splitlines()[-1]
+    assert last.startswith("round 1: the policy's proposal fails, and the strongest program of "
+                           "the space (")
+    assert last.endswith("(passed to 0.40 g), and holds in 0 of 8 samples: no program is "
+                         "searched")
+    assert "searching from it" not in text
+
+
 def test_a_policy_used_with_a_calibration_it_was_not_trained_on_is_warned_about(
         load_file, tmp_path, capsys):
     """And the unit is judged as the policy observes it, calibrated, against the units it was
