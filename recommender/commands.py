@@ -49,7 +49,6 @@ from wrapenv.config import (
     result_json,
     write_together,
 )
-from wrapenv.design import TENSION_INDICES
 from wrapenv.eumos import EUMOS_LIMITS, Limits
 from wrapenv.load import ORIENTATIONS, Layout, LoadUnit, Orientation
 from wrapenv.material import check_hours_since_wrapping
@@ -313,11 +312,8 @@ def _recommend_by_policy(args: argparse.Namespace, problem: Problem, checkpoint:
     if weak:
         print(f"round 1: the policy's proposal {refused}, and {weak}: no program is searched")
         return 1
-    following = problem.settings.in_round(first.number)
-    print(f"round 1: the policy's proposal {refused}; searching from it with "
-          f"{following.samples} samples and a budget of {following.max_candidates} candidates "
-          f"(round 2 of at most {_rounds(args)}), every tension at the top of its range "
-          f"({problem.space.tension_range_n[1]:.0f} N)", flush=True)
+    print(f"round 1: the policy's proposal {refused}; searching from it "
+          f"{_next_round_text(problem, first.number, _rounds(args))}", flush=True)
     return _recommend_by_search(args, problem, checkpoint, samples, said, first)
 
 
@@ -328,10 +324,9 @@ def _from_proposal(problem: Problem, proposal: WrapFormat) -> Round:
     samples on half (docs/recommend.md): near a pass, rather than at the light end where a
     first round starts. On the two held-out film units measured where the proposal failed and
     the search answered, the round from it answered with 9-10 % less web, a little sooner."""
-    x = list(problem.vector(proposal))
-    for i in TENSION_INDICES:
-        x[i] = 1.0
-    return FIRST_ROUND.next(0, 0, tuple(x))
+    from recommender.search import at_top_tension
+
+    return FIRST_ROUND.next(0, 0, at_top_tension(problem.vector(proposal)))
 
 
 def _recommend_by_search(args: argparse.Namespace, problem: Problem, checkpoint: Path | None,
@@ -404,13 +399,18 @@ def _search_rounds(args: argparse.Namespace, problem: Problem, checkpoint: Path 
                   flush=True)
             return round_, current, state, None
         round_, resume = round_.next(len(state.history), state.simulations, start), False
-        following = problem.settings.in_round(round_.number)
-        print(f"round {round_.number - 1}: {why}; searching again with {following.samples} "
-              f"samples and a budget of {following.max_candidates} candidates (round "
-              f"{round_.number} of at most {_rounds(args)}), every tension at the top of its "
-              f"range ({problem.space.tension_range_n[1]:.0f} N), from "
+        print(f"round {round_.number - 1}: {why}; searching again "
+              f"{_next_round_text(problem, round_.number, _rounds(args))}, from "
               f"{'the lightest of them' if passes else 'the strongest program of the space'}",
               flush=True)
+
+
+def _next_round_text(problem: Problem, number: int, rounds: int) -> str:
+    """How round `number` searches, as it starts (`SearchSettings.in_round`)."""
+    following = problem.settings.in_round(number)
+    return (f"with {following.samples} samples and a budget of {following.max_candidates} "
+            f"candidates (round {number} of at most {rounds}), every tension at the top of its "
+            f"range ({problem.space.tension_range_n[1]:.0f} N)")
 
 
 def _strongest_fails(problem: Problem, start: tuple[float, ...], samples: int,

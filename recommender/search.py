@@ -401,16 +401,22 @@ class RobustSearch:
                                                     s.margin_goal)
 
 
+def at_top_tension(vector: tuple[float, ...]) -> tuple[float, ...]:
+    """A search vector with every tension at the top of its range: where a later round starts
+    from a program (its settings lay every tension there, `SearchSettings.in_round`)."""
+    x = list(vector)
+    for i in TENSION_INDICES:
+        x[i] = 1.0
+    return tuple(x)
+
+
 def next_start(state: SearchState, settings: SearchSettings) -> tuple[float, ...] | None:
     """Where the round after this search's starts (tensions at the top): from its best pass
     if it had one (its passes all failed their verification), else from `STRONGEST_PROGRAM`;
     None when no round can do better (every candidate was over the cycle-time limit)."""
     passes = state.to_verify(settings.margin_goal)
     if passes:
-        x = list(passes[0].vector)
-        for i in TENSION_INDICES:
-            x[i] = 1.0
-        return tuple(x)
+        return at_top_tension(passes[0].vector)
     if state.history and all(e.cycle_s > settings.max_cycle_s for e in state.history):
         return None
     return STRONGEST_PROGRAM
@@ -484,4 +490,4 @@ def verify(problem: Problem, wrap: WrapFormat, samples: int, workers: int = 1) -
 
 __all__ = ["DEFAULT", "DOMINATED", "FIDELITIES", "SCREENING", "STRONGEST_PROGRAM",
            "Evaluation", "Problem", "RobustSearch", "SearchSettings", "SearchState", "Trial",
-           "Verification", "next_start", "verify"]
+           "Verification", "at_top_tension", "next_start", "verify"]
