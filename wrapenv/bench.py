@@ -24,6 +24,7 @@ from wrapenv.friction import WRAPPED_SLIP_SPEED_MPS, WRAPPED_STICK_SPEED_MPS, St
 from wrapenv.load import Layout, LoadUnit, Orientation
 from wrapenv.profile import G, Profile, PulseProfile
 from wrapenv.rest import Rest
+from wrapenv.rowwise import norms
 from wrapenv.scene import BUNDLES, PALLET, SLED_DECK_M, BenchScene
 from wrapenv.trace import Trace, in_pallet_frame
 from wrapenv.wrap import WrapFormat
@@ -338,6 +339,7 @@ class _Run:
         self.reference: np.ndarray | None = None  # bundle centres in the pallet frame at t = 0
         self.origin_m = origin_m  # ... when the unit was first put on the sled (None: t = 0)
         self.bottom_z = np.array([b.centre_m[2] - b.size_m[2] / 2 for b in layout.bundles])
+        self.elastic_limit_m = ELASTIC.limit_m(layout.load_height_m)
 
     def _state(self) -> tuple[np.ndarray, ...]:
         pos, quat, vel, omega = self.world.state(self.dynamic)
@@ -352,7 +354,7 @@ class _Run:
     def _check(self, pos: np.ndarray, vel: np.ndarray, step: int) -> None:
         if not (np.all(np.isfinite(pos)) and np.all(np.isfinite(vel))):
             self.invalid = "non-finite state"
-        elif np.max(np.linalg.norm(vel, axis=1)) > self.speed_limit:
+        elif np.max(norms(vel)) > self.speed_limit:
             self.invalid = f"a body exceeded {self.speed_limit:.1f} m/s (energy blow-up)"
         elif step % 24 == 0:
             depth = self.world.max_penetration_m()
@@ -401,8 +403,8 @@ class _Run:
         fell = np.flatnonzero(fallen(pos[BUNDLES, 2], self.bottom_z, dropped, tilt))
         if len(fell):
             return f"{self.layout.bundles[fell[0]].name} fallen"
-        elastic = np.linalg.norm((rel - self.reference)[:, :2], axis=1).max()
-        limit = ELASTIC.limit_m(self.layout.load_height_m)
+        elastic = norms((rel - self.reference)[:, :2]).max()
+        limit = self.elastic_limit_m
         if elastic > limit:
             return f"elastic displacement {elastic * 1000:.0f} mm past {limit * 1000:.0f} mm"
         return ""

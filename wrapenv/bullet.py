@@ -111,9 +111,10 @@ def _step_velocities(pos0: np.ndarray, quat0: np.ndarray, pos1: np.ndarray, quat
     (x1 - x0) / dt, and the rotation vector of q1 conj(q0) over dt."""
     x0, y0, z0, w0 = (-quat0[:, 0], -quat0[:, 1], -quat0[:, 2], quat0[:, 3])  # conj(q0)
     x1, y1, z1, w1 = quat1.T
-    turn = np.stack([w1 * x0 + x1 * w0 + y1 * z0 - z1 * y0,
-                     w1 * y0 - x1 * z0 + y1 * w0 + z1 * x0,
-                     w1 * z0 + x1 * y0 - y1 * x0 + z1 * w0], axis=1)
+    turn = np.empty((len(quat1), 3))
+    turn[:, 0] = w1 * x0 + x1 * w0 + y1 * z0 - z1 * y0
+    turn[:, 1] = w1 * y0 - x1 * z0 + y1 * w0 + z1 * x0
+    turn[:, 2] = w1 * z0 + x1 * y0 - y1 * x0 + z1 * w0
     w = w1 * w0 - x1 * x0 - y1 * y0 - z1 * z0
     turn *= np.sign(w + (w == 0))[:, None]  # the shorter way round: q and -q are one rotation
     sin_half = np.sqrt(np.einsum("nk,nk->n", turn, turn))

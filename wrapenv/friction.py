@@ -123,8 +123,10 @@ class StickSlip:
 def _horizontal_cross(w: np.ndarray, r: np.ndarray) -> np.ndarray:
     """x and y of the row-wise cross products w x r (n, 2): all a contact's sliding needs
     (np.cross is slow on small arrays)."""
-    return np.stack([w[:, 1] * r[:, 2] - w[:, 2] * r[:, 1],
-                     w[:, 2] * r[:, 0] - w[:, 0] * r[:, 2]], axis=1)
+    out = np.empty((len(w), 2))
+    out[:, 0] = w[:, 1] * r[:, 2] - w[:, 2] * r[:, 1]
+    out[:, 1] = w[:, 2] * r[:, 0] - w[:, 0] * r[:, 2]
+    return out
 
 
 def _incidence(contacts: list[Contact], n: int) -> np.ndarray:

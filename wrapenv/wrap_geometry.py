@@ -19,6 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from wrapenv.load import BundlePlacement, Layout
+from wrapenv.rowwise import norms
 from wrapenv.scene import bundle_row
 from wrapenv.wrap import WrapFormat
 
@@ -124,7 +125,8 @@ def _outline_points(members: list[tuple[int, BundlePlacement]], z: float
     ys = [w[1] for _, _, w in edges]
     lo, hi = (min(xs), min(ys)), (max(xs), max(ys))
     hull = _convex_hull([w for _, _, w in edges])
-    outer = [e for e in edges if _distance_to_polygon(e[2], hull) <= OUTLINE_TOLERANCE_M]
+    distance = _distances_to_polygon([w for _, _, w in edges], hull)
+    outer = [e for e, d in zip(edges, distance, strict=True) if d <= OUTLINE_TOLERANCE_M]
     cx, cy = (lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2
     start = math.atan2(lo[1] - cy, lo[0] - cx) - 1e-9
     outer.sort(key=lambda e: (math.atan2(e[2][1] - cy, e[2][0] - cx) - start) % (2 * math.pi))
@@ -151,13 +153,14 @@ def _convex_hull(points: list[tuple[float, float]]) -> np.ndarray:
     return np.array(half(pts) + half(pts[::-1]))
 
 
-def _distance_to_polygon(p: tuple[float, float], polygon: np.ndarray) -> float:
-    """Distance from p to the nearest side of a closed polygon."""
+def _distances_to_polygon(points: list[tuple[float, float]], polygon: np.ndarray
+                          ) -> np.ndarray:
+    """Distance from each point to the nearest side of a closed polygon."""
     a, b = polygon, np.roll(polygon, -1, axis=0)
-    ab, ap = b - a, np.asarray(p) - a
-    t = np.clip(np.einsum("ij,ij->i", ap, ab) / np.maximum(np.einsum("ij,ij->i", ab, ab),
-                                                            1e-18), 0.0, 1.0)
-    return float(np.min(np.linalg.norm(ap - t[:, None] * ab, axis=1)))
+    ab, ap = b - a, np.asarray(points)[:, None, :] - a          # (sides, 2), (points, sides, 2)
+    t = np.clip(np.einsum("kij,ij->ki", ap, ab) / np.maximum(np.einsum("ij,ij->i", ab, ab),
+                                                              1e-18), 0.0, 1.0)
+    return np.min(norms(ap - t[..., None] * ab), axis=1)
 
 
 def _make_ring(wrap: WrapFormat, z: float, share: tuple[float, float], pts: list[OutlinePoint],

@@ -46,6 +46,7 @@ import math
 import numpy as np
 
 from wrapenv.load import Layout
+from wrapenv.rowwise import cross, norms
 from wrapenv.wrap import WrapFormat
 from wrapenv.wrap_elements import Elements, bend_curvature, bend_factor, element_set, series
 from wrapenv.wrap_geometry import (
@@ -97,6 +98,11 @@ class WrapNet:
         self._slot_valid = self._slots >= 0
         self._active = self._slot_valid.copy()
         self._slot_index = np.where(self._slot_valid, self._slots, 0)
+        # constant per step, so made once: row indices, and weights and counts for the centres
+        self._rows = np.arange(len(rings))[:, None]
+        self._slot_weight = self._slot_valid[..., None].astype(float)
+        self._slot_count = np.maximum(self._slot_valid.sum(1), 1)[:, None]
+        self._ring_web_m = np.maximum(np.array([r.web_m for r in rings]), 1e-9)
         bodies = self.node_body[self._slot_index] if len(self.node_body) else self._slot_index
         #: Per ring slot: the radius of the edge there.
         self.slot_radius = radius[bodies]
@@ -238,7 +244,7 @@ class WrapNet:
         nodes = self.panel_spec.nodes
         if not len(nodes):
             return np.zeros(0)
-        return np.linalg.norm(p[nodes[:, 1]] - p[nodes[:, 0]], axis=1)
+        return norms(p[nodes[:, 1]] - p[nodes[:, 0]])
 
     def _ring_geometry(self, p: np.ndarray) -> tuple[np.ndarray, ...]:
         """Per ring: perimeter of the hull, and per slot its hull neighbours and activity.
@@ -249,9 +255,8 @@ class WrapNet:
         that came out past its edge join it, until nothing changes (usually at once).
         """
         xyz = p[self._slot_index]                       # (R, M, 3), rest order
-        rows = np.arange(len(xyz))[:, None]
-        valid = self._slot_valid
-        centre = (xyz * valid[..., None]).sum(1) / np.maximum(valid.sum(1), 1)[:, None]
+        rows, valid = self._rows, self._slot_valid
+        centre = (xyz * self._slot_weight).sum(1) / self._slot_count
         angle = np.where(valid, np.arctan2(xyz[..., 1] - centre[:, None, 1],
                                            xyz[..., 0] - centre[:, None, 0]), np.inf)
         order = np.argsort(angle, axis=1, kind="stable")
@@ -264,17 +269,18 @@ class WrapNet:
                     - (c[..., 1] - a[..., 1]) * (s_xyz[..., 0] - a[..., 0]))
             changed = ((active & (side >= 0)) | (~active & s_valid & (side < 0))) & s_valid
             if not changed.any():
-                break
+                break  # prev and nxt are this hull's
             # drop reflex corners first; add outside slots only when no corner is reflex
             drop = active & changed
             active = active & ~drop if drop.any() else active | changed
-        prev, nxt = hull_neighbours(active)
+        else:
+            prev, nxt = hull_neighbours(active)
         back = np.argsort(order, axis=1)                # sorted position of each rest slot
         active = active[rows, back]
         prev, nxt = order[rows, prev][rows, back], order[rows, nxt][rows, back]
         self._active = active
         edge = xyz[rows, nxt] - xyz                     # to the next hull corner
-        length = np.where(active, np.linalg.norm(edge, axis=-1), 0.0)
+        length = np.where(active, norms(edge), 0.0)
         return length.sum(axis=1), active, prev, nxt, edge, length
 
     def forces(self, pos: np.ndarray, rot: np.ndarray, vel: np.ndarray,
@@ -287,11 +293,11 @@ class WrapNet:
         nb = self.node_body
         arm = np.einsum("nij,nj->ni", rot[nb], self.node_local)
         p = pos[nb] + arm
-        v = vel[nb] + _cross(omega[nb], arm)
+        v = vel[nb] + cross(omega[nb], arm)
         f = np.zeros_like(p)
         self._ring_forces(p, v, f, t_s)
         self._panel_forces(p, v, f, t_s)
-        wrench = self._incidence @ np.hstack([f, _cross(arm, f)])
+        wrench = self._incidence @ np.hstack([f, cross(arm, f)])
         return wrench[:, :3], wrench[:, 3:]
 
     def _ring_forces(self, p: np.ndarray, v: np.ndarray, f: np.ndarray,
@@ -301,7 +307,7 @@ class WrapNet:
         perimeter, active, prev, nxt, edge, length = self._ring_geometry(p)
         r = self.rings
         unit = edge / np.maximum(length, 1e-12)[..., None]
-        rows = np.arange(len(unit))[:, None]
+        rows = self._rows
         turn = unit - unit[rows, prev]                  # 2 sin(angle / 2) towards the inside
         if self.frozen:
             edge = self._edge_factors(turn, active)
@@ -315,7 +321,7 @@ class WrapNet:
         # each hull corner is pulled towards both its neighbours
         pull = (turn * (tension[:, None, None] * active[..., None])).reshape(-1, 3)[
             self._node_slot]
-        self._push = np.linalg.norm(pull, axis=1)
+        self._push = norms(pull)
         f += pull
 
     def _edge_factors(self, turn: np.ndarray, active: np.ndarray) -> np.ndarray:
@@ -323,8 +329,8 @@ class WrapNet:
         (1 where it does not touch): the bending of its outer fibre, sharper the more it turns
         and the tighter it is pulled (`bend_curvature`), at the last step's tension."""
         m, r = self.wrap.material, self.rings
-        angle = 2 * np.arcsin(np.clip(np.linalg.norm(turn[..., :2], axis=-1) / 2, 0, 1))
-        per_layer = r.last_n / np.maximum(np.array([s.web_m for s in self.ring_specs]), 1e-9)
+        angle = 2 * np.arcsin(np.clip(norms(turn[..., :2]) / 2, 0, 1))
+        per_layer = r.last_n / self._ring_web_m
         kappa = bend_curvature(m, self.slot_radius, angle, per_layer[:, None])
         t = m.layer_thickness_m
         return np.where(active, bend_factor(m, t * kappa / (2 + t * kappa)), 1.0)
@@ -353,7 +359,7 @@ class WrapNet:
             return
         a, b = nodes[:, 0], nodes[:, 1]
         d = p[b] - p[a]
-        length = np.linalg.norm(d, axis=1)
+        length = norms(d)
         unit = d / np.maximum(length, 1e-12)[:, None]
         rate = np.einsum("ek,ek->e", v[b] - v[a], unit)
         if len(self.sliding):
@@ -400,9 +406,3 @@ def _strain(e: Elements) -> np.ndarray:
     """Permanent stretch of each element over its length (0 for a degenerate element)."""
     return np.divide(e.plastic_m, e.length_m, out=np.zeros_like(e.plastic_m), where=e.length_m > 0)
 
-
-def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Row-wise cross product of (n, 3) arrays (np.cross is slow for small arrays)."""
-    return np.stack([a[:, 1] * b[:, 2] - a[:, 2] * b[:, 1],
-                     a[:, 2] * b[:, 0] - a[:, 0] * b[:, 2],
-                     a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]], axis=1)
