@@ -158,8 +158,9 @@ def _wrap_section(wrap: WrapFormat | None, layout: Layout, hours: float) -> str:
             else "The bands")
     facts = [("Material", f"{_t(wrap.material.name)} ({_t(wrap.material_key)}), web "
                           f"{wrap.web_width_m:.2f} m"),
-             ("Machine", f"{wrap.rpm:g} rpm, carriage up to {m.carriage_speed_mps:.2f} m/s, "
-                         f"{m.handling_s:.0f} s to change pallets"),
+             ("Machine", f"{wrap.rpm:g} rpm, {m.ramp_s:g} s to start and to stop, carriage "
+                         f"up to {m.carriage_speed_mps:.2f} m/s, {m.handling_s:.0f} s to change "
+                         "pallets"),
              ("Web laid", f"{used.area_m2:.2f} m² ({used.mass_kg:.3f} kg), "
                           f"{used.web_length_m:.1f} m laid, {used.roll_length_m:.1f} m from the "
                           f"roll, {used.revolutions:.1f} revolutions"),

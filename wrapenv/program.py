@@ -92,6 +92,9 @@ class Machine:
     rpm: float = 12.0                 # turntable or arm speed, revolutions per minute [A]
     carriage_speed_mps: float = 0.1   # fastest carriage travel (6 m/min) [A]
     handling_s: float = 15.0          # pallet in and out, cut and seal the tail [A]
+    #: The rotation's start from rest to its speed, and its stop: on a linear ramp each costs
+    #: half its time against turning at speed throughout [A].
+    ramp_s: float = 3.0
 
     def most_rise_m(self, rpm: float) -> float:
         """The most the carriage rises in one revolution at `rpm`."""
@@ -272,10 +275,12 @@ def pass_area_m2(p: Pass, web_width_m: float, outline: Outline) -> float:
 
 def cycle_time_s(passes: tuple[Pass, ...], home_m: float, rpm: float, machine: Machine) -> float:
     """Time from one pallet to the next: the passes (turns at `rpm`, a spiral no faster than
-    the carriage can travel), the carriage's return home at full speed, which runs while the
-    wrapped pallet leaves and the next arrives (`handling_s`)."""
+    the carriage can travel) in one rotation that starts and stops once (`ramp_s`), the
+    carriage's return home at full speed, which runs while the wrapped pallet leaves and the
+    next arrives (`handling_s`)."""
     revolution_s, speed = 60.0 / rpm, machine.carriage_speed_mps
     wrapping = sum(max(p.turns * revolution_s, p.travel_m / speed) for p in passes)
+    wrapping += machine.ramp_s if passes else 0.0
     # between passes that do not join (a band form's stacks) the carriage moves at full speed
     wrapping += sum(abs(b.start_m - a.end_m) for a, b in zip(passes, passes[1:], strict=False)
                     ) / speed

@@ -15,16 +15,19 @@ from wrapenv.program import Machine, Program, Reinforcement
 
 #: Fastest rotation accepted: rotary-arm and ring wrappers reach a few tens of rpm.
 MAX_RPM = 100.0
+#: Longest start or stop of the rotation accepted: a heavy turntable's is a few seconds.
+MAX_RAMP_S = 60.0
 
 
 def machine_from_table(t: Table) -> Machine:
-    """WRAP.toml's [machine] table: the wrapper's speeds and handling time."""
+    """WRAP.toml's [machine] table: the wrapper's speeds, ramps and handling time."""
     default = Machine()
     machine = Machine(
         rpm=t.number("rpm", default.rpm, positive=True, maximum=MAX_RPM),
         carriage_speed_mps=t.number("carriage_speed_mps", default.carriage_speed_mps,
                                     positive=True, maximum=2.0),
         handling_s=t.number("handling_s", default.handling_s, minimum=0.0, maximum=3600.0),
+        ramp_s=t.number("ramp_s", default.ramp_s, minimum=0.0, maximum=MAX_RAMP_S),
     )
     t.done()
     return machine

@@ -548,7 +548,7 @@ def test_a_program_is_simulated_as_the_bands_its_web_lays(load_file, tmp_path, c
     assert verdict["format"]["bands"][0] == {"from_m": 0.0, "to_m": 0.474, "layers": 3,
                                              "tension_n": 800.0}
     assert verdict["material_used"]["revolutions"] == pytest.approx(6.0 + 0.024 / 0.25)
-    assert verdict["cycle_time_s"] == pytest.approx(6.096 * 5 + 15.0)
+    assert verdict["cycle_time_s"] == pytest.approx(6.096 * 5 + 3.0 + 15.0)  # 3 s of ramps
     assert verdict["pallets_per_hour"] == pytest.approx(3600 / verdict["cycle_time_s"], rel=1e-3)
 
 

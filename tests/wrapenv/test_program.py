@@ -261,14 +261,25 @@ def test_a_spiral_the_carriage_cannot_rise_at_the_rpm_is_laid_at_the_overlap_it_
 
 
 def test_cycle_time_of_the_default_program_by_hand():
-    # 3 + 1.416 + 3 revolutions at 12 rpm (5 s each); the carriage returns 0.354 m at 0.1 m/s
-    # (3.5 s) while the 15 s pallet change runs
+    # 3 + 1.416 + 3 revolutions at 12 rpm (5 s each), the rotation's start and stop (3 s: half
+    # of each 3 s ramp); the carriage returns 0.354 m at 0.1 m/s (3.5 s) while the 15 s
+    # pallet change runs
     wrap = laid(program(bottom_wraps=3, up_overlap=0.5, top_wraps=3, top_overhang_m=0.05), 0.804)
-    assert wrap.cycle_time_s == pytest.approx((6 + 0.354 / 0.25) * 5.0 + 15.0)
+    assert wrap.cycle_time_s == pytest.approx((6 + 0.354 / 0.25) * 5.0 + 3.0 + 15.0)
 
 
 def test_a_spiral_faster_than_the_carriage_takes_the_carriage_s_time():
     spiral = Pass("spiral up", 0.0, 1.5, 3.0, 100.0)  # 0.5 m a turn
-    fast = Machine(rpm=30.0, carriage_speed_mps=0.1, handling_s=0.0)
+    fast = Machine(rpm=30.0, carriage_speed_mps=0.1, handling_s=0.0, ramp_s=0.0)
     # 3 turns at 30 rpm would take 6 s; the carriage needs 15 s for 1.5 m, then 15 s back
     assert cycle_time_s((spiral,), 0.0, 30.0, fast) == pytest.approx(15.0 + 15.0)
+
+
+def test_the_rotation_starts_and_stops_once_a_cycle():
+    """Two parked passes run in one rotation: 2 + 3 turns at 12 rpm (25 s), one start and one
+    stop on 4 s ramps (each half of it lost: 4 s), then the 15 s pallet change; a program
+    with no revolution has no ramp."""
+    bottom, top = Pass("bottom", 0.0, 0.0, 2.0, 100.0), Pass("top", 0.0, 0.0, 3.0, 100.0)
+    machine = Machine(ramp_s=4.0)
+    assert cycle_time_s((bottom, top), 0.0, 12.0, machine) == pytest.approx(25.0 + 4.0 + 15.0)
+    assert cycle_time_s((), 0.0, 12.0, machine) == pytest.approx(15.0)

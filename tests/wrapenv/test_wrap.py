@@ -531,9 +531,19 @@ def test_a_web_is_read_from_the_wrap_file_a_machine_runs_today(tmp_path):
     """Its card, width and machine; the program in it is the one being replaced, not read."""
     path = tmp_path / "today.toml"
     path.write_text((EXAMPLES / "program_lldpe_default.toml").read_text()
-                    + "\n[machine]\nrpm = 9.0\n")
+                    + "\n[machine]\nrpm = 9.0\nramp_s = 5.0\n")
     web = Web.from_toml(path)
-    assert web == Web(MATERIALS["lldpe"], "lldpe", 0.5, Machine(rpm=9.0))
+    assert web == Web(MATERIALS["lldpe"], "lldpe", 0.5, Machine(rpm=9.0, ramp_s=5.0))
+
+
+@pytest.mark.parametrize("ramp", ["-1.0", "nan", "120.0"])
+def test_a_machine_ramp_out_of_range_is_refused_naming_it(tmp_path, assert_input_error, ramp):
+    path = tmp_path / "today.toml"
+    path.write_text((EXAMPLES / "program_lldpe_default.toml").read_text()
+                    + f"\n[machine]\nramp_s = {ramp}\n")
+    with pytest.raises(InputError) as info:
+        Web.from_toml(path)
+    assert_input_error(info.value, str(path), "machine.ramp_s")
 
 
 def test_a_web_file_with_a_typo_is_refused_naming_the_key(tmp_path, assert_input_error):
