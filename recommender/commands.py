@@ -33,9 +33,12 @@ from recommender.search import (
     TIGHT_PROGRAMS,
     Evaluation,
     Problem,
+    RobustSearch,
     SearchSettings,
     SearchState,
     Verification,
+    at_top_tension,
+    next_start,
 )
 from recommender.text import program_text, verdict_table
 from wrapenv.calibrated import Calibration
@@ -324,8 +327,6 @@ def _from_proposal(problem: Problem, proposal: WrapFormat) -> Round:
     samples on half (docs/recommend.md): near a pass, rather than at the light end where a
     first round starts. On the two held-out film units measured where the proposal failed and
     the search answered, the round from it answered with 9-10 % less web, a little sooner."""
-    from recommender.search import at_top_tension
-
     return FIRST_ROUND.next(0, 0, at_top_tension(problem.vector(proposal)))
 
 
@@ -374,8 +375,6 @@ def _search_rounds(args: argparse.Namespace, problem: Problem, checkpoint: Path 
     `next_start` (after no pass, the strongest program, and only if it holds its verification:
     `_strongest_fails`). A resumed search continues the round its checkpoint was written in.
     Returns the last round, its problem, its search and the verified answer (None: none)."""
-    from recommender.search import RobustSearch, next_start
-
     round_ = read_round(checkpoint) if args.resume else first
     resume = args.resume
     while True:
