@@ -20,7 +20,7 @@
 
     python benchmarks/ppo_vs_cmaes.py --policy RUN/policy.zip [--held-out 12] [--target 0.5]
                                       [--material kraft|lldpe] [--search N]
-                                      [--only held-out|ppo|cmaes]
+                                      [--only held-out|ppo|cmaes] [--from-unit K]
 """
 
 from __future__ import annotations
@@ -60,7 +60,8 @@ def settings(program: Program) -> tuple[object, ...]:
             tuple((r.wraps, r.tension_n) for r in program.reinforcements))
 
 
-def held_out(policy: Path, n: int, target_g: float, material: str, searched: int) -> None:
+def held_out(policy: Path, n: int, target_g: float, material: str, searched: int,
+             from_unit: int = 0) -> None:
     loads = held_out_loads(n, seed=0)
     proposals: list[PolicyTrial] = []
     for name in ("policy", "random", "one program"):
@@ -81,6 +82,8 @@ def held_out(policy: Path, n: int, target_g: float, material: str, searched: int
     ppo = ["--method", "ppo", "--policy", str(policy.resolve())]
     verified_units = 0
     for k, (load, trial) in enumerate(zip(loads[:searched], proposals, strict=False)):
+        if k < from_unit:
+            continue
         with tempfile.TemporaryDirectory() as tmp:
             path = Path(tmp) / "load.toml"
             path.write_text(load.to_toml())
@@ -101,7 +104,7 @@ def held_out(policy: Path, n: int, target_g: float, material: str, searched: int
               f"search {result}; policy / search {ratio}{from_it}", flush=True)
     if searched:
         print(f"the policy's proposal holds its verification on {verified_units} of "
-              f"{min(searched, n)} units", flush=True)
+              f"{len(loads[from_unit:searched])} units", flush=True)
 
 
 def run_recommend(load: str, method: list[str], target_g: float,
@@ -152,11 +155,14 @@ def main() -> None:
                         help="also search the first N held-out units with CMA-ES")
     parser.add_argument("--only", choices=("held-out", "ppo", "cmaes"),
                         help="one part (the CMA-ES searches need no policy)")
+    parser.add_argument("--from-unit", type=int, default=0, metavar="K",
+                        help="search from held-out unit K on (to finish a run stopped early)")
     args = parser.parse_args()
     if args.policy is None and args.only != "cmaes":
         parser.error("--policy is needed unless --only cmaes")
     if args.only in (None, "held-out"):
-        held_out(args.policy, args.held_out, args.target, args.material, args.search)
+        held_out(args.policy, args.held_out, args.target, args.material, args.search,
+                 args.from_unit)
     methods = []
     if args.only in (None, "ppo"):
         methods.append(("ppo", ["--method", "ppo", "--policy", str(args.policy.resolve())]))
