@@ -151,7 +151,8 @@ def _add_recommend_problem(rec: argparse.ArgumentParser) -> None:
                           "its verification, or it found none, the next searches again with one "
                           "more sample, twice the budget and every tension at the top (after no "
                           "pass, from the strongest program, only if that holds); with --method "
-                          "ppo round 1 is the policy's proposal (--rounds 1: it alone)")
+                          "ppo round 1 is the policy's proposal (default 3; --rounds 1: it "
+                          "alone)")
     rec.add_argument("--workers", type=int, default=os.cpu_count() or 1,
                      help="parallel simulations (default: all cores)")
     rec.add_argument("--backend", choices=BACKENDS, default="process",

@@ -154,7 +154,11 @@ def _targets(args: argparse.Namespace) -> tuple[tuple[Orientation, float], ...]:
 SEARCH_FLAGS = {"--margin": "margin", "--budget": "budget", "--cycle-weight": "cycle_weight",
                 "--rounds": "rounds"}
 #: Search rounds at most (`SearchSettings.in_round`): a second round, with one more sample and
-#: twice the budget, runs only when every pass of the first failed its verification.
+#: twice the budget, runs only when every pass of the first failed its verification. With
+#: --method ppo round 1 is the policy's proposal, which searches nothing, so one more: a failing
+#: proposal is followed by as many search rounds as a search has (held-out film unit 11: the
+#: round from the proposal found no pass where the search's round from the strongest program
+#: answered; docs/recommend.md).
 DEFAULT_ROUNDS = 2
 
 
@@ -193,8 +197,11 @@ def _settings(args: argparse.Namespace) -> SearchSettings:
 
 
 def _rounds(args: argparse.Namespace) -> int:
-    """Search rounds at most: --rounds, or `DEFAULT_ROUNDS`."""
-    return DEFAULT_ROUNDS if args.rounds is None else int(args.rounds)
+    """Search rounds at most: --rounds, or `DEFAULT_ROUNDS` (one more with --method ppo, whose
+    round 1 is its proposal)."""
+    if args.rounds is not None:
+        return int(args.rounds)
+    return DEFAULT_ROUNDS + (args.method == "ppo")
 
 
 #: The least limit on the shift between layers the flag takes: 0.1 % of a 0.8 m unit is 0.8 mm,

@@ -899,7 +899,7 @@ def test_a_proposal_that_does_not_hold_is_searched_from(load_file, tmp_path, cap
     text = capsys.readouterr().out
     assert "the policy's proposal for small: fails short side 0.70 g" in text
     assert ("round 1: the policy's proposal fails; searching from it with 2 samples and a "
-            "budget of 6 candidates (round 2 of at most 2), every tension at the top of its "
+            "budget of 6 candidates (round 2 of at most 3), every tension at the top of its "
             "range (94 N)") in text
     assert "the policy's proposal did not hold its verification)" in text
     result = json.loads(out.read_text())
@@ -910,6 +910,52 @@ def test_a_proposal_that_does_not_hold_is_searched_from(load_file, tmp_path, cap
         "the policy's proposal fails: nothing written (--rounds 1); search from it with more "
         "--rounds")
     assert not (tmp_path / "one.json").exists()
+
+
+def test_a_failing_proposal_is_followed_by_as_many_search_rounds_as_a_search_has(
+        monkeypatch, load_file, tmp_path, capsys):
+    """As on held-out film unit 11 (docs/recommend.md), film at 0.7 g on the small unit: the
+    policy's proposal (the space's lightest program) fails its verification, and so do the
+    passes of the round searched from it (here: verification fails every program but the
+    strongest while a round has fewer than 3 samples). --method ppo's round 1 searched
+    nothing, so by default a third round follows, from the lightest of those passes, as a
+    search's second would, and answers."""
+    from recommender import search
+    from wrapenv.uncertainty import PassProbability
+
+    real = search.verify
+
+    def verify(problem, wrap, samples, workers=1):
+        check = real(problem, wrap, samples, workers)
+        strongest = wrap == problem.wrap(np.array(STRONGEST_PROGRAM))
+        if problem.settings.samples < 3 and not strongest:
+            return replace(check, probability=PassProbability(0, samples))
+        return check
+
+    monkeypatch.setattr(search, "verify", verify)
+    load = load_file(base=SMALL)
+    policy = fixed_policy(load, -1.0, tmp_path / "light.zip", material="lldpe")
+    argv = ["recommend", str(load), "--material", "lldpe", "--target", "0.7", "--method", "ppo",
+            "--policy", str(policy), "--budget", "3", "--samples", "1", "--workers", "2"]
+    out = tmp_path / "rec.json"
+    assert main([*argv, "--json", str(out)]) == 0
+    text = capsys.readouterr().out
+    assert "(round 2 of at most 3)" in text
+    assert ("failed their verification (the whole EUMOS sequence, or one of 8 samples); "
+            "searching again with 3 samples and a budget of 12 candidates (round 3 of at most "
+            "3)") in text
+    result = json.loads(out.read_text())
+    assert result["method"] == "ppo" and result["rounds"] == 3
+    assert result["search_samples"] == 3 and result["robust_pass_rate"] == 1.0
+
+
+@pytest.mark.parametrize("method, rounds, expected", [
+    ("cmaes", None, 2), ("ppo", None, 3), ("ppo", 2, 2), ("cmaes", 1, 1)])
+def test_ppo_has_one_round_more_by_default_as_its_first_searches_nothing(method, rounds,
+                                                                          expected):
+    from recommender.commands import _rounds
+
+    assert _rounds(SimpleNamespace(method=method, rounds=rounds)) == expected
 
 
 def test_no_round_follows_a_proposal_when_even_the_strongest_program_fails(
