@@ -157,8 +157,8 @@ SEARCH_FLAGS = {"--margin": "margin", "--budget": "budget", "--cycle-weight": "c
 #: twice the budget, runs only when every pass of the first failed its verification. With
 #: --method ppo round 1 is the policy's proposal, which searches nothing, so one more: a failing
 #: proposal is followed by as many search rounds as a search has (held-out film unit 11: the
-#: round from the proposal found no pass where the search's round from the strongest program
-#: answered; docs/recommend.md).
+#: round from the proposal found no pass that held, where the search's round from the
+#: strongest program answered; docs/recommend.md).
 DEFAULT_ROUNDS = 2
 
 
@@ -380,7 +380,10 @@ def _search_rounds(args: argparse.Namespace, problem: Problem, checkpoint: Path 
     """Search and verify; while every pass of a round failed its verification, or it found
     none, search again in the next round (`SearchSettings.in_round`), up to --rounds, from
     `next_start` (after no pass, the strongest program, and only if it holds its verification:
-    `_strongest_fails`). A resumed search continues the round its checkpoint was written in.
+    `_strongest_fails`); after the round from a policy's proposal, from the strongest program
+    (on held-out film unit 11 a third round from that round's passes found none that held,
+    where the search answered from the strongest program; docs/recommend.md). A resumed
+    search continues the round its checkpoint was written in.
     Returns the last round, its problem, its search and the verified answer (None: none)."""
     round_ = read_round(checkpoint) if args.resume else first
     resume = args.resume
@@ -398,8 +401,13 @@ def _search_rounds(args: argparse.Namespace, problem: Problem, checkpoint: Path 
         passes = bool(state.to_verify(current.settings.margin_goal))
         why = (_failed_verification(state, current.settings, samples) if passes else
                f"no program passed the search's {_samples_text(current.settings.samples)}")
-        weak = "" if passes else _strongest_fails(problem.in_round(round_.number + 1), start,
-                                                  samples, args.workers)
+        after_proposal = args.method == "ppo" and round_.number == 2
+        if after_proposal:   # the strongest program held its verification before round 2
+            start = STRONGEST_PROGRAM
+        strongest = start == STRONGEST_PROGRAM
+        weak = ("" if passes or after_proposal else
+                _strongest_fails(problem.in_round(round_.number + 1), start, samples,
+                                 args.workers))
         if weak:
             print(f"round {round_.number}: {why}, and {weak}: no lighter program is searched",
                   flush=True)
@@ -407,7 +415,7 @@ def _search_rounds(args: argparse.Namespace, problem: Problem, checkpoint: Path 
         round_, resume = round_.next(len(state.history), state.simulations, start), False
         print(f"round {round_.number - 1}: {why}; searching again "
               f"{_next_round_text(problem, round_.number, _rounds(args))}, from "
-              f"{'the lightest of them' if passes else 'the strongest program of the space'}",
+              f"{'the strongest program of the space' if strongest else 'the lightest of them'}",
               flush=True)
 
 

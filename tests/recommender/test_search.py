@@ -918,8 +918,9 @@ def test_a_failing_proposal_is_followed_by_as_many_search_rounds_as_a_search_has
     policy's proposal (the space's lightest program) fails its verification, and so do the
     passes of the round searched from it (here: verification fails every program but the
     strongest while a round has fewer than 3 samples). --method ppo's round 1 searched
-    nothing, so by default a third round follows, from the lightest of those passes, as a
-    search's second would, and answers."""
+    nothing, so by default a third round follows; the proposal's neighbourhood searched, it
+    starts from the strongest program, where the search's own second round answered unit 11,
+    and answers."""
     from recommender import search
     from wrapenv.uncertainty import PassProbability
 
@@ -943,7 +944,8 @@ def test_a_failing_proposal_is_followed_by_as_many_search_rounds_as_a_search_has
     assert "(round 2 of at most 3)" in text
     assert ("failed their verification (the whole EUMOS sequence, or one of 8 samples); "
             "searching again with 3 samples and a budget of 12 candidates (round 3 of at most "
-            "3)") in text
+            "3), every tension at the top of its range (94 N), from the strongest program of "
+            "the space") in text
     result = json.loads(out.read_text())
     assert result["method"] == "ppo" and result["rounds"] == 3
     assert result["search_samples"] == 3 and result["robust_pass_rate"] == 1.0
