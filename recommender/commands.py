@@ -302,7 +302,8 @@ def _recommend_by_policy(args: argparse.Namespace, problem: Problem, checkpoint:
     hold, and --rounds allows, the next round searches from it (`_from_proposal`), once the
     strongest program of the space has held its verification (`_strongest_fails`: on three
     held-out film units where nothing holds, the round from the proposal took 75-563 s to find
-    no pass, the check 37-78 s in all); otherwise nothing is written (exit 1)."""
+    no pass, the check 37-78 s in all), and the round after that from the strongest program
+    (`_search_rounds`); otherwise nothing is written (exit 1)."""
     t0 = time.perf_counter()
     best, check = _propose_with_policy(args, problem, samples, said)
     refused = _refused_proposal(problem, best, check)
