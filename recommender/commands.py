@@ -402,7 +402,7 @@ def _search_rounds(args: argparse.Namespace, problem: Problem, checkpoint: Path 
         passes = bool(state.to_verify(current.settings.margin_goal))
         why = (_failed_verification(state, current.settings, samples) if passes else
                f"no program passed the search's {_samples_text(current.settings.samples)}")
-        after_proposal = args.method == "ppo" and round_.number == 2
+        after_proposal = _from_proposal_round(args.method, round_.number)
         if after_proposal:   # the strongest program held its verification before round 2
             start = STRONGEST_PROGRAM
         strongest = start == STRONGEST_PROGRAM
@@ -418,6 +418,11 @@ def _search_rounds(args: argparse.Namespace, problem: Problem, checkpoint: Path 
               f"{_next_round_text(problem, round_.number, _rounds(args))}, from "
               f"{'the strongest program of the space' if strongest else 'the lightest of them'}",
               flush=True)
+
+
+def _from_proposal_round(method: str, number: int) -> bool:
+    """Whether search round `number` is the one from a policy's proposal (its round 1)."""
+    return method == "ppo" and number == 2
 
 
 def _next_round_text(problem: Problem, number: int, rounds: int) -> str:
@@ -465,7 +470,7 @@ def _rounds_text(round_: Round, settings: SearchSettings, method: str) -> str:
     if round_.number == 1:
         return ""
     before = ("the policy's proposal did not hold its verification"
-              if method == "ppo" and round_.number == 2 else
+              if _from_proposal_round(method, round_.number) else
               "the round before found no pass that held its verification")
     return (f"; round {round_.number}, {settings.samples} samples a candidate, every tension at "
             f"the top: {before}")
