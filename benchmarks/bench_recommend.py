@@ -5,10 +5,13 @@
    each a fresh interpreter with its own tree on the path: wall time, CPU time of the whole
    process tree (the workers included: on a busy machine the fairer figure), simulations, and
    the answer (program, kg of web, pass probability).
+   With `--held-out K` the unit is the K-th of the held-out random units (`held_out_loads`,
+   seed 0, as `ppo_vs_cmaes.py` numbers them) instead, and `--material` the wrap's material.
 2. With `--scaling`: the same search (seed 0, 16 candidates x 3 samples, identical candidates
    whatever the number of workers) with 1 and with 2 worker processes: wall time and ratio.
 
     python -m benchmarks.bench_recommend [--base main] [--repeat 1] [--scaling]
+        [--held-out K] [--material lldpe]
 """
 
 from __future__ import annotations
@@ -28,14 +31,15 @@ REPO = Path(__file__).resolve().parent.parent
 EXAMPLE = "examples/pet_2layer_columnar.toml"
 
 
-def recommend(tree: Path, workers: int) -> dict[str, Any]:
-    """One `recommend` run with its defaults in `tree`: times, exit status and its answer."""
+def recommend(tree: Path, workers: int, unit: list[str]) -> dict[str, Any]:
+    """One `recommend` run with its defaults in `tree` (`unit`: a load file and a material, or
+    nothing for the bundled example): times, exit status and its answer."""
     env = {**os.environ, "PYTHONPATH": str(tree), "OMP_NUM_THREADS": "1"}
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(tmp) / "r.json"
         before = resource.getrusage(resource.RUSAGE_CHILDREN)
         t0 = time.perf_counter()
-        done = subprocess.run([sys.executable, "-m", "recommender.cli", "recommend",
+        done = subprocess.run([sys.executable, "-m", "recommender.cli", "recommend", *unit,
                                "--workers", str(workers), "--json", str(out)], cwd=tree, env=env,
                               stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
         wall = time.perf_counter() - t0
@@ -55,16 +59,27 @@ def _answer(result: dict[str, Any]) -> dict[str, Any]:
             "simulations": result["evaluations"]}
 
 
-def compare(base: str, repeat: int, workers: int) -> None:
+def held_out_unit(k: int, material: str, folder: Path) -> list[str]:
+    """`recommend`'s arguments for the k-th held-out random unit, written into `folder`."""
+    from recommender.policy import held_out_loads
+
+    path = folder / f"held_out_{k}.toml"
+    path.write_text(held_out_loads(k + 1, seed=0)[k].to_toml())
+    return [str(path), "--material", material]
+
+
+def compare(base: str, repeat: int, workers: int, held_out: int | None, material: str) -> None:
     with tempfile.TemporaryDirectory() as folder:
+        unit = [] if held_out is None else held_out_unit(held_out, material, Path(folder))
+        trees = {base: Path(folder) / "base", "this tree": REPO}
+        trees[base].mkdir()
         archive = subprocess.run(["git", "-C", str(REPO), "archive", base],
                                  capture_output=True, check=True).stdout
-        subprocess.run(["tar", "-x", "-C", folder], input=archive, check=True)
-        trees = {base: Path(folder), "this tree": REPO}
+        subprocess.run(["tar", "-x", "-C", str(trees[base])], input=archive, check=True)
         runs: dict[str, list[dict[str, Any]]] = {name: [] for name in trees}
         for _ in range(repeat):
             for name, tree in trees.items():
-                run = recommend(tree, workers)
+                run = recommend(tree, workers, unit)
                 runs[name].append(run)
                 print(f"  {name:10s} wall {run['wall_s']:6.1f} s, CPU {run['cpu_s']:6.1f} s, "
                       f"exit {run['exit']}, {run.get('simulations')} simulations: "
@@ -100,8 +115,10 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--repeat", type=int, default=1)
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--scaling", action="store_true", help="also 1 against 2 workers")
+    parser.add_argument("--held-out", type=int, help="the k-th held-out random unit instead")
+    parser.add_argument("--material", default="kraft", help="with --held-out")
     args = parser.parse_args(argv)
-    compare(args.base, args.repeat, args.workers)
+    compare(args.base, args.repeat, args.workers, args.held_out, args.material)
     if args.scaling:
         scaling()
 
