@@ -8,7 +8,6 @@ which Bullet's constraint solver treats as fixed (zero velocity) when it compute
 
 from __future__ import annotations
 
-import atexit
 import contextlib
 import ctypes
 import functools
@@ -188,50 +187,6 @@ class _Client(bullet_client.BulletClient):
     _client = -1
 
 
-#: Clients of closed worlds, each reset to an empty world, which the next worlds of this
-#: process take instead of connecting: a connection and its disconnection cost about 25 ms of
-#: CPU, a reset 0.5 ms, where a search runs a small unit's level in about 70 ms. A reset
-#: rebuilds the whole world, its solver info included; of the connection's own settings only
-#: the time step survives it, which every world sets (docs/speed.md, "A client reused").
-_IDLE_CLIENTS: list[_Client] = []
-#: More than one world is open at a time only in a lab sequence's two sides or beside a
-#: renderer, so a couple of idle clients serve every pattern.
-MAX_IDLE_CLIENTS = 2
-
-
-def _client() -> _Client:
-    """An idle client if this process has one, else a new connection."""
-    with contextlib.suppress(IndexError):
-        return _IDLE_CLIENTS.pop()
-    with _quiet_stdout():
-        return _Client(connection_mode=pb.DIRECT)
-
-
-def _release(client: _Client) -> None:
-    """Reset a closed world's client and keep it for the next world, or disconnect it."""
-    try:
-        if len(_IDLE_CLIENTS) < MAX_IDLE_CLIENTS:
-            client.resetSimulation()
-            _IDLE_CLIENTS.append(client)
-            return
-    except pb.error:
-        pass
-    with contextlib.suppress(pb.error):
-        client.disconnect()
-
-
-def disconnect_idle_clients() -> None:
-    """Disconnect the clients kept for later worlds: at exit, in a forked child (whose copies
-    its parent's worlds may not share), and wherever a caller wants every client gone."""
-    while _IDLE_CLIENTS:
-        with contextlib.suppress(pb.error):
-            _IDLE_CLIENTS.pop().disconnect()
-
-
-atexit.register(disconnect_idle_clients)
-os.register_at_fork(after_in_child=disconnect_idle_clients)
-
-
 class BulletWorld:
     """Boxes in a Bullet world of their own (`BulletClient`, DIRECT), addressed by index.
 
@@ -245,9 +200,9 @@ class BulletWorld:
         `rigid`: boxes are rigid (maximal-coordinate) bodies, not reduced-coordinate ones
         (`add_box`)."""
         self.rigid = rigid
-        self._client: Any = _client()
-        if rigid:
-            with _quiet_stdout():
+        with _quiet_stdout():
+            self._client: Any = _Client(connection_mode=pb.DIRECT)
+            if rigid:
                 _load_rigid_solver_mode(self._client)
         self.timestep_s = timestep_s
         # Per-step calls go to pybullet with this client's id: the same client, without the
@@ -513,11 +468,11 @@ class BulletWorld:
         return self._client is None
 
     def close(self) -> None:
-        """Give the client back, reset, for the next world (`_release`); safe to call more
-        than once."""
+        """Disconnect the client; safe to call more than once."""
         if self._client is not None:
-            client, self._client = self._client, None
-            _release(client)
+            with contextlib.suppress(pb.error):
+                self._client.disconnect()
+            self._client = None
 
     def __enter__(self) -> BulletWorld:
         return self

@@ -1,23 +1,15 @@
-"""The world of boxes (`wrapenv.bullet`) against hand-computed friction limits, and its clients
-reused bit for bit."""
+"""The world of boxes (`wrapenv.bullet`) against hand-computed friction limits."""
 
 from __future__ import annotations
 
-import hashlib
 import math
-import multiprocessing
 import tempfile
 
 import numpy as np
-import pybullet as pb
 import pytest
 
-from wrapenv import bullet
-from wrapenv.bench import SimSettings, run_level
 from wrapenv.bullet import BulletWorld, _rigid_world_bytes, rotation_matrices
-from wrapenv.load import LoadUnit
-from wrapenv.profile import G, PulseProfile
-from wrapenv.wrap import WrapFormat
+from wrapenv.profile import G
 
 BOX_M = (0.28, 0.19, 0.33)
 BOX_KG = 9.3
@@ -91,71 +83,3 @@ def test_a_torque_spins_a_free_box_at_its_inverse_inertia(rigid):
         omega = world.velocities([box])[1][0]
     expected = world.timestep_s * rot[0] @ ((rot[0].T @ torque) / inertia)
     np.testing.assert_allclose(omega, expected, rtol=1e-3)
-
-
-#: Levels that turn a last-bit difference into another run (tests/wrapenv/test_bench_health.py):
-#: the 2-layer example's top layer sliding off at 0.45 g, bare and Kraft-wrapped, and with
-#: rigid boxes, whose world loads a saved solver mode into its client.
-_CHAOTIC = (("bare", False), ("kraft", False), ("bare", True))
-
-
-def _chaotic_digest(wrapped: str, rigid: bool) -> str:
-    load = LoadUnit.from_toml("examples/pet_2layer_columnar.toml")
-    wrap = (WrapFormat.from_toml("examples/wrap_kraft_2layer.toml", load.load_height_m)
-            if wrapped == "kraft" else None)
-    trace = run_level(load.layout(), PulseProfile(0.45), SimSettings(rigid_boxes=rigid),
-                      wrap=wrap)
-    return hashlib.sha256(trace.bundle_pos_m.tobytes()).hexdigest()
-
-
-def _world_left_odd() -> None:
-    """A world that changes what it can of its client's solve, steps and closes."""
-    with BulletWorld(1 / 90, 3, contact_erp=0.9) as world:
-        world._client.setPhysicsEngineParameter(globalCFM=0.01, frictionERP=0.5,
-                                                enableConeFriction=0)
-        world.add_box((4.0, 4.0, 0.1), (0.0, 0.0, -0.05), 0.0, MU)
-        world.add_box(BOX_M, (0.0, 0.0, 0.5), BOX_KG, MU)
-        for _ in range(20):
-            world.step()
-
-
-@pytest.mark.parametrize(("wrapped", "rigid"), _CHAOTIC)
-def test_a_world_on_a_reused_client_runs_bit_for_bit_as_on_a_new_one(wrapped, rigid,
-                                                                      monkeypatch):
-    bullet.disconnect_idle_clients()
-    monkeypatch.setattr(bullet, "MAX_IDLE_CLIENTS", 0)
-    new = _chaotic_digest(wrapped, rigid)
-    monkeypatch.setattr(bullet, "MAX_IDLE_CLIENTS", 2)
-    _world_left_odd()
-    reused = list(bullet._IDLE_CLIENTS)
-    assert len(reused) == 1
-    assert _chaotic_digest(wrapped, rigid) == new
-    assert bullet._IDLE_CLIENTS == reused   # the level took that client and gave it back
-
-
-def test_closed_worlds_keep_at_most_a_few_clients_and_disconnect_the_rest():
-    bullet.disconnect_idle_clients()
-    worlds = [BulletWorld(1 / 240, 50) for _ in range(bullet.MAX_IDLE_CLIENTS + 2)]
-    clients = [world._client for world in worlds]
-    for world in worlds:
-        world.close()
-    connected = [client for client in clients if pb.isConnected(client._client)]
-    assert connected == bullet._IDLE_CLIENTS and len(connected) == bullet.MAX_IDLE_CLIENTS
-    bullet.disconnect_idle_clients()
-    assert not any(pb.isConnected(client._client) for client in clients)
-
-
-def _idle_in_child(queue: multiprocessing.Queue) -> None:
-    queue.put(len(bullet._IDLE_CLIENTS))
-
-
-def test_a_forked_process_does_not_inherit_idle_clients():
-    BulletWorld(1 / 240, 50).close()
-    assert bullet._IDLE_CLIENTS
-    context = multiprocessing.get_context("fork")
-    queue = context.Queue()
-    child = context.Process(target=_idle_in_child, args=(queue,))
-    child.start()
-    child.join(timeout=30)
-    assert child.exitcode == 0 and queue.get(timeout=5) == 0
-    assert bullet._IDLE_CLIENTS   # the parent's are its own still
