@@ -5,7 +5,8 @@ paths round differently: the 2-layer example's 0.45 g take, synthesised and trac
 and without, differed in its video's bytes and in its tracked paths by up to 14 µm, and one
 falling bundle's by 81 mm; the same calibration then fitted other coefficients on another
 machine. OpenCV's baseline code (SSE2/SSE3, which every x86-64 has) gives the same frames and
-paths everywhere (tests/calibration/test_determinism.py), at about a fifth more time.
+paths everywhere (tests/calibration/test_determinism.py); synthesis takes about a fifth
+longer, tracking about 4 % (docs/calibration.md, "The same takes on every processor").
 """
 
 import cv2
