@@ -548,12 +548,13 @@ def _verified(problem: Problem, state: SearchState, samples: int,
     passes the whole EUMOS sequence in every orientation (the search tried the target levels
     only) and every sample of its verification, as a policy's proposal must: a pass of a few
     search samples may hold in them by chance (with --samples 2 a program passing 3 of 8
-    verification samples was recommended, exit 0)."""
-    from recommender.search import verify
+    verification samples was recommended, exit 0). A pass's verification ends at its first
+    failure (`holding`)."""
+    from recommender.search import holding
 
     for candidate in state.to_verify(problem.settings.margin_goal)[:VERIFY_CANDIDATES]:
-        check = verify(problem, candidate.wrap, samples, workers=workers)
-        if check.holds:
+        check = holding(problem, candidate.wrap, samples, workers=workers)
+        if check is not None:
             return candidate, check
     return None
 

@@ -60,6 +60,16 @@ class RayExecutor(Executor):
         self._owns_instance = False
 
 
+def stop(pool: Executor) -> None:
+    """Stop `pool`'s simulations once their results are no longer wanted: worker processes
+    are killed (`ProcessPoolExecutor` hands them up to twice their number of calls ahead,
+    which waiting would run); any other executor is shut down, its queued calls cancelled."""
+    if isinstance(pool, ProcessPool):
+        pool.terminate()
+    else:
+        pool.shutdown(wait=True, cancel_futures=True)
+
+
 def executor(backend: str, workers: int, address: str | None = None) -> Executor:
     """An executor of `workers` parallel simulations on the named backend."""
     if backend == "process":

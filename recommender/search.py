@@ -35,7 +35,7 @@ from __future__ import annotations
 
 import json
 from collections.abc import Callable
-from concurrent.futures import Executor, Future
+from concurrent.futures import Executor, Future, as_completed
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -45,7 +45,7 @@ import numpy as np
 
 from recommender import checkpoint
 from recommender.checkpoint import FIRST_ROUND, Round
-from recommender.parallel import executor
+from recommender.parallel import executor, stop
 from recommender.problem import Problem, SearchSettings
 from wrapenv.bench import BenchRun, SimSettings, run_levels
 from wrapenv.config import InputError
@@ -471,23 +471,58 @@ def verify(problem: Problem, wrap: WrapFormat, samples: int, workers: int = 1) -
     fresh samples of the uncertain parameters. The samples stop a level
     once it has failed: a pass probability needs only the verdicts (the worst sample's figures
     are then those at its stop). The nominal sequences run in the pool
-    too, alongside the samples."""
+    too, after the samples."""
+    s = problem.settings
+    with executor(s.backend, workers, s.ray_address) as pool:
+        return _verification(*_submit_verification(pool, problem, wrap, samples))
+
+
+def holding(problem: Problem, wrap: WrapFormat, samples: int,
+            workers: int = 1) -> Verification | None:
+    """`verify` of a program that holds (every sample and nominal sequence passes); None as
+    soon as one fails, its other simulations stopped (`recommender.parallel.stop`). An answer
+    is the first of a search's passes that holds, and the others' figures are never shown: on
+    the bundled example the first pass verified fails its third sample of 8, and ending its
+    verification there takes `recommend` from 129 to 101 CPU s (benchmarks/bench_recommend.py,
+    docs/speed.md)."""
+    s = problem.settings
+    with executor(s.backend, workers, s.ray_address) as pool:
+        samples_, nominal = _submit_verification(pool, problem, wrap, samples)
+        futures: list[Future[Any]] = [*(f for sample in samples_ for f in sample),
+                                      *nominal.values()]
+        for done in as_completed(futures):
+            result = done.result()
+            if not (result.passed if isinstance(result, Trial) else result.verdict.passed):
+                stop(pool)
+                return None
+        return _verification(samples_, nominal)
+
+
+def _submit_verification(pool: Executor, problem: Problem, wrap: WrapFormat, samples: int
+                         ) -> tuple[list[list[Future[Trial]]], dict[Orientation, Future[BenchRun]]]:
+    """A verification's simulations, as tasks of the pool: the samples (their levels stopped
+    once decided), then the nominal sequences (the longest tasks, last: a sample that fails
+    first saves them in `holding`)."""
     s = problem.settings
     decided = replace(s.sim, stop_when_decided=True)
-    with executor(s.backend, workers, s.ray_address) as pool:
-        nominal = {orientation: pool.submit(run_levels, problem.load, eumos_levels(target),
-                                            s.sim, orientation=orientation,
-                                            stop_at_failure=True, wrap=problem.simulated(wrap),
-                                            fresh=s.fresh, limits=s.limits)
-                   for orientation, target in s.targets}
-        futures = [_submit_sample(pool, problem, wrap, VERIFY_SEED + s.seed + k, decided)
-                   for k in range(samples)]
-        trials = [weakest([f.result() for f in sample], True) for sample in futures]
-        runs = {orientation: future.result() for orientation, future in nominal.items()}
+    trials = [_submit_sample(pool, problem, wrap, VERIFY_SEED + s.seed + k, decided)
+              for k in range(samples)]
+    nominal = {orientation: pool.submit(run_levels, problem.load, eumos_levels(target), s.sim,
+                                        orientation=orientation, stop_at_failure=True,
+                                        wrap=problem.simulated(wrap), fresh=s.fresh,
+                                        limits=s.limits)
+               for orientation, target in s.targets}
+    return trials, nominal
+
+
+def _verification(samples: list[list[Future[Trial]]],
+                  nominal: dict[Orientation, Future[BenchRun]]) -> Verification:
+    trials = [weakest([f.result() for f in sample], True) for sample in samples]
+    runs = {orientation: future.result() for orientation, future in nominal.items()}
     worst = min(trials, key=lambda t: t.margin, default=None)
-    return Verification(runs, PassProbability(sum(t.passed for t in trials), samples), worst)
+    return Verification(runs, PassProbability(sum(t.passed for t in trials), len(trials)), worst)
 
 
 __all__ = ["DEFAULT", "DOMINATED", "FIDELITIES", "SCREENING", "STRONGEST_PROGRAM",
            "Evaluation", "Problem", "RobustSearch", "SearchSettings", "SearchState", "Trial",
-           "Verification", "at_top_tension", "next_start", "verify"]
+           "Verification", "at_top_tension", "holding", "next_start", "verify"]

@@ -608,11 +608,12 @@ def test_a_search_pass_that_fails_a_verification_sample_is_not_recommended(monke
     from recommender.commands import _nothing_passed, _verified
     from wrapenv.uncertainty import PassProbability
 
-    def verify(problem, wrap, samples, workers=1):
-        passed = {"fragile": 3, "sturdy": 8}[wrap]   # no nominal run fails: only the samples
-        return search.Verification({}, PassProbability(passed, samples), None)
+    def holding(problem, wrap, samples, workers=1):
+        # the fragile pass fails a sample (no nominal run fails), the sturdy one holds
+        sturdy = search.Verification({}, PassProbability(samples, samples), None)
+        return {"fragile": None, "sturdy": sturdy}[wrap]
 
-    monkeypatch.setattr(search, "verify", verify)
+    monkeypatch.setattr(search, "holding", holding)
     problem = SimpleNamespace(settings=SimpleNamespace(margin_goal=0.2))
     fragile, sturdy = SimpleNamespace(wrap="fragile"), SimpleNamespace(wrap="sturdy")
     both = SimpleNamespace(to_verify=lambda goal: [fragile, sturdy])

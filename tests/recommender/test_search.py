@@ -6,6 +6,8 @@ from __future__ import annotations
 
 import json
 import math
+import os
+import time
 import tomllib
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import replace
@@ -567,19 +569,17 @@ def _failing_first_rounds(monkeypatch, interrupt_second: bool = False) -> None:
     the first round (a search of one sample), as film's passes on the columnar examples fail
     theirs; with `interrupt_second`, Ctrl-C in the second round's verification."""
     from recommender import search
-    from wrapenv.uncertainty import PassProbability
 
-    real = search.verify
+    real = search.holding
 
-    def verify(problem, wrap, samples, workers=1):
+    def holding(problem, wrap, samples, workers=1):
         if problem.settings.samples == 1:
-            check = real(problem, wrap, samples, workers)
-            return replace(check, probability=PassProbability(0, samples))
+            return None
         if interrupt_second:
             raise KeyboardInterrupt
         return real(problem, wrap, samples, workers)
 
-    monkeypatch.setattr(search, "verify", verify)
+    monkeypatch.setattr(search, "holding", holding)
 
 
 def test_a_round_whose_passes_all_fail_their_verification_is_followed_by_a_sturdier_one(
@@ -933,7 +933,12 @@ def test_a_failing_proposal_is_followed_by_as_many_search_rounds_as_a_search_has
             return replace(check, probability=PassProbability(0, samples))
         return check
 
+    def holding(problem, wrap, samples, workers=1):
+        check = verify(problem, wrap, samples, workers)
+        return check if check.holds else None
+
     monkeypatch.setattr(search, "verify", verify)
+    monkeypatch.setattr(search, "holding", holding)
     load = load_file(base=SMALL)
     policy = fixed_policy(load, -1.0, tmp_path / "light.zip", material="lldpe")
     argv = ["recommend", str(load), "--material", "lldpe", "--target", "0.7", "--method", "ppo",
@@ -1200,6 +1205,46 @@ def test_verification_runs_one_unit_like_a_lab_and_judges_the_asked_layer_shift(
     assert check.worst is not None and check.worst.level["criteria"][LAYER_SHIFT] is False
     assert settings.identity()["layer_shift_limit"] == 1e-6
     assert "layer_shift_limit" not in FAST.identity()  # older checkpoints stay valid
+
+
+def test_an_answer_s_verification_is_verify_s_and_ends_at_its_first_failure(small_load,
+                                                                           monkeypatch, tmp_path):
+    """`holding` gives a program that holds the very verification `verify` gives, and None
+    for one that fails, its other simulations stopped and its workers gone (here one worker,
+    the first sample failing: of 8 samples and the nominal sequence, at most the calls
+    already handed to the worker start)."""
+    import multiprocessing
+
+    from recommender import search
+
+    problem = Problem.build(small_load, replace(FAST, targets=(("long", 0.3),)))
+    strongest = problem.space.wrap(problem.space.high)
+    full, held = (check(problem, strongest, 3, workers=2) for check in (verify, search.holding))
+    assert full.holds and held is not None
+    assert held.probability == full.probability and held.worst == full.worst
+    assert {o: r.verdict.to_json() for o, r in held.runs.items()} == {
+        o: r.verdict.to_json() for o, r in full.runs.items()}
+
+    monkeypatch.setattr(search, "_trial", _first_sample_fails)
+    monkeypatch.setenv(TRIALS_FILE, str(tmp_path / "trials"))
+    assert search.holding(problem, strongest, 8, workers=1) is None
+    assert multiprocessing.active_children() == []
+    run = [int(seed) for seed in (tmp_path / "trials").read_text().split()]
+    assert run[0] == search.VERIFY_SEED and len(run) <= 4
+
+
+#: Where `_first_sample_fails` counts the samples run (a worker process's calls).
+TRIALS_FILE = "WRAPBENCH_TEST_TRIALS"
+
+
+def _first_sample_fails(problem, wrap, seed, sim, orientation, target_g):
+    """`search._trial` with the verification's first sample failing, each taking a while."""
+    from recommender.search import VERIFY_SEED
+
+    with open(os.environ[TRIALS_FILE], "a") as trials:
+        trials.write(f"{seed}\n")
+    time.sleep(0.5)
+    return Trial(seed != VERIFY_SEED, -1.0, orientation, {}, {})
 
 
 def test_patience_counts_from_the_first_pass():
