@@ -242,3 +242,48 @@ def test_a_direction_the_data_leave_flat_keeps_the_estimate_inside_the_design():
     assert np.mean(np.array(z1) > 0.95) < 0.1
     assert np.mean(z1) < 0.45
     assert np.sqrt(np.mean((np.array(z0) - 0.2) ** 2)) < 0.25
+
+
+@pytest.mark.parametrize("nuisance, honest", [(0, False), (1, True)])
+def test_a_value_fitted_before_carries_its_uncertainty_into_the_estimate(nuisance, honest):
+    """r = A (u - u*) + b (x - x0): x a value fitted before (the wrap stage's friction), its
+    estimate x0 ~ N(0, 1) standard deviations off, and b moving u's estimate by about 0.08 per
+    standard deviation. Held at its estimate without being carried, the estimate's errors are
+    several of its standard deviations (RMS 3.7); carried as a nuisance coordinate the design
+    spreads, the covariance adds what x's uncertainty moves the estimate by and the errors are
+    about one standard deviation (RMS 1.1 over 20 fits)."""
+    rng = np.random.default_rng(7)
+    m = 40
+    a = rng.normal(0, 0.05, (m, 1))
+    b = 0.08 * a[:, 0] + rng.normal(0, 0.01, m)
+    true = np.array([0.4])
+    z = []
+    for trial in range(20):
+        x0 = rng.normal()
+        target = a @ true + rng.normal(0, TRACK_NOISE_M, m)
+
+        def evaluate(us, target=target, x0=x0):
+            return [a @ u[:1] + b * ((u[1] if nuisance else 0.0) - x0)
+                    + rng.normal(0, 0.005, m) - target for u in us]
+
+        fit = surrogate(evaluate, 1, 60, seed=trial, nuisance=nuisance)
+        assert (fit.propagated is not None) == bool(nuisance)
+        z.append((fit.u[0] - true[0]) / np.sqrt(fit.cov[0, 0]))
+    rms = float(np.sqrt(np.mean(np.square(z))))
+    assert (0.6 < rms < 1.6) if honest else rms > 2.5
+
+
+def test_a_nuisance_that_moves_nothing_adds_next_to_nothing():
+    """The emulated response to a nuisance that does nothing is scatter only; its expected part
+    is taken off, so the covariance gains less than a tenth of its own variance on average."""
+    rng = np.random.default_rng(3)
+    m = 40
+    a = rng.normal(0, 0.05, (m, 1))
+    added = []
+    for trial in range(10):
+        target = a @ np.array([0.4]) + rng.normal(0, TRACK_NOISE_M, m)
+        fit = surrogate(lambda us, target=target: [a @ u[:1] + rng.normal(0, 0.005, m) - target
+                                                   for u in us], 1, 60, seed=trial, nuisance=1)
+        assert fit.propagated is not None
+        added.append(fit.propagated[0, 0] / (fit.cov[0, 0] - fit.propagated[0, 0]))
+    assert np.mean(added) < 0.1
