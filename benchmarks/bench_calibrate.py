@@ -38,7 +38,8 @@ how far halving or doubling each wrap scale moves the wrapped recording's featur
 
 What limits the wrap's fit: `--known NAME=SCALE ...` holds wrap scales as measured (as
 `calibrate --known` does); `--true-friction` fits the wrap alone with the friction the recordings
-were made with, i.e. after a friction stage that made no error.
+were made with, i.e. after a friction stage that made no error, or (with `--offset`) one that
+made the given error.
 """
 
 from __future__ import annotations
@@ -263,8 +264,8 @@ def run_case(name: str, method: str, seed: int, args: argparse.Namespace) -> Out
     truth = observed[0][1]
     params = "all"
     if args.true_friction:
-        # the wrap stage alone, handed the friction the recordings were made with
-        exact = true_calibration(truth)
+        # the wrap stage alone, handed the friction the recordings were made with (offset)
+        exact = true_calibration(truth, args.offset)
         observed = [(replace(o, load=exact.apply(o.load)), t) for o, t in observed]
         held_out = [replace(o, load=exact.apply(o.load)) for o in held_out]
         params = "wrap"
@@ -417,7 +418,9 @@ def main() -> None:
     parser.add_argument("--offset", nargs="+", type=Offset.parse, default=[],
                         metavar="PAIR.KIND=DELTA",
                         help="with --truth: replay with the true values shifted, e.g. "
-                             "pallet_bundle.static=+0.1 (the acceptance test should refuse)")
+                             "pallet_bundle.static=+0.1 (the acceptance test should refuse); "
+                             "with --true-friction: fit the wrap with them shifted (how a "
+                             "friction stage's error moves the wrap's scales)")
     parser.add_argument("--known", nargs="+", default=[], metavar="NAME=SCALE",
                         help="wrap scales given as measured (calibrate --known), e.g. tension=1")
     parser.add_argument("--true-friction", action="store_true",
