@@ -180,9 +180,6 @@ def report(name: str, method: str, result: FitResult, truth: Truth, wall: float,
                      f"; tension scale {cal.tension_scale:.2f} ± {cal.tension_scale_std:.2f}"
                      f" (true 1); give scale {cal.give_scale:.2f} ± {cal.give_scale_std:.2f}"
                      f" (true 1){'; known: ' + ', '.join(cal.known) if cal.known else ''}")
-        if result.carried_stds:
-            lines.append("  of which friction's uncertainty: " + ", ".join(
-                f"{k} ± {v:.2f}" for k, v in result.carried_stds.items()))
         cells.append(f"stiffness {err:+.0f} %")
     for check in checks:
         for what, (layer, c) in _headlines(check):

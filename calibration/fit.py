@@ -4,8 +4,7 @@ so that the bench replaying each recording reproduces what of it the bench can p
 What is compared (`calibration.features`): per observed body its slip across the contact it
 rests on and its rotation, over the frames before it lost its support or tipped over, clipped
 at those limits. Stages: friction on the unwrapped recordings (all of them when every one is
-wrapped), then the wrap's scales (`WRAP_PARAMS`) on the wrapped ones with that friction, whose
-uncertainty the surrogate carries into the scales' (`_Carried`). Pairs
+wrapped), then the wrap's scales (`WRAP_PARAMS`) on the wrapped ones with that friction. Pairs
 that never slipped are held stuck and reported as not identified, with the lower bound of their
 static coefficient the recordings support and the test that would identify them
 (`calibration.identify`).
@@ -129,9 +128,6 @@ class FitResult:
     #: `simulations` by what they were for: the search (`budget` less the final replays), the
     #: final replays, more replays of recordings those left unexplained, and the probes
     simulations_by_part: dict[str, int] = field(default_factory=dict)
-    #: per wrap scale the part of its standard deviation that friction's uncertainty makes up
-    #: (`_Carried`); part of the calibration's standard deviation, not added to it
-    carried_stds: dict[str, float] = field(default_factory=dict)
 
 
 @dataclass
@@ -149,37 +145,6 @@ class _Fitted:
     unphysical: int = 0
     #: the surrogate's friction stage: its box's coordinates and its fit (for `_profiled`)
     friction_fit: tuple[Model, SurrogateFit] | None = None
-    #: per wrap scale the part of its standard deviation friction's uncertainty makes up
-    carried: dict[str, float] = field(default_factory=dict)
-
-
-@dataclass(frozen=True)
-class _Carried:
-    """The friction stage's estimate carried into the wrap stage as the surrogate's nuisance
-    coordinates (`surrogate.surrogate`): x standard deviations along the principal axes of its
-    covariance. Held at its estimate, the wrap scales' standard deviation left friction's out:
-    LLDPE's stiffness with tension and give known came out +26 and +31 % off, reported resolved
-    at +-0.23 and +-0.29 (1.5 and 1.4 of them), where the true friction gave +1 and -1 %
-    (docs/calibration.md)."""
-
-    params: tuple[Param, ...]
-    u: np.ndarray
-    root: np.ndarray         # (len(params), q): a point is u + root @ x
-
-    def point(self, x: np.ndarray) -> np.ndarray:
-        return np.clip(self.u + self.root @ x, 0.0, 1.0)
-
-
-def _carried(found: _Fitted, params: tuple[Param, ...]) -> _Carried | None:
-    """What the wrap stage carries of the friction stage (None for the friction stage, or
-    after a descent, whose covariance is a curvature's): the covariance is capped as the
-    reported values' are (`_capped`)."""
-    if found.friction_fit is None or not all(p.is_scale for p in params):
-        return None
-    model, result = found.friction_fit
-    values, vectors = np.linalg.eigh(_capped(result.cov))
-    keep = values > 1e-12
-    return _Carried(model.params, result.u, vectors[:, keep] * np.sqrt(values[keep]))
 
 
 def _friction_params(observations: Sequence[Observation], slipped: frozenset[str],
@@ -228,11 +193,9 @@ def fit(observations: Sequence[Observation], settings: FitSettings,
         for k, (params, indices) in enumerate(stages):
             limit = _stage_limit(budget, progress.simulations, stages[k:])
             model = Model(params, found.friction, dict(found.scales))
-            carried = _carried(found, params) if settings.method == "surrogate" else None
-            joint = model if carried is None else replace(model, params=params + carried.params)
-            objective = Objective([observations[i] for i in indices], joint, pool, settings.sim,
+            objective = Objective([observations[i] for i in indices], model, pool, settings.sim,
                                   log)
-            _run_stage(objective, model, settings, limit, progress, found, carried)
+            _run_stage(objective, settings, limit, progress, found)
         runs = [[pool.submit(replay, o, found.friction, found.scales,
                              resettled(settings.sim, k)) for k in range(repeats)]
                 for o in observations]
@@ -428,34 +391,28 @@ def _final_replays(settings: FitSettings, recordings: int) -> int:
     return min(FINAL_REPLAYS, max(3, settings.budget // (3 * recordings)))
 
 
-def _run_stage(objective: Objective, model: Model, settings: FitSettings, limit: int,
-               progress: Progress, found: _Fitted, carried: _Carried | None = None) -> None:
-    """One stage's parameters (`model`'s) by the asked method; updates `found`. With `carried`
-    the objective's points are the model's followed by the friction stage's (`_Carried`)."""
+def _run_stage(objective: Objective, settings: FitSettings, limit: int, progress: Progress,
+               found: _Fitted) -> None:
+    """One stage's parameters by the asked method; updates `found`."""
+    model = objective.model
     u0 = model.encode(model.base, model.scales)
     progress.new_stage()
     if settings.method == "surrogate":
-        spp, p = objective.sims_per_point, len(u0)
+        spp = objective.sims_per_point
 
         def evaluate(us: Sequence[np.ndarray]) -> list[np.ndarray | None]:
-            points = (us if carried is None
-                      else [np.concatenate([u[:p], carried.point(u[p:])]) for u in us])
-            rs = objective.residuals(points)
+            rs = objective.residuals(us)
             progress.record(us, [1.0 if r is None else float(np.mean(r**2)) for r in rs],
                             len(us) * spp)
             return rs
 
         by_pair = objective.pair_features()
         informed_by = [by_pair.get(p.pair) for p in model.params]
-        result = surrogate(evaluate, p, (limit - progress.simulations) // spp,
-                           settings.seed, shared=objective.shared_noise, informed_by=informed_by,
-                           nuisance=0 if carried is None else carried.root.shape[1])
+        result = surrogate(evaluate, len(u0), (limit - progress.simulations) // spp,
+                           settings.seed, shared=objective.shared_noise, informed_by=informed_by)
         u, cov = result.u, result.cov
         if not any(p.is_scale for p in model.params):
             found.friction_fit = (model, result)
-        if result.propagated is not None:
-            found.carried |= {kind: std for (kind, _), std
-                              in _value_stds(model, u, result.propagated).items()}
         found.stages.extend(result.stages)
     else:
         u, cov = descend(objective, u0, settings.method, limit, settings.seed, progress)
@@ -465,21 +422,16 @@ def _run_stage(objective: Objective, model: Model, settings: FitSettings, limit:
     found.stds |= _value_stds(model, u, cov)
 
 
-def _capped(cov: np.ndarray) -> np.ndarray:
-    """The unit box's covariance with each variance capped at a uniform spread over the range
-    (what a parameter the data say nothing about has), the correlations kept."""
+def _value_stds(model: Model, u: np.ndarray, cov: np.ndarray) -> dict[tuple[str, str], float]:
+    """Standard deviations of the fitted values from the unit box's covariance: static and
+    kinetic (the one not in the box through the ratio, correlation included) and each scale
+    (s = 2^v); the box's variances are capped at a uniform spread over the range (what a
+    parameter the data say nothing about has)."""
+    n = len(u)
     std = np.sqrt(np.clip(np.diag(cov), 0.0, None))
     corr = np.array(cov, float) / np.maximum(np.outer(std, std), 1e-300)
     capped = np.minimum(std, UNIFORM_STD)
-    return corr * np.outer(capped, capped)
-
-
-def _value_stds(model: Model, u: np.ndarray, cov: np.ndarray) -> dict[tuple[str, str], float]:
-    """Standard deviations of the fitted values from the unit box's covariance (`_capped`):
-    static and kinetic (the one not in the box through the ratio, correlation included) and
-    each scale (s = 2^v)."""
-    n = len(u)
-    cov = _capped(cov)
+    cov = corr * np.outer(capped, capped)
     friction, scales = model.decode(u)
     index = model.index()
     out = {}
@@ -553,8 +505,7 @@ def _result(observations: Sequence[Observation], bare: Sequence[Observation],
             text = identify.advice_kinetic(name, bare, p.kinetic_std)
             advice[name] = f"{advice[name]}; {text}" if name in advice else text
     paper = any(o.wrap is not None and o.wrap.material.kind == "paper" for o in observations)
-    advice |= {name: identify.advice_scale(name, found.scales[name], found.stds[name, ""], paper,
-                                           found.carried.get(name, 0.0))
+    advice |= {name: identify.advice_scale(name, found.scales[name], found.stds[name, ""], paper)
                for name in found.scales if (name, "") in found.stds
                and found.stds[name, ""] / (found.scales[name] * math.log(2))
                > RESOLVED_LOG2_SCALE_STD}
@@ -566,7 +517,7 @@ def _result(observations: Sequence[Observation], bare: Sequence[Observation],
                      [runs[0] for runs in replays], not reason, spread_rms, replay_rms, reason,
                      advice, tuple(found.stages), verdict,
                      tuple(name for name in WRAP_PARAMS if (name, "") in found.stds),
-                     dict(progress.parts), dict(found.carried))
+                     dict(progress.parts))
 
 
 def _failure(rms: float, verdict: acceptance.Unexplained, replays: int, simulations: int,

@@ -175,7 +175,7 @@ def advice_slipped_throughout(bound: Bound, static: float, std: float) -> str:
             f"test at {_level_below(bound.demand_g):.2f} g or lower, where it holds")
 
 
-def advice_scale(name: str, scale: float, std: float, paper: bool, carried: float = 0.0) -> str:
+def advice_scale(name: str, scale: float, std: float, paper: bool) -> str:
     """For a wrap scale the recordings do not resolve, with the reason that fits the web: a
     paper web is much stiffer than the load's edges, whose give then decides the motion; a film
     is much softer, so its stiffness does show (LLDPE: x2 moves the 0.7 g take's features 3-5
@@ -184,9 +184,7 @@ def advice_scale(name: str, scale: float, std: float, paper: bool, carried: floa
     truth's 1.3, 1 and 1, and predicted the held-out take within 5 %; with the tension and the
     give known, +15 % and +14 % over two fit seeds; a second wrapped level instead, +13 to +120 %
     over three (docs/calibration.md).
-    What is measured elsewhere is given as known (`calibrate --known`). `carried`: the part of
-    the standard deviation the friction fitted before it makes up; where that is most of it,
-    the friction is what to pin first."""
+    What is measured elsewhere is given as known (`calibrate --known`)."""
     hardly = "the recorded motion hardly depends on it"
     known = "give it as known (--known)"
     if name == "stiffness" and paper:
@@ -206,8 +204,4 @@ def advice_scale(name: str, scale: float, std: float, paper: bool, carried: floa
                f"{known}")
     else:
         why = hardly
-    if carried**2 > std**2 / 2:
-        why = (f"most of it (± {carried:.2f}) is the uncertainty of the friction fitted before "
-               "it: pin that first (the friction's advice), or fit the wrap (--params wrap) "
-               "with friction measured elsewhere in the load file; besides, " + why)
     return f"{name} scale not resolved ({scale:.2f} ± {std:.2f}): {why}"

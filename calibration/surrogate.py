@@ -27,10 +27,6 @@ Jacobian and S the scatter of the replays about the emulator (so correlated feat
 the frames of one sliding bundle, are not counted as independent), inflated by the emulator's
 own uncertainty (its leverage at the estimate), plus the tracker's noise: per feature, and in the
 covariance returned also the error of a body's first frame, which all its later frames share.
-
-Values fitted earlier (the wrap stage's friction) can be carried as nuisance coordinates: the
-design spreads them over their own uncertainty, the estimate holds them at their value, and the
-covariance returned adds how far their uncertainty moves the estimate (`_propagated`).
 """
 
 from __future__ import annotations
@@ -60,9 +56,6 @@ MIN_HALF_WIDTH = 0.03
 ACCEPT = 0.25
 #: Degrees of freedom an emulator keeps for its scatter, beyond its coefficients.
 SCATTER_DOF = 2
-#: A nuisance coordinate (in standard deviations of its value) is spread uniformly over this
-#: many either side of 0, so the emulator sees how the features move with it.
-NUISANCE_SIGMAS = 2.0
 #: Gauss-Newton iterations and starts of the estimate on the emulator.
 ITERATIONS = 30
 STARTS = 4
@@ -89,8 +82,6 @@ class SurrogateFit:
     cov: np.ndarray             # its covariance (unit box)
     stages: tuple[Stage, ...]
     invalid: int                # design points with a replay that became unphysical
-    #: the part of `cov` the nuisance coordinates' uncertainty adds (`_propagated`)
-    propagated: np.ndarray | None = None
 
 
 def _basis(z: np.ndarray, order: str) -> np.ndarray:
@@ -167,7 +158,7 @@ def profile(fit: SurrogateFit, index: int, value: float) -> np.ndarray | None:
             continue
         others = np.clip(np.delete((fit.u - mid) / scale, index), -1.0, 1.0)
         bound = np.ones(len(others))
-        y = _solve(stage.emulator, -bound, bound, [others], {index: held})
+        y = _solve(stage.emulator, -bound, bound, [others], (index, held))
         return mid + scale * np.insert(y, index, held)
     return None
 
@@ -189,12 +180,12 @@ def _expected(em: Emulator, z: np.ndarray) -> np.ndarray:
 
 
 def _solve(em: Emulator, lo: np.ndarray, hi: np.ndarray, starts: Sequence[np.ndarray],
-           held: dict[int, float] | None = None) -> np.ndarray:
+           held: tuple[int, float] | None = None) -> np.ndarray:
     """The point of [lo, hi] (scaled coordinates) minimising the expected weighted residual
-    (`_expected`); with `held` {index: value} those coordinates are held at their values, and
-    the point, bounds and starts are the other coordinates'."""
+    (`_expected`); with `held` (index, value) that coordinate is held at the value, and the
+    point, bounds and starts are the other coordinates'."""
     def expected(x: np.ndarray) -> np.ndarray:
-        return _expected(em, x if not held else _with_held(x, held))
+        return _expected(em, x if held is None else np.insert(x, held[0], held[1]))
 
     best, best_cost = starts[0], math.inf
     for z in starts:
@@ -219,25 +210,13 @@ def _solve(em: Emulator, lo: np.ndarray, hi: np.ndarray, starts: Sequence[np.nda
     return best
 
 
-def _with_held(x: np.ndarray, held: dict[int, float]) -> np.ndarray:
-    """The point whose coordinates `held` names take their values and the others x's."""
-    full = np.empty(len(x) + len(held))
-    free = np.ones(len(full), bool)
-    free[list(held)] = False
-    full[list(held)] = list(held.values())
-    full[free] = x
-    return full
-
-
-def _covariance(em: Emulator, z: np.ndarray, shared: Sequence[np.ndarray] = (),
-                fitted: int | None = None) -> np.ndarray:
-    """Sandwich covariance of the estimate in scaled coordinates (module docstring): of its
-    first `fitted` coordinates (all by default), the others held. `shared`: groups of features
-    that share one tracker error (a body's path counted from its first tracked frame, whose
-    error every later frame carries): each adds a fully correlated `TRACK_NOISE_M` on top of
-    the independent one of every feature."""
+def _covariance(em: Emulator, z: np.ndarray, shared: Sequence[np.ndarray] = ()) -> np.ndarray:
+    """Sandwich covariance of the estimate in scaled coordinates (module docstring). `shared`:
+    groups of features that share one tracker error (a body's path counted from its first
+    tracked frame, whose error every later frame carries): each adds a fully correlated
+    `TRACK_NOISE_M` on top of the independent one of every feature."""
     w = 1.0 / em.sigma**2
-    j = em.jacobian(z)[:, :fitted]
+    j = em.jacobian(z)
     a_inv = np.linalg.pinv(j.T @ (w[:, None] * j))
     m = j.T @ (w[:, None] * em.errors.T)                # (p, N)
     scatter = m @ m.T / em.dof * (1.0 + em.leverage(z))
@@ -246,34 +225,6 @@ def _covariance(em: Emulator, z: np.ndarray, shared: Sequence[np.ndarray] = (),
         g = w[group] @ j[group]                         # (p,): the group's summed score
         noise += TRACK_NOISE_M**2 * np.outer(g, g)
     return a_inv @ (scatter + noise) @ a_inv
-
-
-def _propagated(em: Emulator, z: np.ndarray, fitted: int) -> np.ndarray:
-    """How much the uncertainty of the nuisance coordinates (those after the first `fitted`,
-    scaled so that one standard deviation is 1 / `NUISANCE_SIGMAS`) adds to the covariance of
-    the fitted ones (scaled coordinates), to first order: moving nuisance k by one standard
-    deviation moves the estimate by -A^-1 J^T W g_k, J and g_k the features' emulated
-    responses to the fitted coordinates and to nuisance k, so the estimate gains the sum of
-    those moves' outer products (the nuisance values are independent, or whitened). Emulated
-    responses carry the replays' scatter, which on average adds F x its variance to A (F
-    features; a small box's slopes are mostly scatter, and the moves came out a third short)
-    and its own part to the moves even where a nuisance does nothing: both expected parts are
-    taken off (a negative remainder is none)."""
-    w = 1.0 / em.sigma**2
-    jacobian = em.jacobian(z)
-    j, g = jacobian[:, :fitted], jacobian[:, fitted:] / NUISANCE_SIGMAS
-    slopes = _central_differences(lambda x: em.basis(x)[0], z)            # (coefs, p + q)
-    slope_cov = slopes.T @ em.gram_inv @ slopes                           # per unit scatter
-    scatter = float(np.sum(w * np.sum(em.errors**2, axis=0) / em.dof))    # ~ F
-    a = j.T @ (w[:, None] * j) - scatter * slope_cov[:fitted, :fitted]
-    values, vectors = np.linalg.eigh(a)
-    floor = 1e-3 * float(np.max(np.abs(values)))
-    gain = (vectors / np.maximum(values, floor)) @ vectors.T @ (j.T * w)  # (p, F)
-    moves = gain @ g                                                      # (p, q)
-    m = gain @ em.errors.T
-    noise = np.trace(slope_cov[fitted:, fitted:]) / NUISANCE_SIGMAS**2 * m @ m.T / em.dof
-    values, vectors = np.linalg.eigh(moves @ moves.T - noise)
-    return (vectors * np.clip(values, 0.0, None)) @ vectors.T
 
 
 def min_points(p: int) -> int:
@@ -302,17 +253,14 @@ def stage_sizes(points: int, p: int) -> list[int]:
 
 def surrogate(evaluate: Evaluate, p: int, points: int, seed: int,
               shared: Sequence[np.ndarray] = (),
-              informed_by: Sequence[np.ndarray | None] = (), nuisance: int = 0) -> SurrogateFit:
+              informed_by: Sequence[np.ndarray | None] = ()) -> SurrogateFit:
     """Staged emulator fit over the unit box [0, 1]^p with at most `points` replays of every
     recording (see the module docstring); the first box is the whole unit box. The covariance
     returned counts the tracker error `shared` by groups of features (`_covariance`); the boxes
     follow the replays' scatter and independent noise, as they were tuned to (a 20-replay
     wrapped LLDPE fit reported its stiffness at ± 3 % with frames counted independent).
     `informed_by`: per parameter the features that inform it (None: all), for the global stage
-    (`_accepted`). `nuisance`: coordinates `evaluate` gets after the p fitted ones, each a value
-    fitted elsewhere in its standard deviations from that fit's estimate: spread over
-    +-`NUISANCE_SIGMAS`, held at 0 by the estimate, and their uncertainty added to the
-    covariance returned (`_propagated`)."""
+    (`_accepted`)."""
     rng = np.random.default_rng(seed)
     centre = np.full(p, 0.5)
     half = np.full(p, 0.5)
@@ -321,55 +269,40 @@ def surrogate(evaluate: Evaluate, p: int, points: int, seed: int,
     invalid = 0
     stages: list[Stage] = []
     sizes = stage_sizes(points, p)
-    held = {p + k: 0.0 for k in range(nuisance)}
     # with too few physical replays for any stage: the box's centre, as uncertain as the box
     u_hat, cov, em = centre, np.diag(np.full(p, 1 / 12)), None
     for k, n in enumerate(sizes):
         lo, hi = _box(centre, half)
-        design = [np.concatenate([lo + (hi - lo) * x[:p], NUISANCE_SIGMAS * (2 * x[p:] - 1)])
-                  for x in latin_hypercube(n, p + nuisance, rng)]
+        design = [lo + (hi - lo) * x for x in latin_hypercube(n, p, rng)]
         for u, r in zip(design, evaluate(design), strict=True):
             if r is None:
                 invalid += 1
             else:
                 us.append(u)
                 rs.append(r)
-        inside = [i for i, u in enumerate(us)
-                  if np.all((u[:p] >= lo - 1e-12) & (u[:p] <= hi + 1e-12))]
-        if len(inside) < min_points(p + nuisance):  # replays became unphysical: the last
-            break                                    # estimate stands
+        inside = [i for i, u in enumerate(us) if np.all((u >= lo - 1e-12) & (u <= hi + 1e-12))]
+        if len(inside) < min_points(p):  # replays became unphysical: the last estimate stands
+            break
         mid, scale = (lo + hi) / 2, np.maximum((hi - lo) / 2, 1e-9)
         if k == 0 and len(sizes) > 1:
-            u_hat, std = _accepted(np.array(us)[:, :p], np.array(rs), informed_by)
+            u_hat, std = _accepted(np.array(us), np.array(rs), informed_by)
             cov = np.diag(std**2)
         else:
-            z = np.array([_scaled(us[i], mid, scale) for i in inside])
+            z = (np.array([us[i] for i in inside]) - mid) / scale
             em = Emulator(z, np.array([rs[i] for i in inside]))
-            starts = [np.zeros(p)] + [z[i, :p] for i in _best(em, rs, inside, STARTS - 1)]
-            y_hat = _solve(em, -np.ones(p), np.ones(p), starts, held)
-            z_hat = _with_held(y_hat, held)
-            cov = _covariance(em, z_hat, fitted=p) * np.outer(scale, scale)
-            u_hat = mid + scale * y_hat
+            starts = [np.zeros(p)] + [z[i] for i in _best(em, rs, inside, STARTS - 1)]
+            z_hat = _solve(em, -np.ones(p), np.ones(p), starts)
+            cov = _covariance(em, z_hat) * np.outer(scale, scale)
+            u_hat = mid + scale * z_hat
             std = np.sqrt(np.clip(np.diag(cov), 0.0, None))
         stages.append(Stage(mid, scale, n, len(inside), u_hat, std,
                             None if k == 0 and len(sizes) > 1 else em))
         centre = u_hat
         half = np.clip(BOX_SIGMAS * std, SHRINK[0] * scale, SHRINK[1] * scale)
         half = np.maximum(half, MIN_HALF_WIDTH)
-    propagated = None
-    if em is not None and (shared or nuisance):
-        cov = _covariance(em, z_hat, shared, fitted=p) * np.outer(scale, scale)
-    if em is not None and nuisance:
-        propagated = _propagated(em, z_hat, p) * np.outer(scale, scale)
-        cov = cov + propagated
-    return SurrogateFit(u_hat, _settled(cov, stages), tuple(stages), invalid, propagated)
-
-
-def _scaled(u: np.ndarray, mid: np.ndarray, scale: np.ndarray) -> np.ndarray:
-    """A design point in an emulator's coordinates: the fitted ones scaled to the box's
-    [-1, 1], the nuisance ones to their spread's."""
-    p = len(mid)
-    return np.concatenate([(u[:p] - mid) / scale, u[p:] / NUISANCE_SIGMAS])
+    if shared and em is not None:
+        cov = _covariance(em, z_hat, shared) * np.outer(scale, scale)
+    return SurrogateFit(u_hat, _settled(cov, stages), tuple(stages), invalid)
 
 
 def _settled(cov: np.ndarray, stages: Sequence[Stage]) -> np.ndarray:
