@@ -509,6 +509,10 @@ def _result(observations: Sequence[Observation], bare: Sequence[Observation],
                for name in found.scales if (name, "") in found.stds
                and found.stds[name, ""] / (found.scales[name] * math.log(2))
                > RESOLVED_LOG2_SCALE_STD}
+    if any(kind in ("static", "kinetic") for kind, _ in found.stds):   # friction fitted too
+        advice |= {name: identify.advice_scale_at_fitted_friction(name, found.scales[name],
+                                                                  found.stds[name, ""])
+                   for name in found.scales if (name, "") in found.stds and name not in advice}
     verdict = acceptance.worst(observations, replays)
     replayed = {o.source: len(runs) for o, runs in zip(observations, replays, strict=True)}
     reason = _failure(rms, verdict, replayed.get(verdict.source, 0), progress.simulations,

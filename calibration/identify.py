@@ -205,3 +205,19 @@ def advice_scale(name: str, scale: float, std: float, paper: bool) -> str:
     else:
         why = hardly
     return f"{name} scale not resolved ({scale:.2f} ± {std:.2f}): {why}"
+
+
+def advice_scale_at_fitted_friction(name: str, scale: float, std: float) -> str:
+    """For a wrap scale the fit resolves with the friction it fitted in the same run held: the
+    scale's standard deviation leaves that friction's out, and a take the wrap moves, friction
+    moves too. LLDPE's stiffness (tension and give known) was reported resolved at +26 and
+    +31 %, 1.4 and 1.5 of its standard deviations off, where the true friction gave +1 and -1 %;
+    the true friction shifted by one fit's errors (each 0.01 or less) moved it by +24 to +27 %
+    (docs/calibration.md, "How far friction's error moves the film's stiffness"). Carrying the
+    friction's covariance into the wrap stage (its design spread over it) was tried and not
+    kept: it missed two of three such errors and made the estimates worse."""
+    return (f"{name} scale {scale:.2f} ± {std:.2f} holds only at the friction fitted with it: "
+            "its ± leaves that friction's uncertainty out, and friction errors of 0.01 moved "
+            "a film's stiffness by a quarter; to trust it, fit the wrap alone (--params wrap) "
+            "on a load file whose friction was measured elsewhere, or check it on a held-out "
+            "take (--validate)")

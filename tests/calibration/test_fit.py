@@ -4,6 +4,7 @@ from tracked paths to values the fit was not told (synth -> track -> calibrate).
 from __future__ import annotations
 
 import dataclasses
+import math
 from types import SimpleNamespace
 
 import numpy as np
@@ -374,6 +375,36 @@ def test_known_wrap_scales_are_held_and_only_the_others_fitted(wrapped_slide):
     assert result.fitted_scales == ("stiffness",)
     assert cal.stiffness_scale_std > 0
     assert set(result.advice) <= {"stiffness"}
+
+
+@pytest.fixture(scope="module")
+def bare_slide(tmp_path_factory):
+    """The wrapped slide's unit unwrapped at 0.45 g, where both bundles slide: the take its
+    friction is fitted to."""
+    from calibration.synth import synthesize
+    from wrapenv.load import LoadUnit
+
+    out = tmp_path_factory.mktemp("bare")
+    synthesize(LoadUnit.from_toml("examples/calibration_slide.toml"), out, level_g=0.45, seed=2,
+               size=(480, 300))
+    rec = Recording.read(out)
+    return observe(rec, track(rec).trajectories)
+
+
+def test_a_scale_resolved_at_the_friction_the_same_fit_found_says_what_its_std_leaves_out(
+        bare_slide, wrapped_slide):
+    """Friction fitted to the bare take, then the stiffness (tension and give known) to the
+    wrapped one at that friction: resolved there (1.33 ± 0.17 for the true 1.3), and the advice
+    says that its standard deviation leaves the fitted friction's out."""
+    known = (("tension", 1.0), ("give", 1.0))
+    result = fit([bare_slide, wrapped_slide],
+                 FitSettings(params="all", budget=80, workers=2, known=known))
+    assert result.fitted_scales == ("stiffness",)
+    cal = result.calibration
+    assert cal.stiffness_scale_std / (cal.stiffness_scale * math.log(2)) <= math.log2(1.2)
+    assert result.advice["stiffness"].startswith(
+        f"stiffness scale {cal.stiffness_scale:.2f} ± {cal.stiffness_scale_std:.2f} holds only "
+        "at the friction fitted with it")
 
 
 def test_a_pair_nothing_loaded_is_not_reported():

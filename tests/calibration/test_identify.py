@@ -12,6 +12,7 @@ from calibration.identify import (
     Bound,
     advice_kinetic,
     advice_scale,
+    advice_scale_at_fitted_friction,
     advice_slipped_throughout,
     advice_static,
     advice_unslipped,
@@ -174,3 +175,12 @@ def test_advice_on_an_unresolved_wrap_scale_gives_the_reason_of_its_web():
     film_give = advice_scale("give", 0.4, 0.1, paper=False)
     assert "in series" in film_give and "--known" in film_give
     assert "film" not in advice_scale("give", 0.4, 0.1, paper=True)
+
+
+def test_a_scale_resolved_at_a_fitted_friction_says_what_its_standard_deviation_leaves_out():
+    """The wrap stage holds the friction fitted in the same run, so a scale's ± says nothing of
+    that friction's uncertainty (friction errors of 0.01 moved LLDPE's stiffness by a quarter):
+    the advice says so and names the fits that do not depend on it."""
+    text = advice_scale_at_fitted_friction("stiffness", 1.64, 0.23)
+    assert text.startswith("stiffness scale 1.64 ± 0.23 holds only at the friction fitted")
+    assert "--params wrap" in text and "--validate" in text
