@@ -277,7 +277,7 @@ def _observations(recordings: list, retrack: bool) -> list:
     for rec in recordings:
         for warning in profile_warnings(str(rec.folder / "profile.csv"),
                                         rec.profile.accel_mps2):
-            sys.stderr.write(f"wrapbench calibrate: warning: {printable(warning)}\n")
+            sys.stderr.write(f"wrapbench calibrate: warning: {printable(warning, MESSAGE_CHARS)}\n")
         csv = rec.folder / "trajectories.csv"
         if csv.exists() and not retrack:
             tracked = Trajectories.from_csv(csv)
