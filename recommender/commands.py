@@ -60,6 +60,8 @@ from wrapenv.wrap import Web, WrapFormat
 
 #: Robust passes tried, lightest first, until one passes the whole EUMOS sequence.
 VERIFY_CANDIDATES = 3
+#: The fewest fresh samples an answer's verification holds in (more with a larger --samples).
+VERIFY_SAMPLES = 8
 #: More worker processes than this many per core only queue for the same cores.
 MAX_WORKERS_PER_CORE = 4
 #: Flags of the domain's fields, for messages that name what the user typed.
@@ -290,7 +292,7 @@ def run_recommend(args: argparse.Namespace) -> int:
     _check_flags(args)
     checkpoint = _check_outputs(args)
     problem = Problem.build(load, settings, calibration)
-    samples = max(8, args.samples)
+    samples = max(VERIFY_SAMPLES, args.samples)
     if args.method == "ppo" and not args.resume:   # resumed: its proposal was refused
         return _recommend_by_policy(args, problem, checkpoint, samples, said)
     return _recommend_by_search(args, problem, checkpoint, samples, said)
