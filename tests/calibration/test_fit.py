@@ -34,6 +34,9 @@ from calibration.trajectories import ObjectPath, Trajectories
 from wrapenv.calibrated import Calibration
 from wrapenv.load import Friction, FrictionPair
 
+#: Its fitted takes are made once, in one test process (`--dist loadgroup`).
+pytestmark = pytest.mark.xdist_group("fit")
+
 
 def _truth_friction(truth: Truth) -> Friction:
     return Friction(**{k: FrictionPair(v["static"], v["kinetic"])

@@ -40,6 +40,9 @@ from calibration.trajectories import ObjectPath, Trajectories
 from calibration.validate import Check, validate
 from wrapenv.load import LoadUnit
 
+#: Its two draws are fitted once, in one test process (`--dist loadgroup`).
+pytestmark = pytest.mark.xdist_group("whole_unit")
+
 UNIT = {
     "name": "small columnar 2-layer unit",
     "pallet": {"length_m": 0.6, "width_m": 0.4, "height_m": 0.12, "mass_kg": 10.0},

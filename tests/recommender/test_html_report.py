@@ -25,6 +25,9 @@ from recommender.html_page import Page
 from recommender.html_report import PAGE, check_report_folder, write_report
 from wrapenv.config import InputError
 
+#: Its simulated report is made once, in one test process (`--dist loadgroup`).
+pytestmark = pytest.mark.xdist_group("html_report")
+
 #: A load name that would break the page, its title or a plot if it were written raw.
 HOSTILE = '<script>alert("x")</script><img src=x onerror=alert(1)> & $\\frac{$ \x1b[31m'
 

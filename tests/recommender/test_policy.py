@@ -50,6 +50,9 @@ from wrapenv.envs import OBS_NAMES, WrapBenchRandomEnv
 from wrapenv.load import LoadUnit
 from wrapenv.wrap import WrapFormat
 
+#: Its trained run is made once, in one test process (`--dist loadgroup`).
+pytestmark = pytest.mark.xdist_group("policy")
+
 #: One layer of two bundles (a fraction of a second per simulation), and a heavier bundle.
 TINY_LOAD = {"name": "tiny", "pallet": {"preset": "EUR"}, "bundle": {"preset": "PET6x1.5L"},
              "stack": {"layers": 1, "pattern": "explicit", "positions": [[-0.2, 0.0], [0.2, 0.0]]}}
