@@ -933,6 +933,7 @@ def test_a_proposal_that_does_not_hold_is_searched_from(load_file, tmp_path, cap
     assert not (tmp_path / "one.json").exists()
 
 
+@pytest.mark.slow   # three rounds, the last with 3 samples: 44 s alone, 84 s beside other tests
 @pytest.mark.usefixtures("two_verification_samples")
 def test_a_failing_proposal_is_followed_by_as_many_search_rounds_as_a_search_has(
         monkeypatch, load_file, tmp_path, capsys):
