@@ -679,7 +679,7 @@ def test_no_round_follows_one_without_a_pass_when_even_the_strongest_program_fai
 def test_the_strongest_program_must_hold_every_sample_for_a_round_to_start_from_it(
         monkeypatch, load_file, capsys):
     """The film case above whose second round answers, but with one of the strongest
-    program's 8 verification samples made to fail: it is refused as a start as when it fails
+    program's verification samples made to fail: it is refused as a start as when it fails
     its nominal sequence."""
     from recommender import search
     from wrapenv.uncertainty import PassProbability
