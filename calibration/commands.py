@@ -46,6 +46,12 @@ SYNTH_FLAGS = {("arguments", "size"): "--size", ("arguments", "fps"): "--fps",
                ("profile", "level_g"): "--level"}
 
 
+def _shown(path: object) -> str:
+    """A path as a message names it: whole (a lab's archive folders run long) and safe to
+    print."""
+    return printable(str(path), MESSAGE_CHARS)
+
+
 def level_g(text: str) -> float:
     """argparse's type for a test level in g; its errors name the value expected (argparse
     would print "invalid <this function's name> value" for a bare ValueError)."""
@@ -163,7 +169,7 @@ def run_synth(args: argparse.Namespace) -> int:
     if warning := marker_warning(rec, args.size):
         sys.stderr.write(f"wrapbench synth: warning: {warning}\n")
     frames = round(rec.profile.t_s[-1] * rec.fps) + 1
-    print(f"wrote {printable(str(rec.folder))}: {rec.video.name} {args.size[0]}x{args.size[1]}, "
+    print(f"wrote {_shown(rec.folder)}: {rec.video.name} {args.size[0]}x{args.size[1]}, "
           f"{frames} frames at {rec.fps:g} fps, {rec.px_per_m:g} px/m, level {args.level:.2f} g"
           f"{', wrapped' if wrap else ''}, in {time.perf_counter() - t0:.0f} s")
     return 0
@@ -190,7 +196,7 @@ def run_track(args: argparse.Namespace) -> int:
         sys.stderr.write(f"wrapbench track: warning: {warning}\n")
     objects = result.trajectories.objects
     frames = max((len(p.t_s) for p in objects.values()), default=0)
-    print(f"wrote {printable(str(out))}: {len(objects)} objects ({', '.join(objects)}), "
+    print(f"wrote {_shown(out)}: {len(objects)} objects ({', '.join(objects)}), "
           f"{frames} frames in {wall:.1f} s ({frames / wall:.0f} frames/s, tracker {args.tracker})")
     if truth is not None:
         errors = error_vs_truth(result.trajectories, truth.objects)
@@ -282,14 +288,14 @@ def _observations(recordings: list, retrack: bool) -> list:
         if csv.exists() and not retrack:
             tracked = Trajectories.from_csv(csv)
             rec.check_trajectories(tracked, str(csv))
-            print(f"{printable(str(rec.folder))}: trajectories from {csv.name}")
+            print(f"{_shown(rec.folder)}: trajectories from {csv.name}")
         else:
             result = track(rec)
             for warning in result.warnings:
-                sys.stderr.write(f"wrapbench calibrate: warning: {printable(str(rec.folder))}: "
+                sys.stderr.write(f"wrapbench calibrate: warning: {_shown(rec.folder)}: "
                                  f"{warning}\n")
             tracked = result.trajectories
-            print(f"{printable(str(rec.folder))}: tracked {len(tracked.objects)} objects")
+            print(f"{_shown(rec.folder)}: tracked {len(tracked.objects)} objects")
         observations.append(observe(rec, tracked))
     return observations
 
@@ -393,7 +399,7 @@ def run_calibrate(args: argparse.Namespace) -> int:
     except KeyboardInterrupt as exc:
         if checkpoint.exists():
             exc.add_note(f"interrupted, nothing written; the fit's replays are kept in "
-                         f"{printable(str(checkpoint))} (--resume continues it)")
+                         f"{_shown(checkpoint)} (--resume continues it)")
         raise
 
 
@@ -446,7 +452,7 @@ def _fitted_and_written(args: argparse.Namespace, observations: list, held_out: 
     taken = f", {log.reused} replays from the checkpoint" if log.reused else ""
     print(f"{result.simulations} simulations ({_parts(result.simulations_by_part)}{taken}) in "
           f"{wall:.0f} s ({result.method}); wrote "
-          f"{', '.join(printable(str(p)) for p in paths.values())}")
+          f"{', '.join(_shown(p) for p in paths.values())}")
     return 0
 
 
@@ -482,7 +488,7 @@ def _refused(result: FitResult, settings: FitSettings, checkpoint: Path, named: 
 def _refusal_hint(kept: Path | None) -> str:
     """How a fit refused on a take a looser bound would accept can be accepted knowingly
     (`kept`: the checkpoint holding its replays, if the engineer named one)."""
-    resume = (f"; {printable(str(kept))} keeps this fit's replays: with --resume it is judged "
+    resume = (f"; {_shown(kept)} keeps this fit's replays: with --resume it is judged "
               "again without simulating them" if kept is not None else "")
     return f" (a larger --max-residual-mm accepts it knowingly, and CAL.json says so{resume})"
 
@@ -518,7 +524,7 @@ def _summary(result: FitResult) -> str:
     if v.source:
         excused = f", {' '.join(v.excused)} excused" if v.excused else ""
         lines.append(f"{'accepted' if result.converged else 'refused'}: the least explained "
-                     f"recording, {printable(v.source)}, {1e3 * v.rms_m:.2f} mm unexplained by "
+                     f"recording, {_shown(v.source)}, {1e3 * v.rms_m:.2f} mm unexplained by "
                      f"{v.by}{excused}")
     return "\n".join(lines)
 
@@ -526,7 +532,7 @@ def _summary(result: FitResult) -> str:
 def _validation_summary(check: Validation) -> str:
     from calibration.validate import REPRODUCED_SHARE
 
-    lines = [f"validation {printable(check.source)} ({check.replays} replays): slide on its "
+    lines = [f"validation {_shown(check.source)} ({check.replays} replays): slide on its "
              "support at "
              "the end of the predictable frames, mm; 'uncertain': replayed with the calibrated "
              "values drawn within their standard deviations",

@@ -249,8 +249,9 @@ def test_calibrate_that_does_not_converge_writes_nothing(slide_dir, tmp_path, ca
 def test_calibrate_warns_of_a_profile_that_looks_written_in_g(slide_dir, tmp_path, capsys):
     """The recording's acceleration column divided by g, as a lab exporting in g would write
     it: the fit goes on with the file as written, and the user is told why it looks wrong,
-    naming the file in full however deep its folder (a lab's archive path is long)."""
-    rec = tmp_path / ("bench-tests-" * 10) / "rec"
+    naming the file in full however deep its folder (a lab's archive path is long), as every
+    line that names the recording does."""
+    rec = tmp_path / ("bench-tests-" * 20) / "rec"
     shutil.copytree(slide_dir, rec)
     lines = (rec / "profile.csv").read_text().splitlines()
     column = lines[0].split(",").index("accel_mps2")
@@ -259,8 +260,12 @@ def test_calibrate_warns_of_a_profile_that_looks_written_in_g(slide_dir, tmp_pat
         row[column] = repr(float(row[column]) / 9.81)
     (rec / "profile.csv").write_text("\n".join([lines[0], *(",".join(r) for r in rows)]) + "\n")
     main(["calibrate", str(rec), "--out", str(tmp_path / "cal.json"), "--budget", "10"])
-    warnings = [line for line in capsys.readouterr().err.splitlines() if "in g?" in line]
+    printed = capsys.readouterr()
+    warnings = [line for line in printed.err.splitlines() if "in g?" in line]
     assert len(warnings) == 1 and str(rec / "profile.csv") in warnings[0], warnings
+    assert (f"{rec}: trajectories from" in printed.out or f"{rec}: tracked" in printed.out), \
+        printed.out
+    assert "more characters" not in printed.out + printed.err
 
 
 def test_calibrate_refuses_a_budget_too_small_for_the_recordings(slide_dir, tmp_path, capsys):
