@@ -561,6 +561,17 @@ def _verified(problem: Problem, state: SearchState, samples: int,
     return None
 
 
+def _check_policy_file(policy: Path | None) -> None:
+    """--method ppo needs a policy.zip; a path that is none is named for what it is."""
+    needed = "a policy.zip from `wrapbench train` is needed with --method ppo"
+    if policy is None:
+        raise InputError("arguments", "--policy", needed)
+    if policy.is_dir():
+        raise InputError(str(policy), "--policy", f"is a folder, not a policy.zip ({needed})")
+    if not policy.is_file():
+        raise InputError(str(policy), "--policy", f"no such file ({needed})")
+
+
 def _propose_with_policy(args: argparse.Namespace, problem: Problem, samples: int,
                          said: list[str]) -> tuple[Evaluation, Verification]:
     """A trained policy's program for this unit, answered at once, then verified."""
@@ -568,10 +579,7 @@ def _propose_with_policy(args: argparse.Namespace, problem: Problem, samples: in
     from recommender.search import verify
     from wrapenv.envs.random_units import base_friction, outside
 
-    if args.policy is None or not args.policy.is_file():
-        where = "arguments" if args.policy is None else str(args.policy)
-        raise InputError(where, "--policy", "a policy.zip from `wrapbench train` is needed "
-                                            "with --method ppo")
+    _check_policy_file(args.policy)
     calibration = _observable_calibration(args.calibration)
     meta = read_meta(args.policy)
     # refused (another env version, material or observation) before any warning about it
