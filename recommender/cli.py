@@ -131,7 +131,7 @@ def _add_recommend_problem(rec: argparse.ArgumentParser) -> None:
     rec.add_argument("--web", type=Path, metavar="WRAP.toml",
                      help="the web and machine of this WRAP.toml instead: its material (a named "
                           "card or a [material] table), web_width_m and [machine]; its program "
-                          "or bands are not read")
+                          "or bands are checked but not used")
     rec.add_argument("--target", type=level_g, default=0.5, metavar="G", help="default 0.5 g")
     rec.add_argument("--method", choices=("cmaes", "ppo"), default="cmaes",
                      help="cmaes: robust search (default); ppo: a trained policy's proposal, "

@@ -100,11 +100,12 @@ class Web:
     @classmethod
     def from_toml(cls, path: str | Path) -> Web:
         """The web of a WRAP.toml: `material` or a `[material]` table, `web_width_m` and an
-        optional `[machine]`; a program or bands it holds are not read (the file may be the
-        program a machine runs today)."""
+        optional `[machine]`. A program or bands it holds (the file may be the program a
+        machine runs today) are checked as any WRAP.toml's, since a typo there is one in what
+        the machine lays, but not used."""
         top = Table(read_toml(path), str(path))
         web = _web(top)
-        top.ignore("program", "band")
+        _program_or_bands(top, web)
         top.done()
         return web
 
@@ -160,27 +161,18 @@ class WrapFormat:
         program needs it (its top wraps are placed from the load's top)."""
         top = Table(data, source)
         web = _web(top)
-        if top.has("program"):
-            if top.has("band"):
-                raise top.error("program", "a WRAP.toml holds either [program] or [[band]]s, "
-                                           "not both")
-            program = program_from_table(top.table("program"), web.material, web.width_m)
-            top.done()
+        body = _program_or_bands(top, web)
+        top.done()
+        if isinstance(body, Program):
             if load_height_m is None:
                 raise ValueError("a wrapping program needs the load's height to be laid")
-            check_program_fits(program, load_height_m, web.width_m, source)
-            return cls.from_program(web.material, web.width_m, program, load_height_m,
+            check_program_fits(body, load_height_m, web.width_m, source)
+            return cls.from_program(web.material, web.width_m, body, load_height_m,
                                     web.material_key, web.machine)
-        if not top.has("band"):
+        if body is None:
             raise top.error("program", "missing: a WRAP.toml holds a [program] (what the machine "
                                        "lays) or [[band]]s; this one only names a web")
-        raw = top.array("band")
-        if not raw:
-            raise top.error("band", "must list at least one [[band]]")
-        bands = tuple(_band(Table(item, source, f"band[{i}]"), web.material, web.width_m)
-                      for i, item in enumerate(raw))
-        top.done()
-        wrap = cls(web.material, web.width_m, bands, web.material_key, machine=web.machine)
+        wrap = cls(web.material, web.width_m, body, web.material_key, machine=web.machine)
         if load_height_m is not None:
             wrap.check_fits(load_height_m, source)
         return wrap
@@ -463,6 +455,22 @@ def _material(top: Table) -> tuple[str, Material]:
 #: Most layers a [[band]] gives [A]: what a program of the most wraps lays at one height
 #: (bottom and reinforcement wraps of `MAX_WRAPS_AT_ONE_HEIGHT` each, a spiral's four), doubled.
 MAX_BAND_LAYERS = 100
+
+
+def _program_or_bands(top: Table, web: Web) -> Program | tuple[Band, ...] | None:
+    """A WRAP.toml's [program] or its [[band]]s, validated (None: it names only a web)."""
+    if top.has("program"):
+        if top.has("band"):
+            raise top.error("program", "a WRAP.toml holds either [program] or [[band]]s, "
+                                       "not both")
+        return program_from_table(top.table("program"), web.material, web.width_m)
+    if not top.has("band"):
+        return None
+    raw = top.array("band")
+    if not raw:
+        raise top.error("band", "must list at least one [[band]]")
+    return tuple(_band(Table(item, top.source, f"band[{i}]"), web.material, web.width_m)
+                 for i, item in enumerate(raw))
 
 
 def _band(t: Table, material: Material, web_width_m: float) -> Band:
