@@ -835,12 +835,22 @@ def test_a_web_file_goes_with_a_search_alone(argv, says, load_file, tmp_path, ca
     assert code == 2 and "\n" not in err and says in err, err
 
 
-def test_a_bad_web_file_is_named_with_its_field(load_file, tmp_path, capsys):
+@pytest.mark.parametrize("old, new, field, says", [
+    ("web_width_m = 0.75", "web_width_m = 750", "web_width_m", "millimetres?"),
+    # the program is not used, but a typo in it is one in what the machine lays today
+    ("bottom_tension_n = 900.0", 'bottom_tension_n = "abc"', "program.bottom_tension_n",
+     "number"),
+    ("[program]", "[[band]]\nfrom_m = 0.0\nto_m = 0.5\nwraps = 2\ntension_n = -5.0\n[program]",
+     "program", "not both"),
+])
+def test_a_bad_web_file_is_named_with_its_field(old, new, field, says, load_file, tmp_path,
+                                                capsys):
     web = tmp_path / "ours.toml"
-    web.write_text(OWN_WEB.replace("web_width_m = 0.75", "web_width_m = 750"))
+    web.write_text(OWN_WEB.replace(old, new))
     assert main(["recommend", str(load_file(base=SMALL)), "--web", str(web)]) == 2
     err = capsys.readouterr().err.strip()
-    assert err.startswith(f"wrapbench recommend: {web}: web_width_m: ") and "millimetres?" in err
+    assert err.startswith(f"wrapbench recommend: {web}: {field}: ") and says in err
+    assert "\n" not in err
 
 
 @pytest.mark.parametrize("argv, field", [
@@ -1095,6 +1105,17 @@ def test_bad_policy_arguments_exit_2_with_one_line(argv, field, tmp_path, capsys
     code = main(argv)
     err = capsys.readouterr().err.strip()
     assert code == 2 and "\n" not in err and field in err
+
+
+@pytest.mark.parametrize("given, says", [("nope.zip", "no such file"),
+                                          (".", "is a folder, not a policy.zip")])
+def test_a_policy_that_is_not_a_file_is_named_for_what_it_is(given, says, load_file, tmp_path,
+                                                            capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    code = main(["recommend", str(load_file()), "--method", "ppo", "--policy", given])
+    err = capsys.readouterr().err.strip()
+    assert code == 2 and "\n" not in err
+    assert err.startswith(f"wrapbench recommend: {given}: --policy: {says}")
 
 
 @pytest.mark.parametrize("earlier", ["policy.zip", "log.csv", "checkpoints"])
