@@ -42,6 +42,36 @@ class _Parser(argparse.ArgumentParser):
         sys.stderr.write(f"{self.prog}: error: {message}{self._greedy_hint(message)}\n")
         sys.exit(2)
 
+    def parse_args(self, args: Sequence[str] | None = None,  # type: ignore[override]
+                   namespace: argparse.Namespace | None = None) -> argparse.Namespace:
+        """As argparse's, but words no option took are reported by the command they were
+        given to (`wrapbench simulate: ...`), with a hint when a value follows a flag that
+        takes one value a time (`--level 0.2 0.3`)."""
+        parsed, extras = self.parse_known_args(args, namespace)
+        if extras:
+            command = self._command(parsed)
+            command.error(f"unrecognized arguments: {' '.join(extras)}"
+                          f"{command._repeat_hint(extras)}")
+        return parsed
+
+    def _command(self, parsed: argparse.Namespace) -> _Parser:
+        """The subcommand's parser `parsed` went through (this one if none)."""
+        for action in self._actions:
+            if isinstance(action, argparse._SubParsersAction):
+                chosen = action.choices.get(getattr(parsed, action.dest, None) or "")
+                if isinstance(chosen, _Parser):
+                    return chosen
+        return self
+
+    def _repeat_hint(self, extras: list[str]) -> str:
+        """A number no option took most likely followed a flag that takes one value."""
+        repeatable = [a.option_strings[0] for a in self._actions
+                      if isinstance(a, argparse._AppendAction) and a.option_strings]
+        if not (repeatable and _is_number(extras[0])):
+            return ""
+        takes = "takes one value" if len(repeatable) == 1 else "take one value each"
+        return f" ({' and '.join(repeatable)} {takes}: give the flag once for each value)"
+
     def _greedy_hint(self, message: str) -> str:
         """A missing positional after an option that takes several values was most likely
         taken by it (`calibrate --known tension=1 take1/`)."""
@@ -51,6 +81,14 @@ class _Parser(argparse.ArgumentParser):
             return ""
         return (f" ({', '.join(greedy)} take every word after them: put the "
                 f"{'folders' if 'DIR' in message else 'arguments'} before them)")
+
+
+def _is_number(text: str) -> bool:
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return True
 
 
 def _number(text: str) -> float:

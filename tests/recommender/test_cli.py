@@ -244,6 +244,16 @@ def test_usage_error_exits_2_with_one_line(argv, load_file, capsys):
     assert one_line(capsys.readouterr().err).startswith("wrapbench")
 
 
+@pytest.mark.parametrize("argv, says", [
+    (["--level", "0.2", "0.3"], "wrapbench simulate: error: unrecognized arguments: 0.3 "
+                                "(--level takes one value: give the flag once for each value)"),
+    (["--lev", "0.2"], "wrapbench simulate: error: unrecognized arguments: --lev 0.2"),
+], ids=["two values after --level", "an abbreviated flag"])
+def test_words_no_option_took_are_reported_by_their_command(argv, says, load_file, capsys):
+    assert run(["simulate", str(load_file()), *argv]) == 2
+    assert one_line(capsys.readouterr().err) == says
+
+
 @pytest.mark.parametrize("argv, field", [
     (["--level", "0.2", "--target", "0.9"], "--target"),
     (["--level", "0.2", "--start", "0.6"], "--start"),
