@@ -9,6 +9,20 @@ paths everywhere (tests/calibration/test_determinism.py); synthesis takes about 
 longer, tracking about 4 % (docs/calibration.md, "The same takes on every processor").
 """
 
+from collections.abc import Iterator
+from contextlib import contextmanager
+
 import cv2
 
 cv2.setUseOptimized(False)
+
+
+@contextmanager
+def opencv_threads(count: int) -> Iterator[None]:
+    """OpenCV's own thread count for a block (0: none), restored after it."""
+    before = cv2.getNumThreads()
+    cv2.setNumThreads(count)
+    try:
+        yield
+    finally:
+        cv2.setNumThreads(before)

@@ -21,10 +21,9 @@ from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
-import cv2
 import numpy as np
 
-from calibration import textures
+from calibration import opencv_threads, textures
 from calibration.camera_setup import MarkerPlacement, MarkerSpec, write_setup
 from calibration.filming import Scene, States, drawn_size_m, png, web_alpha, write_video
 from calibration.recording import (
@@ -119,7 +118,9 @@ def synthesize(load: LoadUnit, out_dir: str | Path, *, wrap: WrapFormat | None =
         scene = Scene(layout, camera, seed, markers,
                       torn_net(true_wrap, layout, trace) if true_wrap is not None else None,
                       None if wrap is None else web_alpha(wrap))
-        with scene, _opencv_alone():
+        # OpenCV split the drawing (warps, blurs of float images) over its threads, and the
+        # split changed the rounding: a wrapped take came out 1-2 grey levels apart run to run
+        with scene, opencv_threads(0):
             write_video(tmp / VIDEO_NAME, scene.frames(states, progress), fps, size)
             write_atomic(tmp / "template.png", png(scene.template(states)))
         write_profile(tmp, profile)
@@ -135,19 +136,6 @@ def synthesize(load: LoadUnit, out_dir: str | Path, *, wrap: WrapFormat | None =
             source = exc.source.replace(str(tmp), str(out_dir), 1)
             raise InputError(source, exc.field, exc.message) from None
     return Recording.read(out_dir)
-
-
-@contextmanager
-def _opencv_alone() -> Iterator[None]:
-    """OpenCV splits some of the drawing (warps and blurs of float images) over its threads,
-    and the split changes the rounding: a wrapped take's video came out 1-2 grey levels apart
-    from run to run (2026-11-29). Drawn on one thread it is the same every time."""
-    threads = cv2.getNumThreads()
-    cv2.setNumThreads(0)
-    try:
-        yield
-    finally:
-        cv2.setNumThreads(threads)
 
 
 @contextmanager

@@ -26,6 +26,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from calibration import opencv_threads
 from calibration.camera_setup import MarkerSpec
 from calibration.recording import FPS_TOLERANCE, Recording
 from calibration.trajectories import ObjectPath, Trajectories
@@ -85,14 +86,10 @@ def track(recording: Recording, *, tracker: str = DEFAULT_TRACKER,
     unit) through the recording; `progress(frame, frames)` is called after every frame.
     `ValueError` for an unknown tracker (`vision.tracking.check_tracker`)."""
     check_tracker(tracker)
-    threads = cv2.getNumThreads()
-    cv2.setNumThreads(1)  # objects run in parallel; OpenCV's own threads on small boxes only cost
-    try:
-        with VideoReader(recording.video) as video:
-            _check_time_base(recording, video)
-            return _Run(recording, tracker, video).go(debug_video, progress)
-    finally:
-        cv2.setNumThreads(threads)
+    # objects run in parallel; OpenCV's own threads on small boxes only cost
+    with opencv_threads(1), VideoReader(recording.video) as video:
+        _check_time_base(recording, video)
+        return _Run(recording, tracker, video).go(debug_video, progress)
 
 
 def _check_time_base(rec: Recording, video: VideoReader) -> None:
