@@ -129,24 +129,37 @@ class PatchTracker:
     def update(self, frame: Frame, predicted: Pose) -> tuple[Pose, float]:
         """NCC then Farnebäck; NCC is skipped while the prediction keeps landing within
         `SKIP_NCC_PX` of the result (Farnebäck alone captures that; the score is then the last
-        NCC's). ``flow`` has no search to score by: its score is the reference's at its
+        NCC's). A skipped frame whose result lands farther (a slide starting or stopping) is
+        matched again from that result: one Farnebäck step from a missed prediction leaves
+        up to a pixel. ``flow`` has no search to score by: its score is the reference's at its
         result."""
-        pose, score = predicted, self.score
-        if self.kind == "ncc" or (self.kind == "ncc+flow" and not self.predicted_well):
+        skipped = self.kind == "ncc+flow" and self.predicted_well
+        pose, score = self._match(frame, predicted, search=not skipped)
+        if skipped and score >= LOST_SCORE and not self._near(pose, predicted):
+            pose, score = self._match(frame, pose, search=True)
+        if score < LOST_SCORE:
+            self.predicted_well = False
+            return predicted, score
+        self.predicted_well = self._near(pose, predicted)
+        self.score = score
+        return pose, score
+
+    def _match(self, frame: Frame, start: Pose, search: bool) -> tuple[Pose, float]:
+        pose, score = start, self.score
+        if self.kind == "ncc" or (self.kind == "ncc+flow" and search):
             pose, score = self._ncc(frame, pose)
             if score < LOST_SCORE:
-                self.predicted_well = False
-                return predicted, score
+                return pose, score
         if self.flow is not None:
             for _ in range(2 if self.kind == "flow" else 1):
                 pose = self._refine(frame, pose)
         if self.kind == "flow":
             score = self.first.score(frame, pose)
-            if score < LOST_SCORE:
-                return predicted, score
-        self.predicted_well = math.hypot(pose.u - predicted.u, pose.v - predicted.v) < SKIP_NCC_PX
-        self.score = score
         return pose, score
+
+    @staticmethod
+    def _near(pose: Pose, predicted: Pose) -> bool:
+        return math.hypot(pose.u - predicted.u, pose.v - predicted.v) < SKIP_NCC_PX
 
     def _ncc(self, frame: Frame, pose: Pose) -> tuple[Pose, float]:
         m = self.search_px

@@ -64,6 +64,22 @@ def test_no_drift_over_a_long_sequence() -> None:
     assert abs(pose.u - CENTRE[0] - 30.0) < 0.1 and abs(pose.v - CENTRE[1]) < 0.1
 
 
+@pytest.mark.parametrize("jump_px", [3.0, 5.0])
+def test_a_slide_starting_in_a_frame_that_skips_ncc_is_matched_again(jump_px: float) -> None:
+    """ncc+flow skips NCC after a frame its prediction met. If the object then jumps from the
+    prediction, one Farnebäck step alone left it 0.9 px (3 px jump) to 4 px (5 px) off; the
+    frame is matched again from that result."""
+    image = texture(300, 400, seed=5)
+    tracker = PatchTracker(Frame(image), CENTRE, SIZE)
+    tracker.update(Frame(moved(image, CENTRE, 0.0, 0.0, seed=2)), Pose(*CENTRE))
+    assert tracker.predicted_well  # so the next frame's NCC is skipped
+    pose, score = tracker.update(Frame(moved(image, CENTRE, jump_px, 0.0, seed=3)),
+                                 Pose(*CENTRE))
+    assert score > 0.9
+    assert abs(pose.u - CENTRE[0] - jump_px) < 0.05 and abs(pose.v - CENTRE[1]) < 0.05
+    assert not tracker.predicted_well  # the next frame searches too
+
+
 def test_sled_shift_drives_the_prediction() -> None:
     """An object carried 25 px by the sled is found although it is beyond the NCC search."""
     image = texture(300, 400, seed=6)
