@@ -8,16 +8,16 @@ The unit is the paper's columnar 2-layer stack cut down to 2 x 2 bundles a layer
 One draw of such a test says little on its own: the unit is chaotic, and what the fit makes of
 it changes with the draw (and, until the bench rounded what it hands Bullet and OpenCV ran its
 baseline code on every processor, with the last bits of the processor's arithmetic). Over the
-draws of seeds 0-5 at this budget (2026-11-29, OpenCV's baseline code; `python -m
+draws of seeds 0-5 at this budget (2026-11-30, commit 5b590c1; `python -m
 benchmarks.whole_unit_draws`): every draw found the pairs that slid; 4 fits were written, each
-with bundle-bundle's kinetic coefficient within 0.029 of the truth and its static one within
-0.020; 2 were refused, the 0.45 g take left 16.6 and 13.4 mm unexplained (seed 4 rightly: its
-kinetic coefficient 0.057 off; seed 3 with its within 0.004); 2 written fits in 4 predicted
-their third level within 15 % (-1 %, -12 %; the others +55 % and this test's -30 %). (With
-OpenCV's code chosen for an AVX-512 processor, on 2026-11-27: 3 written, 3 refused, 2 written
-fits in 3 within 15 %.) So the tests specify what held on every draw, a calibration claims only
-what its takes pin and a wrong one is refused saying where, on one draw of each kind, and keep
-the issue's 15 % as an expected failure until the fit meets it on every draw."""
+with bundle-bundle's kinetic coefficient within 0.017 of the truth and its static one within
+0.023; 2 were refused, the 0.45 g take left 16.8 and 13.9 mm unexplained (seed 4 rightly: its
+kinetic coefficient 0.068 off; seed 3 with its within 0.001); all 4 written fits predicted
+their third level within 15 % (+10 %, -12 %, -0 %, and this test's -11 %). Before the tracker
+matched a frame again where a skipped NCC search let its result land off the prediction
+(5b590c1), 2 of 4 did (this test's draw -30 %), and this test was an expected failure. So the
+tests specify what held on every draw: a calibration claims only what its takes pin, a wrong
+one is refused saying where, and a written one predicts a level it was not fitted to."""
 
 from __future__ import annotations
 
@@ -143,9 +143,10 @@ def test_a_fit_outside_the_bounds_is_refused_naming_the_take_it_leaves_unexplain
     assert "kinetic coefficient not resolved" in result.advice["bundle_bundle"]
 
 
-@pytest.mark.xfail(strict=True, reason="issue 13 open: a written calibration predicted its "
-                   "third level within 15 % in 2 draws of 4 (this one: 30 % off)")
 def test_a_written_calibration_predicts_a_level_it_was_not_fitted_to_within_15_pct(written):
+    """Issue 13's third level: the top layer's recorded slide (36 mm, far above the tracker's
+    millimetre and the 10 mm under which `validate` gives no error in %) predicted within
+    15 % (-11 %; -30 % before 5b590c1)."""
     layer, slide = written.held_out()
-    assert layer == 2 and slide.recorded_m < -0.05
+    assert layer == 2 and slide.recorded_m < -0.02
     assert abs(slide.error_pct) <= 15, slide
