@@ -69,7 +69,8 @@ def test_processors_with_other_simd_synthesise_and_track_a_take_identically():
 def test_a_wrapped_take_is_drawn_the_same_every_time(tmp_path):
     """At full size OpenCV split the drawing of the web and its markers over its threads, and
     the split changed the rounding: two runs' videos differed by 1-2 grey levels in 30 of 64
-    frames, and LLDPE's fitted stiffness with them (docs/calibration.md)."""
+    frames, and LLDPE's fitted stiffness with them (docs/calibration.md). At 960 x 600 and
+    640 x 400 the threads' takes came out the same (2026-11-30), so the test draws at full size."""
     load = LoadUnit.from_toml("examples/pet_2layer_columnar.toml")
     wrap = WrapFormat.from_toml("examples/wrap_lldpe_2layer.toml", load.layout().load_height_m)
     videos = []
