@@ -38,3 +38,17 @@ def swap_warnings(paths: dict[str, ObjectPath], half_m: dict[str, float],
                 warnings.append(f"{a} and {b} overlap in frames {frame_ranges(frames)}: their "
                                 "identities may have swapped")
     return warnings
+
+
+def gap_warnings(name: str, seen: list[int], frames: int) -> list[str]:
+    """The frames of `frames` in which object `name` was not `seen` (sorted, not empty): those
+    between its first and last sighting are interpolated, those outside them left out of its
+    path."""
+    missing = sorted(set(range(frames)) - set(seen))
+    if not missing:
+        return []
+    inside = [k for k in missing if seen[0] < k < seen[-1]]
+    outside = [k for k in missing if k < seen[0] or k > seen[-1]]
+    note = ([f"frames {frame_ranges(inside)} interpolated"] if inside else []) + (
+        [f"frames {frame_ranges(outside)} left out"] if outside else [])
+    return [f"{name}: no marker followed in {len(missing)} frames ({'; '.join(note)})"]

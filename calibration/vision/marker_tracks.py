@@ -17,7 +17,7 @@ import numpy as np
 
 from calibration.camera_setup import MarkerPlacement
 from calibration.trajectories import ObjectPath
-from calibration.vision.checks import frame_ranges
+from calibration.vision.checks import frame_ranges, gap_warnings
 from calibration.vision.markers import (
     MarkerDetector,
     angle_rad,
@@ -157,7 +157,7 @@ class MarkerTracks:
             if not ks:
                 self.warnings.append(f"{name}: markers {ids} never detected; not tracked")
                 continue
-            self._warn_gaps(name, ks, frames)
+            self.warnings.extend(gap_warnings(name, ks, frames))
             span = np.arange(ks[0], ks[-1] + 1)
             vals = np.array(values)
             x, z, a = (np.interp(span, ks, vals[:, j]) for j in range(3))
@@ -181,14 +181,3 @@ class MarkerTracks:
                 self.warnings.append(
                     f"marker {i} ({name}): followed and ArUco-detected centres differ by more "
                     f"than {MARKER_CHECK_PX} px in frames {frame_ranges(self.disagree[i])}")
-
-    def _warn_gaps(self, name: str, ks: list[int], frames: int) -> None:
-        missing = sorted(set(range(frames)) - set(ks))
-        if not missing:
-            return
-        inside = [k for k in missing if ks[0] < k < ks[-1]]
-        outside = [k for k in missing if k < ks[0] or k > ks[-1]]
-        note = ([f"frames {frame_ranges(inside)} interpolated"] if inside else []) + (
-            [f"frames {frame_ranges(outside)} left out"] if outside else [])
-        self.warnings.append(f"{name}: no marker followed in {len(missing)} frames "
-                             f"({'; '.join(note)})")

@@ -1,10 +1,11 @@
-"""Warnings on tracked paths: frames listed as ranges, and trackers that may have swapped."""
+"""Warnings on tracked paths: frames listed as ranges, trackers that may have swapped, and
+frames in which a marked object was not followed."""
 
 import numpy as np
 import pytest
 
 from calibration.trajectories import ObjectPath
-from calibration.vision.checks import frame_ranges, swap_warnings
+from calibration.vision.checks import frame_ranges, gap_warnings, swap_warnings
 
 FPS = 20.0
 
@@ -54,3 +55,20 @@ def test_objects_without_a_box_or_without_common_frames_are_not_compared() -> No
     paths = {"pallet": path(range(20), 0.0), "L1C1R1": path(range(20), 0.0),
              "L2C1R1": path(range(20, 40), 0.0)}
     assert swap_warnings(paths, {"L1C1R1": 0.14, "L2C1R1": 0.14}, FPS) == []
+
+
+def test_an_object_followed_in_every_frame_gives_no_gap_warning() -> None:
+    assert gap_warnings("L1C1R1", list(range(30)), 30) == []
+
+
+def test_frames_missed_inside_a_path_are_interpolated_and_those_outside_it_left_out() -> None:
+    """Seen from frame 3 to 27 but not in 10-12: its path spans 3-27 with 10-12 filled in
+    between their neighbours; 0-2 and 28-29 it has none."""
+    seen = [k for k in range(3, 28) if k not in (10, 11, 12)]
+    assert gap_warnings("L2C3R1", seen, 30) == [
+        "L2C3R1: no marker followed in 8 frames (frames 10-12 interpolated; frames 0-2, 28-29 "
+        "left out)"]
+    assert gap_warnings("pallet", list(range(5, 30)), 30) == [
+        "pallet: no marker followed in 5 frames (frames 0-4 left out)"]
+    assert gap_warnings("sled", [0, 1, 4, 5], 6) == [
+        "sled: no marker followed in 2 frames (frames 2-3 interpolated)"]
