@@ -128,15 +128,21 @@ class PatchTracker:
 
     def update(self, frame: Frame, predicted: Pose) -> tuple[Pose, float]:
         """NCC then Farnebäck; NCC is skipped while the prediction keeps landing within
-        `SKIP_NCC_PX` of the result (Farnebäck alone captures that; the score is then the last
-        NCC's). A skipped frame whose result lands farther (a slide starting or stopping) is
-        matched again from that result: one Farnebäck step from a missed prediction leaves
-        up to a pixel. ``flow`` has no search to score by: its score is the reference's at its
-        result."""
+        `SKIP_NCC_PX` of the result (Farnebäck alone captures that; the score is then the
+        reference's at the result). A skipped frame whose result lands farther (a slide
+        starting or stopping) is matched again from that result: one Farnebäck step from a
+        missed prediction leaves up to a pixel. One whose result scores low (the object
+        covered: over a plain cover Farnebäck finds no motion and lands on the prediction) is
+        matched again from the prediction, and is lost if the search finds it nowhere.
+        ``flow`` has no search to score by: its score is the reference's at its result."""
         skipped = self.kind == "ncc+flow" and self.predicted_well
         pose, score = self._match(frame, predicted, search=not skipped)
-        if skipped and score >= LOST_SCORE and not self._near(pose, predicted):
-            pose, score = self._match(frame, pose, search=True)
+        if skipped:
+            score = self.first.score(frame, pose)
+            if score < LOST_SCORE:
+                pose, score = self._match(frame, predicted, search=True)
+            elif not self._near(pose, predicted):
+                pose, score = self._match(frame, pose, search=True)
         if score < LOST_SCORE:
             self.predicted_well = False
             return predicted, score

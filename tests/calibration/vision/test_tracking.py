@@ -1,5 +1,6 @@
 """Patch tracking against the first frame: sub-pixel translation and rotation without drift."""
 
+import numpy as np
 import pytest
 
 from calibration.vision.flow import RigidFlow, warp_to_reference
@@ -78,6 +79,22 @@ def test_a_slide_starting_in_a_frame_that_skips_ncc_is_matched_again(jump_px: fl
     assert score > 0.9
     assert abs(pose.u - CENTRE[0] - jump_px) < 0.05 and abs(pose.v - CENTRE[1]) < 0.05
     assert not tracker.predicted_well  # the next frame searches too
+
+
+@pytest.mark.parametrize("cover", ["plain", "printed"])
+def test_an_object_covered_in_a_frame_that_skips_ncc_is_lost(cover: str) -> None:
+    """Over a plain cover (a fold of paper over a marker) Farnebäck finds no motion and lands on
+    the prediction, so a frame whose NCC was skipped kept the last NCC's score (0.996) and the
+    object was followed by its extrapolated motion. Its result is scored by the reference:
+    low, so the frame is searched again and the object lost."""
+    image = texture(300, 400, seed=5)
+    tracker = PatchTracker(Frame(image), CENTRE, SIZE)
+    tracker.update(Frame(moved(image, CENTRE, 0.0, 0.0, seed=2)), Pose(*CENTRE))
+    assert tracker.predicted_well  # so the next frame's NCC is skipped
+    covered = np.full_like(image, 128) if cover == "plain" else texture(300, 400, seed=9)
+    pose, score = tracker.update(Frame(covered), Pose(*CENTRE))
+    assert score < LOST_SCORE and pose == Pose(*CENTRE)
+    assert not tracker.predicted_well
 
 
 def test_sled_shift_drives_the_prediction() -> None:

@@ -1,0 +1,106 @@
+"""A wrapped unit's objects followed through the markers on its web: a marker hidden for a few
+frames is reported lost, found again by ArUco, and the object's path bridged across the gap;
+a marker that comes into view late is followed from there."""
+
+import cv2
+import numpy as np
+import pytest
+
+from calibration import opencv_threads
+from calibration.camera_setup import MarkerPlacement
+from calibration.vision.marker_tracks import MarkerTracks
+from calibration.vision.markers import MarkerDetector
+from calibration.vision.roi import PixelMap
+from calibration.vision.tracking import LOST_SCORE, Frame, MultiTracker
+from tests.calibration.vision.vision_frames import texture
+
+PIXMAP = PixelMap(400.0, 100.0, 350.0)
+FRAMES, FPS = 14, 20.0
+START_U, STEP_U, V = 200.0, 3.0, 200.0   # the marker's centre (px) and its motion per frame
+SIDE = 40                                # the marker's side, px
+
+
+def _tile(marker_id: int) -> np.ndarray:
+    """The printed marker with a white quiet zone half its side wide."""
+    marker = cv2.aruco.generateImageMarker(
+        cv2.aruco.getPredefinedDictionary(cv2.aruco.DICT_4X4_50), marker_id, SIDE)
+    h = SIDE // 2
+    return cv2.copyMakeBorder(marker, h, h, h, h, cv2.BORDER_CONSTANT, value=255)
+
+
+def _frame(k: int, hidden: bool) -> np.ndarray:
+    """Frame k: marker 7 on a printed background, its centre at START_U + STEP_U k; `hidden`:
+    a fold of the web covers it (the background drawn over it)."""
+    image = texture(400, 600, seed=3)
+    if not hidden:
+        tile = _tile(7)
+        shift = np.float32([[1, 0, START_U + STEP_U * k - (tile.shape[1] - 1) / 2],
+                            [0, 1, V - (tile.shape[0] - 1) / 2]])
+        warped = cv2.warpAffine(tile, shift, (600, 400), flags=cv2.INTER_CUBIC)
+        mask = cv2.warpAffine(np.ones_like(tile), shift, (600, 400), flags=cv2.INTER_NEAREST)
+        image[mask > 0] = warped[mask > 0]
+    return image
+
+
+def _follow(hidden: set[int]) -> tuple[MarkerTracks, list[str]]:
+    """Frames 0..FRAMES-1 through MarkerTracks as `track` drives it (OpenCV on one thread, the
+    sled not moving)."""
+    warnings: list[str] = []
+    detector = MarkerDetector("DICT_4X4_50")
+    multi = MultiTracker({}, {}, threads=1)
+    markers = MarkerTracks([MarkerPlacement(7, "L1C1R1", (0.05, 0.10))], None, detector,
+                           multi, PIXMAP, warnings)
+    with opencv_threads(1):
+        first = Frame(_frame(0, 0 in hidden))
+        markers.start(first, detector.detect(first), 0.0)
+        for k in range(1, FRAMES):
+            frame = Frame(_frame(k, k in hidden))
+            markers.step(k, frame, 0.0, multi.step(frame, 0.0))
+    multi.close()
+    return markers, warnings
+
+
+def _true_x_m(k: np.ndarray) -> np.ndarray:
+    """The object's centre: the marker's minus its placement offset."""
+    return (START_U + STEP_U * k - PIXMAP.u0) / PIXMAP.px_per_m - 0.05
+
+
+def test_a_marker_followed_throughout_gives_its_object_s_path() -> None:
+    markers, warnings = _follow(hidden=set())
+    path = markers.paths(FRAMES, FPS)["L1C1R1"]
+    k = np.rint(path.t_s * FPS)
+    assert np.array_equal(k, np.arange(FRAMES))
+    assert np.max(np.abs(path.x_m - _true_x_m(k))) < 0.25 / PIXMAP.px_per_m
+    assert np.max(np.abs(path.z_m - ((PIXMAP.v0 - V) / PIXMAP.px_per_m - 0.10))) < 1e-3
+    assert markers.paths(FRAMES, FPS) and warnings == []
+
+
+def test_a_hidden_marker_is_reported_lost_found_again_and_its_gap_bridged() -> None:
+    """Covered in frames 5-7: the patch tracker scores below LOST_SCORE there, ArUco finds the
+    marker again in frame 8 (it is looked for in every frame a marker is lost), and the path
+    is interpolated over 5-7 with both facts warned about."""
+    markers, warnings = _follow(hidden={5, 6, 7})
+    assert markers.lost[7] == [5, 6, 7]
+    path = markers.paths(FRAMES, FPS)["L1C1R1"]
+    k = np.rint(path.t_s * FPS)
+    assert np.array_equal(k, np.arange(FRAMES))
+    # moving uniformly, the bridged frames lie on the line through their neighbours
+    assert np.max(np.abs(path.x_m - _true_x_m(k))) < 0.25 / PIXMAP.px_per_m
+    assert warnings == [
+        f"marker 7 (L1C1R1): lost (NCC < {LOST_SCORE}) in frames 5-7",
+        "L1C1R1: no marker followed in 3 frames (frames 5-7 interpolated)"]
+
+
+@pytest.mark.parametrize("hidden,text", [({0, 1, 2}, "frames 0-2 left out"),
+                                         ({11, 12, 13}, "frames 11-13 left out")])
+def test_frames_before_a_marker_is_first_seen_or_after_it_is_last_seen_are_left_out(
+        hidden: set[int], text: str) -> None:
+    """A marker first seen in frame 3 is followed from there (ArUco looks for an unseen marker
+    in every frame); one covered from frame 11 on is lost to the end. Either way the path
+    covers only the frames it was seen in."""
+    markers, warnings = _follow(hidden=hidden)
+    path = markers.paths(FRAMES, FPS)["L1C1R1"]
+    k = np.rint(path.t_s * FPS)
+    assert np.array_equal(k, np.array(sorted(set(range(FRAMES)) - hidden)))
+    assert np.max(np.abs(path.x_m - _true_x_m(k))) < 0.25 / PIXMAP.px_per_m
+    assert warnings[-1] == f"L1C1R1: no marker followed in 3 frames ({text})"
