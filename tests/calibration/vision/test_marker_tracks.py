@@ -34,8 +34,8 @@ def _frame(k: int, hidden: bool) -> np.ndarray:
     image = texture(400, 600, seed=3)
     if not hidden:
         tile = _tile(7)
-        shift = np.float32([[1, 0, START_U + STEP_U * k - (tile.shape[1] - 1) / 2],
-                            [0, 1, V - (tile.shape[0] - 1) / 2]])
+        shift = np.array([[1, 0, START_U + STEP_U * k - (tile.shape[1] - 1) / 2],
+                          [0, 1, V - (tile.shape[0] - 1) / 2]], np.float32)
         warped = cv2.warpAffine(tile, shift, (600, 400), flags=cv2.INTER_CUBIC)
         mask = cv2.warpAffine(np.ones_like(tile), shift, (600, 400), flags=cv2.INTER_NEAREST)
         image[mask > 0] = warped[mask > 0]
