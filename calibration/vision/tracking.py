@@ -120,7 +120,7 @@ class PatchTracker:
         self.box_size = (box.width, box.height)
         self.kind, self.search_px, self.pad_px = kind, search_px, pad_px
         self.first = Reference(self.reference, self.ref_centre)
-        self.score, self.predicted_well = 1.0, False
+        self.predicted_well = False
         # Farnebäck runs on the box plus a pad, so its window has real pixels at the box's edge
         self.flow = None if kind == "ncc" else RigidFlow(
             np.ascontiguousarray(frame.gray[padded.y0:padded.y1, padded.x0:padded.x1]),
@@ -133,33 +133,33 @@ class PatchTracker:
         starting or stopping) is matched again from that result: one Farnebäck step from a
         missed prediction leaves up to a pixel. One whose result scores low (the object
         covered: over a plain cover Farnebäck finds no motion and lands on the prediction) is
-        matched again from the prediction, and is lost if the search finds it nowhere.
-        ``flow`` has no search to score by: its score is the reference's at its result."""
+        matched again from the prediction, and is lost if the search finds it nowhere."""
         skipped = self.kind == "ncc+flow" and self.predicted_well
         pose, score = self._match(frame, predicted, search=not skipped)
-        if skipped:
-            score = self.first.score(frame, pose)
-            if score < LOST_SCORE:
-                pose, score = self._match(frame, predicted, search=True)
-            elif not self._near(pose, predicted):
-                pose, score = self._match(frame, pose, search=True)
+        if skipped and score < LOST_SCORE:
+            pose, score = self._match(frame, predicted, search=True)
+        elif skipped and not self._near(pose, predicted):
+            pose, score = self._match(frame, pose, search=True)
         if score < LOST_SCORE:
             self.predicted_well = False
             return predicted, score
         self.predicted_well = self._near(pose, predicted)
-        self.score = score
         return pose, score
 
     def _match(self, frame: Frame, start: Pose, search: bool) -> tuple[Pose, float]:
-        pose, score = start, self.score
-        if self.kind == "ncc" or (self.kind == "ncc+flow" and search):
+        """The pose from `start` and its score: the NCC search's peak where it searched (always
+        for ``ncc``, when `search` for ``ncc+flow``, never for ``flow``), else the
+        reference's at the result."""
+        searched = self.kind == "ncc" or (self.kind == "ncc+flow" and search)
+        pose, score = start, 0.0
+        if searched:
             pose, score = self._ncc(frame, pose)
             if score < LOST_SCORE:
                 return pose, score
         if self.flow is not None:
             for _ in range(2 if self.kind == "flow" else 1):
                 pose = self._refine(frame, pose)
-        if self.kind == "flow":
+        if not searched:
             score = self.first.score(frame, pose)
         return pose, score
 
