@@ -14,6 +14,10 @@ than its material card; then tracked by `track`. Cases:
   bundle-bundle (the top layer holds there), held out alike;
 - columnar3: examples/pet_3layer_columnar.toml at 0.28 g and 0.32 g (columns rock and their tops
   slide; at 0.32 g the front columns topple), validated at 0.30 g;
+- columnar3-advised: columnar3 with the takes its advice names for pallet-bundle, which its
+  toppling columns never let slip: examples/pet_1layer_columnar.toml (one layer of the same
+  bundles, so the same true friction) at 0.40 g, where it holds (the advice then asks for a
+  higher level), and at 0.50 g, the lab's next level, where it slides; validated alike;
 - kraft, lldpe: columnar2's bare recordings for friction plus the unit wrapped in
   examples/wrap_{kraft,lldpe}_2layer.toml at 0.7 g for the wrap (1920x1200: the web's markers
   need the pixels), validated on the wrapped unit at 0.5 g;
@@ -74,7 +78,7 @@ from wrapenv.wrap import WrapFormat
 SEED, JITTER, TRUE_STIFFNESS = 0, 0.1, 1.3
 SMALL, LARGE = (960, 600), (1920, 1200)
 GOALS = {"kinetic": 0.03, "static": 0.05, "stiffness_pct": 20.0, "validation_pct": 15.0}
-C2 = "examples/pet_2layer_columnar.toml"
+C1, C2, C3 = (f"examples/pet_{n}layer_columnar.toml" for n in (1, 2, 3))
 
 
 @dataclass(frozen=True)
@@ -103,6 +107,11 @@ CASES: dict[str, tuple[tuple[Take, ...], tuple[Take, ...]]] = {
     "columnar3": ((Take("examples/pet_3layer_columnar.toml", 0.28),
                    Take("examples/pet_3layer_columnar.toml", 0.32)),
                   (Take("examples/pet_3layer_columnar.toml", 0.30),)),
+    # columnar3 plus the takes its advice names for pallet-bundle ("test a one-layer unit at
+    # 0.40 g or more"; it holds at 0.40 g, slides at 0.50 g): does following it pin the pair
+    # whose columns toppled first?
+    "columnar3-advised": ((Take(C3, 0.28), Take(C3, 0.32), Take(C1, 0.40), Take(C1, 0.50)),
+                          (Take(C3, 0.30),)),
     **{m: ((Take(C2, 0.35), Take(C2, 0.425), Take(C2, 0.45),
             Take(C2, 0.7, LARGE, f"examples/wrap_{m}_2layer.toml")),
            (Take(C2, 0.5, LARGE, f"examples/wrap_{m}_2layer.toml"),)) for m in ("kraft", "lldpe")},

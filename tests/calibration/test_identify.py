@@ -68,6 +68,17 @@ def test_where_columns_toppled_a_higher_level_is_not_the_advice():
     assert "columns toppled first" in text and "one-layer unit" in text and "0.40 g" in text
 
 
+def test_the_one_layer_take_the_advice_names_bounds_the_pair_by_its_level():
+    """Followed: the one-layer unit held at 0.40 g, where nothing can topple, so the bound is
+    the level, and the advice turns to a higher level of the same unit."""
+    obs = [_obs(0.28, {"bundle_bundle"}), _obs(0.32, {"bundle_bundle"}, toppled=True),
+           _obs(0.40, set(), layers=1)]
+    bounds = pair_bounds(obs, FRICTION, frozenset({"bundle_bundle"}))
+    assert bounds["pallet_bundle"] == Bound(0.40, "level")
+    assert advice_unslipped("pallet_bundle", bounds["pallet_bundle"]) == (
+        "never slipped up to 0.40 g; test at 0.45 g or more")
+
+
 def test_pairs_held_stuck_in_the_replay_sit_above_their_demand():
     bounds = {"sled_pallet": Bound(0.1, "braking"), "pallet_bundle": Bound(0.45, "level"),
               "bundle_bundle": Bound(0.45, "level")}
