@@ -5,8 +5,8 @@ follows a box round each marker (marker, quiet zone and a little web): an 18 px 
 corners give a noisy pose and are missed in some frames, the patch fitted to the first frame's
 is sub-pixel. The object's centre is the marker's minus its placement offset turned by the
 tracked rotation. ArUco runs again only every `MARKER_CHECK_EVERY` frames and where a marker
-was lost or not yet seen: to cross-check the patch tracker, re-acquire lost markers and start
-late ones.
+was lost or is not followed yet: to cross-check the patch tracker, re-acquire lost markers and
+start late ones (a marker first seen late, or where its box does not fit in the frame).
 """
 
 from __future__ import annotations
@@ -62,24 +62,23 @@ class MarkerTracks:
         self.poses: dict[int, dict[int, Pose]] = {}
         self.lost: dict[int, list[int]] = {}
         self.disagree: dict[int, list[int]] = {}
-        self.unusable: set[int] = set()
+        #: frames a marker was detected in where its box leaves the frame, before it is followed
+        self.cut: dict[int, list[int]] = {}
 
     def start(self, frame: Frame, found: dict[int, np.ndarray], sled_u: float,
               index: int = 0) -> None:
         """Trackers for the carried markers in `found` that have none yet."""
         for i, corners in found.items():
             placement = self.placements.get(i)
-            if placement is None or i in self.theta0 or i in self.unusable:
+            if placement is None or i in self.theta0:
                 continue
             centre = centre_px(corners)
             side = MARKER_BOX_SIDES * (self.side_px or side_px(corners))
             try:
                 tracker = PatchTracker(frame, (float(centre[0]), float(centre[1])),
                                        box_size(side, side))
-            except ValueError as exc:
-                self.unusable.add(i)
-                self.warnings.append(f"marker {i} ({placement.object}): cannot be followed "
-                                     f"from frame {index} ({exc})")
+            except ValueError:  # its box leaves the frame: looked for again in the next one
+                self.cut.setdefault(i, []).append(index)
                 continue
             self.theta0[i] = self._object_theta(placement.object, index, corners)
             pose = Pose(float(centre[0]), float(centre[1]))
@@ -100,7 +99,7 @@ class MarkerTracks:
         """Record this frame's marker poses; ArUco on check frames, and where a marker was
         lost or has not been seen yet."""
         lost = {i for i in self.theta0 if results[marker_name(i)][1] < LOST_SCORE}
-        unseen = set(self.placements) - set(self.theta0) - self.unusable
+        unseen = set(self.placements) - set(self.theta0)
         if not (lost or unseen or index % MARKER_CHECK_EVERY == 0):
             self._record(index, set(self.theta0), results)
             return
@@ -155,7 +154,8 @@ class MarkerTracks:
                     ks.append(k)
                     values.append(self._pose(k, seen))
             if not ks:
-                self.warnings.append(f"{name}: markers {ids} never detected; not tracked")
+                never = "followed" if any(i in self.cut for i in ids) else "detected"
+                self.warnings.append(f"{name}: markers {ids} never {never}; not tracked")
                 continue
             self.warnings.extend(gap_warnings(name, ks, frames))
             span = np.arange(ks[0], ks[-1] + 1)
@@ -174,6 +174,10 @@ class MarkerTracks:
 
     def _warn_markers(self, name: str, ids: list[int]) -> None:
         for i in ids:
+            if self.cut.get(i):
+                self.warnings.append(f"marker {i} ({name}): detected where its box leaves the "
+                                     f"frame in frames {frame_ranges(self.cut[i])}, not "
+                                     "followed there")
             if self.lost.get(i):
                 self.warnings.append(f"marker {i} ({name}): lost (NCC < {LOST_SCORE}) in "
                                      f"frames {frame_ranges(self.lost[i])}")

@@ -1,6 +1,8 @@
 """A wrapped unit's objects followed through the markers on its web: a marker hidden for a few
 frames is reported lost, found again by ArUco, and the object's path bridged across the gap;
-a marker that comes into view late is followed from there."""
+a marker that comes into view late, or whose box does not fit in the frame at first, is
+followed from there; ArUco only cross-checks the followed marker, and a disagreement is
+reported."""
 
 import cv2
 import numpy as np
@@ -8,7 +10,7 @@ import pytest
 
 from calibration import opencv_threads
 from calibration.camera_setup import MarkerPlacement
-from calibration.vision.marker_tracks import MarkerTracks
+from calibration.vision.marker_tracks import MARKER_CHECK_PX, MarkerTracks
 from calibration.vision.markers import MarkerDetector
 from calibration.vision.roi import PixelMap
 from calibration.vision.tracking import LOST_SCORE, Frame, MultiTracker
@@ -28,13 +30,13 @@ def _tile(marker_id: int) -> np.ndarray:
     return cv2.copyMakeBorder(marker, h, h, h, h, cv2.BORDER_CONSTANT, value=255)
 
 
-def _frame(k: int, hidden: bool) -> np.ndarray:
-    """Frame k: marker 7 on a printed background, its centre at START_U + STEP_U k; `hidden`:
+def _frame(k: int, hidden: bool, start_u: float = START_U, step_u: float = STEP_U) -> np.ndarray:
+    """Frame k: marker 7 on a printed background, its centre at start_u + step_u k; `hidden`:
     a fold of the web covers it (the background drawn over it)."""
     image = texture(400, 600, seed=3)
     if not hidden:
         tile = _tile(7)
-        shift = np.array([[1, 0, START_U + STEP_U * k - (tile.shape[1] - 1) / 2],
+        shift = np.array([[1, 0, start_u + step_u * k - (tile.shape[1] - 1) / 2],
                           [0, 1, V - (tile.shape[0] - 1) / 2]], np.float32)
         warped = cv2.warpAffine(tile, shift, (600, 400), flags=cv2.INTER_CUBIC)
         mask = cv2.warpAffine(np.ones_like(tile), shift, (600, 400), flags=cv2.INTER_NEAREST)
@@ -42,27 +44,45 @@ def _frame(k: int, hidden: bool) -> np.ndarray:
     return image
 
 
-def _follow(hidden: set[int]) -> tuple[MarkerTracks, list[str]]:
+class _ShiftedDetector(MarkerDetector):
+    """ArUco whose corners in frame `index` come out `shift_px` to the right (`now`: the frame
+    being tracked)."""
+
+    def __init__(self, index: int, shift_px: float) -> None:
+        super().__init__("DICT_4X4_50")
+        self.index, self.shift_px, self.now = index, shift_px, 0
+
+    def detect(self, frame: Frame) -> dict[int, np.ndarray]:
+        found = super().detect(frame)
+        shift = [self.shift_px, 0.0] if self.now == self.index else [0.0, 0.0]
+        return {i: c + shift for i, c in found.items()}
+
+
+def _follow(hidden: set[int], start_u: float = START_U, step_u: float = STEP_U,
+            detector: MarkerDetector | None = None) -> tuple[MarkerTracks, list[str]]:
     """Frames 0..FRAMES-1 through MarkerTracks as `track` drives it (OpenCV on one thread, the
     sled not moving)."""
     warnings: list[str] = []
-    detector = MarkerDetector("DICT_4X4_50")
+    detector = detector or MarkerDetector("DICT_4X4_50")
     multi = MultiTracker({}, {}, threads=1)
     markers = MarkerTracks([MarkerPlacement(7, "L1C1R1", (0.05, 0.10))], None, detector,
                            multi, PIXMAP, warnings)
     with opencv_threads(1):
-        first = Frame(_frame(0, 0 in hidden))
-        markers.start(first, detector.detect(first), 0.0)
-        for k in range(1, FRAMES):
-            frame = Frame(_frame(k, k in hidden))
-            markers.step(k, frame, 0.0, multi.step(frame, 0.0))
+        for k in range(FRAMES):
+            frame = Frame(_frame(k, k in hidden, start_u, step_u))
+            if isinstance(detector, _ShiftedDetector):
+                detector.now = k
+            if k == 0:
+                markers.start(frame, detector.detect(frame), 0.0)
+            else:
+                markers.step(k, frame, 0.0, multi.step(frame, 0.0))
     multi.close()
     return markers, warnings
 
 
-def _true_x_m(k: np.ndarray) -> np.ndarray:
+def _true_x_m(k: np.ndarray, start_u: float = START_U) -> np.ndarray:
     """The object's centre: the marker's minus its placement offset."""
-    return (START_U + STEP_U * k - PIXMAP.u0) / PIXMAP.px_per_m - 0.05
+    return (start_u + STEP_U * k - PIXMAP.u0) / PIXMAP.px_per_m - 0.05
 
 
 def test_a_marker_followed_throughout_gives_its_object_s_path() -> None:
@@ -104,3 +124,44 @@ def test_frames_before_a_marker_is_first_seen_or_after_it_is_last_seen_are_left_
     assert np.array_equal(k, np.array(sorted(set(range(FRAMES)) - hidden)))
     assert np.max(np.abs(path.x_m - _true_x_m(k))) < 0.25 / PIXMAP.px_per_m
     assert warnings[-1] == f"L1C1R1: no marker followed in 3 frames ({text})"
+
+
+def test_a_marker_whose_box_leaves_the_frame_is_followed_once_the_box_fits() -> None:
+    """Detected 30 px from the frame's left edge, where its 64 px box (and the flow's pad) does
+    not fit: looked for again in each frame, and followed from frame 3, where it does."""
+    markers, warnings = _follow(hidden=set(), start_u=30.0)
+    path = markers.paths(FRAMES, FPS)["L1C1R1"]
+    k = np.rint(path.t_s * FPS)
+    assert np.array_equal(k, np.arange(3, FRAMES))
+    assert np.max(np.abs(path.x_m - _true_x_m(k, start_u=30.0))) < 0.25 / PIXMAP.px_per_m
+    assert warnings == [
+        "marker 7 (L1C1R1): detected where its box leaves the frame in frames 0-2, not "
+        "followed there",
+        "L1C1R1: no marker followed in 3 frames (frames 0-2 left out)"]
+
+
+def test_a_marker_whose_box_never_fits_leaves_its_object_untracked_and_says_why() -> None:
+    markers, warnings = _follow(hidden=set(), start_u=30.0, step_u=0.0)
+    assert markers.paths(FRAMES, FPS) == {}
+    assert warnings == [
+        f"marker 7 (L1C1R1): detected where its box leaves the frame in frames 0-{FRAMES - 1}, "
+        "not followed there",
+        "L1C1R1: markers [7] never followed; not tracked"]
+
+
+def test_a_marker_never_detected_is_reported_so() -> None:
+    markers, warnings = _follow(hidden=set(range(FRAMES)))
+    assert markers.paths(FRAMES, FPS) == {}
+    assert warnings == ["L1C1R1: markers [7] never detected; not tracked"]
+
+
+def test_aruco_only_cross_checks_a_followed_marker() -> None:
+    """In a check frame (10) ArUco's corners come out 3 px off: the frames are reported, and
+    the path keeps the patch tracker's sub-pixel pose."""
+    markers, warnings = _follow(hidden=set(), detector=_ShiftedDetector(index=10, shift_px=3.0))
+    assert markers.disagree[7] == [10]
+    path = markers.paths(FRAMES, FPS)["L1C1R1"]
+    k = np.rint(path.t_s * FPS)
+    assert np.max(np.abs(path.x_m - _true_x_m(k))) < 0.25 / PIXMAP.px_per_m
+    assert warnings == [f"marker 7 (L1C1R1): followed and ArUco-detected centres differ by "
+                        f"more than {MARKER_CHECK_PX} px in frames 10"]
