@@ -17,7 +17,8 @@ than its material card; then tracked by `track`. Cases:
 - columnar3-advised: columnar3 with the takes its advice names for pallet-bundle, which its
   toppling columns never let slip: examples/pet_1layer_columnar.toml (one layer of the same
   bundles, so the same true friction) at 0.40 g, where it holds (the advice then asks for a
-  higher level), and at 0.50 g, the lab's next level, where it slides; validated alike;
+  higher level), and at 0.50 g, the lab's next level, where it slides; validated alike, and
+  on columnar2's held-out takes (the same bundles, pallet and friction: another unit predicted);
 - kraft, lldpe: columnar2's bare recordings for friction plus the unit wrapped in
   examples/wrap_{kraft,lldpe}_2layer.toml at 0.7 g for the wrap (1920x1200: the web's markers
   need the pixels), validated on the wrapped unit at 0.5 g;
@@ -109,9 +110,10 @@ CASES: dict[str, tuple[tuple[Take, ...], tuple[Take, ...]]] = {
                   (Take("examples/pet_3layer_columnar.toml", 0.30),)),
     # columnar3 plus the takes its advice names for pallet-bundle ("test a one-layer unit at
     # 0.40 g or more"; it holds at 0.40 g, slides at 0.50 g): does following it pin the pair
-    # whose columns toppled first?
+    # whose columns toppled first? And does the calibration predict another unit of the same
+    # bundles and pallet (columnar2's held-out takes)?
     "columnar3-advised": ((Take(C3, 0.28), Take(C3, 0.32), Take(C1, 0.40), Take(C1, 0.50)),
-                          (Take(C3, 0.30),)),
+                          (Take(C3, 0.30), Take(C2, 0.40), Take(C2, 0.55))),
     **{m: ((Take(C2, 0.35), Take(C2, 0.425), Take(C2, 0.45),
             Take(C2, 0.7, LARGE, f"examples/wrap_{m}_2layer.toml")),
            (Take(C2, 0.5, LARGE, f"examples/wrap_{m}_2layer.toml"),)) for m in ("kraft", "lldpe")},
