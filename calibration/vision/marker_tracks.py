@@ -97,10 +97,10 @@ class MarkerTracks:
 
     def step(self, index: int, frame: Frame, sled_u: float, results: Results) -> None:
         """Record this frame's marker poses; ArUco on check frames, and where a marker was
-        lost or has not been seen yet."""
+        lost or is not followed yet."""
         lost = {i for i in self.theta0 if results[marker_name(i)][1] < LOST_SCORE}
-        unseen = set(self.placements) - set(self.theta0)
-        if not (lost or unseen or index % MARKER_CHECK_EVERY == 0):
+        unfollowed = set(self.placements) - set(self.theta0)
+        if not (lost or unfollowed or index % MARKER_CHECK_EVERY == 0):
             self._record(index, set(self.theta0), results)
             return
         found = self.detector.detect(frame)
@@ -114,7 +114,7 @@ class MarkerTracks:
                                                  centre_px(found[i])) > MARKER_CHECK_PX:
                 self.disagree[i].append(index)
         self._record(index, set(self.theta0), results)
-        self.start(frame, {i: c for i, c in found.items() if i in unseen}, sled_u, index)
+        self.start(frame, {i: c for i, c in found.items() if i in unfollowed}, sled_u, index)
 
     def _record(self, index: int, ids: set[int], results: Results) -> None:
         for i in ids:
