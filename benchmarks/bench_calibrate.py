@@ -19,6 +19,8 @@ than its material card; then tracked by `track`. Cases:
   bundles, so the same true friction) at 0.40 g, where it holds (the advice then asks for a
   higher level), and at 0.50 g, the lab's next level, where it slides; validated alike, and
   on columnar2's held-out takes (the same bundles, pallet and friction: another unit predicted);
+- columnar3-advised2: columnar3-advised with the one-layer unit at 0.55 g too, the level its
+  advice names for pallet-bundle's kinetic coefficient (the front row slides off the pallet);
 - kraft, lldpe: columnar2's bare recordings for friction plus the unit wrapped in
   examples/wrap_{kraft,lldpe}_2layer.toml at 0.7 g for the wrap (1920x1200: the web's markers
   need the pixels), validated on the wrapped unit at 0.5 g;
@@ -114,6 +116,12 @@ CASES: dict[str, tuple[tuple[Take, ...], tuple[Take, ...]]] = {
     # bundles and pallet (columnar2's held-out takes)?
     "columnar3-advised": ((Take(C3, 0.28), Take(C3, 0.32), Take(C1, 0.40), Take(C1, 0.50)),
                           (Take(C3, 0.30), Take(C2, 0.40), Take(C2, 0.55))),
+    # and the level its fits' advice names next for pallet-bundle's kinetic coefficient ("a
+    # level above 0.50 g, where it runs farther, would narrow it"), though the front row then
+    # slides off the pallet's edge
+    "columnar3-advised2": ((Take(C3, 0.28), Take(C3, 0.32), Take(C1, 0.40), Take(C1, 0.50),
+                            Take(C1, 0.55)),
+                           (Take(C3, 0.30), Take(C2, 0.40), Take(C2, 0.55))),
     **{m: ((Take(C2, 0.35), Take(C2, 0.425), Take(C2, 0.45),
             Take(C2, 0.7, LARGE, f"examples/wrap_{m}_2layer.toml")),
            (Take(C2, 0.5, LARGE, f"examples/wrap_{m}_2layer.toml"),)) for m in ("kraft", "lldpe")},
