@@ -126,11 +126,13 @@ def test_advice_on_an_unresolved_static_coefficient_brackets_the_first_slip():
 
 def test_advice_on_an_unresolved_kinetic_coefficient_asks_for_a_longer_slide():
     """How far a slip runs pins the kinetic coefficient: a level above the highest the pair
-    slipped at, not the highest tested (at 0.50 g the pair held)."""
+    slipped at, not the highest tested (at 0.50 g the pair held); a slide that runs off its
+    support pins nothing (the one-layer unit's front row at 0.55 g loosened the fits)."""
     obs = [_obs(0.30, {"pallet_bundle"}), _obs(0.45, {"pallet_bundle"}), _obs(0.50, set())]
     text = advice_kinetic("pallet_bundle", obs, 0.042)
     assert text.startswith("kinetic coefficient not resolved (± 0.042)")
     assert "a level above 0.45 g" in text
+    assert text.endswith("if no bundle slides off its support there")
 
 
 def test_advice_on_a_bracketed_coefficient_names_the_shifts_the_recordings_allow():
