@@ -107,9 +107,7 @@ CASES: dict[str, tuple[tuple[Take, ...], tuple[Take, ...]]] = {
     # where it holds"): does bracketing that onset pin its static coefficient?
     "columnar2-advised": ((Take(C2, 0.30), Take(C2, 0.35), Take(C2, 0.425), Take(C2, 0.45)),
                           (Take(C2, 0.40), Take(C2, 0.55))),
-    "columnar3": ((Take("examples/pet_3layer_columnar.toml", 0.28),
-                   Take("examples/pet_3layer_columnar.toml", 0.32)),
-                  (Take("examples/pet_3layer_columnar.toml", 0.30),)),
+    "columnar3": ((Take(C3, 0.28), Take(C3, 0.32)), (Take(C3, 0.30),)),
     # columnar3 plus the takes its advice names for pallet-bundle ("test a one-layer unit at
     # 0.40 g or more"; it holds at 0.40 g, slides at 0.50 g): does following it pin the pair
     # whose columns toppled first? And does the calibration predict another unit of the same
