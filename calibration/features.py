@@ -48,6 +48,9 @@ class Body:
     height_m: float
     #: the observed bodies it rests on, with their heights; () for the pallet (on the sled)
     supports: tuple[tuple[str, float], ...]
+    #: how far it can slip backwards (-x) and forwards before its centre passes the edge of
+    #: what it rests on (`bodies`)
+    room_m: tuple[float, float]
 
     @property
     def pair(self) -> str:
@@ -61,23 +64,46 @@ class Body:
         """The angle at which its centre passes over its bottom edge."""
         return math.atan2(self.length_m, self.height_m)
 
+    def clipped(self, slip: np.ndarray) -> np.ndarray:
+        """A slip clipped at its support's edges: beyond them it has fallen off."""
+        return np.clip(slip, -self.room_m[0], self.room_m[1])
+
+    def off(self, slip: np.ndarray) -> np.ndarray:
+        """Per frame, whether its centre has passed its support's edge."""
+        return (slip < -self.room_m[0]) | (slip > self.room_m[1])
+
 
 def bodies(layout: Layout, observed: set[str]) -> dict[str, Body]:
     """The observed bodies of a layout that can be compared: the pallet, and bundles whose
-    support is observed (a bundle of an upper layer whose supports are all hidden is not)."""
+    support is observed (a bundle of an upper layer whose supports are all hidden is not).
+    A bundle's room to slip is measured to the outer edges of what it rests on (the seen
+    bundles below, or the pallet): a one-layer unit's inner rows can slide far on the pallet,
+    where only its back row runs off it. The pallet is
+    followed for half its length on the sled (whose deck the recording does not show)."""
     out = {}
+    px, _, pz = layout.pallet_size_m
     if "pallet" in observed:
-        px, _, pz = layout.pallet_size_m
-        out["pallet"] = Body(px, pz, ())
+        out["pallet"] = Body(px, pz, (), (px / 2, px / 2))
+    extents = {"pallet": (0.0, px)} | {b.name: (b.centre_m[0], b.size_m[0])
+                                       for b in layout.bundles}
     for b, below in zip(layout.bundles, layout.supports(), strict=True):
         if b.name not in observed:
             continue
-        under = ((("pallet", layout.pallet_size_m[2]),) if b.layer == 1 else
+        under = ((("pallet", pz),) if b.layer == 1 else
                  tuple((layout.bundles[j].name, layout.bundles[j].size_m[2]) for j in below))
         seen = tuple((n, h) for n, h in under if n in observed)
         if seen:
-            out[b.name] = Body(b.size_m[0], b.size_m[2], seen)
+            out[b.name] = Body(b.size_m[0], b.size_m[2], seen,
+                               _room(b.centre_m[0], [extents[n] for n, _ in seen]))
     return out
+
+
+def _room(x_m: float, supports: list[tuple[float, float]]) -> tuple[float, float]:
+    """Backwards and forwards, how far a centre at x can slip before it passes the outer edge
+    of its supports (centre, length), which a slip is taken against (`slips`)."""
+    back = x_m - min(c - length / 2 for c, length in supports)
+    ahead = max(c + length / 2 for c, length in supports) - x_m
+    return max(back, 0.0), max(ahead, 0.0)
 
 
 def _edge_x(t: np.ndarray, path: tuple[np.ndarray, np.ndarray], height_m: float,
@@ -116,7 +142,7 @@ def on_pallet(states: States, body_map: Mapping[str, Body]) -> dict[str, np.ndar
         if not body.supports:
             continue
         t = states[name][0]
-        own = np.clip(slip[name], -body.length_m / 2, body.length_m / 2)
+        own = body.clipped(slip[name])
         below = [np.interp(t, states[s][0], out[s]) for s, _ in body.supports if s in out]
         out[name] = own + np.mean(below, axis=0) if below else own
     return out
@@ -126,7 +152,7 @@ def _off_and_turned(xza: np.ndarray, slip: np.ndarray, body: Body
                     ) -> tuple[np.ndarray, np.ndarray]:
     """Per frame: whether the body has slid past its support's edge or dropped, and whether
     it has turned past its tipping angle."""
-    off = (np.abs(slip) > body.length_m / 2) | (xza[:, 1] - xza[0, 1] < -FALL_M)
+    off = body.off(slip) | (xza[:, 1] - xza[0, 1] < -FALL_M)
     return off, np.abs(xza[:, 2] - xza[0, 2]) > body.tip_rad
 
 
@@ -170,7 +196,7 @@ def vector(states: States, body_map: Mapping[str, Body], frames: Mapping[str, in
     for name in sorted(frames):
         body, k = body_map[name], frames[name]
         angle = states[name][1][:k, 2] - states[name][1][0, 2]
-        parts.append(np.clip(slip[name][:k], -body.length_m / 2, body.length_m / 2))
+        parts.append(body.clipped(slip[name][:k]))
         parts.append(body.height_m / 2 * np.clip(angle, -body.tip_rad, body.tip_rad))
     return np.concatenate(parts) if parts else np.zeros(0)
 

@@ -161,8 +161,8 @@ def highest_slipped_g(name: str, observations: Sequence[Observation]) -> float:
 def advice_kinetic(name: str, observations: Sequence[Observation], std: float) -> str:
     """For a pair that slipped whose kinetic coefficient the recordings do not resolve: how far
     a slip runs pins it, and a higher level makes it run farther, unless it runs off its
-    support (a one-layer unit's front row off the pallet: that take loosened the fits,
-    docs/calibration.md)."""
+    support (a body is judged only until its centre leaves what it rests on,
+    `calibration.features`)."""
     return (f"kinetic coefficient not resolved (± {std:.3f}): how far a slip runs pins it; a "
             f"level above {highest_slipped_g(name, observations):.2f} g, where it runs "
             "farther, would narrow it if no bundle slides off its support there")

@@ -161,8 +161,7 @@ def _final_slips(obs: Observation, states: features.States) -> dict[str, float]:
     """Each compared body's slip at the last frame of its window, clipped at its support's
     edge as the fit's features are."""
     slips = features.slips(states, obs.bodies)
-    return {name: float(np.clip(slips[name][k - 1], -obs.bodies[name].length_m / 2,
-                                obs.bodies[name].length_m / 2))
+    return {name: float(obs.bodies[name].clipped(slips[name][k - 1]))
             for name, k in obs.frames.items()}
 
 

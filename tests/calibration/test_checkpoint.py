@@ -15,6 +15,7 @@ from calibration.recording import Recording, Truth
 from calibration.replay import observe
 from calibration.trajectories import ObjectPath, Trajectories
 from recommender.cli import main
+from tests.calibration.conftest import SLIDE_BUDGET
 from wrapenv import __version__
 from wrapenv.bench import SimSettings
 from wrapenv.config import InputError
@@ -117,7 +118,7 @@ def test_an_interrupted_calibration_resumes_to_the_cal_json_of_an_uninterrupted_
     whole, parts = tmp_path / "whole", tmp_path / "parts"
     whole.mkdir()
     parts.mkdir()
-    args = [str(rec), "--budget", "30", "--workers", "1"]
+    args = [str(rec), "--budget", str(SLIDE_BUDGET), "--workers", "1"]
     assert main(["calibrate", *args, "--out", str(whole / "cal.json")]) == 0
     assert not (whole / "cal.checkpoint.jsonl").exists()   # removed once the fit is written
     capsys.readouterr()

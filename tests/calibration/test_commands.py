@@ -20,6 +20,7 @@ from calibration.recording import Truth
 from calibration.trajectories import ObjectPath, Trajectories
 from calibration.validate import REPEATS, Check, Validation
 from recommender.cli import main
+from tests.calibration.conftest import SLIDE_BUDGET
 from wrapenv.calibrated import Calibration
 from wrapenv.load import LoadUnit
 
@@ -169,20 +170,25 @@ def test_calibrate_writes_cal_json_that_simulate_accepts(slide_dir, tmp_path, ca
     rec = tmp_path / "rec"
     shutil.copytree(slide_dir, rec)
     cal = tmp_path / "cal.json"
-    assert main(["calibrate", str(rec), "--out", str(cal), "--budget", "30"]) == 0
+    assert main(["calibrate", str(rec), "--out", str(cal), "--budget", str(SLIDE_BUDGET)]) == 0
     out = capsys.readouterr().out
     assert "pallet_bundle" in out and "accepted: the least explained recording" in out
     assert "wrap: not fitted" in out  # bare recordings: no scale is claimed
     data = json.loads(cal.read_text())
     assert set(data) >= {"friction", "wrap", "residual_rms_m", "simulations", "method",
                          "wrapbench_version"}
-    assert data["simulations"] <= 30 and data["method"] == "surrogate"
+    assert data["simulations"] <= SLIDE_BUDGET and data["method"] == "surrogate"
     # where they went: the budget bounds the search and the final replays
     parts = data["simulations_by_part"]
     assert sum(parts.values()) == data["simulations"]
-    assert parts["search"] + parts["final_replays"] <= 30 and parts["final_replays"] == 6
+    assert parts["search"] + parts["final_replays"] <= SLIDE_BUDGET
+    assert parts["final_replays"] == 6
     assert f"{data['simulations']} simulations (search {parts['search']}, final replays 6" in out
     assert data["friction"]["pallet_bundle"]["identified"] is True
+    # the whole 0.28 m slide, on the pallet, pins the kinetic coefficient (true 0.302); judged
+    # only up to half a bundle's length, as before 2026-11-30, it came out 0.304 +- 0.031
+    kinetic = data["friction"]["pallet_bundle"]
+    assert abs(kinetic["kinetic"] - 0.302) <= 0.005 and kinetic["kinetic_std"] <= 0.005
     assert data["friction"]["sled_pallet"]["identified"] is False
     # the bound it was accepted under, and the recording nearest it
     acceptance = data["acceptance"]
@@ -479,7 +485,7 @@ def test_calibrate_prints_folder_names_escaped(slide_dir, tmp_path, capsys):
     rec = tmp_path / "rec\x1b[2J"
     shutil.copytree(slide_dir, rec)
     assert main(["calibrate", str(rec), "--out", str(tmp_path / "cal.json"),
-                 "--budget", "30"]) == 0
+                 "--budget", str(SLIDE_BUDGET)]) == 0
     printed = capsys.readouterr()
     assert "\x1b" not in printed.out + printed.err and "rec\\x1b[2J" in printed.out
 

@@ -98,14 +98,42 @@ def test_a_body_tipping_about_its_edge_does_not_slip_but_turns(body_map):
     assert np.allclose(vec[start + k:start + 2 * k], H / 2 * a[:k])
 
 
+def test_a_bundle_has_room_to_slip_until_its_centre_passes_its_supports_edge(body_map):
+    """On the pallet (0.6 m long, the columns at x = -0.141 and +0.141 m, 2 mm apart): the back
+    column's centre is 0.159 m from the pallet's back edge and 0.441 m from its front one; a
+    bundle on a bundle of its size has half its length either way; the pallet half its own on
+    the sled."""
+    assert body_map["L1C1R1"].room_m == pytest.approx((0.159, 0.441))
+    assert body_map["L1C2R1"].room_m == pytest.approx((0.441, 0.159))
+    assert body_map["L2C1R1"].room_m == pytest.approx((L / 2, L / 2))
+    assert body_map["pallet"].room_m == pytest.approx((0.3, 0.3))
+
+
+def test_an_inner_bundle_sliding_farther_than_half_its_length_stays_predictable(body_map):
+    """The bottom layer slides 0.2 m back on the pallet: the back column's centre passes the
+    pallet's edge (0.159 m) and its window ends there; the front column's is still 0.24 m on
+    the pallet, so its whole slide is compared, unclipped."""
+    states = _still()
+    slide = np.linspace(0.0, -0.2, len(T))
+    for name in ("L1C1R1", "L1C2R1", "L2C1R1", "L2C2R1"):
+        states[name][1][:, 0] = slide
+    frames = features.windows(states, body_map, sled_stop_s=10.0)
+    assert frames["L1C1R1"] == frames["L2C1R1"] == int(np.argmax(slide < -0.159))
+    assert frames["L1C2R1"] == frames["L2C2R1"] == len(T)
+    vec = features.vector(states, body_map, frames)
+    start = 2 * frames["L1C1R1"]                      # L1C2R1's block follows L1C1R1's
+    assert vec[start + len(T) - 1] == pytest.approx(-0.2)
+
+
 def test_windows_end_where_a_body_leaves_its_support_and_carry_up(body_map):
-    """L1C1R1 slides past half its length at frame 30: its window and that of the bundle on it
-    end there; the other column keeps every frame until 0.25 s after the sled stopped."""
+    """L1C1R1 slides past the pallet's back edge at frame 30: its window and that of the
+    bundle on it end there; the other column keeps every frame until 0.25 s after the sled
+    stopped."""
     states = _still()
     slide = np.where(np.arange(len(T)) < 30, -0.004 * np.arange(len(T)), -0.2)
     states["L1C1R1"][1][:, 0] = slide
     frames = features.windows(states, body_map, sled_stop_s=2.0)
-    first_lost = int(np.argmax(np.abs(slide) > L / 2))
+    first_lost = int(np.argmax(slide < -body_map["L1C1R1"].room_m[0]))
     assert frames["L1C1R1"] == frames["L2C1R1"] == first_lost
     assert frames["L1C2R1"] == frames["pallet"] == int(np.sum(T <= 2.0 + features.AFTER_STOP_S))
 
