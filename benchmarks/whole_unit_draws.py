@@ -5,7 +5,8 @@ bundles a layer, takes at 0.35 and 0.45 g, friction drawn with 10 % jitter and h
 150) and pins one written and one refused draw. This prints each draw's outcome, which its
 docstring and docs/calibration.md summarise: written or refused (and why), simulations,
 bundle-bundle's fitted coefficients against the truth, and, for a written fit, the third
-level's prediction.
+level's prediction (the mean of its replays) and the share of them that reproduce it (the
+take is one of two outcomes, and a few replays in the other swing the mean).
 
     python -m benchmarks.whole_unit_draws [--seed 0 1 2 3 4 5]
 """
@@ -35,7 +36,9 @@ def main(argv: list[str] | None = None) -> None:
                     f"{pair.static_std:.3f} (error ± std)")
             if result.converged:
                 layer, check = draw.held_out()
-                line += f"; third level, layer {layer}: {check.error_pct:+.0f} %"
+                line += f"; third level, layer {layer}: {check.error_pct:+.0f} % by the mean"
+                if check.reproduced is not None:
+                    line += f" of its replays, {check.reproduced:.0%} of them within 15 %"
             else:
                 line += (f"; the take {Path(result.verdict.source).name} left "
                          f"{1e3 * result.verdict.rms_m:.1f} mm unexplained")
