@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -51,6 +51,9 @@ class Body:
     #: how far it can slip backwards (-x) and forwards before its centre passes the edge of
     #: what it rests on (`bodies`)
     room_m: tuple[float, float]
+    #: how far a slip counts, backwards and forwards, once a recording has shown how far it
+    #: went (`reach`); its room until then
+    reach_m: tuple[float, float] | None = None
 
     @property
     def pair(self) -> str:
@@ -65,8 +68,9 @@ class Body:
         return math.atan2(self.length_m, self.height_m)
 
     def clipped(self, slip: np.ndarray) -> np.ndarray:
-        """A slip clipped at its support's edges: beyond them it has fallen off."""
-        return np.clip(slip, -self.room_m[0], self.room_m[1])
+        """A slip clipped at its reach: beyond it a run has come to another outcome."""
+        back, ahead = self.reach_m or self.room_m
+        return np.clip(slip, -back, ahead)
 
     def off(self, slip: np.ndarray) -> np.ndarray:
         """Per frame, whether its centre has passed its support's edge."""
@@ -171,6 +175,23 @@ def windows(states: States, body_map: Mapping[str, Body], sled_stop_s: float
         end = float(t[np.argmax(lost)]) if lost.any() else math.inf
         end_s[name] = min([end] + [end_s.get(s, math.inf) for s, _ in body.supports])
     return {name: int(np.sum(states[name][0] < end_s[name])) for name in body_map}
+
+
+def reach(states: States, body_map: Mapping[str, Body], frames: Mapping[str, int]
+          ) -> dict[str, Body]:
+    """The bodies with how far a slip counts, read off a recording: up to half a body's length
+    beyond what the recording showed, within its room. A replay that slides farther has come
+    to another outcome (a bundle that runs off in one run and not in another), not metres more
+    of error: a bottom layer at its onset on the pallet, still in one recording and sliding
+    0.3 m in some replays, would otherwise decide a fit by which replays those are."""
+    slip = slips(states, body_map)
+    out = {}
+    for name, body in body_map.items():
+        shown = slip[name][:frames[name]] if frames[name] else np.zeros(1)
+        back = min(body.room_m[0], max(0.0, -float(shown.min())) + body.length_m / 2)
+        ahead = min(body.room_m[1], max(0.0, float(shown.max())) + body.length_m / 2)
+        out[name] = replace(body, reach_m=(back, ahead))
+    return out
 
 
 def toppled(states: States, body_map: Mapping[str, Body]) -> bool:

@@ -105,6 +105,7 @@ def observe(recording: Recording, tracked: Trajectories) -> Observation:
     states = {name: (p.t_s, _relative(p, sled, recording)) for name, p in objects.items()}
     a = recording.profile.accel_mps2
     frames = features.windows(states, body_map, stop_s(recording.profile.t_s, a))
+    body_map = features.reach(states, body_map, frames)
     profile = MeasuredProfile(recording.profile.t_s, a, src)
     return Observation(src, recording.load, recording.wrap, profile, states, body_map, frames,
                        features.vector(states, body_map, frames), _slipped(states, body_map),
