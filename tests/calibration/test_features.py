@@ -125,6 +125,26 @@ def test_an_inner_bundle_sliding_farther_than_half_its_length_stays_predictable(
     assert vec[start + len(T) - 1] == pytest.approx(-0.2)
 
 
+def test_a_replay_counts_up_to_half_a_length_beyond_what_the_recording_showed(body_map):
+    """Recorded: the front bottom bundle slid 0.1 m back on the pallet, the back one stayed.
+    A replay in which both slide 0.35 m has come to another outcome: the front bundle counts
+    0.1 + L / 2 = 0.24 m (its room is 0.441 m), the still one L / 2, as a still body always
+    did; an upper bundle keeps L / 2, its room."""
+    recorded = _still()
+    recorded["L1C2R1"][1][:, 0] = np.linspace(0.0, -0.1, len(T))
+    frames = features.windows(recorded, body_map, sled_stop_s=10.0)
+    judged = features.reach(recorded, body_map, frames)
+    assert judged["L1C2R1"].reach_m == pytest.approx((0.1 + L / 2, L / 2))
+    assert judged["L1C1R1"].reach_m == pytest.approx((L / 2, L / 2))
+    assert judged["L2C1R1"].reach_m == pytest.approx((L / 2, L / 2))
+    replayed = _still()
+    for name in ("L1C1R1", "L1C2R1"):
+        replayed[name][1][:, 0] = np.linspace(0.0, -0.35, len(T))
+    slips = features.slips(replayed, judged)
+    assert judged["L1C2R1"].clipped(slips["L1C2R1"])[-1] == pytest.approx(-0.1 - L / 2)
+    assert judged["L1C1R1"].clipped(slips["L1C1R1"])[-1] == pytest.approx(-L / 2)
+
+
 def test_windows_end_where_a_body_leaves_its_support_and_carry_up(body_map):
     """L1C1R1 slides past the pallet's back edge at frame 30: its window and that of the
     bundle on it end there; the other column keeps every frame until 0.25 s after the sled
