@@ -82,8 +82,8 @@ def bodies(layout: Layout, observed: set[str]) -> dict[str, Body]:
     support is observed (a bundle of an upper layer whose supports are all hidden is not).
     A bundle's room to slip is measured to the outer edges of what it rests on (the seen
     bundles below, or the pallet): a one-layer unit's inner rows can slide far on the pallet,
-    where only its back row runs off it. The pallet is
-    followed for half its length on the sled (whose deck the recording does not show)."""
+    where only its back row runs off it. The pallet is followed for half its length on the
+    sled (whose deck the recording does not show)."""
     out = {}
     px, _, pz = layout.pallet_size_m
     if "pallet" in observed:
