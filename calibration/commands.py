@@ -461,7 +461,8 @@ def _acceptance(result: FitResult, settings: FitSettings) -> dict:
     calibration accepted under a looser `--max-residual-mm` says so wherever it goes."""
     v = result.verdict
     return {"max_residual_m": settings.max_residual_m, "least_explained": v.source,
-            "unexplained_rms_m": v.rms_m, "explained_by": v.by, "excused": list(v.excused)}
+            "unexplained_rms_m": v.rms_m, "explained_by": v.by, "excused": list(v.excused),
+            "near_threshold": list(result.near_threshold)}
 
 
 def _parts(simulations_by_part: dict[str, int]) -> str:
@@ -526,6 +527,12 @@ def _summary(result: FitResult) -> str:
         lines.append(f"{'accepted' if result.converged else 'refused'}: the least explained "
                      f"recording, {_shown(v.source)}, {1e3 * v.rms_m:.2f} mm unexplained by "
                      f"{v.by}{excused}")
+    if result.converged:
+        lines += [f"warning: {_shown(source)} is a take near a threshold: the fitted values' "
+                  "final replays left it unexplained until more were made; a fit can move the "
+                  "coefficients that decide such an outcome to where it is the common one and "
+                  "claim them resolved: validate this calibration on a level it was not fitted "
+                  "to (--validate)" for source in result.near_threshold]
     return "\n".join(lines)
 
 

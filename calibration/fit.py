@@ -128,6 +128,8 @@ class FitResult:
     #: `simulations` by what they were for: the search (`budget` less the final replays), the
     #: final replays, more replays of recordings those left unexplained, and the probes
     simulations_by_part: dict[str, int] = field(default_factory=dict)
+    #: the recordings near a threshold (`near_threshold`)
+    near_threshold: tuple[str, ...] = ()
 
 
 @dataclass
@@ -515,13 +517,26 @@ def _result(observations: Sequence[Observation], bare: Sequence[Observation],
                    for name in found.scales if (name, "") in found.stds and name not in advice}
     verdict = acceptance.worst(observations, replays)
     replayed = {o.source: len(runs) for o, runs in zip(observations, replays, strict=True)}
+    repeats = _final_replays(settings, len(observations))
     reason = _failure(rms, verdict, replayed.get(verdict.source, 0), progress.simulations,
                       found, settings)
     return FitResult(calibration, rms, progress.simulations, settings.method, progress.curve,
                      [runs[0] for runs in replays], not reason, spread_rms, replay_rms, reason,
                      advice, tuple(found.stages), verdict,
                      tuple(name for name in WRAP_PARAMS if (name, "") in found.stds),
-                     dict(progress.parts))
+                     dict(progress.parts), near_threshold(replayed, repeats))
+
+
+def near_threshold(replayed: dict[str, int], repeats: int) -> tuple[str, ...]:
+    """The recordings (of `replayed`: source -> replays made) that the fitted values' final
+    `repeats` replays left unexplained, so that more were made (`_replayed_more`): takes near a
+    threshold, whose outcome the fitted values reproduce only now and then. On such a take a
+    fit can move the coefficients that decide the outcome to where it is the common one, and
+    claim them resolved: the 2-layer unit with a 0.30 g take, seed 5 (2026-11-30), was written
+    with bundle-bundle's static coefficient at +-0.015 while 0.065 off, its values explaining
+    the 0.45 g take by the mean of 24 replays where the true values explain it through one
+    (docs/calibration.md, "Why seed 5's claim stood")."""
+    return tuple(source for source, n in replayed.items() if n > repeats)
 
 
 def _failure(rms: float, verdict: acceptance.Unexplained, replays: int, simulations: int,

@@ -153,7 +153,8 @@ class Calibration:
         if top.has("acceptance"):
             acceptance = top.table("acceptance")
             unexplained = acceptance.number("unexplained_rms_m", 0.0, minimum=0.0)
-            acceptance.ignore("max_residual_m", "least_explained", "explained_by", "excused")
+            acceptance.ignore("max_residual_m", "least_explained", "explained_by", "excused",
+                              "near_threshold")
             acceptance.done()
         # how the fit went and how it was checked: for people, the bench does not need them
         top.ignore(*DIAGNOSTICS)

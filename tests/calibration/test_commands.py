@@ -195,6 +195,8 @@ def test_calibrate_writes_cal_json_that_simulate_accepts(slide_dir, tmp_path, ca
     assert acceptance["max_residual_m"] == 0.01 and "looser than the default" not in out
     assert acceptance["least_explained"] == str(rec)
     assert 0 <= acceptance["unexplained_rms_m"] <= 0.01
+    # two bundles sliding on their own: no take near a threshold, so no warning
+    assert acceptance["near_threshold"] == [] and "near a threshold" not in out
     assert (tmp_path / "cal-loss.png").read_bytes()[:4] == b"\x89PNG"
     assert (tmp_path / "cal-overlay.png").read_bytes()[:4] == b"\x89PNG"
     assert Calibration.from_json(cal).friction["pallet_bundle"].static > 0
@@ -569,7 +571,24 @@ def test_a_wrap_only_fit_prints_no_empty_friction_table():
     result = SimpleNamespace(
         calibration=Calibration({}, stiffness_scale=1.4, stiffness_scale_std=0.2),
         fitted_scales=("stiffness",), advice={}, residual_rms_m=0.002, spread_rms_m=0.0,
-        replay_rms_m=0.003, verdict=Unexplained("rec", 0.001), converged=True)
+        replay_rms_m=0.003, verdict=Unexplained("rec", 0.001), converged=True,
+        near_threshold=())
     lines = _summary(result).splitlines()
     assert lines[0] == "friction: not fitted (the load file's values)"
     assert lines[1].startswith("wrap: stiffness scale 1.40 ± 0.20")
+
+
+@pytest.mark.parametrize("converged, warned", [(True, 1), (False, 0)])
+def test_a_written_fit_warns_of_a_take_near_a_threshold(converged, warned):
+    """A take whose outcome the fitted values reproduced only once replayed beyond their final
+    replays: the written fit says so and asks for a validation (a refused one says why it was
+    refused instead)."""
+    result = SimpleNamespace(
+        calibration=Calibration({}), fitted_scales=(), advice={}, residual_rms_m=0.002,
+        spread_rms_m=0.0, replay_rms_m=0.003, verdict=Unexplained("takes/0.35g", 0.009),
+        converged=converged, near_threshold=("takes/0.45g",))
+    lines = [line for line in _summary(result).splitlines() if "near a threshold" in line]
+    assert len(lines) == warned
+    if warned:
+        assert lines[0].startswith("warning: takes/0.45g is a take near a threshold")
+        assert lines[0].endswith("on a level it was not fitted to (--validate)")

@@ -86,7 +86,8 @@ def test_a_fit_accepted_under_a_looser_bound_says_so_to_its_users():
     """`calibrate --max-residual-mm 30` may accept a fit that left a recording 28 mm
     unexplained; whoever simulates with its CAL.json later is told."""
     acceptance = {"max_residual_m": 0.03, "least_explained": "takes/0.45g",
-                  "unexplained_rms_m": 0.028, "explained_by": "replay 3", "excused": []}
+                  "unexplained_rms_m": 0.028, "explained_by": "replay 3", "excused": [],
+                  "near_threshold": ["takes/0.45g"]}
     loose = Calibration.from_dict(edited(acceptance=acceptance))
     assert loose.unexplained_rms_m == 0.028
     assert loose.warnings() == ("the calibration was accepted with 28.0 mm of a recording "
