@@ -49,15 +49,25 @@ class Calibration:
     #: What the fit left its least explained recording unexplained (RMS, metres; CAL.json's
     #: `acceptance`, 0 when the file does not say).
     unexplained_rms_m: float = 0.0
+    #: The recordings near a threshold, whose outcome the fitted values reproduced only now
+    #: and then (CAL.json's `acceptance.near_threshold`): a fit can be pulled there.
+    near_threshold: tuple[str, ...] = ()
 
     def warnings(self) -> tuple[str, ...]:
         """What a user of this calibration should know: it was accepted knowingly under a
-        looser bound than a default fit's."""
-        if self.unexplained_rms_m <= DEFAULT_MAX_RESIDUAL_M:
-            return ()
-        return (f"the calibration was accepted with {1e3 * self.unexplained_rms_m:.1f} mm of a "
-                f"recording unexplained, where a default fit refuses more than "
-                f"{1e3 * DEFAULT_MAX_RESIDUAL_M:g} mm",)
+        looser bound than a default fit's, or on takes near a threshold, where a fit can move
+        the coefficients that decide the outcome to where it is the common one."""
+        out = []
+        if self.unexplained_rms_m > DEFAULT_MAX_RESIDUAL_M:
+            out.append(f"the calibration was accepted with {1e3 * self.unexplained_rms_m:.1f} mm"
+                       " of a recording unexplained, where a default fit refuses more than "
+                       f"{1e3 * DEFAULT_MAX_RESIDUAL_M:g} mm")
+        if self.near_threshold:
+            out.append(f"the calibration was fitted to {len(self.near_threshold)} take(s) near a "
+                       "threshold, whose outcome its values reproduce only now and then: the "
+                       "coefficients deciding it may be off by more than their standard "
+                       "deviations")
+        return tuple(out)
 
     def wrap_scales(self) -> dict[str, float]:
         """The wrapped unit's scales by the names `calibration.replay.WRAP_SCALES` applies
@@ -150,11 +160,12 @@ class Calibration:
         known = _known(wrap)
         wrap.done()
         unexplained = 0.0
+        near: tuple[str, ...] = ()
         if top.has("acceptance"):
             acceptance = top.table("acceptance")
             unexplained = acceptance.number("unexplained_rms_m", 0.0, minimum=0.0)
-            acceptance.ignore("max_residual_m", "least_explained", "explained_by", "excused",
-                              "near_threshold")
+            near = _near_threshold(acceptance)
+            acceptance.ignore("max_residual_m", "least_explained", "explained_by", "excused")
             acceptance.done()
         # how the fit went and how it was checked: for people, the bench does not need them
         top.ignore(*DIAGNOSTICS)
@@ -163,7 +174,7 @@ class Calibration:
             # all defaults: the load's own friction and wrap, which the user meant to replace
             raise InputError(source, "friction",
                              "no friction pair and no wrap table: the file calibrates nothing")
-        return cls(pairs, stiffness, tension, *stds, *give, known, unexplained)
+        return cls(pairs, stiffness, tension, *stds, *give, known, unexplained, near)
 
 
 #: Drawn coefficients are kept above these (a draw far in a tail is not a friction pair).
@@ -205,6 +216,16 @@ def _give(wrap: Table) -> tuple[float, float]:
     low, high = SCALE_RANGE
     return (wrap.number("give_scale", 1.0, minimum=low, maximum=high),
             wrap.number("give_scale_std", 0.0, minimum=0.0))
+
+
+def _near_threshold(acceptance: Table) -> tuple[str, ...]:
+    """CAL.json's optional `acceptance.near_threshold`: the paths of recordings."""
+    if not acceptance.has("near_threshold"):
+        return ()
+    paths = acceptance.array("near_threshold")
+    if not all(isinstance(path, str) for path in paths):
+        raise acceptance.error("near_threshold", f"must list recording paths (got {paths!r})")
+    return tuple(paths)
 
 
 def _known(wrap: Table) -> tuple[str, ...]:

@@ -86,8 +86,7 @@ def test_a_fit_accepted_under_a_looser_bound_says_so_to_its_users():
     """`calibrate --max-residual-mm 30` may accept a fit that left a recording 28 mm
     unexplained; whoever simulates with its CAL.json later is told."""
     acceptance = {"max_residual_m": 0.03, "least_explained": "takes/0.45g",
-                  "unexplained_rms_m": 0.028, "explained_by": "replay 3", "excused": [],
-                  "near_threshold": ["takes/0.45g"]}
+                  "unexplained_rms_m": 0.028, "explained_by": "replay 3", "excused": []}
     loose = Calibration.from_dict(edited(acceptance=acceptance))
     assert loose.unexplained_rms_m == 0.028
     assert loose.warnings() == ("the calibration was accepted with 28.0 mm of a recording "
@@ -95,6 +94,26 @@ def test_a_fit_accepted_under_a_looser_bound_says_so_to_its_users():
     assert loose.draw(0).warnings() == loose.warnings()
     within = Calibration.from_dict(edited(acceptance=acceptance | {"unexplained_rms_m": 0.004}))
     assert Calibration.from_dict(CAL).warnings() == within.warnings() == ()
+
+
+def test_a_fit_on_a_take_near_a_threshold_says_so_to_its_users():
+    """`calibrate` names the takes whose outcome the fitted values reproduced only now and
+    then (a fit can be pulled there); whoever simulates with the CAL.json later is told, and
+    a list that is not of paths is refused, naming the field."""
+    acceptance = {"max_residual_m": 0.01, "least_explained": "takes/0.35g",
+                  "unexplained_rms_m": 0.009, "explained_by": "replay 0", "excused": [],
+                  "near_threshold": ["takes/0.45g"]}
+    near = Calibration.from_dict(edited(acceptance=acceptance))
+    assert near.near_threshold == ("takes/0.45g",)
+    assert near.warnings() == (
+        "the calibration was fitted to 1 take(s) near a threshold, whose outcome its values "
+        "reproduce only now and then: the coefficients deciding it may be off by more than "
+        "their standard deviations",)
+    assert near.draw(0).warnings() == near.warnings()
+    assert Calibration.from_dict(edited(acceptance=acceptance | {"near_threshold": []})
+                                 ).warnings() == ()
+    with pytest.raises(InputError, match="near_threshold"):
+        Calibration.from_dict(edited(acceptance=acceptance | {"near_threshold": [3]}))
 
 
 def test_std_and_identified_are_optional_with_documented_defaults():
