@@ -27,6 +27,8 @@ than its material card; then tracked by `track`. Cases:
 - kraft, lldpe: columnar2's bare recordings for friction plus the unit wrapped in
   examples/wrap_{kraft,lldpe}_2layer.toml at 0.7 g for the wrap (1920x1200: the web's markers
   need the pixels), validated on the wrapped unit at 0.5 g;
+- lldpe-apart: lldpe with columnar2-apart's bare takes (0.30, 0.35 and 0.425 g), its 0.45 g
+  take held out with the wrapped 0.5 g one;
 - lldpe2: the lldpe case with the wrapped 0.5 g take fitted too, validated at 0.6 g;
 - slide: examples/calibration_slide.toml at 0.45 g and 0.55 g (two bundles sliding on their
   own), every method.
@@ -130,6 +132,12 @@ CASES: dict[str, tuple[tuple[Take, ...], tuple[Take, ...]]] = {
     **{m: ((Take(C2, 0.35), Take(C2, 0.425), Take(C2, 0.45),
             Take(C2, 0.7, LARGE, f"examples/wrap_{m}_2layer.toml")),
            (Take(C2, 0.5, LARGE, f"examples/wrap_{m}_2layer.toml"),)) for m in ("kraft", "lldpe")},
+    # lldpe with calibrate's advice on a take near a threshold followed (columnar2-apart's
+    # bare takes): is the film's stiffness fitted nearer with bundle-bundle unpulled?
+    "lldpe-apart": ((Take(C2, 0.30), Take(C2, 0.35), Take(C2, 0.425),
+                     Take(C2, 0.7, LARGE, "examples/wrap_lldpe_2layer.toml")),
+                    (Take(C2, 0.5, LARGE, "examples/wrap_lldpe_2layer.toml"),
+                     Take(C2, 0.45))),
     # a second wrapped level: does it separate the film's stiffness from its tension and give?
     "lldpe2": ((Take(C2, 0.35), Take(C2, 0.425), Take(C2, 0.45),
                 Take(C2, 0.5, LARGE, "examples/wrap_lldpe_2layer.toml"),
