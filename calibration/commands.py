@@ -535,21 +535,28 @@ def _summary(result: FitResult) -> str:
                   f"to (--validate){_apart(source, result)}" for source in result.near_threshold]
     elif v.source in result.near_threshold:
         lines.append(f"note: {_shown(v.source)} may be a take near a threshold (a layer that "
-                     "slides in some runs and holds in others): more replays left it "
-                     "unexplained too, as they leave a rare outcome of the right values"
-                     f"{_apart(v.source, result)}")
+                     "slides in some runs and holds in others), which more replays of the right "
+                     f"values leave unexplained too{_apart(v.source, result)}")
     return "\n".join(lines)
 
 
 def _apart(source: str, result: FitResult) -> str:
     """The advice on a take near a threshold, in a fit of several: its outcome pulls the
     coefficients its other bodies see (the 2-layer unit's 0.45 g take put bundle-bundle's
-    kinetic coefficient +0.014 to +0.033 off on four fits of six, +0.004 to -0.019 without it;
-    docs/calibration.md, "A take near a threshold pulls the other coefficients")."""
+    kinetic coefficient +0.014 to +0.033 off on four fits of six, +0.003 to -0.019 without it),
+    unless a pair slipped in it alone: without it that pair is only bounded, and what it
+    decides is fitted to the bound (docs/calibration.md, "A take near a threshold pulls the
+    other coefficients")."""
     if len(result.fitted) < 2:
         return ""
-    return ("; its rare outcome pulls the coefficients its other bodies see: fit the other "
+    text = ("; its rare outcome pulls the coefficients its other bodies see: fit the other "
             f"takes without it and validate on it (--validate {_shown(source)})")
+    if sole := result.sole_slips.get(source):
+        pairs = " and ".join(sole)
+        text += (f"; but {pairs} slipped in no other take: without it {pairs} would be left at "
+                 "a bound, and what it decides fitted to that bound, so first add a level where "
+                 f"{pairs} slides well past its onset")
+    return text
 
 
 def _validation_summary(check: Validation) -> str:

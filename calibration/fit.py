@@ -130,6 +130,9 @@ class FitResult:
     simulations_by_part: dict[str, int] = field(default_factory=dict)
     #: the recordings near a threshold (`near_threshold`)
     near_threshold: tuple[str, ...] = ()
+    #: per recording near a threshold, the pairs that slipped in it and in no other
+    #: (`sole_slips`): fitted without it, they would be left at a bound
+    sole_slips: dict[str, tuple[str, ...]] = field(default_factory=dict)
 
 
 @dataclass
@@ -517,14 +520,31 @@ def _result(observations: Sequence[Observation], bare: Sequence[Observation],
                    for name in found.scales if (name, "") in found.stds and name not in advice}
     verdict = acceptance.worst(observations, replays)
     replayed = {o.source: len(runs) for o, runs in zip(observations, replays, strict=True)}
-    repeats = _final_replays(settings, len(observations))
+    near = near_threshold(replayed, _final_replays(settings, len(observations)))
     reason = _failure(rms, verdict, replayed.get(verdict.source, 0), progress.simulations,
                       found, settings)
     return FitResult(calibration, rms, progress.simulations, settings.method, progress.curve,
                      [runs[0] for runs in replays], not reason, spread_rms, replay_rms, reason,
                      advice, tuple(found.stages), verdict,
                      tuple(name for name in WRAP_PARAMS if (name, "") in found.stds),
-                     dict(progress.parts), near_threshold(replayed, repeats))
+                     dict(progress.parts), near, sole_slips(bare, near))
+
+
+def sole_slips(bare: Sequence[Observation], sources: Sequence[str]
+               ) -> dict[str, tuple[str, ...]]:
+    """Per recording of `sources` that friction is fitted to (`bare`), the pairs that slipped
+    in it and in no other such recording. A take near a threshold pulls the coefficients its
+    other bodies see, so `calibrate` advises fitting without it; but a pair only it saw slip is
+    then left at a bound, and what that pair decides is fitted to the bound: the film case
+    without the 2-layer unit's 0.45 g take put the film's stiffness +34 to +73 % off
+    (docs/calibration.md, "A take near a threshold pulls the other coefficients")."""
+    out = {}
+    for source in sources:
+        take = next((o for o in bare if o.source == source), None)
+        if take is not None:
+            others = frozenset[str]().union(*(o.slipped for o in bare if o is not take))
+            out[source] = tuple(sorted(take.slipped - others))
+    return out
 
 
 def near_threshold(replayed: dict[str, int], repeats: int) -> tuple[str, ...]:

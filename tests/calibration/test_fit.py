@@ -24,6 +24,7 @@ from calibration.fit import (
     fit,
     min_budget,
     near_threshold,
+    sole_slips,
 )
 from calibration.identify import Bound
 from calibration.objective import Model, Param, Progress
@@ -265,6 +266,21 @@ def test_a_take_replayed_beyond_the_final_replays_is_reported_near_a_threshold()
     replayed = {"takes/0.35g": 6, "takes/0.45g": 24, "takes/0.425g": 6}
     assert near_threshold(replayed, 6) == ("takes/0.45g",)
     assert near_threshold({"takes/0.45g": 6}, 6) == ()
+
+
+def test_the_pairs_that_slipped_only_in_a_take_near_a_threshold_are_named():
+    """The 2-layer unit's bottom layer slid on the pallet in its 0.45 g take alone: fitted
+    without that take, pallet-bundle would be only bounded. Bundle-bundle slipped in the
+    others too. Only the takes friction is fitted to count (the bare ones of a wrapped fit)."""
+    takes = [SimpleNamespace(source="takes/0.35g", slipped=frozenset({"bundle_bundle"})),
+             SimpleNamespace(source="takes/0.45g",
+                             slipped=frozenset({"bundle_bundle", "pallet_bundle"})),
+             SimpleNamespace(source="takes/0.425g", slipped=frozenset({"bundle_bundle"}))]
+    assert sole_slips(takes, ("takes/0.45g",)) == {"takes/0.45g": ("pallet_bundle",)}
+    assert sole_slips(takes, ("takes/0.35g",)) == {"takes/0.35g": ()}
+    assert sole_slips(takes, ()) == {}
+    # a wrapped take is not among those friction is fitted to: no pair is left to it alone
+    assert sole_slips(takes, ("takes/wrapped-0.7g",)) == {}
 
 
 def test_a_take_its_replays_leave_unexplained_is_replayed_up_to_24_times(
