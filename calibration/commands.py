@@ -553,9 +553,9 @@ def _apart(source: str, result: FitResult) -> str:
             f"takes without it and validate on it (--validate {_shown(source)})")
     if sole := result.sole_slips.get(source):
         pairs = " and ".join(sole)
-        text += (f"; but {pairs} slipped in no other take: without it {pairs} would be left at "
-                 "a bound, and what it decides fitted to that bound, so first add a level where "
-                 f"{pairs} slides well past its onset")
+        text += (f"; but {pairs} slipped in no other take: fitted without it, {pairs} would only "
+                 f"be bounded and what depends on {pairs} fitted to a bound, so first add a "
+                 f"level well past the onset of {pairs}")
     return text
 
 

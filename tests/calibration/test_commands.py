@@ -610,12 +610,12 @@ def test_a_take_near_a_threshold_in_which_alone_a_pair_slipped_is_kept_until_ano
         converged):
     """Fitted without that take, the pair it alone saw slip would be left at a bound and what
     it decides fitted to the bound (the film's stiffness, +34 to +73 % off on the 2-layer
-    unit): the advice asks first for a level where that pair slides well past its onset."""
+    unit): the advice asks first for a level well past that pair's onset."""
     lines = _near_threshold_lines(converged=converged, least_explained="takes/0.45g", takes=4,
                                   sole=("pallet_bundle",))
     assert len(lines) == 1
     assert "(--validate takes/0.45g); but pallet_bundle slipped in no other take" in lines[0]
-    assert lines[0].endswith("add a level where pallet_bundle slides well past its onset")
+    assert lines[0].endswith("add a level well past the onset of pallet_bundle")
 
 
 @pytest.mark.parametrize("least_explained, takes, noted", [
