@@ -27,6 +27,9 @@ than its material card; then tracked by `track`. Cases:
 - kraft, lldpe: columnar2's bare recordings for friction plus the unit wrapped in
   examples/wrap_{kraft,lldpe}_2layer.toml at 0.7 g for the wrap (1920x1200: the web's markers
   need the pixels), validated on the wrapped unit at 0.5 g;
+- columnar2-apart-advised: columnar2-apart with the one-layer unit's takes at 0.40 and 0.50 g
+  for pallet-bundle, which slipped in the held-out take alone (the 2-layer unit's front row
+  topples above 0.45 g before its bottom layer slides far);
 - lldpe-apart: lldpe with columnar2-apart's bare takes (0.30, 0.35 and 0.425 g), its 0.45 g
   take held out with the wrapped 0.5 g one;
 - lldpe2: the lldpe case with the wrapped 0.5 g take fitted too, validated at 0.6 g;
@@ -132,6 +135,12 @@ CASES: dict[str, tuple[tuple[Take, ...], tuple[Take, ...]]] = {
     **{m: ((Take(C2, 0.35), Take(C2, 0.425), Take(C2, 0.45),
             Take(C2, 0.7, LARGE, f"examples/wrap_{m}_2layer.toml")),
            (Take(C2, 0.5, LARGE, f"examples/wrap_{m}_2layer.toml"),)) for m in ("kraft", "lldpe")},
+    # columnar2-apart with the advice its fits give for pallet-bundle, which slipped in the
+    # held-out take alone: a level well past that pair's onset, where the 2-layer unit's front
+    # row topples first, so taken on one layer of the same bundles (as columnar3-advised)
+    "columnar2-apart-advised": ((Take(C2, 0.30), Take(C2, 0.35), Take(C2, 0.425),
+                                 Take(C1, 0.40), Take(C1, 0.50)),
+                                (Take(C2, 0.40), Take(C2, 0.55), Take(C2, 0.45))),
     # lldpe with calibrate's advice on a take near a threshold followed (columnar2-apart's
     # bare takes): is the film's stiffness fitted nearer with bundle-bundle unpulled?
     "lldpe-apart": ((Take(C2, 0.30), Take(C2, 0.35), Take(C2, 0.425),
