@@ -30,6 +30,9 @@ than its material card; then tracked by `track`. Cases:
 - columnar2-apart-advised: columnar2-apart with the one-layer unit's takes at 0.40 and 0.50 g
   for pallet-bundle, which slipped in the held-out take alone (the 2-layer unit's front row
   topples above 0.45 g before its bottom layer slides far);
+- columnar2-apart-advised2: columnar2-apart-advised with the one-layer 0.55 g take fitted in
+  place of the 0.50 g one, which is held out: at 0.50 g the front row is at the onset of sliding
+  off the pallet, and that take alone lets pallet-bundle's coefficients trade along a ridge;
 - lldpe-apart: lldpe with columnar2-apart's bare takes (0.30, 0.35 and 0.425 g), its 0.45 g
   take held out with the wrapped 0.5 g one;
 - lldpe2: the lldpe case with the wrapped 0.5 g take fitted too, validated at 0.6 g;
@@ -141,6 +144,15 @@ CASES: dict[str, tuple[tuple[Take, ...], tuple[Take, ...]]] = {
     "columnar2-apart-advised": ((Take(C2, 0.30), Take(C2, 0.35), Take(C2, 0.425),
                                  Take(C1, 0.40), Take(C1, 0.50)),
                                 (Take(C2, 0.40), Take(C2, 0.55), Take(C2, 0.45))),
+    # columnar2-apart-advised with its advice followed in turn: the one-layer 0.50 g take is at
+    # the onset of its front row sliding off the pallet (refused on it, 20-21 mm), and it is the
+    # only fitted take where pallet-bundle slips, so its static and kinetic coefficients trade
+    # along a ridge; the 0.55 g take, where the inner columns slide twice as far on the pallet,
+    # is fitted in its place and the 0.50 g take held out
+    "columnar2-apart-advised2": ((Take(C2, 0.30), Take(C2, 0.35), Take(C2, 0.425),
+                                  Take(C1, 0.40), Take(C1, 0.55)),
+                                 (Take(C2, 0.40), Take(C2, 0.55), Take(C2, 0.45),
+                                  Take(C1, 0.50))),
     # lldpe with calibrate's advice on a take near a threshold followed (columnar2-apart's
     # bare takes): is the film's stiffness fitted nearer with bundle-bundle unpulled?
     "lldpe-apart": ((Take(C2, 0.30), Take(C2, 0.35), Take(C2, 0.425),
