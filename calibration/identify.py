@@ -160,12 +160,19 @@ def highest_slipped_g(name: str, observations: Sequence[Observation]) -> float:
 
 def advice_kinetic(name: str, observations: Sequence[Observation], std: float) -> str:
     """For a pair that slipped whose kinetic coefficient the recordings do not resolve: how far
-    a slip runs pins it, and a higher level makes it run farther, unless it runs off its
-    support (a body is judged only until its centre leaves what it rests on,
-    `calibration.features`)."""
-    return (f"kinetic coefficient not resolved (± {std:.3f}): how far a slip runs pins it; a "
-            f"level above {highest_slipped_g(name, observations):.2f} g, where it runs "
-            "farther, would narrow it if no bundle slides off its support there")
+    a slip runs pins it, and a higher level makes it run farther. Slipped at one level, a later
+    onset and a freer slide run as far (the one-layer unit at 0.50 g: the truth with its static
+    coefficient 0.03 higher and its kinetic one 0.04 lower leaves 2.2 mm unexplained). A level
+    where a front row slides off its support still pins it through the bundles behind, which
+    slide on (a body is judged until its centre leaves what it rests on,
+    `calibration.features`; docs/calibration.md, "Pallet–bundle's ridge")."""
+    levels = {round(o.peak_accel_g[0], 3) for o in observations if name in o.slipped}
+    trade = (", but slipping at one level only, a later onset and a freer slide run as far "
+             "(its static coefficient trades against it)" if len(levels) == 1 else "")
+    return (f"kinetic coefficient not resolved (± {std:.3f}): how far a slip runs pins "
+            f"it{trade}; a level above {highest_slipped_g(name, observations):.2f} g, where it "
+            "runs farther, would narrow it while some bundle that slips on it keeps its support "
+            "there")
 
 
 def advice_slipped_throughout(bound: Bound, static: float, std: float) -> str:
