@@ -22,6 +22,7 @@ import os
 from collections.abc import Callable, Sequence
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field, replace
+from functools import partial
 
 import numpy as np
 
@@ -30,7 +31,15 @@ from calibration.checkpoint import ReplayLog
 from calibration.descent import UNIFORM_STD, descend, least_points
 from calibration.objective import Model, Objective, Param, Progress
 from calibration.replay import Observation, replay, resettled, residuals
-from calibration.surrogate import Stage, SurrogateFit, min_points, profile, surrogate
+from calibration.surrogate import (
+    MAX_STAGES,
+    Stage,
+    SurrogateFit,
+    min_points,
+    profile,
+    stage_sizes,
+    surrogate,
+)
 from wrapenv.bench import SimSettings
 from wrapenv.calibrated import DEFAULT_MAX_RESIDUAL_M, CalibratedPair, Calibration
 from wrapenv.load import PAIRS, Friction, FrictionPair
@@ -341,27 +350,57 @@ def _stage_limit(budget: int, spent: int, stages: Stages) -> int:
     return spent + (budget - spent) * len(stages[0][0]) // left
 
 
+def _stage_points(observations: Sequence[Observation], settings: FitSettings
+                  ) -> list[tuple[int, int]]:
+    """Per stage its parameters and the points its search gets under `settings.budget`:
+    replays of each of its recordings, after the final replays (as `fit` spends them)."""
+    _, _, stages = _stages(observations, settings)
+    repeats = _final_replays(settings, len(observations))
+    left, spent, out = settings.budget - repeats * len(observations), 0, []
+    for k, (params, indices) in enumerate(stages):
+        points = (_stage_limit(left, spent, stages[k:]) - spent) // len(indices)
+        out.append((len(params), points))
+        spent += points * len(indices)
+    return out
+
+
 def min_budget(observations: Sequence[Observation], settings: FitSettings) -> int:
     """The least budget with which every stage searches at all (`surrogate.min_points` or
     `descent.least_points` replays of each of its recordings, after the final replays)."""
-    _, _, stages = _stages(observations, settings)
-
     def enough(budget: int) -> bool:
-        repeats = _final_replays(replace(settings, budget=budget), len(observations))
-        left, spent = budget - repeats * len(observations), 0
-        for k, (params, indices) in enumerate(stages):
-            points = (_stage_limit(left, spent, stages[k:]) - spent) // len(indices)
-            least = (min_points(len(params)) if settings.method == "surrogate"
-                     else least_points(settings.method, len(params)))
-            if points < least:
-                return False
-            spent += points * len(indices)
-        return True
+        least = (min_points if settings.method == "surrogate"
+                 else partial(least_points, settings.method))
+        return all(points >= least(p) for p, points in
+                   _stage_points(observations, replace(settings, budget=budget)))
 
     budget = 1
     while not enough(budget):
         budget += 1
     return budget
+
+
+def friction_local_stages(observations: Sequence[Observation], settings: FitSettings
+                          ) -> tuple[int, int] | None:
+    """For a surrogate fit of friction whose search gets one local stage or none under the
+    budget: how many, and the least budget that gives it all `MAX_STAGES - 1`; else None.
+    Every point replays every recording, so each take the advice adds thins the search: five
+    takes at 300 simulations get one local stage, which cannot follow pallet-bundle's ridge
+    (every coefficient within issue 13's goals on 2 fits of 6; at 500 on 4: docs/calibration.md,
+    "Pallet–bundle's ridge")."""
+    _, _, stages = _stages(observations, settings)
+    if settings.method != "surrogate" or not stages or stages[0][0][0].is_scale:
+        return None
+
+    def local(budget: int) -> int:
+        p, points = _stage_points(observations, replace(settings, budget=budget))[0]
+        return len(stage_sizes(points, p)) - 1
+
+    if (now := local(settings.budget)) > 1:
+        return None
+    budget = settings.budget
+    while local(budget) < MAX_STAGES - 1:
+        budget += 1
+    return now, budget
 
 
 def _replayed_more(observations: Sequence[Observation], friction: Friction,

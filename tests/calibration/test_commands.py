@@ -228,6 +228,10 @@ def test_calibrate_that_does_not_converge_writes_nothing(slide_dir, tmp_path, ca
     found = found[found.index("the refused fit (not written):"):]
     assert any(line.startswith("pallet_bundle ") for line in found)
     assert any(line.startswith("refused: the least explained recording") for line in found)
+    # 7 points of the one take after its 3 final replays: no local stage of the surrogate
+    assert re.search(r"^note: with 1 recording the 10 simulations give the friction search 0 "
+                     r"local stages of 3: --budget \d+ or more gives it all 3 ", captured.out,
+                     re.MULTILINE), captured.out
     assert list(out.iterdir()) == []
 
     # a checkpoint the engineer names is kept, so that accepting the fit knowingly (below)

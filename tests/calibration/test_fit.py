@@ -22,6 +22,7 @@ from calibration.fit import (
     _replayed_more,
     _shifted,
     fit,
+    friction_local_stages,
     min_budget,
     near_threshold,
     sole_slips,
@@ -153,6 +154,24 @@ def test_the_least_budget_gives_every_stage_a_fittable_design():
     assert min_budget(takes, FitSettings(budget=300)) == 20
     assert min_budget(takes, FitSettings(method="cmaes", budget=12)) == 38
     assert min_budget(takes, FitSettings(method="momentum", budget=12)) == 30
+
+
+def test_five_takes_at_300_simulations_leave_the_friction_search_one_local_stage():
+    """Every point replays every take. Five bare takes in which both bundle pairs slipped
+    (4 parameters) at 300 simulations: 6 final replays of each (30), 54 points; a global stage
+    of 22 and one local stage of 32 (a local stage needs 2 x (1 + 2 x 4) = 18 points). At 480:
+    90 points, 36 global and three local stages of 18. Three takes at 300 (94 points) and four
+    (69, two local stages) are not told; nor is a descent, which has no stages."""
+    def takes(n: int) -> list[SimpleNamespace]:
+        return [SimpleNamespace(peak_accel_g=(0.30 + 0.05 * k, 0.1), wrap=None,
+                                slipped=frozenset({"pallet_bundle", "bundle_bundle"}))
+                for k in range(n)]
+
+    assert friction_local_stages(takes(5), FitSettings()) == (1, 480)
+    assert friction_local_stages(takes(5), FitSettings(budget=480)) is None
+    assert friction_local_stages(takes(4), FitSettings()) is None
+    assert friction_local_stages(takes(3), FitSettings()) is None
+    assert friction_local_stages(takes(5), FitSettings(method="cmaes")) is None
 
 
 def test_only_a_pair_whose_onset_is_bracketed_can_claim_a_resolved_static_coefficient():
