@@ -161,7 +161,8 @@ def test_five_takes_at_300_simulations_leave_the_friction_search_one_local_stage
     (4 parameters) at 300 simulations: 6 final replays of each (30), 54 points; a global stage
     of 22 and one local stage of 32 (a local stage needs 2 x (1 + 2 x 4) = 18 points). At 480:
     90 points, 36 global and three local stages of 18. Three takes at 300 (94 points) and four
-    (69, two local stages) are not told; nor is a descent, which has no stages."""
+    (69, two local stages) are not told; nor is a descent, which has no stages, nor a fit with
+    a wrap stage (on the film case more budget did not fit friction better)."""
     def takes(n: int) -> list[SimpleNamespace]:
         return [SimpleNamespace(peak_accel_g=(0.30 + 0.05 * k, 0.1), wrap=None,
                                 slipped=frozenset({"pallet_bundle", "bundle_bundle"}))
@@ -172,6 +173,10 @@ def test_five_takes_at_300_simulations_leave_the_friction_search_one_local_stage
     assert friction_local_stages(takes(4), FitSettings()) is None
     assert friction_local_stages(takes(3), FitSettings()) is None
     assert friction_local_stages(takes(5), FitSettings(method="cmaes")) is None
+    wrapped = SimpleNamespace(peak_accel_g=(0.7, 0.1), wrap=object(), slipped=frozenset())
+    assert friction_local_stages([*takes(5), wrapped], FitSettings(params="all")) is None
+    # friction alone beside a wrapped take: its 6 final replays are spent too
+    assert friction_local_stages([*takes(5), wrapped], FitSettings()) == (1, 486)
 
 
 def test_only_a_pair_whose_onset_is_bracketed_can_claim_a_resolved_static_coefficient():
