@@ -367,9 +367,10 @@ def _stage_points(observations: Sequence[Observation], settings: FitSettings
 def min_budget(observations: Sequence[Observation], settings: FitSettings) -> int:
     """The least budget with which every stage searches at all (`surrogate.min_points` or
     `descent.least_points` replays of each of its recordings, after the final replays)."""
+    least = (min_points if settings.method == "surrogate"
+             else partial(least_points, settings.method))
+
     def enough(budget: int) -> bool:
-        least = (min_points if settings.method == "surrogate"
-                 else partial(least_points, settings.method))
         return all(points >= least(p) for p, points in
                    _stage_points(observations, replace(settings, budget=budget)))
 
@@ -383,12 +384,11 @@ def friction_local_stages(observations: Sequence[Observation], settings: FitSett
                           ) -> tuple[int, int] | None:
     """For a surrogate fit of friction alone whose search gets one local stage or none under
     the budget: how many, and the least budget that gives it all `MAX_STAGES - 1`; else None.
-    Not for a fit with a wrap stage: on the film case 500 simulations fitted friction within
-    the goals on 2 fits of 6, against 4 at 300 (docs/calibration.md, "Pallet–bundle's ridge").
     Every point replays every recording, so each take the advice adds thins the search: five
     takes at 300 simulations get one local stage, which cannot follow pallet-bundle's ridge
-    (every coefficient within issue 13's goals on 2 fits of 6; at 500 on 4: docs/calibration.md,
-    "Pallet–bundle's ridge")."""
+    (every coefficient within issue 13's goals on 2 fits of 6; at 500 on 4). Not for a fit with
+    a wrap stage: on the film case 500 fitted friction within the goals on 2 fits of 6, against
+    4 at 300 (docs/calibration.md, "Pallet–bundle's ridge")."""
     _, _, stages = _stages(observations, settings)
     if settings.method != "surrogate" or len(stages) != 1 or stages[0][0][0].is_scale:
         return None
