@@ -62,7 +62,10 @@ made the given error.
 How a budget's split between the search's stages moves a fit: `--global-share S` gives the
 first (global) stage that share of the points, in place of `calibration.surrogate.GLOBAL_SHARE`
 (0.4); the local stages split the rest as `stage_sizes` does. Five takes at 300 simulations
-leave the friction search 54 points: [22, 32] by default, [18, 18, 18] at 0.33.
+leave the friction search 54 points: [22, 32] by default, [18, 18, 18] at 0.33. `--oriented`
+lays each local stage's box along the estimate's principal axes, in place of the unit box's
+(`calibration.surrogate.ORIENTED`): a search that follows a ridge along which a pair's two
+coefficients trade.
 """
 
 from __future__ import annotations
@@ -84,6 +87,7 @@ from calibration.features import TRACK_NOISE_M
 from calibration.fit import FINAL_REPLAYS, METHODS, FitResult, FitSettings, fit
 from calibration.recording import Recording, Truth
 from calibration.replay import Observation, observe, replay, resettled, residuals
+from calibration.surrogate import Stage
 from calibration.synth import synthesize
 from calibration.track import track
 from calibration.trajectories import Trajectories
@@ -252,8 +256,8 @@ def report(name: str, method: str, result: FitResult, truth: Truth, wall: float,
                          f"{_reproduced(c)}")
             cells.append(f"layer {layer} {what} {pct.removesuffix(' (beyond goal)')}")
     lines += [f"  advice: {k}: {v}" for k, v in result.advice.items()]
-    lines += [f"  stage {k}: {s.added} new, {s.used} used; box {_unit(s.centre)} ± "
-              f"{_unit(s.half_width)} -> {_unit(s.estimate)} ± {_unit(s.std)}"
+    lines += [f"  stage {k}: {s.added} new, {s.used} used; box {_unit(s.frame() @ s.centre)} ± "
+              f"{_unit(s.half_width)}{_turned(s)} -> {_unit(s.estimate)} ± {_unit(s.std)}"
               for k, s in enumerate(result.stages)]
     validating = len(benches_to_replay(result.calibration)) * len(checks)
     sims = result.simulations + validating
@@ -440,6 +444,13 @@ def _replayed(pool: ProcessPoolExecutor, obs: Observation, friction: Friction,
     return residuals(obs, simulated)
 
 
+def _turned(stage: Stage) -> str:
+    """An oriented box's sides (`--oriented`), each as its direction in the unit box."""
+    if stage.axes is None:
+        return ""
+    return " along " + ", ".join(_unit(a) for a in stage.axes.T)
+
+
 def run_sensitivity(name: str) -> None:
     """How far the case's wrapped recording's features move when one wrap scale is halved or
     doubled from the truth (RMS and largest, against one replay with the true values): a
@@ -484,6 +495,9 @@ def main() -> None:
     parser.add_argument("--global-share", type=float, metavar="S",
                         help="the global stage's share of a search's points (default: "
                              f"calibration.surrogate.GLOBAL_SHARE, {surrogate.GLOBAL_SHARE})")
+    parser.add_argument("--oriented", action="store_true",
+                        help="local boxes along the estimate's principal axes "
+                             "(calibration.surrogate.ORIENTED): a search that follows a ridge")
     parser.add_argument("--sensitivity", action="store_true",
                         help="no fit: how much each wrap scale moves the wrapped recording")
     args = parser.parse_args()
@@ -495,6 +509,7 @@ def main() -> None:
         if not 0.0 < args.global_share < 1.0:
             parser.error("--global-share: a share between 0 and 1")
         surrogate.GLOBAL_SHARE = args.global_share  # read by stage_sizes at each search
+    surrogate.ORIENTED = args.oriented              # read by each search
     for name in args.case:
         if args.truth:
             run_truth(name, args.truth, args.workers, args.offset)

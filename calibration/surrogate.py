@@ -20,7 +20,10 @@ run, and fits the recording to the average, weighting each feature by its scatte
    (Gauss-Newton with Levenberg damping, several starts). Features a bundle's chaos scrambles
    count little, the ones the parameters decide count a lot.
 4. The next box is centred on the estimate, `BOX_SIGMAS` standard deviations wide (within
-   `SHRINK` of the previous box); the replays inside it are reused.
+   `SHRINK` of the previous box); the replays inside it are reused. With `ORIENTED` its sides lie
+   along the estimate's principal axes (the eigenvectors of its covariance), not the unit box's:
+   a ridge along which two parameters trade (a later slip onset and a freer slide running as
+   far) then runs along one side of the box instead of across its diagonal.
 
 The covariance is the sandwich A^-1 (J^T W S W J) A^-1 with A = J^T W J, J the emulator's
 Jacobian and S the scatter of the replays about the emulator (so correlated features, such as
@@ -59,13 +62,20 @@ SCATTER_DOF = 2
 #: Gauss-Newton iterations and starts of the estimate on the emulator.
 ITERATIONS = 30
 STARTS = 4
+#: Local boxes along the estimate's principal axes (module docstring, step 4); off by default,
+#: a choice measured in docs/calibration.md ("A search along the ridge").
+ORIENTED = False
+#: Weight of a profile's held value on an oriented box, where holding one of the unit box's
+#: coordinates is a linear constraint on the box's own (residual per unit of scaled distance).
+HOLD_WEIGHT = 1e3
 
 
 @dataclass(frozen=True)
 class Stage:
-    """One design: its box (centre and half-widths, unit box), the points it added and used,
-    the estimate with its standard deviations, and a local stage's emulator (scaled
-    coordinates: the box is [-1, 1])."""
+    """One design: its box (centre and half-widths along its axes), the points it added and
+    used, the estimate with its standard deviations (unit box), and a local stage's emulator
+    (scaled coordinates: the box is [-1, 1]). `axes` holds the box's sides as columns, a point
+    of the unit box being u = axes @ w with w in the box's frame; None: the unit box's own."""
 
     centre: np.ndarray
     half_width: np.ndarray
@@ -74,6 +84,10 @@ class Stage:
     estimate: np.ndarray
     std: np.ndarray
     emulator: Emulator | None = None
+    axes: np.ndarray | None = None
+
+    def frame(self) -> np.ndarray:
+        return np.eye(len(self.centre)) if self.axes is None else self.axes
 
 
 @dataclass(frozen=True)
@@ -152,6 +166,10 @@ def profile(fit: SurrogateFit, index: int, value: float) -> np.ndarray | None:
     for stage in reversed(fit.stages):
         if stage.emulator is None:
             continue
+        if stage.axes is not None:
+            if (u := _profile_oriented(fit, stage, index, value)) is not None:
+                return u
+            continue
         mid, scale = stage.centre, stage.half_width
         held = (value - mid[index]) / scale[index]
         if abs(held) > 1.0:
@@ -161,6 +179,24 @@ def profile(fit: SurrogateFit, index: int, value: float) -> np.ndarray | None:
         y = _solve(stage.emulator, -bound, bound, [others], (index, held))
         return mid + scale * np.insert(y, index, held)
     return None
+
+
+def _profile_oriented(fit: SurrogateFit, stage: Stage, index: int, value: float
+                      ) -> np.ndarray | None:
+    """`profile` on an oriented box, where the held coordinate is a line across the box's own:
+    a . z = b in scaled coordinates, held by a weighted residual (`HOLD_WEIGHT`). None where
+    the line misses the box."""
+    assert stage.emulator is not None and stage.axes is not None
+    mid, scale, axes = stage.centre, stage.half_width, stage.axes
+    a, b = axes[index] * scale, value - axes[index] @ mid
+    if abs(b) > np.sum(np.abs(a)):
+        return None
+    bound = np.ones(len(mid))
+    start = np.clip((axes.T @ fit.u - mid) / scale, -1.0, 1.0)
+    z = _solve(stage.emulator, -bound, bound, [start], line=(a, b))
+    u = axes @ (mid + scale * z)
+    u[index] = value
+    return u
 
 
 def _central_differences(f: Callable[[np.ndarray], np.ndarray], z: np.ndarray,
@@ -180,11 +216,16 @@ def _expected(em: Emulator, z: np.ndarray) -> np.ndarray:
 
 
 def _solve(em: Emulator, lo: np.ndarray, hi: np.ndarray, starts: Sequence[np.ndarray],
-           held: tuple[int, float] | None = None) -> np.ndarray:
+           held: tuple[int, float] | None = None,
+           line: tuple[np.ndarray, float] | None = None) -> np.ndarray:
     """The point of [lo, hi] (scaled coordinates) minimising the expected weighted residual
     (`_expected`); with `held` (index, value) that coordinate is held at the value, and the
-    point, bounds and starts are the other coordinates'."""
+    point, bounds and starts are the other coordinates'; with `line` (a, b) the point is held
+    to a . z = b (`HOLD_WEIGHT`)."""
     def expected(x: np.ndarray) -> np.ndarray:
+        if line is not None:
+            a, b = line
+            return np.append(_expected(em, x), HOLD_WEIGHT * (a @ x - b) / np.linalg.norm(a))
         return _expected(em, x if held is None else np.insert(x, held[0], held[1]))
 
     best, best_cost = starts[0], math.inf
@@ -262,6 +303,7 @@ def surrogate(evaluate: Evaluate, p: int, points: int, seed: int,
     `informed_by`: per parameter the features that inform it (None: all), for the global stage
     (`_accepted`)."""
     rng = np.random.default_rng(seed)
+    axes = np.eye(p)            # the box's sides; its centre and half-widths in their frame
     centre = np.full(p, 0.5)
     half = np.full(p, 0.5)
     us: list[np.ndarray] = []
@@ -272,36 +314,41 @@ def surrogate(evaluate: Evaluate, p: int, points: int, seed: int,
     # with too few physical replays for any stage: the box's centre, as uncertain as the box
     u_hat, cov, em = centre, np.diag(np.full(p, 1 / 12)), None
     for k, n in enumerate(sizes):
-        lo, hi = _box(centre, half)
-        design = [lo + (hi - lo) * x for x in latin_hypercube(n, p, rng)]
+        lo, hi = _box(centre, half, axes)
+        design = [axes @ (lo + (hi - lo) * x) for x in latin_hypercube(n, p, rng)]
         for u, r in zip(design, evaluate(design), strict=True):
             if r is None:
                 invalid += 1
             else:
                 us.append(u)
                 rs.append(r)
-        inside = [i for i, u in enumerate(us) if np.all((u >= lo - 1e-12) & (u <= hi + 1e-12))]
+        inside = [i for i, u in enumerate(us)
+                  if np.all((axes.T @ u >= lo - 1e-12) & (axes.T @ u <= hi + 1e-12))]
         if len(inside) < min_points(p):  # replays became unphysical: the last estimate stands
             break
-        mid, scale = (lo + hi) / 2, np.maximum((hi - lo) / 2, 1e-9)
+        mid, scale, frame = (lo + hi) / 2, np.maximum((hi - lo) / 2, 1e-9), axes
         if k == 0 and len(sizes) > 1:
-            u_hat, std = _accepted(np.array(us), np.array(rs), informed_by)
-            cov = np.diag(std**2)
+            u_hat, cov = _accepted(np.array(us), np.array(rs), informed_by)
         else:
-            z = (np.array([us[i] for i in inside]) - mid) / scale
+            z = (np.array([frame.T @ us[i] for i in inside]) - mid) / scale
             em = Emulator(z, np.array([rs[i] for i in inside]))
             starts = [np.zeros(p)] + [z[i] for i in _best(em, rs, inside, STARTS - 1)]
             z_hat = _solve(em, -np.ones(p), np.ones(p), starts)
-            cov = _covariance(em, z_hat) * np.outer(scale, scale)
-            u_hat = mid + scale * z_hat
-            std = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+            cov = frame @ (_covariance(em, z_hat) * np.outer(scale, scale)) @ frame.T
+            u_hat = frame @ (mid + scale * z_hat)
+        std = np.sqrt(np.clip(np.diag(cov), 0.0, None))
         stages.append(Stage(mid, scale, n, len(inside), u_hat, std,
-                            None if k == 0 and len(sizes) > 1 else em))
-        centre = u_hat
-        half = np.clip(BOX_SIGMAS * std, SHRINK[0] * scale, SHRINK[1] * scale)
+                            None if k == 0 and len(sizes) > 1 else em,
+                            frame if k > 0 and ORIENTED else None))
+        if ORIENTED:
+            axes = np.linalg.eigh(cov)[1]
+        spread = np.sqrt(np.clip(np.diag(axes.T @ cov @ axes), 0.0, None))
+        extent = np.abs(axes.T @ frame) @ scale     # the box's reach along the new sides
+        half = np.clip(BOX_SIGMAS * spread, SHRINK[0] * extent, SHRINK[1] * extent)
         half = np.maximum(half, MIN_HALF_WIDTH)
+        centre = axes.T @ u_hat
     if shared and em is not None:
-        cov = _covariance(em, z_hat, shared) * np.outer(scale, scale)
+        cov = frame @ (_covariance(em, z_hat, shared) * np.outer(scale, scale)) @ frame.T
     return SurrogateFit(u_hat, _settled(cov, stages), tuple(stages), invalid)
 
 
@@ -322,28 +369,39 @@ def _settled(cov: np.ndarray, stages: Sequence[Stage]) -> np.ndarray:
 
 def _accepted(us: np.ndarray, rs: np.ndarray, informed_by: Sequence[np.ndarray | None] = ()
               ) -> tuple[np.ndarray, np.ndarray]:
-    """The global stage's answer (rejection sampling): mean and standard deviation of the
-    `ACCEPT` share of points whose features lie nearest the recording's, each feature scaled
-    by its spread over the whole design (its median absolute deviation). A parameter with
-    features of its own (`informed_by`: a friction pair's, the slips of the bodies resting on
-    it) is judged by those alone: otherwise the many chaotic slides of an upper layer decide
-    which points are near, and a pair that slipped in one recording only is left at random."""
+    """The global stage's answer (rejection sampling): mean and covariance of the `ACCEPT`
+    share of points whose features lie nearest the recording's, each feature scaled by its
+    spread over the whole design (its median absolute deviation). A parameter with features of
+    its own (`informed_by`: a friction pair's, the slips of the bodies resting on it) is judged
+    by those alone: otherwise the many chaotic slides of an upper layer decide which points are
+    near, and a pair that slipped in one recording only is left at random. Parameters judged
+    by the same features share their points, and so their covariance (a pair's two
+    coefficients trading along a ridge); others are uncorrelated."""
     spread = np.maximum(np.median(np.abs(rs - np.median(rs, axis=0)), axis=0), TRACK_NOISE_M)
     scaled = (rs / spread) ** 2
     keep = max(2, round(ACCEPT * len(us)))
     groups = list(informed_by) or [None] * us.shape[1]
-    mean, std = np.empty(us.shape[1]), np.empty(us.shape[1])
-    for k, group in enumerate(groups):
+    chosen = []
+    for group in groups:
         distance = np.sum(scaled if group is None else scaled[:, group], axis=1)
-        best = us[np.argsort(distance, kind="stable")[:keep], k]
-        mean[k], std[k] = best.mean(), best.std()
-    return mean, std
+        chosen.append(np.argsort(distance, kind="stable")[:keep])
+    mean = np.array([us[rows, k].mean() for k, rows in enumerate(chosen)])
+    cov = np.diag([us[rows, k].std() ** 2 for k, rows in enumerate(chosen)])
+    for i, j in zip(*np.triu_indices(len(groups), 1), strict=True):
+        if np.array_equal(chosen[i], chosen[j]):
+            rows = chosen[i]
+            cov[i, j] = cov[j, i] = np.mean((us[rows, i] - mean[i]) * (us[rows, j] - mean[j]))
+    return mean, cov
 
 
-def _box(centre: np.ndarray, half: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """[centre - half, centre + half], moved (not cut) to lie inside the unit box."""
-    half = np.minimum(half, 0.5)
-    c = np.clip(centre, half, 1.0 - half)
+def _box(centre: np.ndarray, half: np.ndarray, axes: np.ndarray
+         ) -> tuple[np.ndarray, np.ndarray]:
+    """[centre - half, centre + half] in the frame of `axes`, shrunk (all sides alike) until
+    it fits and moved (not cut) to lie inside the unit box."""
+    reach = np.abs(axes) @ half                     # half-extent along the unit box's axes
+    half = half * min(1.0, 0.5 / float(np.max(reach)))
+    reach = np.abs(axes) @ half
+    c = axes.T @ np.clip(axes @ centre, reach, 1.0 - reach)
     return c - half, c + half
 
 

@@ -13,6 +13,7 @@ from calibration.surrogate import (
     Stage,
     SurrogateFit,
     _accepted,
+    _box,
     _covariance,
     _settled,
     _solve,
@@ -109,6 +110,97 @@ def test_a_profile_holds_one_coordinate_and_refits_the_others():
     assert held[0] == pytest.approx(0.4)
     assert held[1] == pytest.approx(0.6, abs=0.01) and held[2] == pytest.approx(0.3, abs=0.01)
     assert profile(fit, 0, 0.9) is None
+
+
+def _rotation(degrees: float) -> np.ndarray:
+    """Axes turned by `degrees` in the plane of the first two coordinates (columns)."""
+    c, s = np.cos(np.radians(degrees)), np.sin(np.radians(degrees))
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+def test_a_profile_on_an_oriented_box_holds_one_coordinate_and_refits_the_others():
+    """The first test's features, r = (u0 + u1 - 1, u2 - 0.3), learnt by an emulator on a box
+    turned 45 degrees, whose sides run along the sum and the difference of u0 and u1 (an
+    oriented search's box on a ridge). Holding u0 is then a line across the box's coordinates;
+    the profile still moves u1 0.1 higher for u0 0.1 lower and leaves u2. The box reaches
+    0.2 sqrt(2) either side of u0 = 0.5: no profile at 0.9."""
+    rng = np.random.default_rng(3)
+    axes, scale = _rotation(45.0), np.full(3, 0.2)
+    mid = axes.T @ np.array([0.5, 0.5, 0.3])
+    z = rng.uniform(-1.0, 1.0, (40, 3))
+    u = (mid + scale * z) @ axes.T
+    r = np.stack([u[:, 0] + u[:, 1] - 1.0, u[:, 2] - 0.3], axis=1) + rng.normal(0, 0.002, (40, 2))
+    stage = Stage(mid, scale, 40, 40, axes @ mid, np.zeros(3), Emulator(z, r), axes)
+    fit = SurrogateFit(np.array([0.5, 0.5, 0.3]), np.eye(3), (stage,), 0)
+    held = profile(fit, 0, 0.4)
+    assert held[0] == pytest.approx(0.4)
+    assert held[1] == pytest.approx(0.6, abs=0.01) and held[2] == pytest.approx(0.3, abs=0.01)
+    assert profile(fit, 0, 0.9) is None
+
+
+@pytest.mark.parametrize("degrees", [0.0, 30.0, 45.0, 80.0])
+def test_a_box_is_moved_and_shrunk_to_lie_inside_the_unit_box(degrees):
+    """Every corner of a box, turned or not, lies in the unit box; one that fits is moved,
+    not shrunk; the unit box's own frame gives the unit box's own box at the start."""
+    axes = _rotation(degrees)
+    for centre_u, half in ((np.array([0.05, 0.9, 0.5]), np.array([0.2, 0.05, 0.1])),
+                           (np.full(3, 0.5), np.array([0.6, 0.1, 0.1]))):
+        lo, hi = _box(axes.T @ centre_u, half, axes)
+        corners = np.array([[(lo, hi)[b][k] for k, b in enumerate(bits)]
+                            for bits in np.ndindex(2, 2, 2)])
+        u = corners @ axes.T
+        assert np.all(u >= -1e-12) and np.all(u <= 1.0 + 1e-12)
+        reach = np.abs(axes) @ half
+        if np.max(reach) <= 0.5:
+            assert (hi - lo) / 2 == pytest.approx(half)
+    lo, hi = _box(np.full(3, 0.5), np.full(3, 0.5), np.eye(3))
+    assert np.array_equal(lo, np.zeros(3)) and np.array_equal(hi, np.ones(3))
+
+
+def test_parameters_judged_by_the_same_features_share_their_covariance():
+    """A pair's two coefficients judged by the pair's features, which pin only their sum (a
+    later onset and a freer slide running as far): the nearest quarter of the design lies
+    along u0 + u1 = 1, so the two come out strongly anticorrelated; a third parameter judged by
+    other features is uncorrelated with them."""
+    rng = np.random.default_rng(4)
+    us = latin_hypercube(200, 3, rng)
+    rs = np.stack([us[:, 0] + us[:, 1] - 1.0, us[:, 2] - 0.4], axis=1)
+    rs = rs + rng.normal(0, 0.003, rs.shape)
+    mean, cov = _accepted(us, rs, [np.array([0]), np.array([0]), np.array([1])])
+    assert cov[0, 1] / np.sqrt(cov[0, 0] * cov[1, 1]) < -0.9
+    assert cov[0, 2] == 0.0 and cov[1, 2] == 0.0
+    assert mean[2] == pytest.approx(0.4, abs=0.02)
+
+
+def test_an_oriented_search_lays_its_local_boxes_along_a_ridge(monkeypatch):
+    """Features that pin u0 + u1 tightly (a take in which the pair slid) and u0 - u1 a little
+    (a take that cuts the ridge): the oriented search's local boxes turn their long side along
+    the ridge, within 10 degrees of (1, -1), and every replay it asks for lies in the unit box.
+    The default search keeps the unit box's axes."""
+    truth = np.array([0.55, 0.45])
+
+    def response(u: np.ndarray) -> np.ndarray:
+        return np.concatenate([np.full(6, 0.05 * np.tanh(4 * (u[0] + u[1] - 1.0))),
+                               np.full(2, 0.01 * np.tanh(3 * (u[0] - u[1] - 0.1)))])
+
+    rng = np.random.default_rng(5)
+    asked: list[np.ndarray] = []
+
+    def evaluate(us):
+        asked.extend(us)
+        return [response(u) - response(truth) + rng.normal(0, 0.002, 8) for u in us]
+
+    monkeypatch.setattr("calibration.surrogate.ORIENTED", True)
+    fit = surrogate(evaluate, 2, 94, 0)
+    assert np.all((np.array(asked) >= 0.0) & (np.array(asked) <= 1.0))
+    ridge = np.array([1.0, -1.0]) / np.sqrt(2.0)
+    for stage in fit.stages[1:]:
+        assert stage.axes is not None
+        longest = stage.axes[:, np.argmax(stage.half_width)]
+        assert abs(longest @ ridge) > np.cos(np.radians(10.0))
+    assert fit.u == pytest.approx(truth, abs=0.03)
+    monkeypatch.setattr("calibration.surrogate.ORIENTED", False)
+    assert all(stage.axes is None for stage in surrogate(evaluate, 2, 94, 0).stages)
 
 
 def test_a_tracker_error_shared_by_a_body_s_frames_is_in_the_standard_deviation():
@@ -216,10 +308,11 @@ def test_a_pair_is_placed_by_its_own_features_in_the_global_stage():
 
         target = features(np.array([0.65, 0.3]))
         rs = np.array([features(u) - target for u in us])
-        mean, std = _accepted(us, rs, [own, above])
+        mean, cov = _accepted(us, rs, [own, above])
+        std = np.sqrt(np.diag(cov))
         assert mean[0] - std[0] > 0.6
         spread_own.append(std[0])
-        spread_all.append(_accepted(us, rs)[1][0])
+        spread_all.append(np.sqrt(_accepted(us, rs)[1][0, 0]))
     assert np.mean(spread_all) > 2 * np.mean(spread_own)
 
 
