@@ -322,15 +322,15 @@ def surrogate(evaluate: Evaluate, p: int, points: int, seed: int,
             else:
                 us.append(u)
                 rs.append(r)
-        inside = [i for i, u in enumerate(us)
-                  if np.all((axes.T @ u >= lo - 1e-12) & (axes.T @ u <= hi + 1e-12))]
+        ws = [axes.T @ u for u in us]                # every replay in the box's frame
+        inside = [i for i, w in enumerate(ws) if np.all((w >= lo - 1e-12) & (w <= hi + 1e-12))]
         if len(inside) < min_points(p):  # replays became unphysical: the last estimate stands
             break
         mid, scale, frame = (lo + hi) / 2, np.maximum((hi - lo) / 2, 1e-9), axes
         if k == 0 and len(sizes) > 1:
             u_hat, cov = _accepted(np.array(us), np.array(rs), informed_by)
         else:
-            z = (np.array([frame.T @ us[i] for i in inside]) - mid) / scale
+            z = (np.array([ws[i] for i in inside]) - mid) / scale
             em = Emulator(z, np.array([rs[i] for i in inside]))
             starts = [np.zeros(p)] + [z[i] for i in _best(em, rs, inside, STARTS - 1)]
             z_hat = _solve(em, -np.ones(p), np.ones(p), starts)
