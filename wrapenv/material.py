@@ -33,6 +33,12 @@ PAPER_INTERLAYER_FRICTION = 0.4
 GLUED_SEAM_FRACTION = 0.5
 #: Highest friction coefficient accepted (a typo beyond it, not a surface).
 MAX_FRICTION = 2.0
+#: A panel's shear stiffness over the web's: a wrinkled membrane takes shear only through
+#: tension strips at 45 degrees, which carry a quarter of its stiffness in shear [A].
+SHEAR_RATIO = 0.25
+#: Damping of each wrap element, a fraction of critical for its stiffness and the masses it
+#: joins [A]: it shapes the elastic peak.
+DAMPING_RATIO = 0.2
 
 
 @dataclass(frozen=True)
@@ -103,6 +109,10 @@ class Material:
     #: Force per metre of height the wrap's tail joint (glue, clamp, cling) holds before it
     #: lets go; None: `seam_holds_n_per_m` (a fraction of the web's own breaking force).
     seam_strength_n_per_m: float | None = None
+    #: The membrane model's two figures no source gives (`SHEAR_RATIO`, `DAMPING_RATIO`),
+    #: here so that a card or a sensitivity study can set them as it sets `cd_ratio`.
+    shear_ratio: float = SHEAR_RATIO
+    damping_ratio: float = DAMPING_RATIO
 
     @property
     def yield_force_n_per_m(self) -> float:
@@ -261,9 +271,11 @@ MAX_THICKNESS_M = 0.005
 def _failure_fields(t: Table) -> dict[str, float]:
     """The optional keys of how a web fails beyond its own law: thickness (bending round an
     edge), layer-on-layer friction and the tail's strength; absent keys keep the documented
-    defaults (`Material.layer_thickness_m`, `interlayer_mu`, `seam_holds_n_per_m`)."""
+    defaults (`Material.layer_thickness_m`, `interlayer_mu`, `seam_holds_n_per_m`). And the
+    membrane model's shear and damping ratios, at most 1 (as stiff in shear as in tension;
+    critical damping)."""
     limits = {"thickness_m": MAX_THICKNESS_M, "interlayer_friction": MAX_FRICTION,
-              "seam_strength_n_per_m": None}
+              "seam_strength_n_per_m": None, "shear_ratio": 1.0, "damping_ratio": 1.0}
     return {key: t.number(key, positive=True, maximum=top)
             for key, top in limits.items() if t.has(key)}
 

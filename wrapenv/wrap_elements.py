@@ -10,10 +10,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from wrapenv.material import Material
+from wrapenv.material import DAMPING_RATIO, Material
 
-#: Damping of each element as a fraction of critical (for its stiffness and the masses it joins).
-DAMPING_RATIO = 0.2
 #: A fold round a sharp edge costs the web at most this fraction of its stretch to break: paper
 #: is folded round carton edges at wrapping tension without tearing [A] (P7).
 BEND_STRAIN_CAP = 0.5
@@ -99,10 +97,11 @@ def series(*k: np.ndarray | float) -> np.ndarray:
 
 def element_set(k_web_n_per_m: np.ndarray, material_strength: tuple[float, float, float],
                  web_m: np.ndarray, pretension_n: np.ndarray, mass_kg: np.ndarray,
-                 height_m: np.ndarray, length_m: np.ndarray, give_n_per_m: np.ndarray | float
-                 ) -> Elements:
+                 height_m: np.ndarray, length_m: np.ndarray, give_n_per_m: np.ndarray | float,
+                 damping_ratio: float = DAMPING_RATIO) -> Elements:
     """Elements from the web's stiffness, the metres of web they stand for, and the load's
-    give at their ends (in series with the web).
+    give at their ends (in series with the web), each damped at `damping_ratio` of critical
+    for its stiffness and the masses it joins.
 
     `material_strength` is (yield force per metre, break force per metre, hardening ratio).
     """
@@ -116,7 +115,7 @@ def element_set(k_web_n_per_m: np.ndarray, material_strength: tuple[float, float
         yield_force_n=yield_per_m * web_m,
         break_force_n=np.maximum(break_per_m * web_m, 1e-9),
         pretension_n=pretension_n,
-        damping_n_s_per_m=2 * DAMPING_RATIO * np.sqrt(k_e * mass_kg),
+        damping_n_s_per_m=2 * damping_ratio * np.sqrt(k_e * mass_kg),
         height_m=height_m,
         length_m=length_m,
     )

@@ -27,8 +27,6 @@ from wrapenv.wrap import WrapFormat
 RING_FRACTIONS = (0.25, 0.75)
 #: A bundle edge within this distance of its layer's outline is on the outside of the load.
 OUTLINE_TOLERANCE_M = 0.005
-#: Panel shear stiffness of a wrinkled membrane carried by 45-degree tension strips: K / 4.
-SHEAR_FRACTION = 0.25
 
 _CORNER_SIGNS = ((-1, -1), (1, -1), (1, 1), (-1, 1))  # counter-clockwise seen from above
 #: Names of the outline's corners and of the face that follows each, counter-clockwise.
@@ -234,7 +232,7 @@ def panel_specs(wrap: WrapFormat, rings: list[Ring], corners: list[list[int]],
                     continue
                 run = float(np.linalg.norm(c_hi[b_c] - c_lo[a_c]))
                 cos = run / math.hypot(run, h)
-                rows.append(((a, b), SHEAR_FRACTION * m.stiffness_n_per_m * n * faces[c]
+                rows.append(((a, b), m.shear_ratio * m.stiffness_n_per_m * n * faces[c]
                              / (h * cos**2), n * faces[c] / (2 * cos), n, (i, i + 1),
                              h / math.hypot(run, h), z, FACE_NAMES[c],
                              (outline[c], outline[c + 1])))

@@ -142,6 +142,7 @@ class WrapNet:
             mass_kg=np.array([mass[[b for b, _ in r.slots]].mean() for r in rings]),
             height_m=self.ring_heights, length_m=perimeter,
             give_n_per_m=np.array([ring_give(r, self.corner_stiffness) for r in rings]),
+            damping_ratio=m.damping_ratio,
         )
 
     def _panel_elements(self, mass: np.ndarray) -> Elements:
@@ -160,7 +161,8 @@ class WrapNet:
             material_strength=(m.yield_force_n_per_m, m.break_force_n_per_m, m.hardening_ratio),
             web_m=spec.web_metres, pretension_n=np.zeros_like(spec.k_web),
             mass_kg=ma * mb / (ma + mb), height_m=spec.height_m,
-            length_m=np.ones_like(spec.k_web), give_n_per_m=give)
+            length_m=np.ones_like(spec.k_web), give_n_per_m=give,
+            damping_ratio=m.damping_ratio)
         n = spec.layers
         #: Panels whose outer layers slide on the one beneath (paper, more than one layer).
         self.sliding = np.flatnonzero((n > 1.0 + 1e-9) & (not m.clings))

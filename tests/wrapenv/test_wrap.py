@@ -98,11 +98,13 @@ def test_custom_material_table_is_read_with_defaults(wrap_data):
 
 
 def test_custom_material_takes_every_value_given(wrap_data):
-    table = {**CUSTOM, "name": "test film", "hardening_ratio": 0.0, "cd_ratio": 1.0}
+    table = {**CUSTOM, "name": "test film", "hardening_ratio": 0.0, "cd_ratio": 1.0,
+             "shear_ratio": 0.5, "damping_ratio": 0.1}
     wrap = WrapFormat.from_dict(wrap_data({"material": table, "band.0.tension_n": 100.0,
                                          "band.1.tension_n": 100.0}))
     assert wrap.material == Material("test film", 0.012, 3000.0, 0.1, 0.5, 0.0, 1.0,
-                                     relaxation=FILM_RELAXATION)
+                                     relaxation=FILM_RELAXATION, shear_ratio=0.5,
+                                     damping_ratio=0.1)
     assert wrap.material.break_force_n_per_m == pytest.approx(300.0)
 
 
@@ -240,7 +242,7 @@ def test_to_dict_names_a_card_and_writes_a_custom_material_in_full(wrap_data):
     assert custom.to_dict()["material"] == {
         "name": "m", "grammage_kg_m2": 0.01, "stiffness_n_per_m": 3000.0, "yield_strain": 0.1,
         "break_strain": 0.5, "hardening_ratio": 0.1, "cd_ratio": 0.5, "kind": "film",
-        "relaxation": {"plateau": 1.0, "terms": []}}
+        "shear_ratio": 0.25, "damping_ratio": 0.2, "relaxation": {"plateau": 1.0, "terms": []}}
 
 
 # --- calibration scaling -------------------------------------------------------------------
@@ -314,6 +316,10 @@ BAD_WRAPS = {
                                   "material.hardening_ratio"),
     "custom cd ratio above 1": ({"material": {**CUSTOM, "cd_ratio": 1.5}}, "material.cd_ratio"),
     "custom zero cd ratio": ({"material": {**CUSTOM, "cd_ratio": 0.0}}, "material.cd_ratio"),
+    "custom shear ratio above 1": ({"material": {**CUSTOM, "shear_ratio": 2.0}},
+                                   "material.shear_ratio"),
+    "custom zero damping": ({"material": {**CUSTOM, "damping_ratio": 0.0}},
+                            "material.damping_ratio"),
     "custom name not a string": ({"material": {**CUSTOM, "name": 7}}, "material.name"),
     "custom unknown key": ({"material": {**CUSTOM, "colour": "clear"}}, "material.colour"),
     "custom relaxation not adding up": (

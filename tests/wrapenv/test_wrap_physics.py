@@ -149,6 +149,29 @@ def test_a_panel_has_the_give_of_both_its_ends():
     assert net.panels.k_elastic_n_per_m[e] == pytest.approx(1 / (1 / web + 1 / ends), rel=1e-6)
 
 
+def test_the_card_s_shear_ratio_stiffens_the_face_diagonals_and_its_damping_ratio_every_element():
+    """A panel across a face takes shear as `shear_ratio` of the web's stiffness (docs/
+    materials.md, section 8), a corner vertical as the web itself; each element is damped at
+    `damping_ratio` of critical, 2 ratio sqrt(k m)."""
+    layout = one_layer([[0.0, 0.0]]).layout()
+    wrap = wrap_format("kraft", [(0.0, 0.474, 1, 250.0)])
+    base = WrapNet(wrap, layout)
+    card = replace(wrap.material, shear_ratio=2 * wrap.material.shear_ratio,
+                   damping_ratio=2 * wrap.material.damping_ratio)
+    other = WrapNet(replace(wrap, material=card), layout)
+    where = base.panel_spec.where
+    faces = [i for i, w in enumerate(where) if w.startswith("face")]
+    corners = [i for i, w in enumerate(where) if w.startswith("corner")]
+    assert faces and corners
+    assert other.panel_spec.k_web[faces] == pytest.approx(2 * base.panel_spec.k_web[faces])
+    assert other.panel_spec.k_web[corners] == pytest.approx(base.panel_spec.k_web[corners])
+    assert other.rings.k_elastic_n_per_m == pytest.approx(base.rings.k_elastic_n_per_m)
+    assert other.rings.damping_n_s_per_m == pytest.approx(2 * base.rings.damping_n_s_per_m)
+    stiffer = other.panels.k_elastic_n_per_m / base.panels.k_elastic_n_per_m
+    assert other.panels.damping_n_s_per_m == pytest.approx(
+        2 * np.sqrt(stiffer) * base.panels.damping_n_s_per_m)
+
+
 def test_a_softer_product_makes_every_element_on_it_softer_and_none_stiffer_than_the_web():
     """Every panel has a bundle at one end at least; of the rings, the pallet round bears on
     the pallet alone and does not change."""
