@@ -1,10 +1,11 @@
 """How much the verdicts lean on the assumptions docs/materials.md marks [A]: the examples'
 friction, Kraft's glued seam, either web's stiffness (LLDPE's applied stiffness is two
 assumptions multiplied; Kraft's is derived, and no bench test fits it), the load's give (the
-bundles' edge stiffness, which no source gives), the web's cross-direction share of
-its machine-direction law (`cd_ratio`, which the panels between the rings have), the pulse's
-shape where no source gives it (the ramp to the level, the sled's braking after it), and how
-far down onto the pallet the bottom wraps' web reaches (`ONTO_PALLET_M`).
+bundles' edge stiffness, which no source gives), the membrane model's shear and damping ratios,
+the web's cross-direction share of its machine-direction law (`cd_ratio`, which the panels
+between the rings have), the pulse's shape where no source gives it (the ramp to the level, the
+sled's braking after it), and how far down onto the pallet the bottom wraps' web reaches
+(`ONTO_PALLET_M`).
 
 The programs are the answers that matter: on Kraft, the least web of `recommend`'s space (one
 bottom wrap, a touching spiral, one top wrap), which it answers on the examples, here at half
@@ -16,10 +17,11 @@ g on the nominal load. Variants: the examples' friction (nominal), the bench's d
 (the CTU Code's figures), the examples' pallet-bundle and bundle-bundle coefficients 0.05 and
 0.10 lower (kinetic in the same ratio), a seam of 1000 N/m (the low end of P5's range) instead
 of 3000, either web's stiffness halved and doubled (Kraft's P1 range is 0.6-2 x its figure),
-either web's `cd_ratio` halved, and, for either web, the bundles' edges a tenth, a quarter
-and four times as stiff (`LoadUnit.with_give`; the wrap model sets the web and the edges in
-series as springs, so on Kraft, the stiffer of the two by far, the edges decide how far the
-load moves), the pulse ramped to its level in 0.02 or 0.15 s instead of 0.05 s, the sled braking at
+either web's `cd_ratio` halved, and, for either web, the bundles' edges a tenth, a quarter and
+four times as stiff (`LoadUnit.with_give`; the wrap model sets the web and the edges in series
+as springs, so on Kraft, the stiffer of the two by far, the edges decide how far the load
+moves), the membrane model's shear stiffness of a panel and damping of every element halved and
+doubled, the pulse ramped to its level in 0.02 or 0.15 s instead of 0.05 s, the sled braking at
 0.125 or 0.5 of the level instead of 0.25, and the bottom wraps' web from the sled surface (the
 pallet's whole side) or over 22 mm of it (its deck boards) instead of 44 mm (the deck boards and
 the cross boards under them). Prints a Markdown table: the highest level passed and the margin
@@ -66,6 +68,10 @@ ONTO_PALLET: dict[str, float] = {
 #: [A], docs/materials.md B1: no source gives it; its accepted range is 1e4-5e6 N/m per m
 #: against the preset's 6e5).
 EDGES = ("edge stiffness x 0.1", "edge stiffness x 0.25", "edge stiffness x 4")
+#: The membrane model's figures no source gives [A] (`Material.shear_ratio`, the panels' shear
+#: stiffness over the web's, and `Material.damping_ratio`, each element's damping as a
+#: fraction of critical): halved and doubled.
+MEMBRANE = ("panel shear x 0.5", "panel shear x 2", "wrap damping x 0.5", "wrap damping x 2")
 #: (material, variant): what each variant changes is in `variant`.
 VARIANTS = (("kraft", "nominal"), ("kraft", "CTU default friction"),
             ("kraft", "friction -0.05"), ("kraft", "friction -0.10"), ("kraft", "seam 1000 N/m"),
@@ -74,7 +80,7 @@ VARIANTS = (("kraft", "nominal"), ("kraft", "CTU default friction"),
             ("lldpe", "stiffness x 0.5"), ("lldpe", "stiffness x 2"),
             ("lldpe", "cross direction x 0.5"),
             *((m, v) for m in ("kraft", "lldpe")
-              for v in (*EDGES, *PULSES, *ONTO_PALLET)))
+              for v in (*EDGES, *MEMBRANE, *PULSES, *ONTO_PALLET)))
 
 
 def _lower(friction: Friction, delta: float) -> Friction:
@@ -113,6 +119,11 @@ def _unit_and_wrap(load_path: str, material: str, variant: str) -> tuple[LoadUni
         wrap = replace(wrap, material=replace(wrap.material, seam_strength_n_per_m=1000.0))
     elif variant == "cross direction x 0.5":
         wrap = replace(wrap, material=replace(wrap.material, cd_ratio=wrap.material.cd_ratio / 2))
+    elif variant in MEMBRANE:
+        field = "shear_ratio" if variant.startswith("panel shear") else "damping_ratio"
+        scale = float(variant.rsplit(" x ", 1)[1])
+        card = replace(wrap.material, **{field: getattr(wrap.material, field) * scale})
+        wrap = replace(wrap, material=card)
     elif variant.startswith("stiffness x "):
         wrap = wrap.scaled(stiffness_scale=float(variant.removeprefix("stiffness x ")))
     elif variant.startswith("edge stiffness x "):
