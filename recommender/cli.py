@@ -149,6 +149,16 @@ def _add_simulate(sub: argparse._SubParsersAction) -> None:
                      help="restack and rewrap the unit before every level (default: one unit "
                           "through the levels, each starting where the last left it, as a lab)")
     _layer_shift_flag(sim)
+    sim.add_argument("--samples", type=int, metavar="K",
+                     help="also run the levels in K samples of what the bench does not know "
+                          "(recommend's: friction, mass, web stiffness, tension, relaxation, "
+                          "the load's give; a calibration's spreads where it gives them): the "
+                          "pass probability and the worst sample (the exit status stays the "
+                          "nominal run's)")
+    sim.add_argument("--seed", type=seed, metavar="N",
+                     help="with --samples: which samples (default 0, recommend's)")
+    sim.add_argument("--workers", type=int, metavar="N",
+                     help="with --samples: parallel simulations (default: all cores)")
     sim.add_argument("--json", type=Path, metavar="OUT", help="write the verdict as JSON")
     sim.add_argument("--plot", type=Path, metavar="OUT.png", help="plot displacement vs time")
     sim.add_argument("--report", type=Path, metavar="DIR",

@@ -5,7 +5,9 @@ checked before any simulation."""
 from __future__ import annotations
 
 import argparse
+import os
 import sys
+from concurrent.futures import as_completed
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -13,6 +15,7 @@ from typing import Any
 from tqdm import tqdm
 
 from recommender.commands import (
+    MAX_WORKERS_PER_CORE,
     as_flag,
     check_hours,
     criteria_limits,
@@ -26,6 +29,8 @@ from recommender.html_report import (
     simulate_page,
     write_report,
 )
+from recommender.parallel import executor
+from recommender.search import VERIFY_SEED
 from recommender.text import (
     age_text,
     calibration_text,
@@ -34,12 +39,13 @@ from recommender.text import (
     rerun_note,
     verdict_table,
 )
-from wrapenv.bench import BenchRun, run_levels
+from wrapenv.bench import BenchRun, SimSettings, run_levels
 from wrapenv.calibrated import Calibration
 from wrapenv.config import InputError, check_distinct, check_output, result_json, write_together
-from wrapenv.eumos import LevelVerdict
-from wrapenv.load import Layout, LoadUnit
-from wrapenv.profile import MeasuredProfile, PulseProfile, eumos_levels
+from wrapenv.eumos import LevelVerdict, Limits
+from wrapenv.load import Layout, LoadUnit, Orientation
+from wrapenv.profile import MeasuredProfile, Profile, PulseProfile, eumos_levels
+from wrapenv.uncertainty import PassProbability, Uncertainty
 from wrapenv.wrap import WrapFormat
 
 
@@ -117,6 +123,7 @@ def run_simulate(args: argparse.Namespace) -> int:
     given = _inputs(args, said)
     load, layout, laid, wrap = given.load, given.layout, given.laid, given.wrap
     _check_outputs(args, wrap is not None)
+    _check_sampling(args)
     levels = _levels(args)
     warn("simulate", tuple(w for p in levels if isinstance(p, MeasuredProfile)
                            for w in p.warnings()), said)
@@ -131,6 +138,9 @@ def run_simulate(args: argparse.Namespace) -> int:
                          on_level=lambda v: _level_done(bar, v),
                          on_rerun=lambda iterations: _rerun(bar, iterations))
     print(verdict_table(load, run, args.orientation))
+    sampled = _sampled(args, given, levels, limits) if args.samples else None
+    if sampled is not None:
+        print(sampled.text())
     if given.calibration is not None:
         print(calibration_text(str(args.calibration), given.calibration, load, wrap is not None))
     if laid is not None:
@@ -144,7 +154,7 @@ def run_simulate(args: argparse.Namespace) -> int:
             tuple(said), levels))
     files = {}
     if args.json:
-        files[Path(args.json)] = _json(args, given, run)
+        files[Path(args.json)] = _json(args, given, run, sampled)
     if args.plot:
         from recommender.report import plot_displacements
 
@@ -157,10 +167,13 @@ def run_simulate(args: argparse.Namespace) -> int:
     return 0 if run.verdict.passed else 1
 
 
-def _json(args: argparse.Namespace, given: _Inputs, run: BenchRun) -> bytes:
-    """`--json`'s document (CONTRACTS.md: simulate's keys)."""
+def _json(args: argparse.Namespace, given: _Inputs, run: BenchRun,
+          sampled: Sampled | None) -> bytes:
+    """`--json`'s document (CONTRACTS.md: simulate's keys; `samples` with --samples)."""
     out = run.verdict.to_json() | {"orientation": orientation_tested(given.load,
                                                                      args.orientation)}
+    if sampled is not None:
+        out["samples"] = sampled.to_json()
     if rerun_note(run):
         out["solver_iterations"] = run.solver_iterations
     if given.calibration is not None:
@@ -169,6 +182,111 @@ def _json(args: argparse.Namespace, given: _Inputs, run: BenchRun) -> bytes:
         out.update(wrap_json(given.wrap, given.laid, given.layout, args.hours_since_wrapping))
         out["hours_since_wrapping"] = args.hours_since_wrapping
     return result_json(out)
+
+
+# -- samples of what the bench does not know (--samples) -------------------------------------
+
+
+@dataclass(frozen=True)
+class SampleRun:
+    """One sample's run through the levels asked, in short: its verdict, the last level it
+    ran (simulate's JSON; the level it failed at, if it failed) and what was drawn."""
+
+    passed: bool
+    margin: float
+    highest_passed_g: float | None
+    level: dict[str, Any]
+    sample: dict[str, Any]
+
+
+@dataclass(frozen=True)
+class Sampled:
+    """The levels asked, run in `--samples` draws of what the bench does not know: how many
+    passed, and the worst."""
+
+    seed: int
+    runs: tuple[SampleRun, ...]
+    wrapped: bool
+
+    @property
+    def probability(self) -> PassProbability:
+        return PassProbability(sum(r.passed for r in self.runs), len(self.runs))
+
+    @property
+    def worst(self) -> SampleRun:
+        return min(self.runs, key=lambda r: r.margin)
+
+    def text(self) -> str:
+        p, w = self.probability, self.worst
+        low, high = p.interval
+        reached = ("no level" if w.highest_passed_g is None
+                   else f"up to {w.highest_passed_g:.2f} g")
+        drawn = ("friction, bundle mass, web stiffness, laid tension, relaxation, the load's "
+                 "give" if self.wrapped else "friction, bundle mass")
+        return (f"samples: passes in {p.passed} of {p.samples} samples of what the bench does "
+                f"not know ({drawn}; seed {self.seed}): pass probability {p.estimate:.0%}, 95 % "
+                f"interval {low:.0%}-{high:.0%}\nworst sample: margin {w.margin:.2f}, passed "
+                f"{reached}, at {w.level['level_g']:.2f} g elastic "
+                f"{1000 * (w.level['elastic_max_m'] or 0):.1f} mm, permanent "
+                f"{1000 * (w.level['permanent_max_m'] or 0):.1f} mm"
+                + (f" (the level stopped once decided: {w.level['stopped_early']})"
+                   if w.level.get("stopped_early") else ""))
+
+    def to_json(self) -> dict[str, Any]:
+        w = self.worst
+        return {"seed": self.seed, "pass_probability": self.probability.to_json(),
+                "worst": {"margin": round(w.margin, 4), "highest_passed_g": w.highest_passed_g,
+                          "level": w.level, "sample": w.sample}}
+
+
+def _check_sampling(args: argparse.Namespace) -> None:
+    if args.samples is None:
+        for flag, value in (("--seed", args.seed), ("--workers", args.workers)):
+            if value is not None:
+                raise InputError("arguments", flag, "needs --samples (it sets how the samples "
+                                                    "are drawn or run)")
+        return
+    if args.samples < 1:
+        raise InputError("arguments", "--samples", f"must be >= 1 (got {args.samples})")
+    most = MAX_WORKERS_PER_CORE * (os.cpu_count() or 1)
+    if args.workers is not None and not 1 <= args.workers <= most:
+        raise InputError("arguments", "--workers", f"must be from 1 to {most} (got "
+                                                   f"{args.workers}): a simulation keeps a core "
+                                                   "busy")
+
+
+def _sampled(args: argparse.Namespace, given: _Inputs, levels: list[Profile],
+             limits: Limits) -> Sampled:
+    """The levels asked, in `--samples` draws of the uncertain parameters (recommend's: a
+    calibration's spreads where it gives them, the documented ones elsewhere; its seeds, so
+    `--seed` as recommend's draws the samples its verification drew), each level stopped once
+    decided: a pass probability needs only the verdicts."""
+    seed = args.seed or 0
+    uncertainty = Uncertainty.of(given.calibration, args.hours_since_wrapping)
+    stop = not args.level and not args.profile
+    workers = args.workers or os.cpu_count() or 1
+    with executor("process", min(workers, args.samples)) as pool, \
+            tqdm(total=args.samples, desc="samples", unit="sample", file=sys.stderr,
+                 disable=None) as bar:
+        futures = [pool.submit(_sample_run, given.load, levels, given.laid, uncertainty,
+                               VERIFY_SEED + seed + k, args.orientation, stop, args.fresh,
+                               limits) for k in range(args.samples)]
+        for _ in as_completed(futures):
+            bar.update(1)
+        return Sampled(seed, tuple(f.result() for f in futures), given.laid is not None)
+
+
+def _sample_run(load: LoadUnit, levels: list[Profile], laid: WrapFormat | None,
+                uncertainty: Uncertainty, seed: int, orientation: Orientation | None,
+                stop: bool, fresh: bool, limits: Limits) -> SampleRun:
+    """One sample (in a worker): the load and the wrap as it draws them, through the levels."""
+    sample = uncertainty.draw(load, seed)
+    wrap = sample.wrap(laid) if laid is not None else None
+    verdict = run_levels(sample.load(load), levels, SimSettings(stop_when_decided=True),
+                         orientation=orientation, stop_at_failure=stop, wrap=wrap, fresh=fresh,
+                         limits=limits).verdict
+    return SampleRun(verdict.passed, verdict.margin, verdict.highest_passed_g,
+                     verdict.levels[-1].to_json(), sample.to_json())
 
 
 def _rerun(bar: Any, iterations: int) -> None:

@@ -658,3 +658,74 @@ def test_a_checkpoint_path_holding_a_user_s_file_is_refused_before_any_simulatio
     err = one_line(capsys.readouterr().err)
     assert "notes.txt" in err and "--checkpoint" in err and "not a wrapbench checkpoint" in err
     assert notes.read_text() == "my lab notes\n"
+
+
+# --- --samples: the levels asked, in samples of what the bench does not know -----------------
+
+#: One PET bundle (0.33 m tall) on a pallet held by the stop bar, pallet-bundle static 0.50:
+#: every sample draws it within 5 standard deviations (0.03) of that, 0.35-0.65, but for one
+#: in 1.7 million.
+ONE_BUNDLE = {
+    "name": "one bundle",
+    "pallet": {"preset": "EUR"},
+    "bundle": {"preset": "PET6x1.5L"},
+    "stack": {"layers": 1, "pattern": "explicit", "positions": [[0.0, 0.0]]},
+    "friction": {"pallet_bundle": {"static": 0.5, "kinetic": 0.42}},
+    "fixture": {"pallet_stopper": True},
+}
+
+
+def samples_json(load_file, tmp_path, level: str, *flags: str) -> tuple[int, dict]:
+    out = tmp_path / f"samples-{level}-{'-'.join(flags)}.json"
+    code = run(["simulate", str(load_file(base=ONE_BUNDLE)), "--level", level,
+                "--samples", "3", "--json", str(out), *flags])
+    return code, json.loads(out.read_text())
+
+
+def test_samples_below_every_drawn_friction_all_pass_and_above_it_all_fail(load_file, tmp_path,
+                                                                        capsys):
+    """At 0.3 g the pallet passes the bundle 0.3 g, below every drawn static coefficient
+    (>= 0.35): it sticks in every sample. At 0.8 g, above every one (<= 0.65), it slides in
+    every sample, at least 0.15 g relative to the pallet (kinetic <= static) through the
+    0.5 s hold: >= 0.5 x 1.47 m/s² x (0.5 s)² = 0.18 m, past 5 % of its 0.33 m height."""
+    code, low = samples_json(load_file, tmp_path, "0.3")
+    assert code == 0
+    assert low["samples"]["pass_probability"] | {"low95": 0, "high95": 0} == {
+        "estimate": 1.0, "passed": 3, "samples": 3, "low95": 0, "high95": 0}
+    code, high = samples_json(load_file, tmp_path, "0.8")
+    assert code == 1
+    assert high["samples"]["pass_probability"]["passed"] == 0
+    worst = high["samples"]["worst"]
+    assert worst["margin"] < 0 and worst["level"]["permanent_max_m"] > 0.0165
+    drawn = worst["sample"]["friction"]["pallet_bundle"]
+    assert 0.35 < drawn["static"] < 0.65 and drawn["kinetic"] <= drawn["static"]
+    printed = capsys.readouterr().out
+    assert ("samples: passes in 3 of 3 samples of what the bench does not know (friction, "
+            "bundle mass; seed 0): pass probability 100%") in printed   # unwrapped: no web
+    assert "samples: passes in 0 of 3 samples" in printed
+
+
+def test_samples_are_the_same_for_a_seed_however_many_workers_run_them(load_file, tmp_path):
+    _, first = samples_json(load_file, tmp_path, "0.5", "--workers", "1")
+    _, again = samples_json(load_file, tmp_path, "0.5", "--workers", "2")
+    _, other = samples_json(load_file, tmp_path, "0.5", "--seed", "1")
+    assert first == again
+    assert first["samples"]["seed"] == 0 and other["samples"]["seed"] == 1
+    assert other["samples"]["worst"]["sample"] != first["samples"]["worst"]["sample"]
+    # the nominal run is the run without samples
+    nominal = tmp_path / "nominal.json"
+    run(["simulate", str(load_file(base=ONE_BUNDLE)), "--level", "0.5", "--json", str(nominal)])
+    assert {k: v for k, v in first.items() if k != "samples"} == json.loads(nominal.read_text())
+
+
+@pytest.mark.parametrize("argv, field", [
+    (["--samples", "0"], "--samples"),
+    (["--samples", "2", "--workers", "0"], "--workers"),
+    (["--seed", "1"], "--seed"),
+    (["--workers", "2"], "--workers"),
+], ids=["no samples", "no workers", "seed without samples", "workers without samples"])
+def test_bad_sampling_flags_exit_2_naming_the_flag_before_any_simulation(argv, field, load_file,
+                                                                         tmp_path, capsys):
+    out = tmp_path / "out.json"
+    assert run(["simulate", str(load_file()), "--level", "0.2", *argv, "--json", str(out)]) == 2
+    assert field in one_line(capsys.readouterr().err) and not out.exists()
