@@ -51,14 +51,23 @@ class OrientationRun:
 
 
 @dataclass(frozen=True)
+class SearchFacts:
+    """How `recommend` came to its answer: its margin in the search's own samples, the margin
+    asked, and the candidates tried (None: a trained policy's proposal, no search)."""
+
+    margin: float
+    margin_goal: float
+    candidates: int | None
+
+
+@dataclass(frozen=True)
 class Robustness:
-    """What `recommend` adds: how sure the recommendation is over what the bench does not know."""
+    """How sure a verdict is over what the bench does not know: `recommend`'s verification of
+    its answer, or the samples `simulate --samples` ran."""
 
     probability: PassProbability
     worst: Trial | None
-    search_margin: float
-    margin_goal: float
-    candidates: int | None  # None: a policy's proposal, no search
+    search: SearchFacts | None = None  # None: simulate's samples, no search
 
 
 @dataclass(frozen=True)
@@ -252,23 +261,27 @@ def _verdict(page: Page) -> str:
 
 
 def _robust_section(r: Robustness) -> str:
-    p = r.probability
+    p, search = r.probability, r.search
     low, high = p.interval
     facts = [("Pass probability", f"{100 * p.estimate:.0f} % ({p.passed} of {p.samples} "
                                   f"samples; 95 % interval {100 * low:.0f} %–{100 * high:.0f} %, "
-                                  "Wilson)"),
-             ("Search", "a trained policy's proposal, verified in simulation"
-              if r.candidates is None else
-              f"{r.candidates} candidate programs; the answer's margin in the search's own "
-              f"samples {r.search_margin:.2f} (goal {r.margin_goal:.2f})")]
+                                  "Wilson)")]
+    if search is not None:
+        facts.append(("Search", "a trained policy's proposal, verified in simulation"
+                      if search.candidates is None else
+                      f"{search.candidates} candidate programs; the answer's margin in the "
+                      f"search's own samples {search.margin:.2f} (goal {search.margin_goal:.2f})"))
     if r.worst is not None:
         w, level = r.worst, r.worst.level
+        short = search is not None and w.passed and w.margin < search.margin_goal
         facts.append(("Worst sample", f"{_t(w.orientation)} side, margin {w.margin:.2f}, "
                       f"elastic {_mm(level.get('elastic_max_m'))}, permanent "
                       f"{_mm(level.get('permanent_max_m'))}, "
                       f"{'passed' if w.passed else 'failed'}"
-                      + (f" (below the goal of {r.margin_goal:.2f}: these samples had only "
-                         "to pass)" if w.passed and w.margin < r.margin_goal else "")))
+                      + (f" (below the goal of {search.margin_goal:.2f}: these samples had only "
+                         "to pass)" if short and search is not None else "")
+                      + (f" (its level stopped once decided: {_t(level['stopped_early'])})"
+                         if level.get("stopped_early") else "")))
         facts.append(("Its draw", _t(_draw_text(w.sample), 1000)))
     return ('<section><h2>How sure: samples of what the bench does not know</h2>'
             + _facts(facts) + "</section>\n")

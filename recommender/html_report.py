@@ -13,7 +13,15 @@ import tempfile
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from pathlib import Path
 
-from recommender.html_page import VIDEO_FILES, Figure, OrientationRun, Page, Robustness, render
+from recommender.html_page import (
+    VIDEO_FILES,
+    Figure,
+    OrientationRun,
+    Page,
+    Robustness,
+    SearchFacts,
+    render,
+)
 from recommender.search import Evaluation, Problem, SearchState, Verification
 from recommender.text import conditions_text
 from wrapenv.bench import BenchRun
@@ -74,14 +82,15 @@ def _video(run: BenchRun, layout: Layout, wrap: WrapFormat | None, stage: Path) 
 def simulate_page(stage: Path, load: LoadUnit, run: BenchRun, laid: WrapFormat | None,
                   simulated: WrapFormat | None, orientation: Orientation | None, hours: float,
                   inputs: Mapping[str, Path | None], warnings: tuple[str, ...],
-                  profiles: Sequence[Profile]) -> Page:
+                  profiles: Sequence[Profile], robustness: Robustness | None = None) -> Page:
     """`simulate --report`: the levels run (on `profiles`), the wrap as entered (`laid`) and
-    as simulated (calibrated, relaxed) for the video, and the warnings the command gave."""
+    as simulated (calibrated, relaxed) for the video, the warnings the command gave, and the
+    samples' pass probability (`--samples`)."""
     layout = load.layout(orientation)
     figures = (_displacement(run, stage, load.name, "the levels in the table above"),
                _tension_map(run, layout, stage, load.name))
     return Page("Bench test report", load, (OrientationRun(orientation, layout, run),), laid, hours,
-                _inputs(inputs), figures, _video(run, layout, simulated, stage),
+                _inputs(inputs), figures, _video(run, layout, simulated, stage), robustness,
                 warnings=warnings, conditions=conditions_text(profiles, run))
 
 
@@ -110,7 +119,8 @@ def recommend_page(stage: Path, problem: Problem, check: Verification, best: Eva
                      + ("" if tried == plotted else " (the round that answered)")))
     figures = (_displacement(run, stage, load.name, which),
                _tension_map(run, layout, stage, load.name), search)
-    robust = Robustness(check.probability, check.worst, best.margin, s.margin_goal, tried)
+    robust = Robustness(check.probability, check.worst,
+                        SearchFacts(best.margin, s.margin_goal, tried))
     return Page("Recommended wrapping program", load, tested, best.wrap,
                 s.hours_since_wrapping, _inputs(inputs), figures,
                 _video(run, layout, problem.simulated(best.wrap), stage), robust, warnings,

@@ -23,6 +23,7 @@ from recommender.commands import (
     warn,
     wrap_json,
 )
+from recommender.html_page import Robustness
 from recommender.html_report import (
     check_report_folder,
     report_outputs,
@@ -30,7 +31,7 @@ from recommender.html_report import (
     write_report,
 )
 from recommender.parallel import executor
-from recommender.search import VERIFY_SEED
+from recommender.search import VERIFY_SEED, Trial
 from recommender.text import (
     age_text,
     calibration_text,
@@ -149,9 +150,11 @@ def run_simulate(args: argparse.Namespace) -> int:
     if args.report:   # first: the slowest to make, and nothing of it shows until it is whole
         named = {"load unit": args.load, "wrap": args.wrap, "calibration": args.calibration,
                  "sled profile": args.profile}
+        robust = (None if sampled is None
+                  else sampled.robustness(orientation_tested(load, args.orientation)))
         write_report(args.report, lambda stage: simulate_page(
             stage, load, run, laid, wrap, args.orientation, args.hours_since_wrapping, named,
-            tuple(said), levels))
+            tuple(said), levels, robust))
     files = {}
     if args.json:
         files[Path(args.json)] = _json(args, given, run, sampled)
@@ -231,6 +234,13 @@ class Sampled:
                 f"{1000 * (w.level['permanent_max_m'] or 0):.1f} mm"
                 + (f" (the level stopped once decided: {w.level['stopped_early']})"
                    if w.level.get("stopped_early") else ""))
+
+    def robustness(self, orientation: Orientation) -> Robustness:
+        """The samples as the report's section tells them (a report's worst sample names the
+        side that faced the motion)."""
+        w = self.worst
+        return Robustness(self.probability,
+                          Trial(w.passed, w.margin, orientation, w.level, w.sample))
 
     def to_json(self) -> dict[str, Any]:
         w = self.worst

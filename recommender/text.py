@@ -73,7 +73,7 @@ def _row(verdict: Verdict, v: LevelVerdict, height_m: float) -> str:
             f"  {_mm(v.pallet_slip_m)}  {note}{damage}")
 
 
-def orientation_tested(load: LoadUnit, orientation: Orientation | None) -> str:
+def orientation_tested(load: LoadUnit, orientation: Orientation | None) -> Orientation:
     """Which side of the pallet faced the motion: "long" or "short" (a square pallet's is
     "long"), as asked or as the load file lays the unit out (its length along x)."""
     if orientation is not None:

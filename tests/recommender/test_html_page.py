@@ -14,7 +14,7 @@ from typing import Any
 import cv2
 import numpy as np
 
-from recommender.html_page import Figure, OrientationRun, Page, Robustness, render
+from recommender.html_page import Figure, OrientationRun, Page, Robustness, SearchFacts, render
 from recommender.search import Trial
 from wrapenv.bench import BenchRun
 from wrapenv.eumos import LevelVerdict, Verdict
@@ -201,8 +201,8 @@ def test_a_worst_sample_below_the_margin_goal_says_it_only_had_to_pass():
     worst = Trial(True, 0.06, "long", {"elastic_max_m": 0.0459, "permanent_max_m": 0.0445},
                   {"friction": {"sled_pallet": {"static": 0.45, "kinetic": 0.4}},
                    "mass_scale": 1.0, "hours_since_wrapping": 16.0})
-    facts = Parsed(render(page(Robustness(PassProbability(8, 8), worst, 0.20, 0.2,
-                                          48)))).facts()
+    facts = Parsed(render(page(Robustness(PassProbability(8, 8), worst,
+                                          SearchFacts(0.20, 0.2, 48))))).facts()
     assert facts["Worst sample"].endswith("passed (below the goal of 0.20: these samples had "
                                           "only to pass)")
     assert "the answer's margin in the search's own samples 0.20" in facts["Search"]
@@ -212,7 +212,7 @@ def test_recommend_shows_the_pass_probability_with_its_interval_and_the_worst_sa
     worst = Trial(True, 0.41, "short", {"elastic_max_m": 0.0213, "permanent_max_m": 0.0102},
                   {"friction": {"sled_pallet": {"static": 0.45, "kinetic": 0.4}},
                    "mass_scale": 1.02, "hours_since_wrapping": 16.0})
-    robust = Robustness(PassProbability(7, 8), worst, 0.45, 0.2, 40)
+    robust = Robustness(PassProbability(7, 8), worst, SearchFacts(0.45, 0.2, 40))
     facts = Parsed(render(page(robust))).facts()
     # Wilson 95 % for 7 of 8: centre (0.875 + 1.96²/16) / (1 + 1.96²/8) = 0.753, half width
     # 1.96 / 1.480 * sqrt(0.875 * 0.125 / 8 + 1.96² / 256) = 0.224: 53 % to 98 %
@@ -223,7 +223,7 @@ def test_recommend_shows_the_pass_probability_with_its_interval_and_the_worst_sa
                                      "10.2 mm, passed")
     assert "sled_pallet 0.450/0.400" in facts["Its draw"]
     assert "mass × 1.020" in facts["Its draw"]
-    policy = Robustness(PassProbability(8, 8), worst, 0.45, 0.2, None)
+    policy = Robustness(PassProbability(8, 8), worst, SearchFacts(0.45, 0.2, None))
     assert Parsed(render(page(policy))).facts()["Search"] == ("a trained policy's proposal, "
                                                               "verified in simulation")
 
@@ -271,3 +271,19 @@ def test_the_wrap_cell_says_where_the_peak_was_and_whether_the_test_added_it():
     assert cell(report(1 / 240)) == "11 % of strength, as laid (ring corner -x-y, 0.12 m)"
     assert cell(report(None)).startswith("11 % of strength, as laid")
     assert cell(report(0.42)) == "11 % of strength, at 0.42 s (ring corner -x-y, 0.12 m)"
+
+
+def test_simulate_s_samples_say_how_sure_without_a_search_and_where_a_level_stopped():
+    """`simulate --samples` has no search and no margin goal: the page gives the pass
+    probability and the worst sample, which a failed level stopped once decided."""
+    worst = Trial(False, -1.05, "short", {"elastic_max_m": 0.1152, "permanent_max_m": 0.1152,
+                                          "stopped_early": "elastic displacement 115 mm past "
+                                                           "113 mm"},
+                  {"friction": {"sled_pallet": {"static": 0.45, "kinetic": 0.4}},
+                   "mass_scale": 1.0, "hours_since_wrapping": 16.0})
+    facts = Parsed(render(page(Robustness(PassProbability(5, 8), worst)))).facts()
+    assert "Search" not in facts
+    assert facts["Pass probability"] == "62 % (5 of 8 samples; 95 % interval 31 %–86 %, Wilson)"
+    assert facts["Worst sample"] == ("short side, margin -1.05, elastic 115.2 mm, permanent "
+                                     "115.2 mm, failed (its level stopped once decided: elastic "
+                                     "displacement 115 mm past 113 mm)")

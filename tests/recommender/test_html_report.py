@@ -237,7 +237,8 @@ class Chromium:
 
 @pytest.fixture(scope="module")
 def simulated_report(tmp_path_factory) -> Path:
-    """`simulate --report` on a hostile-named two-bundle unit, wrapped, at two levels."""
+    """`simulate --report` on a hostile-named two-bundle unit, wrapped, at two levels, and in
+    two samples of what the bench does not know."""
     folder = tmp_path_factory.mktemp("simulate")
     load, wrap = folder / "load.toml", folder / "wrap.toml"
     load.write_text(f"name = {json.dumps(HOSTILE)}\n[pallet]\npreset = 'EUR'\n[bundle]\n"
@@ -247,7 +248,7 @@ def simulated_report(tmp_path_factory) -> Path:
                     "bottom_tension_n = 300.0\nup_overlap = 0.5\nmiddle_tension_n = 250.0\n"
                     "top_wraps = 1\ntop_tension_n = 250.0\n")
     code = main(["simulate", str(load), "--wrap", str(wrap), "--level", "0.2", "--level", "0.3",
-                 "--report", str(folder / "report")])
+                 "--samples", "2", "--report", str(folder / "report")])
     assert code == 0
     return folder / "report"
 
@@ -278,6 +279,15 @@ def test_simulate_report_writes_the_page_its_figures_and_both_videos(simulated_r
         capture.release()
     levels = re.findall(r"<tr><td>(\d\.\d\d g)</td>", (simulated_report / PAGE).read_text())
     assert levels == ["0.20 g", "0.30 g"]
+
+
+def test_a_simulate_report_with_samples_says_how_sure_without_a_search(simulated_report):
+    page = (simulated_report / PAGE).read_text()
+    facts = dict(re.findall(r'<tr><th scope="row">(.*?)</th><td>(.*?)</td></tr>', page))
+    assert re.fullmatch(r"\d+ % \(\d of 2 samples; 95 % interval \d+ %–\d+ %, Wilson\)",
+                        facts["Pass probability"])
+    assert facts["Worst sample"].startswith("long side, margin ")
+    assert "Search" not in facts
 
 
 #: What the page shows once loaded (the video given up to 10 s to read its header).
