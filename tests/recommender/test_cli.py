@@ -729,3 +729,26 @@ def test_bad_sampling_flags_exit_2_naming_the_flag_before_any_simulation(argv, f
     out = tmp_path / "out.json"
     assert run(["simulate", str(load_file()), "--level", "0.2", *argv, "--json", str(out)]) == 2
     assert field in one_line(capsys.readouterr().err) and not out.exists()
+
+
+def test_samples_are_drawn_about_a_calibration_within_its_spreads(load_file, tmp_path):
+    """A calibrated pair is drawn about the calibration's value within its standard deviation
+    (0.002 here, where the documented default is 0.03); the wrap's scales about its own."""
+    cal = tmp_path / "cal.json"
+    cal.write_text(json.dumps({
+        "friction": {"pallet_bundle": {"static": 0.41, "kinetic": 0.35, "static_std": 0.002,
+                                       "kinetic_std": 0.002}},
+        "wrap": {"stiffness_scale": 1.2, "stiffness_scale_std": 0.01, "tension_scale": 0.9,
+                 "tension_scale_std": 0.01}}))
+    wrap = tmp_path / "wrap.toml"
+    wrap.write_text("material = 'kraft'\nweb_width_m = 0.5\n[program]\nbottom_wraps = 1\n"
+                    "bottom_tension_n = 300.0\nup_overlap = 0.0\nmiddle_tension_n = 300.0\n"
+                    "top_wraps = 1\ntop_tension_n = 300.0\n")
+    out = tmp_path / "out.json"
+    assert run(["simulate", str(load_file(base=ONE_BUNDLE)), "--wrap", str(wrap), "--level",
+                "0.2", "--calibration", str(cal), "--samples", "2", "--json", str(out)]) == 0
+    drawn = json.loads(out.read_text())["samples"]["worst"]["sample"]
+    assert drawn["friction"]["pallet_bundle"]["static"] == pytest.approx(0.41, abs=0.01)
+    assert drawn["friction"]["pallet_bundle"]["kinetic"] == pytest.approx(0.35, abs=0.01)
+    assert drawn["stiffness_scale"] == pytest.approx(1.2, abs=0.05)
+    assert drawn["tension_scale"] == pytest.approx(0.9, abs=0.05)
