@@ -113,6 +113,8 @@ CASES = [
          {"L.toml": LOAD, "W.toml": WRAP}, needles=("--hours-since-wrapping",)),
     Case("recommend --target-long 1.5", ["recommend", "L.toml", "--target-long", "1.5"],
          {"L.toml": LOAD}, needles=("--target-long",)),
+    Case("simulate --samples 0", ["simulate", "L.toml", "--samples", "0"], {"L.toml": LOAD},
+         needles=("--samples",)),
     # impossible or malformed load units, wraps and calibrations
     Case("load: NaN friction", ["simulate", "L.toml"],
          {"L.toml": _load(sled_pallet="sled_pallet = { static = nan, kinetic = 0.4 }")},
@@ -144,6 +146,12 @@ CASES = [
     Case("wrap: paper asked to rope", ["simulate", "L.toml", "--wrap", "W.toml"],
          {"L.toml": LOAD, "W.toml": WRAP.replace("[program]", "[program]\nroping = true")},
          needles=("W.toml", "roping")),
+    Case("wrap: a custom card's shear ratio in percent",
+         ["simulate", "L.toml", "--wrap", "W.toml"],
+         {"L.toml": LOAD, "W.toml": WRAP.replace(
+             'material = "kraft"', "[material]\ngrammage_kg_m2 = 0.09\nstiffness_n_per_m = 4e5\n"
+             "yield_strain = 0.008\nbreak_strain = 0.07\nkind = 'paper'\nshear_ratio = 25")},
+         needles=("W.toml", "shear_ratio")),
     Case("wrap: a spiral of a hundred layers (overlap 0.99)",
          ["simulate", "L.toml", "--wrap", "W.toml"],
          {"L.toml": LOAD, "W.toml": WRAP.replace("up_overlap = 0.5", "up_overlap = 0.99")},
