@@ -1,6 +1,7 @@
-"""Interrupting a running `wrapbench recommend`: Ctrl-C or SIGTERM ends it at once with one line,
-its worker processes gone, nothing written but the checkpoint it can resume from; a second
-Ctrl-C prints no traceback. Run as a user runs it: a process, signalled from outside."""
+"""Interrupting a running `wrapbench recommend` (or `simulate --samples`): Ctrl-C or SIGTERM
+ends it at once with one line, its worker processes gone, nothing written but the checkpoint it
+can resume from; a second Ctrl-C prints no traceback. Run as a user runs it: a process,
+signalled from outside."""
 
 from __future__ import annotations
 
@@ -183,3 +184,40 @@ def test_a_process_forked_by_the_command_acts_as_a_worker_before_it_is_one(capfd
         signal.signal(signal.SIGINT, previous[1])
     assert child.exitcode == -signal.SIGTERM
     assert "Traceback" not in capfd.readouterr().err
+
+
+@pytest.mark.parametrize("signum, code", [(signal.SIGINT, 130), (signal.SIGTERM, 143)])
+def test_an_interrupted_simulate_stops_its_sample_workers_and_writes_nothing(tmp_path, signum,
+                                                                              code):
+    """`simulate --samples` runs its samples on a pool of workers, as a search does: signalled
+    while they run, it ends at once with one line, no worker left, no JSON written."""
+    out, stderr_file = tmp_path / "verdict.json", tmp_path / "stderr.txt"
+    with stderr_file.open("w") as stderr:
+        proc = subprocess.Popen(
+            [sys.executable, "-m", "recommender.cli", "simulate",
+             str(REPO / "examples" / "pet_3layer_columnar.toml"), "--wrap",
+             str(REPO / "examples" / "program_lldpe_default.toml"), "--samples", "8",
+             "--workers", "2", "--json", str(out)],
+            stdout=subprocess.DEVNULL, stderr=stderr, cwd=REPO, start_new_session=True,
+            preexec_fn=_as_from_a_terminal)
+    try:
+        deadline = time.monotonic() + 120
+        while len(_processes_naming(str(tmp_path))) < 3:   # the command and its 2 workers
+            assert proc.poll() is None, stderr_file.read_text()
+            assert time.monotonic() < deadline, "no sample worker started"
+            time.sleep(0.2)
+        proc.send_signal(signum)
+        assert proc.wait(timeout=HANG_S) == code
+        err = stderr_file.read_text().replace("\r", "\n")
+        lines = [line for line in err.splitlines() if "wrapbench simulate" in line]
+        assert "Traceback" not in err and lines == ["wrapbench simulate: interrupted, nothing "
+                                                    "written"], err
+        assert not out.exists()
+        time.sleep(1)
+        assert _processes_naming(str(tmp_path)) == [], "sample workers outlived the command"
+    finally:
+        try:
+            os.killpg(proc.pid, signal.SIGKILL)
+        except ProcessLookupError:
+            pass
+        proc.wait()
