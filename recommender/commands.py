@@ -69,6 +69,11 @@ FLAGS = {"target_g": "--target", "start_g": "--start", "level_g": "--level",
          "material": "--material", "hours_since_wrapping": "--hours-since-wrapping"}
 
 
+def most_workers() -> int:
+    """The most worker processes a command takes here: `MAX_WORKERS_PER_CORE` a core."""
+    return MAX_WORKERS_PER_CORE * (os.cpu_count() or 1)
+
+
 def as_flag(exc: InputError) -> InputError:
     """A domain error about an argument, naming the flag instead of the field."""
     return InputError("arguments", FLAGS.get(exc.field, exc.field), exc.message)
@@ -177,7 +182,7 @@ def _settings(args: argparse.Namespace) -> SearchSettings:
             why = (": the first generation tries the lightest program at three tensions"
                    if flag == "--budget" else "")
             raise InputError("arguments", flag, f"must be >= {low} (got {value}){why}")
-    most = MAX_WORKERS_PER_CORE * (os.cpu_count() or 1) if args.backend == "process" else 4096
+    most = most_workers() if args.backend == "process" else 4096
     if args.workers > most:
         raise InputError("arguments", "--workers", f"must be <= {most} on the {args.backend} "
                          f"backend (got {args.workers}): a simulation keeps a core busy")
@@ -719,7 +724,7 @@ def _check_train_numbers(args: argparse.Namespace) -> None:
     for flag, value in (("--timesteps", args.timesteps), ("--envs", args.envs)):
         if value < 1:
             raise InputError("arguments", flag, f"must be >= 1 (got {value})")
-    most = MAX_WORKERS_PER_CORE * (os.cpu_count() or 1)
+    most = most_workers()
     if args.envs > most:
         raise InputError("arguments", "--envs", f"must be <= {most} (got {args.envs}): each "
                                                 "is a process simulating on a core")

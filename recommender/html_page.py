@@ -273,13 +273,13 @@ def _robust_section(r: Robustness) -> str:
                       f"search's own samples {search.margin:.2f} (goal {search.margin_goal:.2f})"))
     if r.worst is not None:
         w, level = r.worst, r.worst.level
-        short = search is not None and w.passed and w.margin < search.margin_goal
+        below = (f" (below the goal of {search.margin_goal:.2f}: these samples had only to "
+                 "pass)" if search is not None and w.passed and w.margin < search.margin_goal
+                 else "")
         facts.append(("Worst sample", f"{_t(w.orientation)} side, margin {w.margin:.2f}, "
                       f"elastic {_mm(level.get('elastic_max_m'))}, permanent "
                       f"{_mm(level.get('permanent_max_m'))}, "
-                      f"{'passed' if w.passed else 'failed'}"
-                      + (f" (below the goal of {search.margin_goal:.2f}: these samples had only "
-                         "to pass)" if short and search is not None else "")
+                      f"{'passed' if w.passed else 'failed'}" + below
                       + (f" (its level stopped once decided: {_t(level['stopped_early'])})"
                          if level.get("stopped_early") else "")))
         facts.append(("Its draw", _t(_draw_text(w.sample), 1000)))

@@ -15,10 +15,10 @@ from typing import Any
 from tqdm import tqdm
 
 from recommender.commands import (
-    MAX_WORKERS_PER_CORE,
     as_flag,
     check_hours,
     criteria_limits,
+    most_workers,
     read_calibration,
     warn,
     wrap_json,
@@ -150,8 +150,7 @@ def run_simulate(args: argparse.Namespace) -> int:
     if args.report:   # first: the slowest to make, and nothing of it shows until it is whole
         named = {"load unit": args.load, "wrap": args.wrap, "calibration": args.calibration,
                  "sled profile": args.profile}
-        robust = (None if sampled is None
-                  else sampled.robustness(orientation_tested(load, args.orientation)))
+        robust = None if sampled is None else sampled.robustness()
         write_report(args.report, lambda stage: simulate_page(
             stage, load, run, laid, wrap, args.orientation, args.hours_since_wrapping, named,
             tuple(said), levels, robust))
@@ -192,14 +191,12 @@ def _json(args: argparse.Namespace, given: _Inputs, run: BenchRun,
 
 @dataclass(frozen=True)
 class SampleRun:
-    """One sample's run through the levels asked, in short: its verdict, the last level it
-    ran (simulate's JSON; the level it failed at, if it failed) and what was drawn."""
+    """One sample's run through the levels asked: the search's record of a program in a sample
+    (its verdict, the last level it ran, the level it failed at if it failed, and what was
+    drawn), and the highest level it passed."""
 
-    passed: bool
-    margin: float
+    trial: Trial
     highest_passed_g: float | None
-    level: dict[str, Any]
-    sample: dict[str, Any]
 
 
 @dataclass(frozen=True)
@@ -213,40 +210,39 @@ class Sampled:
 
     @property
     def probability(self) -> PassProbability:
-        return PassProbability(sum(r.passed for r in self.runs), len(self.runs))
+        return PassProbability(sum(r.trial.passed for r in self.runs), len(self.runs))
 
     @property
     def worst(self) -> SampleRun:
-        return min(self.runs, key=lambda r: r.margin)
+        return min(self.runs, key=lambda r: r.trial.margin)
 
     def text(self) -> str:
-        p, w = self.probability, self.worst
-        low, high = p.interval
-        reached = ("no level" if w.highest_passed_g is None
-                   else f"up to {w.highest_passed_g:.2f} g")
+        p, worst = self.probability, self.worst
+        w, low_high = worst.trial, p.interval
+        reached = ("no level" if worst.highest_passed_g is None
+                   else f"up to {worst.highest_passed_g:.2f} g")
         drawn = ("friction, bundle mass, web stiffness, laid tension, relaxation, the load's "
                  "give" if self.wrapped else "friction, bundle mass")
         return (f"samples: passes in {p.passed} of {p.samples} samples of what the bench does "
                 f"not know ({drawn}; seed {self.seed}): pass probability {p.estimate:.0%}, 95 % "
-                f"interval {low:.0%}-{high:.0%}\nworst sample: margin {w.margin:.2f}, passed "
-                f"{reached}, at {w.level['level_g']:.2f} g elastic "
+                f"interval {low_high[0]:.0%}-{low_high[1]:.0%}\nworst sample: margin "
+                f"{w.margin:.2f}, passed {reached}, at {w.level['level_g']:.2f} g elastic "
                 f"{1000 * (w.level['elastic_max_m'] or 0):.1f} mm, permanent "
                 f"{1000 * (w.level['permanent_max_m'] or 0):.1f} mm"
                 + (f" (the level stopped once decided: {w.level['stopped_early']})"
                    if w.level.get("stopped_early") else ""))
 
-    def robustness(self, orientation: Orientation) -> Robustness:
-        """The samples as the report's section tells them (a report's worst sample names the
-        side that faced the motion)."""
-        w = self.worst
-        return Robustness(self.probability,
-                          Trial(w.passed, w.margin, orientation, w.level, w.sample))
+    def robustness(self) -> Robustness:
+        """The samples as the report's section tells them."""
+        return Robustness(self.probability, self.worst.trial)
 
     def to_json(self) -> dict[str, Any]:
-        w = self.worst
+        worst = self.worst
+        w = worst.trial
         return {"seed": self.seed, "pass_probability": self.probability.to_json(),
-                "worst": {"margin": round(w.margin, 4), "highest_passed_g": w.highest_passed_g,
-                          "level": w.level, "sample": w.sample}}
+                "worst": {"margin": round(w.margin, 4),
+                          "highest_passed_g": worst.highest_passed_g, "level": w.level,
+                          "sample": w.sample}}
 
 
 def _check_sampling(args: argparse.Namespace) -> None:
@@ -258,7 +254,7 @@ def _check_sampling(args: argparse.Namespace) -> None:
         return
     if args.samples < 1:
         raise InputError("arguments", "--samples", f"must be >= 1 (got {args.samples})")
-    most = MAX_WORKERS_PER_CORE * (os.cpu_count() or 1)
+    most = most_workers()
     if args.workers is not None and not 1 <= args.workers <= most:
         raise InputError("arguments", "--workers", f"must be from 1 to {most} (got "
                                                    f"{args.workers}): a simulation keeps a core "
@@ -289,14 +285,16 @@ def _sampled(args: argparse.Namespace, given: _Inputs, levels: list[Profile],
 def _sample_run(load: LoadUnit, levels: list[Profile], laid: WrapFormat | None,
                 uncertainty: Uncertainty, seed: int, orientation: Orientation | None,
                 stop: bool, fresh: bool, limits: Limits) -> SampleRun:
-    """One sample (in a worker): the load and the wrap as it draws them, through the levels."""
+    """One sample (in a worker): the load and the wrap as it draws them, through the levels;
+    its trial names the side that faced the motion."""
     sample = uncertainty.draw(load, seed)
     wrap = sample.wrap(laid) if laid is not None else None
     verdict = run_levels(sample.load(load), levels, SimSettings(stop_when_decided=True),
                          orientation=orientation, stop_at_failure=stop, wrap=wrap, fresh=fresh,
                          limits=limits).verdict
-    return SampleRun(verdict.passed, verdict.margin, verdict.highest_passed_g,
-                     verdict.levels[-1].to_json(), sample.to_json())
+    trial = Trial(verdict.passed, verdict.margin, orientation_tested(load, orientation),
+                  verdict.levels[-1].to_json(), sample.to_json())
+    return SampleRun(trial, verdict.highest_passed_g)
 
 
 def _rerun(bar: Any, iterations: int) -> None:
