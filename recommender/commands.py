@@ -200,7 +200,8 @@ def _settings(args: argparse.Namespace) -> SearchSettings:
                           backend=args.backend, ray_address=args.ray_address,
                           max_cycle_s=args.max_cycle_s, cycle_weight=cycle_weight,
                           hours_since_wrapping=args.hours_since_wrapping,
-                          limits=criteria_limits(args), fresh=args.fresh)
+                          limits=criteria_limits(args), fresh=args.fresh,
+                          ordered_tensions=args.ordered_tensions)
 
 
 def _rounds(args: argparse.Namespace) -> int:
@@ -611,6 +612,8 @@ def _propose_with_policy(args: argparse.Namespace, problem: Problem, samples: in
                            "as given",), said)
     wrap = propose(model, load, problem.settings.web.material_key,
                    problem.settings.target_g, calibration)
+    if problem.settings.ordered_tensions:   # the proposal as the search would lay its vector
+        wrap = problem.wrap(np.asarray(problem.vector(wrap)))
     check = verify(problem, wrap, samples, workers=args.workers)
     mass = wrap.material_used_on(problem.layout).mass_kg
     margin = min(run.verdict.margin for run in check.runs.values())

@@ -77,6 +77,10 @@ class SearchSettings:
     #: Lay every zone at the top of the tension range (the search then chooses wraps, overlap
     #: and the reinforcement's height only): what a later round does (`in_round`).
     top_tension: bool = False
+    #: Lay the bottom and the top wraps at least as tight as the spiral, as practice (and the
+    #: source paper's model) orders them: the bottom pulls hardest, the top a little harder
+    #: than the middle. Off by default: the search's tensions are free (docs/recommend.md).
+    ordered_tensions: bool = False
 
     @property
     def target_g(self) -> float:
@@ -113,7 +117,8 @@ class SearchSettings:
                 "screen_samples": self.screen_samples,
                 **({} if self.limits.layer_shift_fraction is None else
                    {"layer_shift_limit": self.limits.layer_shift_fraction}),
-                **({"top_tension": True} if self.top_tension else {})}
+                **({"top_tension": True} if self.top_tension else {}),
+                **({"ordered_tensions": True} if self.ordered_tensions else {})}
 
 
 @dataclass(frozen=True)
@@ -150,12 +155,17 @@ class Problem:
     def values(self, x: np.ndarray) -> np.ndarray:
         """ProgramSpace values of a search vector: wraps as they are, the continuous
         coordinates from fractions of their range (the tensions at its top with
-        `SearchSettings.top_tension`, whatever the vector says)."""
+        `SearchSettings.top_tension`, whatever the vector says; with `ordered_tensions` the
+        bottom and top wraps' at least the spiral's, so a coordinate keeps its meaning and a
+        checkpoint or a policy's proposal its vector)."""
         lo, hi = self.space.low, self.space.high
         v = lo + np.asarray(x, float) * (hi - lo)
         v[list(INTEGER_INDICES)] = np.asarray(x, float)[list(INTEGER_INDICES)]
         if self.settings.top_tension:
             v[list(TENSION_INDICES)] = hi[list(TENSION_INDICES)]
+        if self.settings.ordered_tensions:
+            bottom, middle, top, _ = TENSION_INDICES
+            v[[bottom, top]] = np.maximum(v[[bottom, top]], v[middle])
         return v
 
     def vector(self, wrap: WrapFormat) -> tuple[float, ...]:

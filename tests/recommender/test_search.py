@@ -420,7 +420,7 @@ def test_a_sample_is_as_strong_as_its_weakest_orientation():
     ({"web": Web(MATERIALS["kraft"], "kraft", 0.75)}, "material"),   # the same card, wider
     ({"targets": (("long", 0.6),)}, "targets"), ({"seed": 3}, "seed"),
     ({"hours_since_wrapping": 16.0}, "hours_since_wrapping"), ({"screen": None}, "screen"),
-    ({"screen_samples": 2}, "screen_samples")])
+    ({"screen_samples": 2}, "screen_samples"), ({"ordered_tensions": True}, "ordered_tensions")])
 def test_resume_refuses_another_search_s_checkpoint(small_load, tmp_path, other, field,
                                                     assert_input_error):
     ckpt = tmp_path / "search.json"
@@ -500,6 +500,32 @@ def test_a_later_round_lays_every_zone_at_the_top_tension_and_changes_nothing_el
                    reinforcements=gentle.reinforcements) == gentle
     assert "top_tension" in RobustSearch(second)._identity()
     assert "top_tension" not in RobustSearch(first)._identity()
+
+
+def test_ordered_tensions_lay_the_bottom_and_top_at_least_as_tight_as_the_spiral(small_load):
+    """--ordered-tensions: a zone looser than the spiral is raised to it, a tighter one kept;
+    the wraps, overlap, reinforcement and the vector's meaning are untouched, and a checkpoint
+    of the free search is not resumed as an ordered one."""
+    ordered = Problem.build(small_load, replace(FAST, ordered_tensions=True))
+    free = Problem.build(small_load, FAST)
+    low, top = free.space.tension_range_n
+    at = [round(low + f * (top - low)) for f in (0.0, 0.2, 0.4, 0.6)]
+    loose = np.array([3.0, 2.0, 1.0, 0.4, 0.5, 0.0, 0.4, 0.2, 0.6])  # bottom, top under spiral
+    p = ordered.wrap(loose).program
+    assert [p.bottom_tension_n, p.middle_tension_n, p.top_tension_n] == [at[2]] * 3
+    assert p.reinforcements[0].tension_n == at[3]                    # not a zone of the order
+    f = free.wrap(loose).program
+    assert replace(p, bottom_tension_n=f.bottom_tension_n, top_tension_n=f.top_tension_n) == f
+    tight = np.array([3.0, 2.0, 1.0, 0.4, 0.5, 0.6, 0.2, 0.4, 0.0])  # both over the spiral
+    assert ordered.wrap(tight).program == free.wrap(tight).program
+    rng = np.random.default_rng(0)
+    for _ in range(50):
+        x = np.concatenate([[1, 1, 0], rng.uniform(0.0, 1.0, N_PARAMS - 3)])
+        q = ordered.wrap(x).program
+        assert q.bottom_tension_n >= q.middle_tension_n <= q.top_tension_n
+        assert ordered.vector(ordered.wrap(x)) == ordered.vector(ordered.wrap(
+            np.asarray(ordered.vector(ordered.wrap(x)))))          # a fixed point: resumable
+    assert RobustSearch(ordered)._identity() != RobustSearch(free)._identity()
 
 
 def _history(*evaluations: tuple[float, bool]) -> SimpleNamespace:
@@ -876,9 +902,10 @@ def test_bad_recommend_arguments_exit_2_with_one_line(argv, field, load_file, tm
     assert not (tmp_path / "out.json").exists()
 
 
-def fixed_policy(load: Path, action: float, path: Path, material: str = "kraft") -> Path:
-    """A policy.zip whose every proposal is the action `action` in each parameter: an
-    untrained PPO model whose action head is only its bias."""
+def fixed_policy(load: Path, action: float | list[float], path: Path,
+                 material: str = "kraft") -> Path:
+    """A policy.zip whose every proposal is the action `action` (in each parameter, or one
+    value a parameter): an untrained PPO model whose action head is only its bias."""
     import gymnasium as gym
     import torch
     from stable_baselines3 import PPO
@@ -890,7 +917,7 @@ def fixed_policy(load: Path, action: float, path: Path, material: str = "kraft")
     with torch.no_grad():
         head: torch.nn.Linear = model.policy.action_net  # type: ignore[assignment]
         head.weight.zero_()
-        head.bias.fill_(action)
+        head.bias.copy_(torch.as_tensor(action, dtype=head.bias.dtype).expand_as(head.bias))
     model.save(path.with_suffix(""))
     stamp(path, policy_meta(TrainSettings(material=material)))
     env.close()
@@ -920,6 +947,25 @@ def test_ppo_method_answers_from_a_policy_and_verifies_it(load_file, tmp_path, c
     printed = capsys.readouterr().out
     assert code == 1 and "over the cycle-time limit of 10 s: nothing written" in printed
     assert "recommended" not in printed and not (tmp_path / "slow.json").exists()
+
+
+@pytest.mark.usefixtures("two_verification_samples")
+def test_ordered_tensions_hold_for_a_search_s_answer_and_a_policy_s_proposal(load_file,
+                                                                              tmp_path):
+    """What `recommend --ordered-tensions` writes lays the bottom and top wraps at least as
+    tight as the spiral, whichever method answered; the policy's proposal (bottom wraps at the
+    range's foot, every other zone in its middle) is raised to the spiral's tension."""
+    load = load_file(base=SMALL)
+    policy = fixed_policy(load, [0.0] * 5 + [-1.0, 0.0, 0.0, 0.0], tmp_path / "loose.zip")
+    runs = {"cmaes": ["--budget", "8"], "ppo": ["--policy", str(policy), "--rounds", "1"]}
+    for method, argv in runs.items():
+        out = tmp_path / f"{method}.json"
+        assert main(["recommend", str(load), "--method", method, *argv, "--samples", "2",
+                     "--workers", "2", "--ordered-tensions", "--json", str(out)]) == 0
+        program = json.loads(out.read_text())["program"]
+        middle = program["middle_tension_n"]
+        assert program["bottom_tension_n"] >= middle <= program["top_tension_n"], method
+    assert program["bottom_tension_n"] == middle == 440.0   # the proposal's 80 N raised
 
 
 @pytest.mark.usefixtures("two_verification_samples")
