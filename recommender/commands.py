@@ -733,6 +733,9 @@ def _check_train_numbers(args: argparse.Namespace) -> None:
                                                 "is a process simulating on a core")
     if args.minutes is not None and not (math.isfinite(args.minutes) and args.minutes > 0):
         raise InputError("arguments", "--minutes", f"must be > 0 (got {args.minutes})")
+    if not args.material_weight >= 0:
+        raise InputError("arguments", "--material-weight",
+                         f"must be >= 0 (got {args.material_weight})")
 
 
 def _run_folder(out: Path, resume: bool) -> bool:
@@ -767,7 +770,8 @@ def run_train(args: argparse.Namespace) -> int:
     made = _run_folder(args.out, args.resume)
     settings = TrainSettings(timesteps=args.timesteps, workers=args.envs, material=args.material,
                              target_g=args.target, seed=args.seed, max_minutes=args.minutes,
-                             calibration=calibration, test=args.test)
+                             calibration=calibration, test=args.test,
+                             material_weight=args.material_weight)
     if settings.rollout_timesteps != settings.timesteps:
         print(f"training {settings.rollout_timesteps} timesteps: PPO collects whole rollouts of "
               f"{settings.n_steps * settings.n_envs} episodes")

@@ -117,6 +117,9 @@ class TrainSettings:
     sim: SimSettings = SimSettings.training()
     #: The test each episode's program is judged by (a key of `TESTS`).
     test: str = "verified"
+    #: The reward's price on web (`WrapBenchEnv`'s `material_weight`): lower asks a proposal
+    #: to pass more of the samples it may meet, for more web.
+    material_weight: float = 1.0
     seed: int = 0
     checkpoint_every: int = 512    # timesteps between policy checkpoints
     n_steps: int = 1               # PPO rollout length per env (one-step episodes)
@@ -154,6 +157,9 @@ class TrainSettings:
                                                  and self.max_minutes >= 0):
             raise ValueError(f"TrainSettings.max_minutes must be >= 0 or None "
                              f"(got {self.max_minutes!r})")
+        if not (math.isfinite(self.material_weight) and self.material_weight >= 0):
+            raise ValueError(f"TrainSettings.material_weight must be >= 0 "
+                             f"(got {self.material_weight!r})")
 
 
 class EpisodeLog(BaseCallback):
@@ -314,7 +320,8 @@ def env_kwargs(settings: TrainSettings) -> dict[str, Any]:
     """What each training env is made with (`gym.make(MAKE_ID, **env_kwargs(settings))`)."""
     return {"material": settings.material, "target_g": settings.target_g,
             "levels": settings.levels, "settings": settings.sim,
-            "calibration": settings.calibration, **TESTS[settings.test]}
+            "calibration": settings.calibration, "material_weight": settings.material_weight,
+            **TESTS[settings.test]}
 
 
 def _training_envs(settings: TrainSettings, seed: int) -> VecEnv:
@@ -330,7 +337,7 @@ def policy_meta(settings: TrainSettings) -> dict[str, Any]:
             "observation": list(OBS_NAMES), "action": list(NAMES),
             "calibrated": settings.calibration is not None,
             "material_features": material_features(MATERIALS[settings.material]),
-            "test": settings.test}
+            "test": settings.test, "material_weight": settings.material_weight}
 
 
 def stamp(path: Path, meta: dict[str, Any]) -> None:
@@ -463,7 +470,8 @@ def _check_resumable(path: Path, content: bytes, meta: dict[str, Any],
     found = read_meta(path, content)
     _check_meta(path, found, meta["material"], trusted)
     found.setdefault("test", "nominal")   # written before the test was recorded
-    for key in ("target_g", "calibrated", "test"):
+    found.setdefault("material_weight", 1.0)   # written before the weight was a setting
+    for key in ("target_g", "calibrated", "test", "material_weight"):
         if found.get(key) != meta[key]:
             raise InputError(str(path), key, f"the run was trained with {key} "
                              f"{found.get(key)!r}, not {meta[key]!r}: resume it as it was started")

@@ -31,6 +31,7 @@ from recommender.policy import (
     POLICY_META,
     EpisodeLog,
     TrainSettings,
+    env_kwargs,
     evaluate,
     held_out_loads,
     last_checkpoint,
@@ -83,7 +84,8 @@ def test_default_settings_are_a_sane_short_run():
                                           ("batch_size", 1.5),
                                           ("learning_rate", float("nan")),
                                           ("max_minutes", -1.0), ("max_minutes", float("nan")),
-                                          ("test", "easy")])
+                                          ("test", "easy"), ("material_weight", -0.1),
+                                          ("material_weight", float("inf"))])
 def test_bad_settings_are_rejected_before_any_process_starts(tmp_path, field, value):
     with pytest.raises(ValueError, match=field):
         train(TrainSettings(**{field: value}), tmp_path / "out")
@@ -239,6 +241,20 @@ def test_wrapbench_train_judges_episodes_by_the_test_asked(tmp_path, monkeypatch
                         trained.append(settings) or folder / "policy.zip")
     assert main(["train", "--out", str(tmp_path / "run"), "--timesteps", "1", *flags]) == 0
     assert [s.test for s in trained] == [test]
+
+
+@pytest.mark.parametrize("flags, weight", [((), 1.0), (("--material-weight", "0.3"), 0.3)])
+def test_wrapbench_train_prices_web_as_asked_and_the_policy_records_it(tmp_path, monkeypatch,
+                                                                       flags, weight):
+    """The weight reaches every training env's reward and the policy's record, so a run is
+    resumed only at the weight it was started with."""
+    trained = []
+    monkeypatch.setattr(recommender.policy, "train",
+                        lambda settings, folder, resume=False:
+                        trained.append(settings) or folder / "policy.zip")
+    assert main(["train", "--out", str(tmp_path / "run"), "--timesteps", "1", *flags]) == 0
+    assert env_kwargs(trained[0])["material_weight"] == weight
+    assert policy_meta(trained[0])["material_weight"] == weight
 
 
 def test_train_with_two_worker_processes(tmp_path):
@@ -594,7 +610,8 @@ def test_a_run_is_resumed_only_as_it_was_started(trained, tmp_path, assert_input
         (run / name).write_bytes((out / name).read_bytes())
     for settings, field in ((replace(TINY, material="lldpe"), "material"),
                             (replace(TINY, target_g=0.8), "target_g"),
-                            (replace(TINY, test="nominal"), "test")):
+                            (replace(TINY, test="nominal"), "test"),
+                            (replace(TINY, material_weight=0.5), "material_weight")):
         with pytest.raises(InputError) as info:
             train(settings, run, resume=True)
         assert_input_error(info.value, str(run / CHECKPOINT_DIR / "policy_4_steps.zip"), field)
