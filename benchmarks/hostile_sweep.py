@@ -101,6 +101,8 @@ CASES = [
          needles=("policy_512_steps.zip", "policy")),
     Case("train --envs 100000", ["train", "--out", "run", "--envs", "100000"],
          needles=("--envs",)),
+    Case("train --material-weight -1", ["train", "--out", "run", "--material-weight", "-1"],
+         needles=("--material-weight",)),
     Case("train --calibration with a spread no policy observes",
          ["train", "--out", "run", "--calibration", "c.json"],
          {"c.json": '{"friction": {"pallet_bundle": {"static": 0.5, "kinetic": 0.4, '
