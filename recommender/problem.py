@@ -77,9 +77,9 @@ class SearchSettings:
     #: Lay every zone at the top of the tension range (the search then chooses wraps, overlap
     #: and the reinforcement's height only): what a later round does (`in_round`).
     top_tension: bool = False
-    #: Lay the bottom and the top wraps at least as tight as the spiral, as practice (and the
-    #: source paper's model) orders them: the bottom pulls hardest, the top a little harder
-    #: than the middle. Off by default: the search's tensions are free (docs/recommend.md).
+    #: Lay the bottom and the top wraps at least as tight as the spiral: the source paper's
+    #: model pulls hardest at the bottom and a little harder at the top than in the middle.
+    #: Off by default: each zone's tension is searched freely (docs/recommend.md).
     ordered_tensions: bool = False
 
     @property
