@@ -81,6 +81,10 @@ def main() -> None:
     model = load_policy(args.policy, args.material)
     loads = held_out_loads(args.held_out, seed=0)
     wraps = [propose(model, load, args.material, args.target) for load in loads]
+    web_kg = [w.material_used_on(load.layout()).mass_kg for load, w in zip(loads, wraps,
+                                                                            strict=True)]
+    print(f"the policy's {len(wraps)} proposals lay {sum(web_kg) / len(web_kg):.3f} kg of web "
+          f"on average ({min(web_kg):.3f}-{max(web_kg):.3f})", flush=True)
     #: per (side, relaxed, sequence), each unit's result: a side shared by two tests runs once
     by_side: dict[tuple[Orientation, bool, bool], list[tuple[bool, float]]] = {}
     for name, sides, relaxed, sequence in TESTS:
