@@ -40,7 +40,7 @@ from recommender.search import (
     at_top_tension,
     next_start,
 )
-from recommender.text import program_text, verdict_table
+from recommender.text import program_text, sample_figures, verdict_table
 from wrapenv.calibrated import Calibration
 from wrapenv.config import (
     InputError,
@@ -661,9 +661,8 @@ def _print_recommendation(problem: Problem, best: Evaluation, check: Verificatio
         print(verdict_table(problem.load, run, orientation))
     if check.worst is not None:
         w = check.worst
-        print(f"worst sample: {w.orientation} side, margin {w.margin:.2f}, elastic "
-              f"{1000 * (w.level['elastic_max_m'] or 0):.1f} mm, permanent "
-              f"{1000 * (w.level['permanent_max_m'] or 0):.1f} mm")
+        print(f"worst sample: {w.orientation} side, margin {w.margin:.2f}, "
+              f"{sample_figures(w.level)}")
 
 
 def _write_outputs(args: argparse.Namespace, problem: Problem, best: Evaluation,

@@ -38,6 +38,7 @@ from recommender.text import (
     orientation_tested,
     program_text,
     rerun_note,
+    sample_figures,
     verdict_table,
 )
 from wrapenv.bench import BenchRun, SimSettings, run_levels
@@ -226,9 +227,8 @@ class Sampled:
         return (f"samples: passes in {p.passed} of {p.samples} samples of what the bench does "
                 f"not know ({drawn}; seed {self.seed}): pass probability {p.estimate:.0%}, 95 % "
                 f"interval {low_high[0]:.0%}-{low_high[1]:.0%}\nworst sample: margin "
-                f"{w.margin:.2f}, passed {reached}, at {w.level['level_g']:.2f} g elastic "
-                f"{1000 * (w.level['elastic_max_m'] or 0):.1f} mm, permanent "
-                f"{1000 * (w.level['permanent_max_m'] or 0):.1f} mm"
+                f"{w.margin:.2f}, passed {reached}, at {w.level['level_g']:.2f} g "
+                f"{sample_figures(w.level)}"
                 + (f" (the level stopped once decided: {w.level['stopped_early']})"
                    if w.level.get("stopped_early") else ""))
 

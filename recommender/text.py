@@ -4,6 +4,7 @@ operator enters it, with the web it lays and the time it takes."""
 from __future__ import annotations
 
 from collections.abc import Sequence
+from typing import Any
 
 from wrapenv.bench import BenchRun, SimSettings
 from wrapenv.calibrated import Calibration
@@ -22,6 +23,12 @@ def _mm(x: float | None) -> str:
 
 def _pct(x: float | None, height_m: float) -> str:
     return "      " if x is None else f"({100 * x / height_m:4.1f} %)"
+
+
+def sample_figures(level: dict[str, Any]) -> str:
+    """A sample's level (its JSON) in the two figures a worst-sample line gives."""
+    return (f"elastic {1000 * (level['elastic_max_m'] or 0):.1f} mm, permanent "
+            f"{1000 * (level['permanent_max_m'] or 0):.1f} mm")
 
 
 def level_result(verdict: Verdict, v: LevelVerdict) -> str:
