@@ -275,9 +275,10 @@ def _add_train(sub: argparse._SubParsersAction) -> None:
                          "drawn at random, one sample of what the bench does not know, the wrap "
                          "relaxed 16 h) or nominal (the unit's long side as given, freshly "
                          "wrapped, as policies trained before 2026-11-28 were)")
-    tr.add_argument("--material-weight", type=_number, default=1.0, metavar="W",
+    tr.add_argument("--material-weight", type=_number, default=0.6, metavar="W",
                     help="the reward's price on web, in machine-default programs' web (default "
-                         "1); lower asks the policy for programs that hold in more samples")
+                         "0.6; 1 before 2026-12-01); lower asks the policy for programs that "
+                         "hold in more samples")
     tr.add_argument("--minutes", type=float, default=None, metavar="M",
                     help="stop after M minutes of training and write the policy learned so far "
                          "(default: run all --timesteps)")

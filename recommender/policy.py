@@ -118,8 +118,10 @@ class TrainSettings:
     #: The test each episode's program is judged by (a key of `TESTS`).
     test: str = "verified"
     #: The reward's price on web (`WrapBenchEnv`'s `material_weight`): lower asks a proposal
-    #: to pass more of the samples it may meet, for more web.
-    material_weight: float = 1.0
+    #: to pass more of the samples it may meet, for more web. 0.6 since 2026-12-01: on film,
+    #: 1 proposed too little web to hold its verification and 0.3 one strong program for every
+    #: unit; on Kraft 0.6 and 1 train the same policy (docs/recommend.md).
+    material_weight: float = 0.6
     seed: int = 0
     checkpoint_every: int = 512    # timesteps between policy checkpoints
     n_steps: int = 1               # PPO rollout length per env (one-step episodes)

@@ -243,11 +243,13 @@ def test_wrapbench_train_judges_episodes_by_the_test_asked(tmp_path, monkeypatch
     assert [s.test for s in trained] == [test]
 
 
-@pytest.mark.parametrize("flags, weight", [((), 1.0), (("--material-weight", "0.3"), 0.3)])
+@pytest.mark.parametrize("flags, weight", [((), TrainSettings().material_weight),
+                                           (("--material-weight", "1"), 1.0),
+                                           (("--material-weight", "0.3"), 0.3)])
 def test_wrapbench_train_prices_web_as_asked_and_the_policy_records_it(tmp_path, monkeypatch,
                                                                        flags, weight):
     """The weight reaches every training env's reward and the policy's record, so a run is
-    resumed only at the weight it was started with."""
+    resumed only at the weight it was started with; without the flag, training's default."""
     trained = []
     monkeypatch.setattr(recommender.policy, "train",
                         lambda settings, folder, resume=False:
