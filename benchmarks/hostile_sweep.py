@@ -103,6 +103,8 @@ CASES = [
          needles=("--envs",)),
     Case("train --material-weight -1", ["train", "--out", "run", "--material-weight", "-1"],
          needles=("--material-weight",)),
+    Case("train --log-std-init 3", ["train", "--out", "run", "--log-std-init", "3"],
+         needles=("--log-std-init",)),
     Case("train --calibration with a spread no policy observes",
          ["train", "--out", "run", "--calibration", "c.json"],
          {"c.json": '{"friction": {"pallet_bundle": {"static": 0.5, "kinetic": 0.4, '

@@ -4,7 +4,8 @@
    env uses), target level only: pass rate and mean material of the policy's proposals, of
    uniformly random actions, and of one program given to every unit (the space's least web at
    the middle of each tension range), and how many distinct settings (wraps, overlap, tensions)
-   the policy proposed: a policy is worth training only where no single program does as well.
+   the policy proposed: a policy is worth training only where no single program does as well;
+   and per parameter on how many units its action is pinned at a bound of the range.
 2. `--search N`: the first N held-out units also searched with `wrapbench recommend` (CMA-ES,
    its defaults), and per unit the policy's material against the search's (issue 15's goal: the
    policy passes >= 90 % of held-out units with at most 1.5 x the material the search finds).
@@ -36,6 +37,7 @@ import numpy as np
 
 from recommender.policy import PolicyTrial, evaluate, held_out_loads, run_trial
 from recommender.text import program_summary
+from wrapenv.design import NAMES
 from wrapenv.load import LoadUnit
 from wrapenv.program import Program, Reinforcement
 
@@ -79,6 +81,7 @@ def held_out(policy: Path, n: int, target_g: float, material: str, searched: int
             proposals = trials
     distinct = len({settings(t.wrap.program) for t in proposals if t.wrap.program})
     print(f"the policy proposed {distinct} distinct setting(s) for the {n} units", flush=True)
+    print(f"its actions pinned at a bound, of the {n} units: {at_bounds(proposals)}", flush=True)
     ppo = ["--method", "ppo", "--policy", str(policy.resolve())]
     verified_units = 0
     for k, (load, trial) in enumerate(zip(loads[:searched], proposals, strict=False)):
@@ -105,6 +108,17 @@ def held_out(policy: Path, n: int, target_g: float, material: str, searched: int
     if searched:
         print(f"the policy's proposal holds its verification on {verified_units} of "
               f"{len(loads[from_unit:searched])} units", flush=True)
+
+
+def at_bounds(trials: list[PolicyTrial]) -> str:
+    """Per parameter, on how many units the action sits at the lower or upper end of its
+    range: a parameter pinned there on every unit is one the policy no longer designs (PPO
+    samples past a bound clip alike, so nothing brings its mean back)."""
+    actions = np.array([t.action for t in trials])
+    said = [f"{name} {int(np.sum(column <= -1))} low / {int(np.sum(column >= 1))} high"
+            for name, column in zip(NAMES, actions.T, strict=True)
+            if np.any(np.abs(column) >= 1)]
+    return ", ".join(said) or "none"
 
 
 def run_recommend(load: str, method: list[str], target_g: float,

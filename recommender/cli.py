@@ -279,6 +279,10 @@ def _add_train(sub: argparse._SubParsersAction) -> None:
                     help="the reward's price on web, in machine-default programs' web (default "
                          "0.6; 1 before 2026-12-01); lower asks the policy for programs that "
                          "hold in more samples")
+    tr.add_argument("--log-std-init", type=_number, default=0.0, metavar="L",
+                    help="log of the exploration noise's initial standard deviation, in "
+                         "actions scaled to [-1, 1] (SB3's log_std_init; default 0); -1 lets a "
+                         "film policy's proposals differ by unit (docs/recommend.md)")
     tr.add_argument("--minutes", type=float, default=None, metavar="M",
                     help="stop after M minutes of training and write the policy learned so far "
                          "(default: run all --timesteps)")

@@ -723,6 +723,8 @@ def _observable_calibration(path: Path | None) -> Calibration | None:
 
 
 def _check_train_numbers(args: argparse.Namespace) -> None:
+    from recommender.policy import LOG_STD_INIT_RANGE
+
     for flag, value in (("--timesteps", args.timesteps), ("--envs", args.envs)):
         if value < 1:
             raise InputError("arguments", flag, f"must be >= 1 (got {value})")
@@ -735,6 +737,10 @@ def _check_train_numbers(args: argparse.Namespace) -> None:
     if not args.material_weight >= 0:
         raise InputError("arguments", "--material-weight",
                          f"must be >= 0 (got {args.material_weight})")
+    if not LOG_STD_INIT_RANGE[0] <= args.log_std_init <= LOG_STD_INIT_RANGE[1]:
+        raise InputError("arguments", "--log-std-init", f"must be between "
+                         f"{LOG_STD_INIT_RANGE[0]:g} and {LOG_STD_INIT_RANGE[1]:g} "
+                         f"(got {args.log_std_init:g})")
 
 
 def _run_folder(out: Path, resume: bool) -> bool:
@@ -770,7 +776,8 @@ def run_train(args: argparse.Namespace) -> int:
     settings = TrainSettings(timesteps=args.timesteps, workers=args.envs, material=args.material,
                              target_g=args.target, seed=args.seed, max_minutes=args.minutes,
                              calibration=calibration, test=args.test,
-                             material_weight=args.material_weight)
+                             material_weight=args.material_weight,
+                             log_std_init=args.log_std_init)
     if settings.rollout_timesteps != settings.timesteps:
         print(f"training {settings.rollout_timesteps} timesteps: PPO collects whole rollouts of "
               f"{settings.n_steps * settings.n_envs} episodes")

@@ -92,6 +92,10 @@ TESTS: dict[str, dict[str, Any]] = {
 }
 
 
+#: `TrainSettings.log_std_init`'s bounds: a standard deviation of 0.007 to 2.7 (actions in [-1, 1]).
+LOG_STD_INIT_RANGE = (-5.0, 1.0)
+
+
 @dataclass(frozen=True)
 class TrainSettings:
     """PPO training run. Each episode is one random unit at the target level, 0.4-10 s of CPU
@@ -122,6 +126,12 @@ class TrainSettings:
     #: 1 proposed too little web to hold its verification and 0.3 one strong program for every
     #: unit; on Kraft 0.6 and 1 train the same policy (docs/recommend.md).
     material_weight: float = 0.6
+    #: Log of the exploration noise's initial standard deviation in the action space's [-1, 1]
+    #: (SB3's `log_std_init`; 0, SB3's default, is a noise as wide as the space). At 0 a film
+    #: policy's means drift past the bounds, where every sample clips alike and no gradient
+    #: brings them back: every unit gets 6 bottom wraps at full tension. At -1 its proposals
+    #: differ by unit, and hold as often (docs/recommend.md, "Exploration noise").
+    log_std_init: float = 0.0
     seed: int = 0
     checkpoint_every: int = 512    # timesteps between policy checkpoints
     n_steps: int = 1               # PPO rollout length per env (one-step episodes)
@@ -159,6 +169,10 @@ class TrainSettings:
                                                  and self.max_minutes >= 0):
             raise ValueError(f"TrainSettings.max_minutes must be >= 0 or None "
                              f"(got {self.max_minutes!r})")
+        low, high = LOG_STD_INIT_RANGE
+        if not low <= self.log_std_init <= high:   # NaN fails too
+            raise ValueError(f"TrainSettings.log_std_init must be between {low:g} and "
+                             f"{high:g} (got {self.log_std_init!r})")
         if not (math.isfinite(self.material_weight) and self.material_weight >= 0):
             raise ValueError(f"TrainSettings.material_weight must be >= 0 "
                              f"(got {self.material_weight!r})")
@@ -287,9 +301,7 @@ def train(settings: TrainSettings, out_dir: Path, resume: bool = False) -> Path:
         # a run checkpointed before 2026-11-28 collected 64 steps of 2 envs a rollout
         model = (_load(start[0], resumed, trusted, vec_env, n_steps=settings.n_steps)
                  if start else
-                 PPO("MlpPolicy", vec_env, n_steps=settings.n_steps,
-                     batch_size=settings.batch_size, learning_rate=settings.learning_rate,
-                     seed=settings.seed, device="cpu", verbose=0))
+                 new_model(settings, vec_env))
         # SB3's default logger makes an empty folder in the system's temp dir per run, even
         # writing nothing: ours writes nothing either, in the run's folder
         model.set_logger(configure_logger(str(out_dir), []))
@@ -316,6 +328,13 @@ def close_bar(bar: ProgressBarCallback) -> None:
     pbar = getattr(bar, "pbar", None)   # made when training starts
     if pbar is not None:
         pbar.close()
+
+
+def new_model(settings: TrainSettings, vec_env: VecEnv) -> PPO:
+    """An untrained PPO model as `settings` ask, on the CPU (the policy is a small MLP)."""
+    return PPO("MlpPolicy", vec_env, n_steps=settings.n_steps, batch_size=settings.batch_size,
+               learning_rate=settings.learning_rate, seed=settings.seed, device="cpu",
+               verbose=0, policy_kwargs={"log_std_init": settings.log_std_init})
 
 
 def env_kwargs(settings: TrainSettings) -> dict[str, Any]:
@@ -571,6 +590,9 @@ class PolicyTrial:
     margin: float
     material_kg: float
     reward: float
+    #: The action as chosen, in [-1, 1] per parameter (`wrapenv.design.NAMES`): a policy's
+    #: action pinned at a bound on every unit has stopped learning that parameter.
+    action: tuple[float, ...]
 
 
 def evaluate(policy_or_none: PPO | Path | None, loads: list[LoadUnit], material: str,
@@ -600,7 +622,8 @@ def run_trial(load: LoadUnit, choose: Callable[[np.ndarray], np.ndarray], materi
         _, reward, _, _, info = env.step(action)
         return PolicyTrial(load.name, env.decode(action), bool(info["passed"]),
                            bool(info["valid"]), float(info["margin"]),
-                           float(info["material_used"]["mass_kg"]), float(reward))
+                           float(info["material_used"]["mass_kg"]), float(reward),
+                           tuple(float(a) for a in np.clip(action, -1.0, 1.0)))
     finally:
         env.close()
 

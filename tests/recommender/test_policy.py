@@ -13,6 +13,7 @@ from __future__ import annotations
 import csv
 import io
 import json
+import math
 import tempfile
 import time
 import zipfile
@@ -21,6 +22,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from stable_baselines3.common.env_util import make_vec_env
 
 import recommender.policy
 from recommender.cli import main
@@ -28,6 +30,7 @@ from recommender.episodes import PooledVecEnv
 from recommender.policy import (
     CHECKPOINT_DIR,
     LOG_COLUMNS,
+    MAKE_ID,
     POLICY_META,
     EpisodeLog,
     TrainSettings,
@@ -36,6 +39,7 @@ from recommender.policy import (
     held_out_loads,
     last_checkpoint,
     load_policy,
+    new_model,
     pass_rate,
     policy_meta,
     propose,
@@ -46,7 +50,7 @@ from recommender.policy import (
 from wrapenv.bench import SimSettings
 from wrapenv.calibrated import Calibration
 from wrapenv.config import InputError
-from wrapenv.design import MAX_REINFORCEMENT_WRAPS, MAX_WRAPS, N_PARAMS, ProgramSpace
+from wrapenv.design import MAX_REINFORCEMENT_WRAPS, MAX_WRAPS, N_PARAMS, NAMES, ProgramSpace
 from wrapenv.envs import OBS_NAMES, WrapBenchRandomEnv
 from wrapenv.load import LoadUnit
 from wrapenv.wrap import WrapFormat
@@ -85,7 +89,9 @@ def test_default_settings_are_a_sane_short_run():
                                           ("learning_rate", float("nan")),
                                           ("max_minutes", -1.0), ("max_minutes", float("nan")),
                                           ("test", "easy"), ("material_weight", -0.1),
-                                          ("material_weight", float("inf"))])
+                                          ("material_weight", float("inf")),
+                                          ("log_std_init", float("nan")),
+                                          ("log_std_init", 2.0)])
 def test_bad_settings_are_rejected_before_any_process_starts(tmp_path, field, value):
     with pytest.raises(ValueError, match=field):
         train(TrainSettings(**{field: value}), tmp_path / "out")
@@ -99,6 +105,31 @@ def test_training_runs_whole_rollouts():
     assert TrainSettings(timesteps=128, n_envs=2, n_steps=64).rollout_timesteps == 128
     assert TrainSettings(timesteps=129, n_envs=2, n_steps=64).rollout_timesteps == 256
     assert TINY.rollout_timesteps == TINY.timesteps
+
+
+@pytest.mark.parametrize("log_std_init", [0.0, -1.0])
+def test_a_new_policy_explores_with_the_noise_asked(log_std_init):
+    """Every action dimension starts with standard deviation exp(log_std_init) in [-1, 1]: at
+    SB3's 0 about a third of the samples clip at a bound, at -1 (0.37) under 1 %."""
+    env = make_vec_env(MAKE_ID, n_envs=1, env_kwargs=env_kwargs(TINY))
+    try:
+        model = new_model(replace(TINY, log_std_init=log_std_init), env)
+        std = model.policy.log_std.exp().detach().numpy()
+    finally:
+        env.close()
+    assert std.shape == (len(NAMES),)
+    assert std == pytest.approx(math.exp(log_std_init))
+
+
+@pytest.mark.parametrize("flags, log_std_init", [((), 0.0), (("--log-std-init", "-1"), -1.0)])
+def test_wrapbench_train_explores_with_the_noise_asked(tmp_path, monkeypatch, flags,
+                                                       log_std_init):
+    trained = []
+    monkeypatch.setattr(recommender.policy, "train",
+                        lambda settings, folder, resume=False:
+                        trained.append(settings) or folder / "policy.zip")
+    assert main(["train", "--out", str(tmp_path / "run"), "--timesteps", "1", *flags]) == 0
+    assert [s.log_std_init for s in trained] == [log_std_init]
 
 
 def test_train_writes_the_policy_checkpoints_and_one_log_row_per_episode(trained):
@@ -474,7 +505,7 @@ def test_pass_rate_counts_passes_of_random_or_policy_actions(trained):
 def test_a_trial_tests_the_action_chosen_from_the_units_observation():
     load = LoadUnit.from_dict(TINY_LOAD)
     seen = []
-    least_web = np.array([-1, -1, -1, -1, 0, 0, 0, 0, 0], np.float32)
+    least_web = np.array([-1, -1, -1, -1, 0, 0, 0, 0, 1.5], np.float32)
 
     def choose(obs: np.ndarray) -> np.ndarray:
         seen.append(obs)
@@ -486,6 +517,7 @@ def test_a_trial_tests_the_action_chosen_from_the_units_observation():
     assert trial.wrap == space.decode(least_web)
     assert trial.wrap.program is not None and trial.wrap.program.bottom_wraps == 1
     assert trial.load == "tiny" and trial.valid and trial.material_kg > 0
+    assert trial.action == (-1, -1, -1, -1, 0, 0, 0, 0, 1)   # as the env clips it
 
 
 #: The slow test's run: 384 timesteps = 6 PPO updates of 64 episodes (32 per env, 2 envs), at

@@ -1145,6 +1145,7 @@ def test_a_proposal_is_recommended_only_if_it_passes_every_sample():
     (["train", "--out", "OUT", "--minutes", "nan"], "--minutes"),
     (["train", "--out", "OUT", "--minutes", "0"], "--minutes"),
     (["train", "--out", "OUT", "--material-weight", "-1"], "--material-weight"),
+    (["train", "--out", "OUT", "--log-std-init", "-6"], "--log-std-init"),
     (["train", "--out", "OUT", "--envs", "100000"], "--envs"),
 ])
 def test_bad_policy_arguments_exit_2_with_one_line(argv, field, tmp_path, capsys):
