@@ -121,15 +121,24 @@ def test_a_new_policy_explores_with_the_noise_asked(log_std_init):
     assert std == pytest.approx(math.exp(log_std_init))
 
 
+def _trained_by_cli(tmp_path: Path, monkeypatch, flags: tuple[str, ...]) -> TrainSettings:
+    """The settings `wrapbench train --timesteps 1 FLAGS` hands to training (not run)."""
+    trained: list[TrainSettings] = []
+
+    def train(settings: TrainSettings, folder: Path, resume: bool = False) -> Path:
+        trained.append(settings)
+        return folder / "policy.zip"
+
+    monkeypatch.setattr(recommender.policy, "train", train)
+    assert main(["train", "--out", str(tmp_path / "run"), "--timesteps", "1", *flags]) == 0
+    (settings,) = trained
+    return settings
+
+
 @pytest.mark.parametrize("flags, log_std_init", [((), 0.0), (("--log-std-init", "-1"), -1.0)])
 def test_wrapbench_train_explores_with_the_noise_asked(tmp_path, monkeypatch, flags,
                                                        log_std_init):
-    trained = []
-    monkeypatch.setattr(recommender.policy, "train",
-                        lambda settings, folder, resume=False:
-                        trained.append(settings) or folder / "policy.zip")
-    assert main(["train", "--out", str(tmp_path / "run"), "--timesteps", "1", *flags]) == 0
-    assert [s.log_std_init for s in trained] == [log_std_init]
+    assert _trained_by_cli(tmp_path, monkeypatch, flags).log_std_init == log_std_init
 
 
 def test_train_writes_the_policy_checkpoints_and_one_log_row_per_episode(trained):
@@ -266,12 +275,7 @@ def test_a_policy_trained_on_the_verified_test_is_judged_as_recommend_verifies(t
 
 @pytest.mark.parametrize("flags, test", [((), "verified"), (("--test", "nominal"), "nominal")])
 def test_wrapbench_train_judges_episodes_by_the_test_asked(tmp_path, monkeypatch, flags, test):
-    trained = []
-    monkeypatch.setattr(recommender.policy, "train",
-                        lambda settings, folder, resume=False:
-                        trained.append(settings) or folder / "policy.zip")
-    assert main(["train", "--out", str(tmp_path / "run"), "--timesteps", "1", *flags]) == 0
-    assert [s.test for s in trained] == [test]
+    assert _trained_by_cli(tmp_path, monkeypatch, flags).test == test
 
 
 @pytest.mark.parametrize("flags, weight", [((), TrainSettings().material_weight),
@@ -281,13 +285,9 @@ def test_wrapbench_train_prices_web_as_asked_and_the_policy_records_it(tmp_path,
                                                                        flags, weight):
     """The weight reaches every training env's reward and the policy's record, so a run is
     resumed only at the weight it was started with; without the flag, training's default."""
-    trained = []
-    monkeypatch.setattr(recommender.policy, "train",
-                        lambda settings, folder, resume=False:
-                        trained.append(settings) or folder / "policy.zip")
-    assert main(["train", "--out", str(tmp_path / "run"), "--timesteps", "1", *flags]) == 0
-    assert env_kwargs(trained[0])["material_weight"] == weight
-    assert policy_meta(trained[0])["material_weight"] == weight
+    settings = _trained_by_cli(tmp_path, monkeypatch, flags)
+    assert env_kwargs(settings)["material_weight"] == weight
+    assert policy_meta(settings)["material_weight"] == weight
 
 
 def test_train_with_two_worker_processes(tmp_path):
