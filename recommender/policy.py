@@ -129,8 +129,9 @@ class TrainSettings:
     #: Log of the exploration noise's initial standard deviation in the action space's [-1, 1]
     #: (SB3's `log_std_init`; 0, SB3's default, is a noise as wide as the space). At 0 a film
     #: policy's means drift past the bounds, where every sample clips alike and no gradient
-    #: brings them back: every unit gets 6 bottom wraps at full tension. At -1 its proposals
-    #: differ by unit, and hold as often (docs/recommend.md, "Exploration noise").
+    #: brings them back: nearly every unit gets 6 bottom wraps at full tension. At -1 its
+    #: proposals differ by unit but hold no more often (36 of 60 against 38), so 0 stays the
+    #: default (docs/recommend.md, "Exploration noise").
     log_std_init: float = 0.0
     seed: int = 0
     checkpoint_every: int = 512    # timesteps between policy checkpoints
