@@ -283,6 +283,10 @@ def _add_train(sub: argparse._SubParsersAction) -> None:
                     help="log of the exploration noise's initial standard deviation, in "
                          "actions scaled to [-1, 1] (SB3's log_std_init; default 0); -1 lets a "
                          "film policy's proposals differ by unit (docs/recommend.md)")
+    tr.add_argument("--tests-per-episode", type=int, default=1, metavar="K",
+                    help="tests of each episode's program, each its own side and sample, "
+                         "judged by the worst as the verification judges (default 1; K x the "
+                         "simulations per episode)")
     tr.add_argument("--minutes", type=float, default=None, metavar="M",
                     help="stop after M minutes of training and write the policy learned so far "
                          "(default: run all --timesteps)")

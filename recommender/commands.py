@@ -724,6 +724,7 @@ def _observable_calibration(path: Path | None) -> Calibration | None:
 
 def _check_train_numbers(args: argparse.Namespace) -> None:
     from recommender.policy import LOG_STD_INIT_RANGE
+    from wrapenv.envs.wrapbench import MAX_TESTS_PER_EPISODE
 
     for flag, value in (("--timesteps", args.timesteps), ("--envs", args.envs)):
         if value < 1:
@@ -737,6 +738,12 @@ def _check_train_numbers(args: argparse.Namespace) -> None:
     if not args.material_weight >= 0:
         raise InputError("arguments", "--material-weight",
                          f"must be >= 0 (got {args.material_weight})")
+    if not 1 <= args.tests_per_episode <= MAX_TESTS_PER_EPISODE:
+        raise InputError("arguments", "--tests-per-episode", f"must be from 1 to "
+                         f"{MAX_TESTS_PER_EPISODE} (got {args.tests_per_episode})")
+    if args.tests_per_episode > 1 and args.test != "verified":
+        raise InputError("arguments", "--tests-per-episode", "above 1 needs --test verified: "
+                                                             "the nominal test draws nothing")
     if not LOG_STD_INIT_RANGE[0] <= args.log_std_init <= LOG_STD_INIT_RANGE[1]:
         raise InputError("arguments", "--log-std-init", f"must be between "
                          f"{LOG_STD_INIT_RANGE[0]:g} and {LOG_STD_INIT_RANGE[1]:g} "
@@ -777,7 +784,8 @@ def run_train(args: argparse.Namespace) -> int:
                              target_g=args.target, seed=args.seed, max_minutes=args.minutes,
                              calibration=calibration, test=args.test,
                              material_weight=args.material_weight,
-                             log_std_init=args.log_std_init)
+                             log_std_init=args.log_std_init,
+                             tests_per_episode=args.tests_per_episode)
     if settings.rollout_timesteps != settings.timesteps:
         print(f"training {settings.rollout_timesteps} timesteps: PPO collects whole rollouts of "
               f"{settings.n_steps * settings.n_envs} episodes")

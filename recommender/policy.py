@@ -55,6 +55,7 @@ from wrapenv.config import InputError, is_finite_number, write_atomic
 from wrapenv.design import N_PARAMS, NAMES
 from wrapenv.envs import WrapBenchEnv, WrapBenchRandomEnv
 from wrapenv.envs.observation import OBS_NAMES, material_features
+from wrapenv.envs.wrapbench import MAX_TESTS_PER_EPISODE
 from wrapenv.load import LoadUnit
 from wrapenv.material import MATERIALS
 from wrapenv.uncertainty import TRANSPORT_HOURS
@@ -133,6 +134,10 @@ class TrainSettings:
     #: proposals differ by unit but hold no more often (36 of 60 against 38), so 0 stays the
     #: default (docs/recommend.md, "Exploration noise").
     log_std_init: float = 0.0
+    #: Tests of each episode's program (the env's `tests_per_episode`; "verified" only), each
+    #: with its own side and sample, the episode judged by the worst as the verification judges
+    #: (every sample must hold). Each costs a simulation: K tests, K x the time per episode.
+    tests_per_episode: int = 1
     seed: int = 0
     checkpoint_every: int = 512    # timesteps between policy checkpoints
     n_steps: int = 1               # PPO rollout length per env (one-step episodes)
@@ -156,7 +161,7 @@ class TrainSettings:
         """Reject settings SB3 would fail on late (or silently misuse), before any process
         is started."""
         for name in ("timesteps", "n_envs", "workers", "checkpoint_every", "n_steps",
-                     "batch_size"):
+                     "batch_size", "tests_per_episode"):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, int) or value < 1:
                 raise ValueError(f"TrainSettings.{name} must be an integer >= 1 (got {value!r})")
@@ -166,6 +171,12 @@ class TrainSettings:
         if self.test not in TESTS:
             raise ValueError(f"TrainSettings.test must be one of {', '.join(TESTS)} "
                              f"(got {self.test!r})")
+        if not 1 <= self.tests_per_episode <= MAX_TESTS_PER_EPISODE:
+            raise ValueError(f"TrainSettings.tests_per_episode must be from 1 to "
+                             f"{MAX_TESTS_PER_EPISODE} (got {self.tests_per_episode!r})")
+        if self.tests_per_episode > 1 and self.test != "verified":
+            raise ValueError("TrainSettings.tests_per_episode above 1 needs the test "
+                             "'verified': the nominal test draws no side or sample")
         if self.max_minutes is not None and not (math.isfinite(self.max_minutes)
                                                  and self.max_minutes >= 0):
             raise ValueError(f"TrainSettings.max_minutes must be >= 0 or None "
@@ -343,7 +354,7 @@ def env_kwargs(settings: TrainSettings) -> dict[str, Any]:
     return {"material": settings.material, "target_g": settings.target_g,
             "levels": settings.levels, "settings": settings.sim,
             "calibration": settings.calibration, "material_weight": settings.material_weight,
-            **TESTS[settings.test]}
+            "tests_per_episode": settings.tests_per_episode, **TESTS[settings.test]}
 
 
 def _training_envs(settings: TrainSettings, seed: int) -> VecEnv:
@@ -359,7 +370,8 @@ def policy_meta(settings: TrainSettings) -> dict[str, Any]:
             "observation": list(OBS_NAMES), "action": list(NAMES),
             "calibrated": settings.calibration is not None,
             "material_features": material_features(MATERIALS[settings.material]),
-            "test": settings.test, "material_weight": settings.material_weight}
+            "test": settings.test, "material_weight": settings.material_weight,
+            "tests_per_episode": settings.tests_per_episode}
 
 
 def stamp(path: Path, meta: dict[str, Any]) -> None:
@@ -493,7 +505,8 @@ def _check_resumable(path: Path, content: bytes, meta: dict[str, Any],
     _check_meta(path, found, meta["material"], trusted)
     found.setdefault("test", "nominal")   # written before the test was recorded
     found.setdefault("material_weight", 1.0)   # written before the weight was a setting
-    for key in ("target_g", "calibrated", "test", "material_weight"):
+    found.setdefault("tests_per_episode", 1)   # written before 2026-12-01's worst of K
+    for key in ("target_g", "calibrated", "test", "material_weight", "tests_per_episode"):
         if found.get(key) != meta[key]:
             raise InputError(str(path), key, f"the run was trained with {key} "
                              f"{found.get(key)!r}, not {meta[key]!r}: resume it as it was started")

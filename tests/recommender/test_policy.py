@@ -91,7 +91,9 @@ def test_default_settings_are_a_sane_short_run():
                                           ("test", "easy"), ("material_weight", -0.1),
                                           ("material_weight", float("inf")),
                                           ("log_std_init", float("nan")),
-                                          ("log_std_init", 2.0)])
+                                          ("log_std_init", 2.0), ("tests_per_episode", 0),
+                                          ("tests_per_episode", 17),
+                                          ("tests_per_episode", 2.0)])
 def test_bad_settings_are_rejected_before_any_process_starts(tmp_path, field, value):
     with pytest.raises(ValueError, match=field):
         train(TrainSettings(**{field: value}), tmp_path / "out")
@@ -288,6 +290,27 @@ def test_wrapbench_train_prices_web_as_asked_and_the_policy_records_it(tmp_path,
     settings = _trained_by_cli(tmp_path, monkeypatch, flags)
     assert env_kwargs(settings)["material_weight"] == weight
     assert policy_meta(settings)["material_weight"] == weight
+
+
+@pytest.mark.parametrize("flags, tests", [((), 1), (("--tests-per-episode", "4"), 4)])
+def test_wrapbench_train_judges_each_episode_by_its_worst_test_as_asked(tmp_path, monkeypatch,
+                                                                         flags, tests):
+    """K tests reach every training env and the policy's record (a run resumes only with the
+    K it was started with); K = 1, one sample an episode, unless asked."""
+    settings = _trained_by_cli(tmp_path, monkeypatch, flags)
+    assert env_kwargs(settings)["tests_per_episode"] == tests
+    assert policy_meta(settings)["tests_per_episode"] == tests
+
+
+def test_several_tests_an_episode_need_a_test_that_draws(tmp_path, capsys):
+    """The nominal test draws no side or sample: its K tests would be one run K times."""
+    with pytest.raises(ValueError, match="tests_per_episode"):
+        TrainSettings(test="nominal", tests_per_episode=2).check()
+    run = tmp_path / "run"
+    assert main(["train", "--out", str(run), "--test", "nominal", "--tests-per-episode",
+                 "2"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "\n" not in err and "--tests-per-episode" in err and not run.exists()
 
 
 def test_train_with_two_worker_processes(tmp_path):
@@ -645,7 +668,8 @@ def test_a_run_is_resumed_only_as_it_was_started(trained, tmp_path, assert_input
     for settings, field in ((replace(TINY, material="lldpe"), "material"),
                             (replace(TINY, target_g=0.8), "target_g"),
                             (replace(TINY, test="nominal"), "test"),
-                            (replace(TINY, material_weight=0.5), "material_weight")):
+                            (replace(TINY, material_weight=0.5), "material_weight"),
+                            (replace(TINY, tests_per_episode=2), "tests_per_episode")):
         with pytest.raises(InputError) as info:
             train(settings, run, resume=True)
         assert_input_error(info.value, str(run / CHECKPOINT_DIR / "policy_4_steps.zip"), field)

@@ -116,6 +116,10 @@ class WrapBenchEnv(gym.Env):
     it (1-3 layers), so they alone can score below a light program's failure.
     A simulation that blew up (`info["valid"] is False`) is rewarded as a failure with m = -1.
     The two terms are returned in `info["reward_terms"]` (keys "verdict" and "material").
+    With `tests_per_episode` K > 1 the program is put through K tests, each with its own drawn
+    side and sample, and `m` and the pass are the worst test's (a failure before a pass, then
+    the smallest margin): the episode is judged as `recommend` verifies, every sample must hold,
+    so a program failing one sample in eight costs about K eighths of a failure, not one.
 
     ## Starting State
     The load unit stacked on the still sled, unwrapped. At the defaults `WrapBenchEnv` has no
@@ -123,7 +127,8 @@ class WrapBenchEnv(gym.Env):
     from `self.np_random`.) With `orientation="random"` each reset draws the side that meets the
     motion, and with `uncertain=True` one sample of what the bench does not know
     (`wrapenv.uncertainty`: friction, bundle mass, the web's stiffness and laid tension, the
-    load's give, relaxation), both from `self.np_random`. Neither is observed: the observation
+    load's give, relaxation), both from `self.np_random` (a side and a sample for each of the
+    `tests_per_episode` tests, test by test). Neither is observed: the observation
     is the unit as its file gives it, so a policy trained so learns one program that holds on
     either side and whatever the sample, which is how `recommend --method ppo` verifies it.
 
@@ -139,7 +144,8 @@ class WrapBenchEnv(gym.Env):
     "format" (the program and the bands it laid, before calibration scaling), "verdict" (the
     run's verdict, `Verdict.to_json`), "material_used" (area_m2, mass_kg, web_length_m,
     roll_length_m, revolutions), "cycle_time_s", "passed", "margin", "valid", "material_ratio",
-    "reward_terms", "orientation", "sample".
+    "reward_terms", "tests_passed" (of the `tests_per_episode`), "orientation" and "sample" (of
+    the test that judged the step; at reset, of the first test).
 
     ## Arguments
     `gymnasium.make("wrapenv/WrapBench-v3", **kwargs)`, all keyword-only and checked at
@@ -165,6 +171,10 @@ class WrapBenchEnv(gym.Env):
     |                   |                                   | long (16: `recommend`'s transport)   |
     | `uncertain`       | False                             | True: each reset draws one sample of |
     |                   |                                   | what the bench does not know         |
+    | `tests_per_episode` | 1                               | tests of each step's program, each   |
+    |                   |                                   | its own side and sample, judged by   |
+    |                   |                                   | the worst (> 1 needs a drawn side or |
+    |                   |                                   | sample; at most 16)                  |
     | `render_mode`     | None                              | None or "rgb_array"                  |
     | `settings`        | `SimSettings()`                   | numerical settings of the bench      |
 
@@ -214,6 +224,7 @@ class WrapBenchEnv(gym.Env):
         orientation: str | None = None,
         hours_since_wrapping: float = 0.0,
         uncertain: bool = False,
+        tests_per_episode: int = 1,
         render_mode: str | None = None,
         settings: SimSettings | None = None,
     ) -> None:
@@ -244,6 +255,8 @@ class WrapBenchEnv(gym.Env):
         self.hours_since_wrapping = float(hours_since_wrapping)
         self.uncertain = _one_of("uncertain", uncertain, (False, True))
         self.uncertainty = Uncertainty.of(self.calibration, self.hours_since_wrapping)
+        self.tests_per_episode = _tests_per_episode(tests_per_episode, self.orientation == "random"
+                                                    or self.uncertain)
 
         self.action_space: spaces.Box = spaces.Box(-1.0, 1.0, (N_PARAMS,), np.float32)
         high = np.array([h for _, h in OBS_FEATURES], np.float32)
@@ -253,9 +266,13 @@ class WrapBenchEnv(gym.Env):
         self._renderer: Renderer | None = None
         #: The last step's final trace, the wrap and the unit it tested (laid out for rendering)
         self._last: tuple[Trace, WrapFormat, LoadUnit] | None = None
-        #: The side and the sample of the episode: fixed, or drawn at reset (`_draw_test`).
-        self._side: Orientation | None = self.orientation if self.orientation in SIDES else None
-        self._sample: Sample | None = None
+        #: The side and the sample of each of the episode's tests: fixed, or drawn at reset
+        #: (`_draw_tests`); `_side` and `_sample` are the test shown (in info, by `render`): the
+        #: first before a step, the one that judged it after.
+        self._fixed_side: Orientation | None = (self.orientation if self.orientation in SIDES
+                                                else None)
+        self._tests: list[tuple[Orientation | None, Sample | None]] = [(self._fixed_side, None)]
+        self._side, self._sample = self._tests[0]
         self._drawn = not (self.orientation == "random" or self.uncertain)
         self.unit: LoadUnit | None = None  # the unit as simulated (calibration applied)
         self.layout: Layout | None = None
@@ -290,22 +307,30 @@ class WrapBenchEnv(gym.Env):
             raise ResetNeeded("call reset() before step() or render(): the load unit is drawn "
                               "at reset")
 
-    def _draw_test(self) -> None:
-        """The episode's side and sample, when drawn (after the unit, from the same stream)."""
-        assert self.unit is not None
-        if self.orientation == "random":
-            self._side = SIDES[int(self.np_random.integers(len(SIDES)))]
-        if self.uncertain:
-            seed = int(self.np_random.integers(2**63 - 1))
-            self._sample = self.uncertainty.draw(self.unit, seed)
+    def _draw_tests(self) -> None:
+        """The side and sample of each of the episode's tests, when drawn (after the unit, from
+        the same stream, test by test: side, then sample)."""
+        if self.orientation == "random" or self.uncertain:
+            self._tests = [self._draw_test() for _ in range(self.tests_per_episode)]
+        self._side, self._sample = self._tests[0]
         self._drawn = True
 
-    def tested(self, wrap: WrapFormat) -> tuple[LoadUnit, WrapFormat]:
-        """The unit and the wrap as the bench tests them this episode: the sample's, or the
-        nominal ones (calibration scaling, relaxation)."""
+    def _draw_test(self) -> tuple[Orientation | None, Sample | None]:
         assert self.unit is not None
-        if self._sample is not None:
-            return self._sample.load(self.unit), self._sample.wrap(wrap)
+        side, sample = self._fixed_side, None
+        if self.orientation == "random":
+            side = SIDES[int(self.np_random.integers(len(SIDES)))]
+        if self.uncertain:
+            sample = self.uncertainty.draw(self.unit, int(self.np_random.integers(2**63 - 1)))
+        return side, sample
+
+    def tested(self, wrap: WrapFormat,
+               sample: Sample | None = None) -> tuple[LoadUnit, WrapFormat]:
+        """The unit and the wrap as the bench tests them in `sample`, or at their nominal
+        values (calibration scaling, relaxation) when it is None."""
+        assert self.unit is not None
+        if sample is not None:
+            return sample.load(self.unit), sample.wrap(wrap)
         return self.unit, self.uncertainty.nominal(wrap)
 
     # -- Gymnasium API --------------------------------------------------------------------
@@ -313,7 +338,7 @@ class WrapBenchEnv(gym.Env):
               options: dict[str, Any] | None = None) -> tuple[np.ndarray, dict[str, Any]]:
         super().reset(seed=seed)
         self._new_unit()
-        self._draw_test()
+        self._draw_tests()
         self._last = None
         assert self.unit is not None
         return self._obs.copy(), {"load": self.unit.name,
@@ -339,10 +364,10 @@ class WrapBenchEnv(gym.Env):
             raise ResetNeeded("call reset() before step(): the side tested or the sample is "
                               "drawn at reset")
         assert self.layout is not None
-        unit, simulated = self.tested(wrap)
-        sequence = self._sequence if self.levels == "eumos" else [self.target_g]
-        run: BenchRun = run_levels(unit, sequence, self.settings, orientation=self._side,
-                                   stop_at_failure=True, wrap=simulated)
+        runs = [self._run(wrap, side, sample) for side, sample in self._tests]
+        judged = min(range(len(runs)), key=lambda i: _severity(runs[i][0].verdict))
+        run, unit, simulated = runs[judged]
+        self._side, self._sample = self._tests[judged]
         verdict = run.verdict
         used = wrap.material_used_on(self.layout)
         ratio = used.mass_kg / self.reference_mass_kg
@@ -358,9 +383,18 @@ class WrapBenchEnv(gym.Env):
             "valid": verdict.valid,
             "material_ratio": ratio,
             "reward_terms": terms,
+            "tests_passed": sum(r.verdict.passed for r, _, _ in runs),
             **self._test_info(),
         }
         return self._obs.copy(), float(sum(terms.values())), True, False, info
+
+    def _run(self, wrap: WrapFormat, side: Orientation | None,
+             sample: Sample | None) -> tuple[BenchRun, LoadUnit, WrapFormat]:
+        """One test of the episode: the run, and the unit and wrap it simulated."""
+        unit, simulated = self.tested(wrap, sample)
+        sequence = self._sequence if self.levels == "eumos" else [self.target_g]
+        return run_levels(unit, sequence, self.settings, orientation=side,
+                          stop_at_failure=True, wrap=simulated), unit, simulated
 
     def render(self) -> np.ndarray | None:
         if self.render_mode is None:
@@ -455,6 +489,27 @@ def reward_terms(verdict: Verdict, material_ratio: float,
     else:
         term = -1.0 + max(margin, -1.0)
     return {"verdict": term, "material": -material_weight * material_ratio}
+
+
+def _severity(verdict: Verdict) -> tuple[bool, bool, float]:
+    """Orders verdicts worst first: a failure before a pass, a blown-up run before a failure,
+    then the smaller margin."""
+    return verdict.passed, verdict.valid, float(verdict.margin)
+
+
+#: Most tests an episode may run (each a full simulation of the levels).
+MAX_TESTS_PER_EPISODE = 16
+
+
+def _tests_per_episode(value: Any, drawn: bool) -> int:
+    if isinstance(value, bool) or not isinstance(value, int | np.integer) or not (
+            1 <= value <= MAX_TESTS_PER_EPISODE):
+        raise InputError("arguments", "tests_per_episode", f"must be a whole number from 1 to "
+                         f"{MAX_TESTS_PER_EPISODE} (got {value!r})")
+    if value > 1 and not drawn:
+        raise InputError("arguments", "tests_per_episode", "more than 1 needs orientation "
+                         "'random' or uncertain=True: otherwise every test is the same run")
+    return int(value)
 
 
 def _one_of(name: str, value: Any, allowed: tuple[Any, ...]) -> Any:

@@ -159,6 +159,9 @@ def test_numpy_numbers_are_taken_as_numbers(tiny):
     {"load": "/nonexistent/LOAD.toml"}, {"material_weight": np.float32("nan")},
     {"target_g": np.bool_(True)}, {"orientation": "diagonal"}, {"hours_since_wrapping": -1.0},
     {"hours_since_wrapping": float("nan")}, {"uncertain": "yes"},
+    {"tests_per_episode": 0, "uncertain": True}, {"tests_per_episode": 17, "uncertain": True},
+    {"tests_per_episode": 2.0, "uncertain": True}, {"tests_per_episode": True, "uncertain": True},
+    {"tests_per_episode": 2},   # nothing drawn: every test the same run
 ])
 def test_bad_kwargs_raise_at_construction(tiny, kwargs):
     with pytest.raises(ValueError) as err:
@@ -489,8 +492,7 @@ def test_an_uncertain_env_tests_one_unobserved_sample_per_reset(tiny):
     obs, info0 = env.reset(seed=1)
     np.testing.assert_array_equal(obs, obs_nominal)  # the sample is not observed
     sample = env.uncertainty.draw(env.unit, 0)  # any draw: how a sample changes what is tested
-    env._sample = sample
-    unit, wrap = env.tested(env.decode(DEFAULT))
+    unit, wrap = env.tested(env.decode(DEFAULT), sample)
     assert unit == sample.load(env.unit) and wrap == sample.wrap(env.decode(DEFAULT))
     assert unit.friction != env.unit.friction and unit.bundle.mass_kg != env.unit.bundle.mass_kg
     _, again = env.reset(seed=1)
@@ -499,6 +501,42 @@ def test_an_uncertain_env_tests_one_unobserved_sample_per_reset(tiny):
     assert info["sample"]["hours_since_wrapping"] == 16.0
     nominal.close()
     env.close()
+
+
+def test_several_tests_an_episode_are_judged_by_the_worst(tiny):
+    """Each test is the bench's own run of its drawn side and sample; the step's verdict,
+    reward and shown side and sample are those of the test with the smallest margin (a failure
+    before any pass)."""
+    env = make(tiny, orientation="random", uncertain=True, hours_since_wrapping=16.0,
+               tests_per_episode=4)
+    env.reset(seed=2)
+    program = env.decode(CHEAP)
+    runs = []
+    for side, sample in env._tests:
+        unit, wrap = env.tested(program, sample)
+        runs.append(run_levels(unit, [0.3], orientation=side, stop_at_failure=True, wrap=wrap))
+    *_, info = env.step(CHEAP)
+    margins = [r.verdict.margin for r in runs]
+    worst = min(range(4), key=lambda i: (runs[i].verdict.passed, margins[i]))
+    assert len(set(margins)) > 1   # the samples differ: which one judges matters
+    assert info["verdict"] == runs[worst].verdict.to_json()
+    assert info["tests_passed"] == sum(r.verdict.passed for r in runs)
+    assert info["passed"] == all(r.verdict.passed for r in runs)
+    assert (info["orientation"], info["sample"]) == (env._tests[worst][0],
+                                                     env._tests[worst][1].to_json())
+    env.close()
+
+
+def test_the_first_of_several_tests_is_the_one_test_of_the_same_seed(tiny):
+    """Tests are drawn test by test, side then sample, so one test an episode draws what it
+    always drew and more tests add draws after it."""
+    infos = []
+    for k in (1, 3):
+        env = make(tiny, orientation="random", uncertain=True, tests_per_episode=k)
+        infos.append(env.reset(seed=7)[1])
+        assert len(env._tests) == k
+        env.close()
+    assert infos[0] == infos[1]
 
 
 @pytest.mark.parametrize("kwargs", [{"orientation": "random"}, {"uncertain": True}])
