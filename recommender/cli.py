@@ -291,8 +291,9 @@ def _add_train(sub: argparse._SubParsersAction) -> None:
                     help="stop after M minutes of training and write the policy learned so far "
                          "(default: run all --timesteps)")
     tr.add_argument("--resume", action="store_true",
-                    help="continue the interrupted run in --out from its last checkpoint, up to "
-                         "--timesteps in all (give the flags it was started with)")
+                    help="continue the run in --out from its last checkpoint, up to "
+                         "--timesteps in all: an interrupted run, or a finished one trained on "
+                         "(give the flags it was started with)")
 
 
 class _Terminated(KeyboardInterrupt):

@@ -750,9 +750,9 @@ def _check_train_numbers(args: argparse.Namespace) -> None:
                          f"(got {args.log_std_init:g})")
 
 
-def _run_folder(out: Path, resume: bool) -> bool:
-    """The training run's folder, made if missing and checked; whether it was made (a refusal
-    leaves no folder behind)."""
+def _run_folder(out: Path, resume: bool, timesteps: int) -> bool:
+    """The training run's folder, made if missing and checked (`timesteps`: the run's total);
+    whether it was made (a refusal leaves no folder behind)."""
     if out.exists() and not out.is_dir():
         raise InputError(str(out), "--out", "exists and is not a folder")
     made = not out.exists()
@@ -762,7 +762,7 @@ def _run_folder(out: Path, resume: bool) -> bool:
         raise InputError(str(out), "--out", f"cannot be created ({exc.strerror})") from None
     try:
         check_output(out / "policy.zip", "--out")
-        _check_run_folder(out, resume)
+        _check_run_folder(out, resume, timesteps)
     except InputError:
         if made:
             out.rmdir()
@@ -779,13 +779,13 @@ def run_train(args: argparse.Namespace) -> int:
     calibration = _observable_calibration(args.calibration)
     if calibration is not None:
         warn("train", calibration.warnings())
-    made = _run_folder(args.out, args.resume)
     settings = TrainSettings(timesteps=args.timesteps, workers=args.envs, material=args.material,
                              target_g=args.target, seed=args.seed, max_minutes=args.minutes,
                              calibration=calibration, test=args.test,
                              material_weight=args.material_weight,
                              log_std_init=args.log_std_init,
                              tests_per_episode=args.tests_per_episode)
+    made = _run_folder(args.out, args.resume, settings.rollout_timesteps)
     if settings.rollout_timesteps != settings.timesteps:
         print(f"training {settings.rollout_timesteps} timesteps: PPO collects whole rollouts of "
               f"{settings.n_steps * settings.n_envs} episodes")
@@ -817,19 +817,20 @@ def _forget_run(out: Path, made: bool) -> None:
             folder.rmdir()
 
 
-def _check_run_folder(out: Path, resume: bool) -> None:
+def _check_run_folder(out: Path, resume: bool, timesteps: int) -> None:
     """A new run needs a folder without one; a resumed run, an interrupted one (checkpoints,
-    its log, no policy.zip)."""
+    its log, no policy.zip), or a finished one to train on past its last checkpoint."""
     from recommender.policy import CHECKPOINT_DIR, last_checkpoint
 
-    done = (out / "policy.zip").exists()
     if resume:
-        if done:
-            raise InputError(str(out), "--resume", "the run finished (policy.zip): train a new "
-                                                   "one into another folder")
-        if last_checkpoint(out) is None or not (out / "log.csv").is_file():
+        kept = last_checkpoint(out)
+        if kept is None or not (out / "log.csv").is_file():
             raise InputError(str(out), "--resume", "holds no interrupted run to resume "
                                                    "(checkpoints/ and log.csv)")
+        if (out / "policy.zip").exists() and kept[1] >= timesteps:
+            raise InputError(str(out), "--resume", f"the run finished, its last checkpoint at "
+                             f"{kept[1]} timesteps: give --timesteps above {kept[1]} to train "
+                             f"it on, or train a new one into another folder")
         return
     # a run that failed before its first checkpoint leaves an empty checkpoints/: no run
     earlier = [name for name in ("policy.zip", "log.csv") if (out / name).exists()]

@@ -15,7 +15,8 @@ spaces and schedules pickled: `load_policy` supplies them itself).
 `train` writes into one folder: ``policy.zip`` (the final policy), ``checkpoints/`` (the
 policy every `TrainSettings.checkpoint_every` timesteps, saved between PPO updates so that each
 holds what was learned from every episode it counts: a long run that is stopped still leaves a
-usable policy, and `train(..., resume=True)` continues from the last one) and ``log.csv`` (one
+usable policy, and `train(..., resume=True)` continues from the last one, which for a finished
+run is its final policy) and ``log.csv`` (one
 row per episode, flushed as it goes, so progress can be followed and plotted while training
 runs).
 """
@@ -268,12 +269,17 @@ class TimeBudget(BaseCallback):
         self.seconds = 60.0 * minutes
         self._deadline = math.inf
         self._spent = False
+        #: The timesteps of the last rollout PPO learned from, once the budget is spent (None
+        #: before): the episodes logged after it were not learned from.
+        self.learned: int | None = None
 
     def _on_training_start(self) -> None:
         self._deadline = time.monotonic() + self.seconds
 
     def _on_rollout_end(self) -> None:
         self._spent = time.monotonic() >= self._deadline
+        if self._spent:
+            self.learned = self.model.num_timesteps
 
     def _on_step(self) -> bool:
         return not self._spent
@@ -286,7 +292,10 @@ def train(settings: TrainSettings, out_dir: Path, resume: bool = False) -> Path:
     per episode: timesteps, reward, passed, margin, material_kg, valid — via a small callback
     reading infos; written incrementally, flushed). `resume`: continue the interrupted run in
     `out_dir` from its last checkpoint, up to the same total of timesteps (its random units
-    drawn anew: the envs are seeded past the ones it started with). Returns the policy path."""
+    drawn anew: the envs are seeded past the ones it started with), or a finished run on to a
+    larger total. The final policy is also kept as the last checkpoint, counting only the
+    episodes it learned from (not those a time budget logged after its last update), so that
+    a finished run can be trained on. Returns the policy path."""
     settings.check()
     out_dir = Path(out_dir)
     checkpoints = out_dir / CHECKPOINT_DIR
@@ -319,14 +328,20 @@ def train(settings: TrainSettings, out_dir: Path, resume: bool = False) -> Path:
         model.set_logger(configure_logger(str(out_dir), []))
         callbacks: list[BaseCallback] = [Checkpoints(meta, settings.checkpoint_every,
                                                      checkpoints), log]
-        if settings.max_minutes is not None:
-            callbacks.append(TimeBudget(settings.max_minutes))
+        budget = None if settings.max_minutes is None else TimeBudget(settings.max_minutes)
+        if budget is not None:
+            callbacks.append(budget)
         if settings.progress_bar:
             bar = ProgressBarCallback()
             callbacks.append(bar)
             cleanup.callback(close_bar, bar)
         model.learn(max(0, settings.rollout_timesteps - done), callback=CallbackList(callbacks),
                     reset_num_timesteps=start is None)
+        if budget is not None and budget.learned is not None:
+            model.num_timesteps = budget.learned
+        final = checkpoints / f"{CHECKPOINT_PREFIX}_{model.num_timesteps}_steps.zip"
+        if not final.exists():
+            save_stamped(model, final, meta)
         path = out_dir / POLICY_FILE
         save_stamped(model, path, meta)
         return path

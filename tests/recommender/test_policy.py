@@ -143,12 +143,18 @@ def test_wrapbench_train_explores_with_the_noise_asked(tmp_path, monkeypatch, fl
     assert _trained_by_cli(tmp_path, monkeypatch, flags).log_std_init == log_std_init
 
 
+def _weights(policy: Path) -> bytes:
+    with zipfile.ZipFile(policy) as archive:
+        return archive.read("policy.pth")
+
+
 def test_train_writes_the_policy_checkpoints_and_one_log_row_per_episode(trained):
     path, out = trained
     assert path == out / "policy.zip" and path.is_file()
-    # saved between updates: after the first rollout's (the last one's is policy.zip)
+    # saved between updates (after the first rollout's), and the final policy as the last
     checkpoints = sorted(p.name for p in (out / CHECKPOINT_DIR).iterdir())
-    assert checkpoints == ["policy_4_steps.zip"]
+    assert checkpoints == ["policy_4_steps.zip", "policy_8_steps.zip"]
+    assert _weights(out / CHECKPOINT_DIR / "policy_8_steps.zip") == _weights(path)
     assert not list(out.glob(".*partial*")) and not list(out.glob("*/.*partial*"))
     with (out / "log.csv").open() as f:
         rows = list(csv.reader(f))
@@ -229,6 +235,10 @@ def test_a_time_budget_ends_training_early_and_still_writes_the_policy(tmp_path)
     assert load_policy(path)._n_updates > 0   # learned from its one rollout: not untrained
     with (tmp_path / "log.csv").open() as f:
         assert [int(r["timesteps"]) for r in csv.DictReader(f)] == list(range(1, 10))
+    # the ninth episode was logged, not learned from: the policy counts the eight it learned
+    assert last_checkpoint(tmp_path) == (tmp_path / CHECKPOINT_DIR / "policy_8_steps.zip", 8)
+    with zipfile.ZipFile(path) as archive:
+        assert json.loads(archive.read("data"))["num_timesteps"] == 8
 
 
 def test_a_policy_trained_on_a_calibration_observes_its_uncertainty_and_says_so(tmp_path,
@@ -655,8 +665,25 @@ def test_an_interrupted_run_resumes_from_its_last_checkpoint_to_the_whole_run(tm
     with zipfile.ZipFile(path) as archive:
         assert json.loads(archive.read("data"))["num_timesteps"] == 8
     assert sorted(p.name for p in (out / CHECKPOINT_DIR).iterdir()) == [
-        "policy_2_steps.zip", "policy_4_steps.zip", "policy_6_steps.zip"]
+        "policy_2_steps.zip", "policy_4_steps.zip", "policy_6_steps.zip", "policy_8_steps.zip"]
     load_policy(path, "kraft")
+
+
+def test_a_finished_run_is_trained_on_to_a_larger_total(tmp_path):
+    """Resumed with a larger total, a finished run continues from its final policy as if it
+    had been started for that total: the log holds each episode once and the policy counts
+    them all. (`wrapbench train` refuses a total it has reached:
+    `test_resume_needs_a_run_to_continue`.)"""
+    out = tmp_path / "run"
+    first = replace(TINY, timesteps=4, n_steps=2, batch_size=2, checkpoint_every=2)
+    train(first, out)
+    before = _weights(out / "policy.zip")
+    path = train(replace(first, timesteps=8), out, resume=True)
+    assert _log_timesteps(out) == list(range(1, 9))
+    with zipfile.ZipFile(path) as archive:
+        assert json.loads(archive.read("data"))["num_timesteps"] == 8
+    assert _weights(path) != before
+    assert last_checkpoint(out) == (out / CHECKPOINT_DIR / "policy_8_steps.zip", 8)
 
 
 def test_a_run_is_resumed_only_as_it_was_started(trained, tmp_path, assert_input_error):
@@ -678,14 +705,15 @@ def test_a_run_is_resumed_only_as_it_was_started(trained, tmp_path, assert_input
 @pytest.mark.parametrize("files, needle", [
     ((), "no interrupted run"),
     (("log.csv",), "no interrupted run"),
-    (("log.csv", "policy.zip", f"{CHECKPOINT_DIR}/policy_4_steps.zip"), "the run finished"),
+    # 128: one rollout of `wrapbench train`'s, which --timesteps 4 rounds up to
+    (("log.csv", "policy.zip", f"{CHECKPOINT_DIR}/policy_128_steps.zip"), "above 128"),
 ])
-def test_resume_needs_an_interrupted_run(files, needle, tmp_path, capsys):
+def test_resume_needs_a_run_to_continue(files, needle, tmp_path, capsys):
     run = tmp_path / "run"
     (run / CHECKPOINT_DIR).mkdir(parents=True)
     for name in files:
         (run / name).write_bytes(b"")
-    assert main(["train", "--out", str(run), "--resume"]) == 2
+    assert main(["train", "--out", str(run), "--resume", "--timesteps", "4"]) == 2
     err = capsys.readouterr().err.strip()
     assert "\n" not in err and "--resume" in err and needle in err
 
