@@ -329,9 +329,10 @@ def test_train_with_two_worker_processes(tmp_path):
                              checkpoint_every=2, seed=7, progress_bar=False)
     path = train(settings, tmp_path)
     assert path.is_file()
-    # two rollouts of a vector step: the checkpoint between their updates, then policy.zip
+    # two rollouts of a vector step: the checkpoint between their updates, then the final
+    # policy (policy.zip, kept as the last checkpoint too)
     assert sorted(p.name for p in (tmp_path / CHECKPOINT_DIR).iterdir()) == [
-        "policy_2_steps.zip"]
+        "policy_2_steps.zip", "policy_4_steps.zip"]
     with (tmp_path / "log.csv").open() as f:
         assert [int(r["timesteps"]) for r in csv.DictReader(f)] == [1, 2, 3, 4]
 
