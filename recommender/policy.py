@@ -138,6 +138,9 @@ class TrainSettings:
     #: Tests of each episode's program (the env's `tests_per_episode`; "verified" only), each
     #: with its own side and sample, the episode judged by the worst as the verification judges
     #: (every sample must hold). Each costs a simulation: K tests, K x the time per episode.
+    #: At 4 a film policy trained for an hour learned from 5248 episodes and held its
+    #: verification on 34 of 60 held-out units (31 after as many at 1) without yet designing
+    #: by unit, so 1 stays the default (docs/recommend.md, "Judged by the worst of four tests").
     tests_per_episode: int = 1
     seed: int = 0
     checkpoint_every: int = 512    # timesteps between policy checkpoints
