@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 
 from wrapenv.config import InputError, Table, read_json
-from wrapenv.load import PAIRS, Friction, FrictionPair, LoadUnit
+from wrapenv.load import MAX_COEFFICIENT, PAIRS, Friction, FrictionPair, LoadUnit
 
 #: CAL.json's keys beside `friction` and `wrap`: the fit's diagnostics (residual, the replays'
 #: own scatter, one replay's residual, simulations and what they were for, method), advice on
@@ -138,10 +138,10 @@ class Calibration:
                 continue
             t = fr.table(name)
             pair = CalibratedPair(
-                static=t.number("static", positive=True, maximum=2.0),
-                kinetic=t.number("kinetic", positive=True, maximum=2.0),
-                static_std=t.number("static_std", 0.0, minimum=0.0),
-                kinetic_std=t.number("kinetic_std", 0.0, minimum=0.0),
+                static=t.number("static", positive=True, maximum=MAX_COEFFICIENT),
+                kinetic=t.number("kinetic", positive=True, maximum=MAX_COEFFICIENT),
+                static_std=t.number("static_std", 0.0, minimum=0.0, maximum=MAX_COEFFICIENT),
+                kinetic_std=t.number("kinetic_std", 0.0, minimum=0.0, maximum=MAX_COEFFICIENT),
                 identified=t.boolean("identified", True),
             )
             t.done()
@@ -154,8 +154,8 @@ class Calibration:
         low, high = SCALE_RANGE
         stiffness = wrap.number("stiffness_scale", 1.0, minimum=low, maximum=high)
         tension = wrap.number("tension_scale", 1.0, minimum=low, maximum=high)
-        stds = (wrap.number("stiffness_scale_std", 0.0, minimum=0.0),
-                wrap.number("tension_scale_std", 0.0, minimum=0.0))
+        stds = (wrap.number("stiffness_scale_std", 0.0, minimum=0.0, maximum=high),
+                wrap.number("tension_scale_std", 0.0, minimum=0.0, maximum=high))
         give = _give(wrap)
         known = _known(wrap)
         wrap.done()
@@ -183,22 +183,23 @@ MIN_DRAWN_STATIC, MIN_DRAWN_KINETIC = 0.05, 0.04
 
 def draw_pair(rng: np.random.Generator, pair: FrictionPair, static_std: float,
               kinetic_std: float) -> FrictionPair:
-    """A friction pair drawn within standard deviations (normal; a coefficient is kept above
-    a floor and the kinetic one at or below the static one; a standard deviation of 0 draws
-    nothing)."""
-    static = _normal(rng, pair.static, static_std, MIN_DRAWN_STATIC)
+    """A friction pair drawn within standard deviations (normal; a coefficient is kept between
+    a floor and the largest a file may give, the kinetic one at or below the static one; a
+    standard deviation of 0 draws nothing)."""
+    static = _normal(rng, pair.static, static_std, MIN_DRAWN_STATIC, MAX_COEFFICIENT)
     return FrictionPair(static, min(static, _normal(rng, pair.kinetic, kinetic_std,
-                                                    MIN_DRAWN_KINETIC)))
+                                                    MIN_DRAWN_KINETIC, MAX_COEFFICIENT)))
 
 
 def draw_scale(rng: np.random.Generator, value: float, std: float) -> float:
     """A scale drawn within a standard deviation, kept above a tenth of its value (a scale is
-    never zero or negative)."""
-    return _normal(rng, value, std, 0.1 * value)
+    never zero or negative) and within the largest factor CAL.json may give."""
+    return _normal(rng, value, std, 0.1 * value, max(value, SCALE_RANGE[1]))
 
 
-def _normal(rng: np.random.Generator, value: float, std: float, floor: float) -> float:
-    return value if std == 0 else max(floor, float(rng.normal(value, std)))
+def _normal(rng: np.random.Generator, value: float, std: float, floor: float,
+            ceiling: float) -> float:
+    return value if std == 0 else min(ceiling, max(floor, float(rng.normal(value, std))))
 
 
 #: The wrap scales by their names in CAL.json's `wrap.known`.
@@ -215,7 +216,7 @@ def _give(wrap: Table) -> tuple[float, float]:
     """CAL.json's optional `wrap.give_scale` and `wrap.give_scale_std` (defaults 1 and 0)."""
     low, high = SCALE_RANGE
     return (wrap.number("give_scale", 1.0, minimum=low, maximum=high),
-            wrap.number("give_scale_std", 0.0, minimum=0.0))
+            wrap.number("give_scale_std", 0.0, minimum=0.0, maximum=high))
 
 
 def _near_threshold(acceptance: Table) -> tuple[str, ...]:

@@ -9,9 +9,9 @@ from typing import Any
 
 import pytest
 
-from wrapenv.calibrated import CalibratedPair, Calibration
+from wrapenv.calibrated import MIN_DRAWN_STATIC, SCALE_RANGE, CalibratedPair, Calibration
 from wrapenv.config import InputError
-from wrapenv.load import Friction, FrictionPair, LoadUnit
+from wrapenv.load import MAX_COEFFICIENT, Friction, FrictionPair, LoadUnit
 
 #: The CAL.json of CONTRACTS.md, with every pair filled in.
 CAL: dict[str, Any] = {
@@ -189,6 +189,10 @@ BAD_CALS = {
     "string static": (edited(friction__sled_pallet__static="0.4"), "friction.sled_pallet.static"),
     "negative std": (edited(friction__sled_pallet__static_std=-0.01),
                      "friction.sled_pallet.static_std"),
+    "std past any coefficient": (edited(friction__sled_pallet__kinetic_std=1e6),
+                                 "friction.sled_pallet.kinetic_std"),
+    "stiffness std past any fit": (edited(wrap__stiffness_scale_std=25.0),
+                                   "wrap.stiffness_scale_std"),
     "identified not boolean": (edited(friction__sled_pallet__identified="yes"),
                                "friction.sled_pallet.identified"),
     "unknown pair": (edited(friction__sled_bundle={"static": 0.4, "kinetic": 0.3}),
@@ -201,6 +205,7 @@ BAD_CALS = {
     "give scaled to nothing": (edited(wrap__give_scale=0.0), "wrap.give_scale"),
     "give scaled past any fit": (edited(wrap__give_scale=50.0), "wrap.give_scale"),
     "negative give std": (edited(wrap__give_scale_std=-0.1), "wrap.give_scale_std"),
+    "give std past any fit": (edited(wrap__give_scale_std=21.0), "wrap.give_scale_std"),
     "known names no wrap scale": (edited(wrap__known=["friction"]), "wrap.known"),
     "known twice": (edited(wrap__known=["give", "give"]), "wrap.known"),
     "known not a list": (edited(wrap__known="give"), "wrap.known"),
@@ -304,6 +309,18 @@ def test_a_draw_spreads_each_value_by_its_standard_deviation():
     assert all(p.kinetic <= p.static for d in draws for p in d.friction.values())
     assert all(d.friction["bundle_bundle"] == cal.friction["bundle_bundle"] for d in draws)
     assert {d.tension_scale for d in draws} == {0.9}          # no standard deviation given
+
+
+def test_the_widest_spread_a_file_may_give_draws_within_what_a_file_may_give():
+    """A spread as wide as a coefficient's whole range still draws friction pairs and scales
+    that the bench would accept from a file (coefficients up to 2, scales up to 20)."""
+    pair = {"static": 1.9, "kinetic": 1.8, "static_std": 2.0, "kinetic_std": 2.0}
+    cal = Calibration.from_dict({"friction": {"sled_pallet": pair},
+                                 "wrap": {"stiffness_scale": 19.0, "stiffness_scale_std": 20.0}})
+    draws = [cal.draw(seed) for seed in range(200)]
+    statics = [d.friction["sled_pallet"].static for d in draws]
+    assert max(statics) == MAX_COEFFICIENT and min(statics) >= MIN_DRAWN_STATIC
+    assert max(d.stiffness_scale for d in draws) == SCALE_RANGE[1]
 
 
 def test_a_draw_is_fixed_by_its_seed_and_a_calibration_without_spread_is_its_own_draw():
