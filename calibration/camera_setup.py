@@ -96,12 +96,17 @@ def _pair(t: Table, key: str) -> tuple[float, float]:
     return float(raw[0]), float(raw[1])
 
 
+#: The largest marker side a setup may give: one printed for a sled's edge is a few centimetres
+#: to a few decimetres; a larger figure is a unit slip.
+MAX_MARKER_SIZE_M = 1.0
+
+
 def _marker_spec(t: Table) -> MarkerSpec:
     dictionary = t.string("dictionary")
     names = aruco_dictionaries()
     if dictionary not in names:
         raise t.error("dictionary", f"unknown ArUco dictionary {dictionary!r} (e.g. DICT_4X4_50)")
-    size = t.number("size_m", positive=True) if t.has("size_m") else None
+    size = t.number("size_m", positive=True, maximum=MAX_MARKER_SIZE_M) if t.has("size_m") else None
     placements = []
     raw = t.array("placement") if t.has("placement") else []
     for i, item in enumerate(raw):

@@ -132,6 +132,8 @@ CASES = {
     "camera missing": (_edit("setup.toml", "[camera]", "[kamera]"), "setup.toml", "camera"),
     "unknown dictionary": (_edit("setup.toml", "DICT_4X4_50", "DICT_4X4_51"), "setup.toml",
                            "markers.dictionary"),
+    "marker size in millimetres": (_edit("setup.toml", "size_m = 0.075", "size_m = 75.0"),
+                                   "setup.toml", "markers.size_m"),
     "duplicate marker id": (_placement_edit(1, "id", "0"), "setup.toml",
                             "markers.placement[1].id"),
     "id beyond dictionary": (_placement_edit(0, "id", "50"), "setup.toml",
