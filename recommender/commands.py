@@ -825,8 +825,8 @@ def _check_run_folder(out: Path, resume: bool, timesteps: int) -> None:
     if resume:
         kept = last_checkpoint(out)
         if kept is None or not (out / "log.csv").is_file():
-            raise InputError(str(out), "--resume", "holds no interrupted run to resume "
-                                                   "(checkpoints/ and log.csv)")
+            raise InputError(str(out), "--resume", "holds no run to resume (checkpoints/ and "
+                                                   "log.csv)")
         if (out / "policy.zip").exists() and kept[1] >= timesteps:
             raise InputError(str(out), "--resume", f"the run finished, its last checkpoint at "
                              f"{kept[1]} timesteps: give --timesteps above {kept[1]} to train "
@@ -839,4 +839,4 @@ def _check_run_folder(out: Path, resume: bool, timesteps: int) -> None:
     if earlier:
         raise InputError(str(out), "--out", f"holds an earlier training run "
                                             f"({', '.join(earlier)}): give a new folder, or "
-                                            f"--resume an interrupted one")
+                                            f"--resume the run it holds")

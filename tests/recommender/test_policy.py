@@ -704,8 +704,8 @@ def test_a_run_is_resumed_only_as_it_was_started(trained, tmp_path, assert_input
 
 
 @pytest.mark.parametrize("files, needle", [
-    ((), "no interrupted run"),
-    (("log.csv",), "no interrupted run"),
+    ((), "no run to resume"),
+    (("log.csv",), "no run to resume"),
     # 128: one rollout of `wrapbench train`'s, which --timesteps 4 rounds up to
     (("log.csv", "policy.zip", f"{CHECKPOINT_DIR}/policy_128_steps.zip"), "above 128"),
 ])
@@ -721,11 +721,11 @@ def test_resume_needs_a_run_to_continue(files, needle, tmp_path, capsys):
 
 def test_resume_into_a_folder_that_does_not_exist_is_refused_leaving_none(tmp_path, capsys):
     assert main(["train", "--out", str(tmp_path / "never"), "--resume"]) == 2
-    assert "no interrupted run" in capsys.readouterr().err
+    assert "no run to resume" in capsys.readouterr().err
     assert not (tmp_path / "never").exists()
 
 
-def test_a_new_run_into_an_interrupted_one_names_resume(trained, capsys):
+def test_a_new_run_into_a_folder_holding_one_names_resume(trained, capsys):
     _, out = trained
     assert main(["train", "--out", str(out)]) == 2
     assert "--resume" in capsys.readouterr().err
