@@ -338,12 +338,24 @@ def _check_calibrate_args(args: argparse.Namespace) -> None:
             if not d.is_dir():
                 raise InputError(str(d), flag, "not a folder (a recording folder holds "
                                                "video.mp4, profile.csv, setup.toml, load.toml)")
+    for flag, folders in (("DIR", args.recordings), ("--validate", args.validate)):
+        _check_each_once(flag, folders)
     fitted = {d.resolve() for d in args.recordings}
     for d in args.validate:
         if d.resolve() in fitted:
             raise InputError("arguments", "--validate",
                              f"{d} is also fitted; validate on recordings the fit did not see")
     known_scales(args.known)
+
+
+def _check_each_once(flag: str, folders: list[Path]) -> None:
+    """A take given twice would count twice in the fit (or the validation) as if it were two."""
+    seen: dict[Path, Path] = {}
+    for d in folders:
+        if d.resolve() in seen:
+            raise InputError("arguments", flag, f"{d} is given twice ({seen[d.resolve()]} "
+                             "before it): a take counts once")
+        seen[d.resolve()] = d
 
 
 def _outputs(out: Path) -> dict[str, Path]:

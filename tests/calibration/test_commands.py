@@ -555,6 +555,17 @@ def test_the_validation_summary_shows_upper_layers_on_the_pallet():
                          "prediction over the calibration's uncertainty, within that spread")
 
 
+@pytest.mark.parametrize("flag", ["DIR", "--validate"])
+def test_calibrate_refuses_a_take_given_twice(flag, slide_dir, tmp_path, capsys):
+    """The same folder twice (here once by another path) would weigh one take as two."""
+    cal, again = tmp_path / "cal.json", slide_dir / ".." / slide_dir.name
+    args = ([str(slide_dir), str(again)] if flag == "DIR"
+            else [str(tmp_path), "--validate", str(slide_dir), str(again)])
+    assert main(["calibrate", *args, "--out", str(cal)]) == 2
+    _one_line_error(capsys, flag, "given twice")
+    assert not cal.exists()
+
+
 def test_calibrate_refuses_to_validate_on_a_fitted_recording(slide_dir, tmp_path, capsys):
     cal = tmp_path / "cal.json"
     assert main(["calibrate", str(slide_dir), "--out", str(cal),
