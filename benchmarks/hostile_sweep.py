@@ -94,8 +94,8 @@ CASES = [
          {"L.toml": LOAD, "p.zip": "not a zip"}, needles=("--budget", "search")),
     Case("train --out holding an earlier run", ["train", "--out", "run", "--timesteps", "1"],
          {"run/log.csv": "timesteps\n"}, needles=("--out", "earlier")),
-    Case("train --resume with no interrupted run", ["train", "--out", "run", "--resume"],
-         {"run/log.csv": "timesteps\n"}, needles=("--resume", "no interrupted run")),
+    Case("train --resume with no run to resume", ["train", "--out", "run", "--resume"],
+         {"run/log.csv": "timesteps\n"}, needles=("--resume", "no run to resume")),
     Case("train --resume from a corrupt checkpoint", ["train", "--out", "run", "--resume"],
          {"run/log.csv": "timesteps\n", "run/checkpoints/policy_512_steps.zip": "not a zip"},
          needles=("policy_512_steps.zip", "policy")),
@@ -171,6 +171,11 @@ CASES = [
                                     '"kinetic": 0.3}}, "acceptance": '
                                     '{"unexplained_rms_m": -1}}'},
          needles=("c.json", "acceptance.unexplained_rms_m")),
+    Case("CAL.json with a friction spread of a million", ["simulate", "L.toml", "--calibration",
+                                                          "c.json", "--samples", "2"],
+         {"L.toml": LOAD, "c.json": '{"friction": {"sled_pallet": {"static": 0.4, '
+                                    '"kinetic": 0.3, "kinetic_std": 1e6}}}'},
+         needles=("c.json", "friction.sled_pallet.kinetic_std")),
     Case("CAL.json truncated", ["simulate", "L.toml", "--calibration", "c.json"],
          {"L.toml": LOAD, "c.json": '{"friction": {"sled_pallet": {"static": 0.4'},
          needles=("c.json",)),
@@ -212,6 +217,13 @@ CASES = [
     Case("recommend --max-cycle-s 1 (no program that fast)",
          ["recommend", "L.toml", "--max-cycle-s", "1", "--budget", "3", "--samples", "1"],
          {"L.toml": LOAD}, status=1, check=_cycle_limit_named),
+    Case("setup.toml with the markers' side in millimetres", ["track", "rec"],
+         {"rec/setup.toml": '[recording]\nfps = 20\n[camera]\npx_per_m = 500.0\n'
+                            'origin_px = [100.0, 900.0]\n[markers]\ndictionary = "DICT_4X4_50"\n'
+                            'size_m = 75\n'},
+         needles=("setup.toml", "markers.size_m", "millimetres?")),
+    Case("calibrate the same take twice", ["calibrate", "rec", "./rec", "--out", "c.json"],
+         {"rec/setup.toml": ""}, needles=("DIR", "given twice")),
     # found by a new user's walk through the README (2026-11-27)
     Case("recommend --checkpoint naming the user's own notes",
          ["recommend", "L.toml", "--checkpoint", "notes.txt"],

@@ -353,8 +353,9 @@ def _check_each_once(flag: str, folders: list[Path]) -> None:
     seen: dict[Path, Path] = {}
     for d in folders:
         if d.resolve() in seen:
-            raise InputError("arguments", flag, f"{d} is given twice ({seen[d.resolve()]} "
-                             "before it): a take counts once")
+            first = seen[d.resolve()]
+            also = "" if first == d else f" (also as {first})"
+            raise InputError("arguments", flag, f"{d} is given twice{also}: a take counts once")
         seen[d.resolve()] = d
 
 
