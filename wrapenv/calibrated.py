@@ -7,8 +7,8 @@ from pathlib import Path
 
 import numpy as np
 
-from wrapenv.config import InputError, Table, read_json
-from wrapenv.load import MAX_COEFFICIENT, PAIRS, Friction, FrictionPair, LoadUnit
+from wrapenv.config import MAX_FRICTION_COEFFICIENT, InputError, Table, read_json
+from wrapenv.load import PAIRS, Friction, FrictionPair, LoadUnit
 
 #: CAL.json's keys beside `friction` and `wrap`: the fit's diagnostics (residual, the replays'
 #: own scatter, one replay's residual, simulations and what they were for, method), advice on
@@ -137,11 +137,12 @@ class Calibration:
             if not fr.has(name):
                 continue
             t = fr.table(name)
+            most = MAX_FRICTION_COEFFICIENT
             pair = CalibratedPair(
-                static=t.number("static", positive=True, maximum=MAX_COEFFICIENT),
-                kinetic=t.number("kinetic", positive=True, maximum=MAX_COEFFICIENT),
-                static_std=t.number("static_std", 0.0, minimum=0.0, maximum=MAX_COEFFICIENT),
-                kinetic_std=t.number("kinetic_std", 0.0, minimum=0.0, maximum=MAX_COEFFICIENT),
+                static=t.number("static", positive=True, maximum=most),
+                kinetic=t.number("kinetic", positive=True, maximum=most),
+                static_std=t.number("static_std", 0.0, minimum=0.0, maximum=most),
+                kinetic_std=t.number("kinetic_std", 0.0, minimum=0.0, maximum=most),
                 identified=t.boolean("identified", True),
             )
             t.done()
@@ -186,9 +187,9 @@ def draw_pair(rng: np.random.Generator, pair: FrictionPair, static_std: float,
     """A friction pair drawn within standard deviations (normal; a coefficient is kept between
     a floor and the largest a file may give, the kinetic one at or below the static one; a
     standard deviation of 0 draws nothing)."""
-    static = _normal(rng, pair.static, static_std, MIN_DRAWN_STATIC, MAX_COEFFICIENT)
+    static = _normal(rng, pair.static, static_std, MIN_DRAWN_STATIC, MAX_FRICTION_COEFFICIENT)
     return FrictionPair(static, min(static, _normal(rng, pair.kinetic, kinetic_std,
-                                                    MIN_DRAWN_KINETIC, MAX_COEFFICIENT)))
+                                                    MIN_DRAWN_KINETIC, MAX_FRICTION_COEFFICIENT)))
 
 
 def draw_scale(rng: np.random.Generator, value: float, std: float) -> float:

@@ -20,6 +20,11 @@ from typing import Any
 
 from wrapenv import __version__
 
+#: The largest friction coefficient any file may give (a load's pairs, a calibration's, a
+#: web's layer on layer): rubber on dry steel reaches about 1, so 2 leaves room and still
+#: refuses a percentage or an angle.
+MAX_FRICTION_COEFFICIENT = 2.0
+
 
 class InputError(ValueError):
     """Bad user input; ``str()`` is a one-line message naming the file and the field."""

@@ -13,7 +13,13 @@ from typing import Any, Literal, cast
 
 import tomli_w
 
-from wrapenv.config import InputError, Table, is_finite_number, read_toml
+from wrapenv.config import (
+    MAX_FRICTION_COEFFICIENT,
+    InputError,
+    Table,
+    is_finite_number,
+    read_toml,
+)
 from wrapenv.load_checks import (
     BUNDLE_GAP_M,
     MAX_LOAD_HEIGHT_M,
@@ -86,10 +92,7 @@ PALLET_PRESETS = {
 #: wooden pallet in transport, the Euro pallet's with a compact load spread evenly over the
 #: whole deck (docs/materials.md, U0); a larger figure is a typo, not a pallet.
 MAX_SAFE_LOAD_KG = 2000.0
-#: The largest friction coefficient a file may give: rubber on dry steel reaches about 1, so
-#: 2 leaves room and still refuses a percentage or an angle.
-MAX_COEFFICIENT = 2.0
-#: What a friction figure above MAX_COEFFICIENT most likely is.
+#: What a friction figure above MAX_FRICTION_COEFFICIENT most likely is.
 COEFFICIENT_HINT = ("a coefficient (the tangent of the slide angle: 0.45 for 24°), not a "
                     "percentage or an angle")
 #: The largest a pallet's or a bundle's box can be: no side beyond the tallest unit a trailer
@@ -356,10 +359,12 @@ def _friction(t: Table) -> Friction:
                           f"{t.data[name]!r}: a single coefficient is a static one; "
                           f"{_kinetic_advice(float(t.data[name]))})")
         p = t.table(name)
-        static = p.number("static", positive=True, maximum=MAX_COEFFICIENT, hint=COEFFICIENT_HINT)
+        static = p.number("static", positive=True, maximum=MAX_FRICTION_COEFFICIENT,
+                          hint=COEFFICIENT_HINT)
         if not p.has("kinetic"):
             raise p.error("kinetic", f"missing ({_kinetic_advice(static)})")
-        kinetic = p.number("kinetic", positive=True, maximum=MAX_COEFFICIENT, hint=COEFFICIENT_HINT)
+        kinetic = p.number("kinetic", positive=True, maximum=MAX_FRICTION_COEFFICIENT,
+                           hint=COEFFICIENT_HINT)
         p.done()
         if kinetic > static:
             raise InputError(t.source, p.field("kinetic"),

@@ -8,7 +8,13 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from wrapenv.config import InputError, Table, is_finite_number, is_real_number
+from wrapenv.config import (
+    MAX_FRICTION_COEFFICIENT,
+    InputError,
+    Table,
+    is_finite_number,
+    is_real_number,
+)
 
 #: Strains at or above this are typos (1000 %), not materials.
 MAX_STRAIN = 10.0
@@ -31,8 +37,6 @@ DENSITY_KG_M3 = {"paper": 700.0, "film": 920.0}
 PAPER_INTERLAYER_FRICTION = 0.4
 #: A glued paper tail holds this fraction of the paper's breaking force (P5) [A].
 GLUED_SEAM_FRACTION = 0.5
-#: Highest friction coefficient accepted (a typo beyond it, not a surface).
-MAX_FRICTION = 2.0
 #: A panel's shear stiffness over the web's: a wrinkled membrane takes shear only through
 #: tension strips at 45 degrees, which carry a quarter of its stiffness in shear [A].
 SHEAR_RATIO = 0.25
@@ -274,7 +278,7 @@ def _failure_fields(t: Table) -> dict[str, float]:
     defaults (`Material.layer_thickness_m`, `interlayer_mu`, `seam_holds_n_per_m`). And the
     membrane model's shear and damping ratios, at most 1 (as stiff in shear as in tension;
     critical damping)."""
-    limits = {"thickness_m": MAX_THICKNESS_M, "interlayer_friction": MAX_FRICTION,
+    limits = {"thickness_m": MAX_THICKNESS_M, "interlayer_friction": MAX_FRICTION_COEFFICIENT,
               "seam_strength_n_per_m": None, "shear_ratio": 1.0, "damping_ratio": 1.0}
     return {key: t.number(key, positive=True, maximum=top)
             for key, top in limits.items() if t.has(key)}

@@ -10,8 +10,8 @@ from typing import Any
 import pytest
 
 from wrapenv.calibrated import MIN_DRAWN_STATIC, SCALE_RANGE, CalibratedPair, Calibration
-from wrapenv.config import InputError
-from wrapenv.load import MAX_COEFFICIENT, Friction, FrictionPair, LoadUnit
+from wrapenv.config import MAX_FRICTION_COEFFICIENT, InputError
+from wrapenv.load import Friction, FrictionPair, LoadUnit
 
 #: The CAL.json of CONTRACTS.md, with every pair filled in.
 CAL: dict[str, Any] = {
@@ -319,7 +319,7 @@ def test_the_widest_spread_a_file_may_give_draws_within_what_a_file_may_give():
                                  "wrap": {"stiffness_scale": 19.0, "stiffness_scale_std": 20.0}})
     draws = [cal.draw(seed) for seed in range(200)]
     statics = [d.friction["sled_pallet"].static for d in draws]
-    assert max(statics) == MAX_COEFFICIENT and min(statics) >= MIN_DRAWN_STATIC
+    assert max(statics) == MAX_FRICTION_COEFFICIENT and min(statics) >= MIN_DRAWN_STATIC
     assert max(d.stiffness_scale for d in draws) == SCALE_RANGE[1]
 
 
