@@ -334,12 +334,7 @@ def _check_calibrate_args(args: argparse.Namespace) -> None:
         raise InputError("arguments", "--max-residual-mm",
                          f"must be > 0 (got {args.max_residual_mm})")
     for flag, folders in (("DIR", args.recordings), ("--validate", args.validate)):
-        for d in folders:
-            if not d.is_dir():
-                raise InputError(str(d), flag, "not a folder (a recording folder holds "
-                                               "video.mp4, profile.csv, setup.toml, load.toml)")
-    for flag, folders in (("DIR", args.recordings), ("--validate", args.validate)):
-        _check_each_once(flag, folders)
+        _check_recording_folders(flag, folders)
     fitted = {d.resolve() for d in args.recordings}
     for d in args.validate:
         if d.resolve() in fitted:
@@ -348,10 +343,14 @@ def _check_calibrate_args(args: argparse.Namespace) -> None:
     known_scales(args.known)
 
 
-def _check_each_once(flag: str, folders: list[Path]) -> None:
-    """A take given twice would count twice in the fit (or the validation) as if it were two."""
+def _check_recording_folders(flag: str, folders: list[Path]) -> None:
+    """Each a folder, and each once: a take given twice would count twice in the fit (or the
+    validation) as if it were two."""
     seen: dict[Path, Path] = {}
     for d in folders:
+        if not d.is_dir():
+            raise InputError(str(d), flag, "not a folder (a recording folder holds "
+                                           "video.mp4, profile.csv, setup.toml, load.toml)")
         if d.resolve() in seen:
             first = seen[d.resolve()]
             also = "" if first == d else f" (also as {first})"
