@@ -1,0 +1,28 @@
+"""What the search's tests share: a small load and the cheapest search settings."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import pytest
+
+from recommender.problem import SearchSettings
+from wrapenv.load import LoadUnit
+
+#: Two layers of four PET bundles: each bench run takes a fraction of a second.
+SMALL: dict[str, Any] = {
+    "name": "small",
+    "pallet": {"preset": "EUR"},
+    "bundle": {"preset": "PET6x1.5L"},
+    "stack": {"layers": 2, "pattern": "explicit",
+              "positions": [[-0.15, -0.1], [0.15, -0.1], [-0.15, 0.1], [0.15, 0.1]]},
+    "fixture": {"pallet_stopper": True},
+}
+#: One orientation, no relaxation: the search's own behaviour, at the least cost.
+FAST = SearchSettings(targets=(("long", 0.5),), samples=2, popsize=4, max_candidates=8,
+                      workers=2, hours_since_wrapping=0.0)
+
+
+@pytest.fixture
+def small_load() -> LoadUnit:
+    return LoadUnit.from_dict(SMALL)
