@@ -294,7 +294,7 @@ def tension_limit_n(material: Material, web_width_m: float) -> float:
 MAX_HOURS_SINCE_WRAPPING = 8760.0
 
 
-def check_hours_since_wrapping(hours: float) -> None:
+def check_hours_since_wrapping(hours: float) -> float:
     """How long a wrap stood before its test: 0 to a year."""
     if not (is_finite_number(hours) and 0 <= hours <= MAX_HOURS_SINCE_WRAPPING):
         number = is_real_number(hours)
@@ -303,6 +303,7 @@ def check_hours_since_wrapping(hours: float) -> None:
         raise InputError("wrap", "hours_since_wrapping", f"must be from 0 to "
                          f"{MAX_HOURS_SINCE_WRAPPING:g} h, a year (got "
                          f"{f'{hours:g}' if number else repr(hours)}{unit})")
+    return float(hours)
 
 
 def check_tension(t: Table, key: str, material: Material, web_width_m: float) -> float:

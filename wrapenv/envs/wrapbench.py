@@ -9,6 +9,8 @@ the reward and the arguments.
 from __future__ import annotations
 
 import math
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import asdict
 from pathlib import Path
 from typing import Any
@@ -234,25 +236,14 @@ class WrapBenchEnv(gym.Env):
         self.material = _one_of("material", material, tuple(MATERIALS))
         self.target_g = _level("target_g", target_g)
         self.start_g = None if start_g is None else _level("start_g", start_g)
-        try:
+        with _as_arguments():
             self._sequence = eumos_levels(self.target_g, self.start_g)
-        except InputError as exc:  # the sequence names the argument it rejects
-            raise InputError("arguments", exc.field, exc.message) from None
+            self.hours_since_wrapping = check_hours_since_wrapping(hours_since_wrapping)
         self.levels = _one_of("levels", levels, LEVEL_MODES)
-        if not (is_finite_number(material_weight) and material_weight >= 0):
-            raise InputError("arguments", "material_weight",
-                             f"must be a finite number >= 0 (got {material_weight!r})")
-        self.material_weight = float(material_weight)
-        self.settings = SimSettings() if settings is None else settings
-        if not isinstance(self.settings, SimSettings):
-            raise TypeError(f"settings must be a wrapenv.bench.SimSettings (got {settings!r})")
+        self.material_weight = _material_weight(material_weight)
+        self.settings = _settings(settings)
         self.calibration = _calibration(calibration)
         self.orientation = _one_of("orientation", orientation, ORIENTATIONS)
-        try:
-            check_hours_since_wrapping(hours_since_wrapping)
-        except InputError as exc:
-            raise InputError("arguments", exc.field, exc.message) from None
-        self.hours_since_wrapping = float(hours_since_wrapping)
         self.uncertain = _one_of("uncertain", uncertain, (False, True))
         self.uncertainty = Uncertainty.of(self.calibration, self.hours_since_wrapping)
         self.tests_per_episode = _tests_per_episode(tests_per_episode, self.orientation == "random"
@@ -510,6 +501,30 @@ def _tests_per_episode(value: Any, drawn: bool) -> int:
         raise InputError("arguments", "tests_per_episode", "more than 1 needs orientation "
                          "'random' or uncertain=True: otherwise every test is the same run")
     return int(value)
+
+
+@contextmanager
+def _as_arguments() -> Iterator[None]:
+    """A check shared with the input files names its file: here the argument is gym.make's."""
+    try:
+        yield
+    except InputError as exc:
+        raise InputError("arguments", exc.field, exc.message) from None
+
+
+def _material_weight(value: Any) -> float:
+    if not (is_finite_number(value) and value >= 0):
+        raise InputError("arguments", "material_weight",
+                         f"must be a finite number >= 0 (got {value!r})")
+    return float(value)
+
+
+def _settings(settings: SimSettings | None) -> SimSettings:
+    if settings is None:
+        return SimSettings()
+    if not isinstance(settings, SimSettings):
+        raise TypeError(f"settings must be a wrapenv.bench.SimSettings (got {settings!r})")
+    return settings
 
 
 def _one_of(name: str, value: Any, allowed: tuple[Any, ...]) -> Any:

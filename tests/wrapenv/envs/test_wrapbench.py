@@ -168,6 +168,10 @@ def test_bad_kwargs_raise_at_construction(tiny, kwargs):
         make(tiny, **kwargs)
     assert isinstance(err.value, InputError)
     assert "\n" not in str(err.value)
+    if "load" in kwargs:
+        assert err.value.source == "/nonexistent/LOAD.toml"
+    else:  # named as gym.make's argument, also where a check is shared with the input files
+        assert err.value.source == "arguments" and err.value.field in kwargs
 
 
 @pytest.mark.parametrize("levels", ["target", "eumos"])
