@@ -1,6 +1,8 @@
 """Shared helpers for the specification tests: writing input files and checking error messages.
 
-Helpers are handed out as fixtures (there is no ``tests/__init__.py`` to import them from).
+Helpers are handed out as fixtures; constants a folder's tests share live in its conftest.py
+and are imported from it (``from tests.recommender.conftest import FAST``: pyproject.toml puts
+the repository on pytest's path).
 """
 
 from __future__ import annotations
