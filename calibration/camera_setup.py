@@ -55,6 +55,9 @@ class MarkerSpec:
 
 @dataclass(frozen=True)
 class Setup:
+    """setup.toml (CONTRACTS.md): how the camera saw the bench (frame rate, scale, the sled's
+    origin in the image), its markers and the bundles' template, checked in `parse`."""
+
     fps: float
     px_per_m: float
     origin_px: tuple[float, float]

@@ -90,6 +90,9 @@ UNEXPLAINED_REPLAYS = 24
 
 @dataclass(frozen=True)
 class FitSettings:
+    """How `calibrate` fits: the optimiser, what it fits (friction, then the wrap), its budget
+    of simulations and the residual above which it writes nothing."""
+
     method: str = "surrogate"
     params: str = "friction"
     #: most simulations of the search and the final replays; a static coefficient the fit
@@ -112,6 +115,10 @@ class FitSettings:
 
 @dataclass(frozen=True)
 class FitResult:
+    """A fit's outcome: the calibration (written only if `converged`; else `reason` says why),
+    how well it explains the recordings, what it cost, and what a person judges it by (the
+    advice on pairs left unidentified, the loss curve, the acceptance test's verdict)."""
+
     calibration: Calibration
     #: RMS of recorded minus predicted features, the prediction being the mean of the fitted
     #: values' final replays (`FINAL_REPLAYS`)

@@ -27,6 +27,10 @@ INVALID_LOSS = 1.0
 
 @dataclass(frozen=True)
 class Param:
+    """One coordinate of the fit's unit box: a pair's static or kinetic coefficient or their
+    ratio, linear from `low` to `high`; or a wrap scale, 2 to the power `low` to `high`, so a
+    halving and a doubling lie equally far from 1."""
+
     kind: str            # "static", "kinetic", "ratio", or a wrap scale ("stiffness", ...)
     pair: str = ""
     low: float = 0.0

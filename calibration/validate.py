@@ -103,6 +103,9 @@ class Check:
 
 @dataclass(frozen=True)
 class Validation:
+    """One held-out recording replayed with the calibrated bench: per tracked body and per
+    layer, the prediction against what was recorded (CAL.json's `validation`)."""
+
     source: str
     replays: int               # replays that stayed physical
     objects: dict[str, Check]

@@ -72,6 +72,9 @@ class Robustness:
 
 @dataclass(frozen=True)
 class Page:
+    """Everything report.html shows, gathered before a line of HTML is written: the page is
+    then a pure function of it."""
+
     heading: str
     load: LoadUnit
     tested: tuple[OrientationRun, ...]

@@ -44,6 +44,9 @@ BOTH_SIDES: tuple[tuple[Orientation, float], ...] = (("long", 0.5), ("short", 0.
 
 @dataclass(frozen=True)
 class SearchSettings:
+    """How `recommend` searches: what a program must pass and with what margin, on which web,
+    in how many samples, at what budget; `identity` is what a checkpoint must match."""
+
     #: (orientation, target level in g) pairs every candidate must pass.
     targets: tuple[tuple[Orientation, float], ...] = BOTH_SIDES
     #: The web a program is sought for (card, width, machine).

@@ -34,6 +34,10 @@ class CalibratedPair:
 
 @dataclass(frozen=True)
 class Calibration:
+    """CAL.json as the bench uses it: the fitted friction of each pair and the wrap's scales,
+    each with its standard deviation, and what the fit left unexplained. `apply` puts it on a
+    load unit; `wrapenv.uncertainty` draws `recommend`'s samples within its spreads."""
+
     friction: dict[str, CalibratedPair] = field(default_factory=dict)
     stiffness_scale: float = 1.0
     tension_scale: float = 1.0

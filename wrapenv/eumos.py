@@ -138,6 +138,9 @@ class BodyResult:
 
 @dataclass(frozen=True)
 class LevelVerdict:
+    """One level judged (`evaluate`): each criterion's figure and pass or fail, damage, and why
+    a run was invalid or ended early; its fields are `simulate`'s JSON keys per level."""
+
     level_g: float
     passed: bool
     valid: bool
@@ -194,6 +197,9 @@ class LevelVerdict:
 
 @dataclass(frozen=True)
 class Verdict:
+    """A test sequence judged, level by level. It passes only if every level does and every run
+    stayed physical: a simulation that blew up is never a pass."""
+
     load_height_m: float
     levels: tuple[LevelVerdict, ...] = field(default_factory=tuple)
     #: "cumulative": one unit through the levels, as a lab runs it; "fresh": a new unit each.

@@ -196,6 +196,10 @@ EXAMPLE_LOAD = Path(__file__).resolve().parent / "data" / "example_load.toml"
 
 @dataclass(frozen=True)
 class LoadUnit:
+    """LOAD.toml (CONTRACTS.md): the pallet, the bundle, how they are stacked, friction per
+    contact pair and the bench's stop bar, checked once in `from_dict`; `layout` places the
+    boxes the bench simulates."""
+
     name: str
     pallet: Pallet
     bundle: Bundle
