@@ -4,10 +4,12 @@ one `InputError` naming file and field for each way a folder can be wrong."""
 from __future__ import annotations
 
 import json
+import math
 import shutil
 from collections.abc import Callable
 from pathlib import Path
 
+import cv2
 import numpy as np
 import pytest
 
@@ -80,6 +82,13 @@ def _write(name: str, data: bytes) -> Callable[[Path], None]:
     return write
 
 
+def _empty_video(folder: Path) -> None:
+    """A container with its header and no frame: the camera stopped before the test."""
+    writer = cv2.VideoWriter(str(folder / "video.avi"), cv2.VideoWriter_fourcc(*"MJPG"), 10.0,
+                             (800, 500))
+    writer.release()
+
+
 def _truncate_profile(folder: Path) -> None:
     path = folder / "profile.csv"
     lines = path.read_text().splitlines()
@@ -92,6 +101,20 @@ def _nan_in_profile(folder: Path) -> None:
     t = lines[5].split(",")[0]
     lines[5] = f"{t},nan,0.0,0.0"
     path.write_text("\n".join(lines) + "\n")
+
+
+def _profile_rows(change: Callable[[list[str]], list[str]]) -> Callable[[Path], None]:
+    """Edit profile.csv's data rows (the header kept)."""
+    def edit(folder: Path) -> None:
+        path = folder / "profile.csv"
+        header, *rows = path.read_text().splitlines()
+        path.write_text("\n".join([header, *change(rows)]) + "\n")
+    return edit
+
+
+def _later(rows: list[str]) -> list[str]:
+    """Every sample a second late: the profile starts after the video's first frame."""
+    return [",".join([repr(float(r.split(",")[0]) + 1.0), *r.split(",")[1:]]) for r in rows]
 
 
 def _px_per_m_times(factor: float) -> Callable[[Path], None]:
@@ -143,11 +166,18 @@ CASES = {
     "template missing": (_remove("template.png"), "setup.toml", "template"),
     "video missing": (_remove("video.avi"), "video.mp4", ""),
     "video unreadable": (_write("video.avi", b"RIFF not a video at all" * 100), "video.avi", ""),
+    "video without a frame": (_empty_video, "video.avi", ""),
     "profile missing": (_remove("profile.csv"), "profile.csv", ""),
     "profile shorter than video": (_truncate_profile, "profile.csv", "t_s"),
     "profile NaN": (_nan_in_profile, "profile.csv", "accel_mps2"),
     "profile without accel": (_edit("profile.csv", "accel_mps2", "acc"), "profile.csv",
                               "accel_mps2"),
+    "profile of one sample": (_profile_rows(lambda rows: rows[:1]), "profile.csv", "t_s"),
+    "profile out of time order": (_profile_rows(lambda rows: [rows[1], rows[0], *rows[2:]]),
+                                  "profile.csv", "t_s"),
+    "profile with a word for a number": (_profile_rows(lambda rows: [
+        rows[0], "0.05,fast,0,0", *rows[2:]]), "profile.csv", "line 3"),
+    "profile starting after the first frame": (_profile_rows(_later), "profile.csv", "t_s"),
     "load missing": (_remove("load.toml"), "load.toml", ""),
     "load bad": (_edit("load.toml", "layers = 2", "layers = 0"), "load.toml", "stack.layers"),
 }
@@ -204,6 +234,25 @@ def test_bad_truth_is_one_input_error(change, field, copy_of, assert_input_error
     # one value too many (length mismatch) for x_m, a string for angle_rad
     extra = "0.0, " if "x_m" in change else '"a", '
     path.write_text(text[:at] + extra + text[at:])
+    with pytest.raises(InputError) as err:
+        Truth.read(folder)
+    assert_input_error(err.value, str(path), field)
+
+
+@pytest.mark.parametrize("change, field", [
+    (lambda data: data.update(params=[0.4, 0.3]), "params"),
+    (lambda data: data.pop("objects"), "objects"),
+    (lambda data: data.update(objects={}), "objects"),
+    (lambda data: data["objects"].update(pallet=[0.0, 0.1]), "objects.pallet"),
+    (lambda data: data["objects"]["pallet"]["z_m"].__setitem__(0, math.nan),
+     "objects.pallet.z_m"),
+], ids=["params a list", "no objects", "objects empty", "a track a list", "NaN in a track"])
+def test_truth_of_the_wrong_shape_is_one_input_error(change, field, copy_of, assert_input_error):
+    folder = copy_of()
+    path = folder / "truth.json"
+    data = json.loads(path.read_text())
+    change(data)
+    path.write_text(json.dumps(data))   # NaN written as JSON's NaN token, which Python reads
     with pytest.raises(InputError) as err:
         Truth.read(folder)
     assert_input_error(err.value, str(path), field)
