@@ -84,7 +84,7 @@ def _write(name: str, data: bytes) -> Callable[[Path], None]:
 
 def _empty_video(folder: Path) -> None:
     """A container with its header and no frame: the camera stopped before the test."""
-    writer = cv2.VideoWriter(str(folder / "video.avi"), cv2.VideoWriter_fourcc(*"MJPG"), 10.0,
+    writer = cv2.VideoWriter(str(folder / "video.avi"), cv2.VideoWriter.fourcc(*"MJPG"), 10.0,
                              (800, 500))
     writer.release()
 
