@@ -64,6 +64,7 @@ def test_a_line_cut_off_mid_write_is_ignored(slide_obs, tmp_path):
 
 @pytest.mark.parametrize("line, field", [
     ("not json", "line 2"),
+    ("[1.0, 2.0]", "line 2"),
     ('{"replay": "nope", "residuals": [1.0]}', "line 2.replay"),
     ('{"replay": "' + "a" * 64 + '", "residuals": [1.0, NaN]}', "line 2.residuals"),
     ('{"replay": "' + "a" * 64 + '", "residuals": ["1"]}', "line 2.residuals"),
@@ -95,6 +96,20 @@ def test_a_checkpoint_of_other_recordings_or_another_version_or_none_is_refused(
         ReplayLog(path, [slide_obs], resume=True)
     with pytest.raises(InputError, match="no checkpoint to resume from"):
         ReplayLog(tmp_path / "none.jsonl", [slide_obs], resume=True)
+
+
+@pytest.mark.parametrize("content, field, says", [
+    (b"", "line 1", "empty"),
+    (b'{"format": "wrapbench-calibration', "line 1", "empty"),   # its head cut off mid-write
+    (b"\xff\xfe binary\n", "", "cannot read the checkpoint"),
+], ids=["empty", "head cut off", "not text"])
+def test_a_checkpoint_without_a_whole_head_line_is_refused(content, field, says, slide_obs,
+                                                           tmp_path, assert_input_error):
+    path = tmp_path / "c.jsonl"
+    path.write_bytes(content)
+    with pytest.raises(InputError, match=says) as err:
+        ReplayLog(path, [slide_obs], resume=True)
+    assert_input_error(err.value, str(path), field)
 
 
 def _stopping_after(simulations: int, monkeypatch: pytest.MonkeyPatch) -> None:
