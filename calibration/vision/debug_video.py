@@ -31,7 +31,8 @@ class DebugVideo:
         self.writer = cv2.VideoWriter(name, cv2.VideoWriter.fourcc(*"mp4v"), fps, size)
         if not self.writer.isOpened():
             self.partial.unlink()
-            raise InputError(str(path), "", "cannot write the debug video there")
+            raise InputError(str(path), "", "OpenCV cannot write a video there (it needs a "
+                             "video suffix such as .mp4)")
 
     def __enter__(self) -> DebugVideo:
         return self

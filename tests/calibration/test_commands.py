@@ -94,6 +94,14 @@ def test_synth_rejects_bad_arguments_and_writes_nothing(args, needles, tmp_path,
     assert not out.exists()
 
 
+def test_synth_s_size_is_width_x_height(tmp_path, load_path, capsys):
+    with pytest.raises(SystemExit) as exit_:   # argparse's own exit, as for any malformed flag
+        main(["synth", str(load_path), "--out", str(tmp_path / "rec"), "--size", "1920*1200"])
+    assert exit_.value.code == 2
+    assert "--size: expected WxH, e.g. 1920x1200 (got '1920*1200')" in capsys.readouterr().err
+    assert not (tmp_path / "rec").exists()
+
+
 def test_synth_refuses_a_folder_that_holds_files(tmp_path, load_path, capsys):
     out = tmp_path / "rec"
     out.mkdir()

@@ -164,6 +164,8 @@ CASES = {
     "unknown object": (_placement_edit(0, "object", '"L9C1R1"'), "setup.toml",
                        "markers.placement[0].object"),
     "template missing": (_remove("template.png"), "setup.toml", "template"),
+    "template not an image": (_write("template.png", b"not a picture"), "setup.toml",
+                              "template"),
     "video missing": (_remove("video.avi"), "video.mp4", ""),
     "video unreadable": (_write("video.avi", b"RIFF not a video at all" * 100), "video.avi", ""),
     "video without a frame": (_empty_video, "video.avi", ""),

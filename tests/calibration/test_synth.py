@@ -5,6 +5,7 @@ seed gives the same recording."""
 from __future__ import annotations
 
 import fcntl
+import math
 import os
 import signal
 import subprocess
@@ -153,6 +154,19 @@ def test_refuses_a_folder_in_use(tmp_path, small_load, assert_input_error):
         synthesize(small_load, tmp_path / "busy", level_g=0.1, size=(320, 200))
     assert_input_error(err.value, str(tmp_path / "busy"), "")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["busy"]  # no temporary left
+
+
+@pytest.mark.parametrize("argument, value", [
+    ("pre_roll_s", -0.5), ("pre_roll_s", math.inf), ("marker_size_m", 0.0),
+    ("marker_size_m", 0.2),   # wider than the sled's 0.1 m side
+])
+def test_refuses_arguments_out_of_range_before_simulating(argument, value, tmp_path, small_load,
+                                                           assert_input_error):
+    with pytest.raises(InputError) as err:
+        synthesize(small_load, tmp_path / "rec", level_g=0.1, size=(320, 200),
+                   **{argument: value})
+    assert_input_error(err.value, "arguments", argument)
+    assert not (tmp_path / "rec").exists()
 
 
 TINY = {"level_g": 0.1, "size": (320, 200), "fps": 5.0, "pre_roll_s": 0.0}

@@ -382,6 +382,13 @@ def test_unmatched_template_names_the_file(two_layer: Recording, tmp_path: Path)
         track(Recording.read(folder))
 
 
+def test_a_debug_video_opencv_cannot_write_is_refused_leaving_nothing(
+        two_layer: Recording, tmp_path: Path) -> None:
+    with pytest.raises(InputError, match=r"debug\.txt: OpenCV cannot write a video there"):
+        track(two_layer, debug_video=tmp_path / "debug.txt")
+    assert list(tmp_path.iterdir()) == []
+
+
 def test_profile_shorter_than_video(two_layer: Recording, tmp_path: Path) -> None:
     p = two_layer.profile
     keep = p.t_s < 1.0

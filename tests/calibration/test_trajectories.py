@@ -38,6 +38,8 @@ def test_a_tumbling_body_s_unwrapped_angle_is_read(tmp_path: Path) -> None:
     ("t_s,object,x_m,z_m,angle_rad\n0,sled,abc,2,0\n", "line 2: x_m"),
     ("t_s,object,x_m,z_m,angle_rad\n0,sled,nan,2,0\n", "line 2: x_m"),
     ("t_s,object,x_m,z_m,angle_rad\n0,sled,0,0,0\n0,sled,0,0,0\n", "object sled"),
+    ("t_s,object,x_m,z_m,angle_rad\n0, ,0,0,0\n", "line 2: object: empty name"),
+    ("t_s,object,x_m,z_m,angle_rad\n", "no rows"),
     # another tracker's file in millimetres and degrees: the unit is named
     ("t_s,object,x_m,z_m,angle_rad\n0,pallet,-1250.0,72.0,0\n",
      r"line 2: x_m: -1250 m .*millimetres\? Positions are in metres"),
