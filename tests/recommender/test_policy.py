@@ -368,8 +368,8 @@ def test_a_policy_is_refused_for_another_material(trained, assert_input_error):
     assert_input_error(info.value, str(path), "material")
 
 
-def _rewritten(path: Path, out: Path, meta: dict | None = None, data: dict | None = None) -> Path:
-    """A copy of a policy zip with its metadata or SB3 data replaced."""
+def _rewritten(path: Path, out: Path, meta: object = None, data: dict | None = None) -> Path:
+    """A copy of a policy zip with its metadata (any JSON) or SB3 data replaced."""
     with zipfile.ZipFile(path) as src, zipfile.ZipFile(out, "w") as dst:
         for item in src.namelist():
             content = src.read(item)
@@ -379,6 +379,34 @@ def _rewritten(path: Path, out: Path, meta: dict | None = None, data: dict | Non
                 content = json.dumps(data).encode()
             dst.writestr(item, content)
     return out
+
+
+def _without_meta(path: Path, out: Path) -> Path:
+    """A copy of a policy zip without wrapbench's record: SB3's own file, say."""
+    with zipfile.ZipFile(path) as src, zipfile.ZipFile(out, "w") as dst:
+        for item in src.namelist():
+            if item != POLICY_META:
+                dst.writestr(item, src.read(item))
+    return out
+
+
+def _not_a_zip(path: Path, out: Path) -> Path:
+    out.write_bytes(b"PK not a zip at all")
+    return out
+
+
+@pytest.mark.parametrize("make", [
+    _not_a_zip,
+    lambda path, out: _rewritten(path, out, meta=[1, 2]),
+    _without_meta,
+], ids=["not a zip", "its record a list", "no record"])
+def test_a_file_that_is_no_policy_of_wrapbench_is_refused_in_one_line(make, trained, tmp_path,
+                                                                     assert_input_error):
+    path, _ = trained
+    other = make(path, tmp_path / "other.zip")
+    with pytest.raises(InputError, match="not a policy written by `wrapbench train`") as info:
+        load_policy(other)
+    assert_input_error(info.value, str(other), "policy")
 
 
 def test_a_policy_of_another_observation_is_refused_in_one_line(trained, tmp_path,

@@ -334,8 +334,15 @@ def test_resume_refuses_values_the_search_never_writes(small_load, tmp_path):
     nan_margin["generations"][0]["margins"][0][0] = float("nan")
     string_pass = json.loads(ckpt.read_text())
     string_pass["generations"][0]["passed"][0][0] = "false"
+    negative = json.loads(ckpt.read_text())
+    negative["generations"][0]["simulations"] = -1
+    moved = json.loads(ckpt.read_text())      # a candidate CMA-ES did not ask for
+    moved["generations"][0]["x"][0][3] += 0.25
     for data, field in ((nan_margin, "generations[0].margins"),
                         (string_pass, "generations[0].passed"),
+                        (negative, "generations[0].simulations"),
+                        ({**saved, "generations": {}}, "generations"),
+                        (moved, "generations"),
                         ({**saved, "problem": []}, "problem")):
         ckpt.write_text(json.dumps(data))
         with pytest.raises(InputError) as info:
@@ -973,12 +980,27 @@ def test_a_proposal_is_recommended_only_if_it_passes_every_sample():
     (["train", "--out", "OUT", "--material-weight", "-1"], "--material-weight"),
     (["train", "--out", "OUT", "--log-std-init", "-6"], "--log-std-init"),
     (["train", "--out", "OUT", "--envs", "100000"], "--envs"),
+    (["train", "--out", "OUT", "--tests-per-episode", "0"], "--tests-per-episode"),
+    (["train", "--out", "OUT", "--tests-per-episode", "17"], "--tests-per-episode"),
+    # the checkpoint is kept beside --json: with neither, nothing says where to resume from
+    (["recommend", "--resume"], "--resume: needs --checkpoint"),
 ])
 def test_bad_policy_arguments_exit_2_with_one_line(argv, field, tmp_path, capsys):
     argv = [str(tmp_path / "out") if a == "OUT" else a for a in argv]
     code = main(argv)
     err = capsys.readouterr().err.strip()
     assert code == 2 and "\n" not in err and field in err
+
+
+def test_train_refuses_an_out_that_cannot_be_its_folder(tmp_path, capsys):
+    a_file = tmp_path / "run"
+    a_file.write_text("mine")
+    for out, says in ((a_file, "exists and is not a folder"),
+                      (a_file / "run", "cannot be created")):
+        assert main(["train", "--out", str(out)]) == 2
+        err = capsys.readouterr().err.strip()
+        assert err.startswith(f"wrapbench train: {out}: --out: {says}") and "\n" not in err
+    assert a_file.read_text() == "mine"
 
 
 @pytest.mark.parametrize("given, says", [("nope.zip", "no such file"),
