@@ -312,6 +312,10 @@ BAD_WRAPS = {
                                  "material.break_strain"),
     "custom yield strain of 1000 %": ({"material": {**CUSTOM, "yield_strain": 10.0}},
                                       "material.yield_strain"),
+    # a film stretching 1000 % before it breaks: stretch films break at 200-835 %
+    # (docs/materials.md, section 2)
+    "custom film breaking at 1000 %": ({"material": {**CUSTOM, "break_strain": 10.0}},
+                                       "material.break_strain"),
     "custom negative hardening": ({"material": {**CUSTOM, "hardening_ratio": -0.1}},
                                   "material.hardening_ratio"),
     "custom cd ratio above 1": ({"material": {**CUSTOM, "cd_ratio": 1.5}}, "material.cd_ratio"),

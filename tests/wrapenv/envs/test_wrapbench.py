@@ -174,6 +174,31 @@ def test_bad_kwargs_raise_at_construction(tiny, kwargs):
         assert err.value.source == "arguments" and err.value.field in kwargs
 
 
+@pytest.mark.parametrize("kwargs, says", [
+    ({"load": 3}, "load must be a LOAD.toml path or a LoadUnit"),
+    ({"calibration": {"friction": {}}}, "calibration must be a CAL.json path"),
+    ({"settings": {"timestep_s": 0.01}}, "settings must be a wrapenv.bench.SimSettings"),
+])
+def test_an_argument_of_the_wrong_type_is_a_type_error_saying_what_it_takes(tiny, kwargs, says):
+    """A programming error, not bad input: Python's TypeError, naming the types taken."""
+    with pytest.raises(TypeError, match=says):
+        make(tiny, **kwargs)
+
+
+def test_a_unit_beyond_the_observation_s_range_is_refused_naming_the_feature(
+        assert_input_error):
+    """One 250 kg drum on a pallet is a valid load, but its bundle mass is 12.5 times the
+    observation's 20 kg scale, beyond the space's bound of 10: no observation may leave it."""
+    drum = LoadUnit.from_dict({
+        "name": "drum", "pallet": {"preset": "EUR"},
+        "bundle": {"length_m": 0.6, "width_m": 0.6, "height_m": 0.9, "mass_kg": 250.0},
+        "stack": {"layers": 1, "pattern": "explicit", "positions": [[0.0, 0.0]]}})
+    with pytest.raises(InputError, match=r"feature 4 \(bundle_mass\) is 12.500, outside "
+                                         r"\[0, 10\]") as info:
+        WrapBenchEnv(load=drum)
+    assert_input_error(info.value, "drum", "load")
+
+
 @pytest.mark.parametrize("levels", ["target", "eumos"])
 def test_a_target_below_the_usual_start_starts_there(tiny, levels):
     """start_g is the standard's 0.2 g unless the target is lower: a 0.15 g target is valid."""
