@@ -12,6 +12,7 @@ from recommender.text import (
     conditions_text,
     g_text,
     level_result,
+    program_summary,
     program_text,
     verdict_table,
 )
@@ -19,6 +20,7 @@ from wrapenv.bench import BenchRun
 from wrapenv.eumos import LevelVerdict, Verdict
 from wrapenv.load import LoadUnit
 from wrapenv.profile import MeasuredProfile, PulseProfile
+from wrapenv.program import Program, Reinforcement
 from wrapenv.wrap import WrapFormat
 from wrapenv.wrap_report import WrapReport
 
@@ -107,3 +109,20 @@ def test_the_test_conditions_name_the_sled_s_motion_the_settling_and_the_solve()
                                "lab/profile.csv")
     assert conditions_text([measured], run).startswith(
         "sled: the sled's measured profile lab/profile.csv (1.00 s, peak 0.500 g);")
+
+
+def test_a_program_s_one_line_summary_names_every_zone_in_the_order_it_is_laid():
+    """The benchmarks' tables (benchmarks/programs.py, ppo_vs_cmaes.py) read a program so."""
+    program = Program(bottom_wraps=2, bottom_tension_n=300.4, up_overlap=0.25,
+                      middle_tension_n=250.0, top_wraps=1, top_tension_n=280.0,
+                      down_overlap=0.5, roping=True,
+                      reinforcements=(Reinforcement(from_m=0.47, wraps=2, tension_n=320.0),))
+    assert program_summary(program) == (
+        "2 bottom wraps at 300 N (roped), spiral up 25 % at 250 N, 2 at 0.47 m at 320 N, "
+        "1 top wraps at 280 N, spiral down 50 %")
+
+
+def test_a_sequence_that_passed_no_level_says_none():
+    unit = LoadUnit.from_toml("examples/pet_2layer_columnar.toml")
+    run = BenchRun(Verdict(unit.load_height_m, (level(False),)), (), 20)
+    assert verdict_table(unit, run, None).splitlines()[-1] == "highest level passed: none"
