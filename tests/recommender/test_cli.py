@@ -472,6 +472,24 @@ def test_load_that_tips_over_exits_1_and_reports_the_failure(load_file, tmp_path
     assert verdict["highest_passed_g"] is None
 
 
+def test_without_a_level_simulate_runs_the_eumos_sequence_to_its_first_failure(load_file,
+                                                                               tmp_path):
+    """0.2 g up by 0.1 g to the target (0.5 g), one unit through the levels, ending at the first
+    level failed: the two bundles slide off at 0.4 g (static friction 0.30), so 0.5 g is not
+    run."""
+    path, out = load_file(base=TINY_LOAD), tmp_path / "verdict.json"
+    assert run(["simulate", str(path), "--json", str(out)]) == 1
+    verdict = json.loads(out.read_text())
+    assert [v["level_g"] for v in verdict["levels"]] == pytest.approx([0.2, 0.3, 0.4])
+    assert verdict["highest_passed_g"] == pytest.approx(0.3)
+    assert verdict["sequence"] == "cumulative"
+    # a target off the 0.1 g steps is the last level all the same
+    assert run(["simulate", str(path), "--start", "0.15", "--target", "0.28", "--json",
+                str(out)]) == 0
+    assert [v["level_g"] for v in json.loads(out.read_text())["levels"]] == pytest.approx(
+        [0.15, 0.25, 0.28])
+
+
 # --- wrapped units: simulate --wrap ---------------------------------------------------------
 
 WRAP_TEXT = """material = "kraft"
