@@ -161,6 +161,7 @@ def test_a_unit_that_slides_off_the_sled_fails_and_is_no_blow_up():
 
 
 def test_non_finite_state_is_invalid(monkeypatch):
+    """NaN from the start: the unit is judged to have come apart before the sled moved."""
     real = bullet.BulletWorld.poses
 
     def nan_poses(self, indices):
@@ -170,6 +171,35 @@ def test_non_finite_state_is_invalid(monkeypatch):
     monkeypatch.setattr(bullet.BulletWorld, "poses", nan_poses)
     trace = run_level(LoadUnit.from_dict(SMALL).layout(), PulseProfile(0.2))
     assert not trace.valid
+    assert not evaluate(trace).passed
+
+
+def _from_call(n: int, monkeypatch, method: str, change) -> None:
+    """BulletWorld.`method` answers as Bullet does, then `change`d from its `n`-th call on:
+    the level is under way (the settled state, the first call, was sound)."""
+    real, calls = getattr(bullet.BulletWorld, method), {"n": 0}
+
+    def later(self, *args):
+        calls["n"] += 1
+        answer = real(self, *args)
+        return change(answer) if calls["n"] >= n else answer
+
+    monkeypatch.setattr(bullet.BulletWorld, method, later)
+
+
+def test_a_state_turned_non_finite_during_the_level_is_invalid(monkeypatch):
+    _from_call(100, monkeypatch, "state", lambda s: (s[0] * np.nan, *s[1:]))
+    trace = run_level(LoadUnit.from_dict(SMALL).layout(), PulseProfile(0.2))
+    assert (trace.valid, trace.invalid_reason) == (False, "non-finite state")
+    assert not evaluate(trace).passed
+
+
+def test_bodies_the_solver_let_sink_into_each_other_make_the_level_invalid(monkeypatch):
+    """Deeper than `PENETRATION_LIMIT_M` the solver has lost the contact: whatever the figures
+    say, the run is no test."""
+    _from_call(2, monkeypatch, "max_penetration_m", lambda depth: 0.05)   # every 24 steps
+    trace = run_level(LoadUnit.from_dict(SMALL).layout(), PulseProfile(0.2))
+    assert (trace.valid, trace.invalid_reason) == (False, "bodies interpenetrate by 50 mm")
     assert not evaluate(trace).passed
 
 
