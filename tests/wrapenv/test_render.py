@@ -18,10 +18,12 @@ from wrapenv.render import (
     SideCamera,
     WrapOverlay,
     quaternions,
+    torn_net,
 )
 from wrapenv.trace import Trace
 from wrapenv.wrap import WrapFormat
 from wrapenv.wrap_physics import WrapNet
+from wrapenv.wrap_report import WrapReport
 
 EXAMPLE_2 = "examples/pet_2layer_columnar.toml"
 #: Non-integer origin, so the mapping is checked below pixel level too.
@@ -160,6 +162,32 @@ def test_one_torn_ring_leaves_a_gap_and_film_has_its_own_tint(layout):
     assert np.any(wrapped[rows, cols] != plain[rows, cols])
     mean = [img[rows, cols].reshape(-1, 3).mean(0) for img in (wrapped, filmed)]
     assert np.abs(mean[0] - mean[1]).max() > 5
+
+
+def _at_rest(layout, report: WrapReport | None) -> Trace:
+    pallet_pos_m, pallet_rot, bundle_pos_m, bundle_rot = rest(layout)
+    n = len(layout.bundles)
+    return Trace(level_g=0.5, load_height_m=layout.load_height_m,
+                 names=tuple(b.name for b in layout.bundles), bottom_z_m=np.zeros(n),
+                 t_s=np.zeros(1), sled_accel_mps2=np.zeros(1),
+                 pallet_pos_m=pallet_pos_m[None], pallet_rot=pallet_rot[None],
+                 bundle_pos_m=bundle_pos_m[None], bundle_rot=bundle_rot[None], wrap=report)
+
+
+def test_a_wrap_is_drawn_torn_at_every_height_its_run_reported_torn(layout):
+    """A trace records the heights that tore, not the elements: every ring and panel at such a
+    height is drawn torn, and no other."""
+    wrap = wrap_format()
+    net = WrapNet(wrap, layout)
+    ring_at = round(float(net.rings.height_m[2]), 4)      # a ring, and a panel (between rings)
+    panel_at = round(float(np.unique(net.panels.height_m)[2]), 4)
+    torn = torn_net(wrap, layout, _at_rest(layout, WrapReport((ring_at, panel_at), 1.3, 0.02)))
+    for elements in (torn.rings, torn.panels):
+        assert elements.torn.any()
+        assert np.array_equal(elements.torn, np.isin(np.round(elements.height_m, 4),
+                                                     (ring_at, panel_at)))
+    intact = torn_net(wrap, layout, _at_rest(layout, WrapReport((), 0.4, 0.0)))
+    assert not intact.rings.torn.any() and not intact.panels.torn.any()
 
 
 def test_a_trace_frame_is_the_frame_of_its_sample(layout):
