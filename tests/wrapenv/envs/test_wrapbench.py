@@ -576,6 +576,18 @@ def test_a_drawn_test_needs_a_reset_before_the_first_step(tiny, kwargs):
     env.close()
 
 
+def test_a_new_unit_is_drawn_by_a_renderer_of_its_own_and_the_old_one_closed():
+    env = WrapBenchRandomEnv(levels="target", render_mode="rgb_array")
+    env.reset(seed=1)
+    first_frame, first = env.render(), env._renderer
+    env.reset(seed=2)
+    second_frame = env.render()
+    assert first is not None and first.world.closed and env._renderer is not first
+    assert first_frame.shape == second_frame.shape and not np.array_equal(first_frame,
+                                                                          second_frame)
+    env.close()
+
+
 def test_the_short_side_renders_turned(tiny):
     long_env = make(tiny, orientation="long", render_mode="rgb_array")
     short_env = make(tiny, orientation="short", render_mode="rgb_array")
