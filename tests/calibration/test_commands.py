@@ -20,7 +20,7 @@ from calibration.commands import _summary, _validation_summary
 from calibration.fit import FitResult
 from calibration.recording import Truth
 from calibration.trajectories import ObjectPath, Trajectories
-from calibration.validate import REPEATS, Check, Validation
+from calibration.validate import REPEATS, Check, Unpredictable, Validation
 from recommender.cli import main
 from tests.calibration.conftest import SLIDE_BUDGET
 from wrapenv.calibrated import Calibration
@@ -542,6 +542,24 @@ def test_calibrate_validates_on_a_recording_it_was_not_fitted_to(slide_dir, slid
     assert "spreads from the prediction over the calibration's uncertainty" in out
     assert isinstance(check["largest_layer_on_pallet"]["explained"], bool)
     assert Calibration.from_json(cal).friction["pallet_bundle"].identified
+
+
+def test_a_held_out_take_the_calibrated_bench_cannot_replay_leaves_nothing_written(
+        slide_dir, slide_at_05, tmp_path, capsys, monkeypatch):
+    """A blown-up replay is no prediction (tests/calibration/test_validate.py): the command
+    then writes no CAL.json and keeps no checkpoint, and says why in one line."""
+    def unpredictable(observations, calibration, pool):
+        raise Unpredictable(f"every replay of {slide_at_05} with the calibrated values became "
+                            "unphysical")
+
+    monkeypatch.setattr("calibration.validate.validate", unpredictable)
+    cal = tmp_path / "cal.json"
+    assert main(["calibrate", str(slide_dir), "--out", str(cal), "--budget", "40",
+                 "--validate", str(slide_at_05)]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err[-1] == (f"wrapbench calibrate: --validate: every replay of {slide_at_05} with "
+                       "the calibrated values became unphysical; nothing written")
+    assert list(tmp_path.iterdir()) == []
 
 
 def test_the_validation_summary_shows_upper_layers_on_the_pallet():
