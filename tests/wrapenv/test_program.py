@@ -128,6 +128,18 @@ def test_a_linear_band_averages_exactly():
     assert ramp.clipped(0.5) == Band(0.0, 0.5, 0.0, 100.0, layers_to=1.0)
 
 
+def test_a_linear_band_off_the_origin_averages_from_its_own_foot():
+    """From 1 layer at 0.2 m to 3 at 1.0 m (2.5 layers a metre): 1.5 layers at 0.4 m, 2.5 on
+    average over its top 0.4 m (1.0 layer-metre), 2 over the whole 0.8 m band."""
+    ramp = Band(0.2, 1.0, 1.0, 100.0, layers_to=3.0)
+    assert ramp.layers_at(0.4) == pytest.approx(1.5)
+    assert ramp.layer_metres(0.6, 1.0) == pytest.approx(1.0)
+    assert ramp.layer_metres(0.0, 2.0) == pytest.approx(2.0 * 0.8)
+    assert ramp.layer_metres(1.0, 2.0) == 0.0 and ramp.layers_at(1.0) == 0.0   # [from, to)
+    assert ramp.clipped(0.6) == Band(0.2, 0.6, 1.0, 100.0, layers_to=pytest.approx(2.0))
+    assert ramp.clipped(1.0) is ramp and ramp.clipped(0.2) is None
+
+
 # --- material used -----------------------------------------------------------------------------
 
 
@@ -137,10 +149,13 @@ def test_material_of_a_parked_revolution_goes_round_the_pallet_then_the_load():
     assert pass_area_m2(three, W, outline) == pytest.approx(3 * (0.2 * 4.0 + 0.3 * 3.0))
 
 
-def test_material_of_a_spiral_is_its_helical_turns_times_the_web():
+@pytest.mark.parametrize("pallet_top_m", [0.144, 0.6])
+def test_material_of_a_spiral_is_its_helical_turns_times_the_web(pallet_top_m):
     """Against numerical integration: the web area of one turn whose edge is at e, averaged
-    over the edge's travel, times the number of turns, times the helix's stretch."""
-    outline = Outline(pallet_top_m=0.144, pallet_perimeter_m=4.0, load_perimeter_m=3.6)
+    over the edge's travel, times the number of turns, times the helix's stretch. A turn's web
+    changes with e where its upper edge, then its lower edge, passes the pallet's top: on a
+    0.6 m pallet both within the spiral's travel."""
+    outline = Outline(pallet_top_m=pallet_top_m, pallet_perimeter_m=4.0, load_perimeter_m=3.6)
     spiral = Pass("spiral up", 0.0, 1.2, 4.8, 100.0)  # rise 0.25 m
     edges = np.linspace(0.0, 1.2, 20001)
     per_turn = [outline.web_area_m2(e, e + W) for e in edges]
@@ -189,6 +204,8 @@ def test_a_band_form_is_costed_as_full_width_revolutions():
     narrow = WrapFormat(KRAFT, W, (Band(0.0, 0.3, 1, 100.0),), "kraft")
     assert narrow.material_used(outline).area_m2 == pytest.approx(0.2 * 4.0 + 0.3 * 3.0)
     tall = WrapFormat(KRAFT, W, (Band(0.0, 1.2, 2, 100.0),), "kraft")  # 3 stacks of 2 wraps
+    assert [(p.start_m, p.end_m, p.turns) for p in tall.passes] == [
+        (0.0, 0.0, 2.0), (0.5, 0.5, 2.0), (1.0, 1.0, 2.0)]           # one web width apart
     assert tall.material_used(outline).revolutions == 6
     assert tall.material_used(outline).area_m2 == pytest.approx(
         2 * (0.2 * 4.0 + 0.3 * 3.0) + 2 * 0.5 * 3.0 + 2 * 0.5 * 3.0)
@@ -273,6 +290,16 @@ def test_a_spiral_faster_than_the_carriage_takes_the_carriage_s_time():
     fast = Machine(rpm=30.0, carriage_speed_mps=0.1, handling_s=0.0, ramp_s=0.0)
     # 3 turns at 30 rpm would take 6 s; the carriage needs 15 s for 1.5 m, then 15 s back
     assert cycle_time_s((spiral,), 0.0, 30.0, fast) == pytest.approx(15.0 + 15.0)
+
+
+def test_the_carriage_travels_between_passes_that_do_not_join_and_back_home():
+    """A band form's stacks: 2 turns parked at 0.1 m and 3 at 0.6 m (25 s at 12 rpm); the
+    carriage climbs the 0.5 m between them at 0.1 m/s (5 s), then returns the 0.5 m home
+    (5 s), which here takes longer than the 2 s pallet change and so sets the cycle."""
+    low, high = Pass("band", 0.1, 0.1, 2.0, 100.0), Pass("band", 0.6, 0.6, 3.0, 100.0)
+    machine = Machine(carriage_speed_mps=0.1, handling_s=2.0, ramp_s=0.0)
+    assert cycle_time_s((low, high), 0.1, 12.0, machine) == pytest.approx(25.0 + 5.0 + 5.0)
+    assert cycle_time_s((low, high), 0.6, 12.0, machine) == pytest.approx(25.0 + 5.0 + 2.0)
 
 
 def test_the_rotation_starts_and_stops_once_a_cycle():
