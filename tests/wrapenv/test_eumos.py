@@ -157,6 +157,18 @@ def test_no_level_of_a_run_that_blew_up_is_reported_as_passed():
     assert Verdict(HEIGHT_M, (before,)).to_json()["levels"][0]["passed"] is True
 
 
+def test_each_figure_is_also_given_in_percent_of_the_load_height():
+    """simulate's JSON (`*_pct`) and the report's table: 20 mm out and 10 mm left on a 0.8 m
+    load are 2.5 % and 1.25 % of its height; the lowest 20 cm's limit is in metres alone."""
+    level = evaluate(replace(trace([[0.0], [0.02], [0.01]], [0.5]), load_height_m=0.8))
+    assert level.elastic_max_pct == pytest.approx(2.5)
+    assert level.permanent_max_pct == level.permanent_total_max_pct == pytest.approx(1.25)
+    assert ELASTIC.figure_text(level, 0.8) == "20.0 mm (2.5 %)"
+    assert PERMANENT.figure_text(level, 0.8) == "10.0 mm (1.2 %)"
+    low = evaluate(replace(trace([[0.0], [0.01]], [0.0]), load_height_m=0.8))
+    assert LOW_ZONE.figure_text(low, 0.8) == "10.0 mm"
+
+
 def test_permanent_since_the_unit_was_put_on_is_what_the_criterion_judges():
     # the unit stood 3 cm further back when it was first put on the sled: this level moved the
     # bundle 3 cm (passes alone), 6 cm since it was put on (over 5 %)
@@ -209,3 +221,4 @@ def test_a_layer_shift_limit_outside_none_to_all_of_the_height_is_refused(
         Limits(layer_shift_fraction=fraction)
     assert_input_error(info.value, "criteria", "layer_shift_fraction")
     assert Limits(layer_shift_fraction=0.02).criteria()[-1].key == LAYER_SHIFT
+    assert Limits(layer_shift_fraction=1.0).layer_shift_fraction == 1.0   # all of it: allowed
