@@ -10,6 +10,7 @@ from wrapenv.calibrated import Calibration
 from wrapenv.load import LoadUnit
 from wrapenv.material import MATERIALS
 from wrapenv.uncertainty import (
+    DEFAULT_FRICTION_STD,
     DEFAULT_GIVE_STD,
     DEFAULT_SCALE_STD,
     MASS_SPREAD,
@@ -45,6 +46,17 @@ def test_a_calibration_sets_the_wrap_s_scales_and_their_spread():
     stiffness = np.array([u.draw(LOAD, s).stiffness_scale for s in range(200)])
     assert abs(stiffness.mean() - 1.4) < 0.01 and stiffness.std() < 0.03
     assert u.tension_scale_std == DEFAULT_SCALE_STD  # not calibrated: the default spread
+
+
+def test_a_calibration_s_friction_spreads_replace_the_default_pair_by_pair():
+    """Both of a calibrated pair's spreads are its own; a pair it gives no spread for (0: a
+    value measured elsewhere) or does not name keeps the default."""
+    cal = Calibration.from_dict({"friction": {
+        "pallet_bundle": {"static": 0.3, "kinetic": 0.25, "static_std": 0.1, "kinetic_std": 0.08},
+        "bundle_bundle": {"static": 0.4, "kinetic": 0.3}}})
+    std = Uncertainty.of(cal, 0.0).friction_std
+    assert std["pallet_bundle"] == (0.1, 0.08)
+    assert std["bundle_bundle"] == std["sled_pallet"] == (DEFAULT_FRICTION_STD,) * 2
 
 
 def test_the_load_s_give_is_drawn_round_the_load_s_own():
