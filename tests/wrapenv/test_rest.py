@@ -118,6 +118,10 @@ def test_nothing_is_skipped_under_an_acceleration_that_could_move_a_body():
     rest = Rest(unit(), np.full(20, -0.46 * G), DRIFT_M)
     _, rot = poses()
     assert rest.unchanged_until(3, rot, end=20) == 3
+    # exactly at the lowest static friction, friction holds with nothing to spare: not quiet
+    at_limit = Rest(unit(), np.full(20, -quiet_accel_mps2(unit())), DRIFT_M)
+    assert at_limit.unchanged_until(3, rot, end=20) == 3
+    assert not at_limit.quiet_between(0, 20)
 
 
 def test_nothing_is_skipped_while_a_bundle_leans_on_something():
@@ -135,7 +139,8 @@ def test_nothing_is_skipped_while_a_push_acts():
     rest = Rest(unit(), ACCEL, DRIFT_M, push_until=20)
     _, rot = poses()
     assert rest.unchanged_until(12, rot, end=40) == 12
-    assert rest.unchanged_until(21, rot, end=40) == 29
+    assert rest.unchanged_until(19, rot, end=40) == 19
+    assert rest.unchanged_until(20, rot, end=40) == 29       # the push acts before step 20
 
 
 def test_a_stretch_is_quiet_only_if_every_acceleration_in_it_is():
