@@ -226,6 +226,13 @@ def test_bad_calibration_is_rejected_naming_file_and_field(data, field, tmp_path
     assert_input_error(info.value, str(path), field)
 
 
+def test_a_pair_whose_kinetic_coefficient_equals_its_static_one_is_accepted(tmp_path):
+    """No drop from sticking to sliding (a pair the fit found at the ratio's top, 1.0)."""
+    path = write_json(tmp_path, edited(friction__sled_pallet__kinetic=0.45))
+    pair = Calibration.from_json(path).friction["sled_pallet"]
+    assert pair.static == pair.kinetic == 0.45
+
+
 def test_nan_in_calibration_json_is_rejected(tmp_path, assert_input_error):
     text = json.dumps(CAL).replace("0.45", "NaN", 1)
     path = write_json(tmp_path, text)
@@ -321,6 +328,8 @@ def test_the_widest_spread_a_file_may_give_draws_within_what_a_file_may_give():
     statics = [d.friction["sled_pallet"].static for d in draws]
     assert max(statics) == MAX_FRICTION_COEFFICIENT and min(statics) >= MIN_DRAWN_STATIC
     assert max(d.stiffness_scale for d in draws) == SCALE_RANGE[1]
+    # 19 +- 20 falls below zero a sixth of the time: such draws stop at a tenth of the value
+    assert min(d.stiffness_scale for d in draws) == pytest.approx(1.9)
 
 
 def test_a_draw_is_fixed_by_its_seed_and_a_calibration_without_spread_is_its_own_draw():

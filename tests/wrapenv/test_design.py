@@ -88,6 +88,27 @@ def test_tension_spans_5_to_50_percent_of_a_layer_s_yield_force(space):
     assert space.program(space.high).middle_tension_n == pytest.approx(hi, abs=0.1)
 
 
+def test_a_policy_s_action_spans_the_space_from_its_low_to_its_high_end(space):
+    """-1 is each range's low end, +1 its high end, 0 its middle (environments `-v3`)."""
+    ones = np.ones(N_PARAMS)
+    assert space.decode(-ones) == space.wrap(space.low)
+    assert space.decode(ones) == space.wrap(space.high)
+    assert space.decode(0 * ones) == space.wrap((space.low + space.high) / 2)
+    assert space.decode(3 * ones) == space.decode(ones)            # clipped
+
+
+def test_a_reinforcement_may_be_parked_up_to_where_its_web_reaches_the_load_s_top(space):
+    assert space.high[4] == pytest.approx(0.804 - 0.5)
+
+
+def test_the_machine_s_default_program_lays_every_zone_at_half_the_yield_force(space):
+    default = space.machine_default()
+    half = space.material.yield_force_n_per_m * space.web_width_m / 2
+    assert (default.bottom_wraps, default.up_overlap, default.top_wraps) == (3, 0.5, 3)
+    assert (default.bottom_tension_n, default.middle_tension_n, default.top_tension_n) == (
+        pytest.approx(half),) * 3
+
+
 def test_a_vector_survives_program_and_back(space):
     x = np.array([3, 2, 1, 0.4, 0.2, 200.0, 300.0, 400.0, 500.0])
     assert np.allclose(space.values(space.program(x)), x)
