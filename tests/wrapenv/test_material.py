@@ -62,7 +62,9 @@ def test_a_custom_card_without_a_relaxation_law_relaxes_as_its_kind(wrap_data):
     does not relax gives `relaxation = {plateau = 1.0}`. Each is written back as read."""
     cards = {"film": {**CUSTOM}, "paper": {**CUSTOM_PAPER},
              "none": {**CUSTOM_PAPER, "relaxation": {"plateau": 1.0}},
-             "own": {**CUSTOM_PAPER, "relaxation": {"plateau": 0.9, "terms": [[0.1, 5.0]]}}}
+             "own": {**CUSTOM_PAPER, "relaxation": {"plateau": 0.9, "terms": [[0.1, 5.0]]}},
+             # a term of no amplitude relaxes nothing: allowed, as a card may list it
+             "idle": {**CUSTOM_PAPER, "relaxation": {"plateau": 1.0, "terms": [[0.0, 5.0]]}}}
     laws = {}
     for key, table in cards.items():
         wrap = WrapFormat.from_dict(wrap_data({"material": table, **LOW_TENSION}))
@@ -71,6 +73,7 @@ def test_a_custom_card_without_a_relaxation_law_relaxes_as_its_kind(wrap_data):
     assert laws["film"] == FILM_RELAXATION and laws["paper"] == PAPER_RELAXATION
     assert laws["none"] == NO_RELAXATION and laws["own"].retained(5.0) == pytest.approx(
         0.9 + 0.1 / 2.718281828459045)
+    assert laws["idle"].retained(5.0) == 1.0
 
 
 def test_a_custom_card_takes_the_fields_given_and_writes_them_back(wrap_data):

@@ -332,6 +332,14 @@ BAD_WRAPS = {
     "custom relaxation of a negative time": (
         {"material": {**CUSTOM, "relaxation": {"plateau": 0.7, "terms": [[0.3, -1.0]]}}},
         "material.relaxation.terms[0]"),
+    "custom relaxation of no time": (
+        {"material": {**CUSTOM, "relaxation": {"plateau": 0.7, "terms": [[0.3, 0.0]]}}},
+        "material.relaxation.terms[0]"),
+    "custom relaxation term with a word": (
+        {"material": {**CUSTOM, "relaxation": {"plateau": 0.7, "terms": [[0.3, "1 h"]]}}},
+        "material.relaxation.terms[0]"),
+    "custom hardening as steep as the elastic slope": (
+        {"material": {**CUSTOM, "hardening_ratio": 1.0}}, "material.hardening_ratio"),
     "custom relaxation above 1": ({"material": {**CUSTOM, "relaxation": {"plateau": 1.5}}},
                                   "material.relaxation.plateau"),
     "custom paper pre-stretched": ({"material": {**CUSTOM, "kind": "paper", "break_strain": 0.2,
