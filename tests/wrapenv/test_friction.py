@@ -10,8 +10,9 @@ import numpy as np
 import pytest
 from threadpoolctl import threadpool_limits
 
-from wrapenv.friction import SLIP_SPEED_MPS, STICK_SPEED_MPS, StickSlip
+from wrapenv.friction import SLIP_SPEED_MPS, STICK_SPEED_MPS, StickSlip, _side_contacts
 from wrapenv.load import Friction, FrictionPair, LoadUnit
+from wrapenv.scene import BenchScene
 
 FRICTION = Friction(sled_pallet=FrictionPair(0.45, 0.34), pallet_bundle=FrictionPair(0.5, 0.4),
                     bundle_bundle=FrictionPair(0.3, 0.2))
@@ -89,12 +90,72 @@ def test_hysteresis_keeps_a_slide_going_until_it_is_slower_than_the_stick_speed(
 
 
 def test_a_turning_body_slides_at_its_contact_point_not_at_its_centre():
-    """A bundle spinning about a horizontal axis through its centre moves its underside."""
+    """A bundle spinning about a horizontal axis through its centre moves its underside,
+    0.165 m below, at w x 0.165 m: it slides from w = 2 mm/s / 0.165 m on. A bundle rolling
+    on its support (its centre moving at w x 0.165 m, so that its underside stands still)
+    does not slide."""
     ss = StickSlip(unit(1).layout())
     pos, rot, vel, omega = at_rest(ss.n_bodies)
-    omega[2, 1] = 0.1  # rad/s about y: the bottom face (0.165 m below) moves at 16.5 mm/s
+    on_its_support = [c.body == 2 for c in ss.resting]
+    for share, slides in ((0.8, False), (1.2, True)):
+        omega[2, 1] = share * SLIP_SPEED_MPS / 0.165      # rad/s about y
+        ss.stick_all()
+        ss.update(pos, rot, vel, omega)
+        assert ss.sliding[on_its_support].all() == slides, share
+    omega[2, 1] = 0.1                                     # the underside at -16.5 mm/s ...
+    vel[2, 0] = 0.1 * 0.165                               # ... which rolling keeps still
+    ss.stick_all()
+    assert ss.update(pos, rot, vel, omega) == []
+
+
+def test_a_unit_turning_as_one_body_slides_nowhere_but_a_pallet_turning_under_it_does():
+    """Turning about the pallet's vertical axis at 0.01 rad/s: carried rigidly (each bundle's
+    velocity w x r), no contact moves relative to its other body. Bundles left standing while
+    the pallet turns slide at w times their distance from the axis: those beyond 0.2 m exceed
+    the 2 mm/s slip speed, the others stick."""
+    layout = unit(1).layout()
+    ss = StickSlip(layout)
+    pos, rot, vel, omega = at_rest(ss.n_bodies)
+    pallet = 1
+    pos[pallet] = (0.0, 0.0, layout.pallet_size_m[2] / 2)
+    pos[2:] = [b.centre_m for b in layout.bundles]
+    turn = np.array([0.0, 0.0, 0.01])
+    omega[pallet:] = turn
+    vel[2:] = np.cross(turn, pos[2:] - pos[pallet])
+    assert ss.update(pos, rot, vel, omega) == [] and not ss.sliding.any()
+    vel[2:], omega[2:] = 0.0, 0.0
     ss.update(pos, rot, vel, omega)
-    assert ss.sliding[[c.body == 2 for c in ss.resting]].all()
+    on_pallet = [k for k, c in enumerate(ss.resting) if c.other == pallet]
+    far = [0.01 * np.hypot(*pos[ss.resting[k].body, :2]) > SLIP_SPEED_MPS for k in on_pallet]
+    assert ss.sliding[on_pallet].tolist() == far and any(far) and not all(far)
+    assert not ss.sliding[[k for k, c in enumerate(ss.resting) if c.body == pallet]].any()
+
+
+def test_side_contacts_are_neighbours_in_a_layer_face_to_face_within_a_centimetre():
+    """Four 0.28 x 0.19 m bundles in two rows: 5 mm apart along x (side contacts), 20 mm
+    apart along y (too far to press on each other), and diagonal neighbours touch no face."""
+    x, y = 0.285 / 2, 0.21 / 2
+    layout = LoadUnit.from_dict({
+        "name": "rows", "pallet": {"preset": "EUR"},
+        "bundle": {"length_m": 0.28, "width_m": 0.19, "height_m": 0.33, "mass_kg": 9.0},
+        "stack": {"layers": 2, "pattern": "explicit",
+                  "positions": [[-x, -y], [x, -y], [-x, y], [x, y]]}}).layout()
+    scene = BenchScene(layout)
+    side = {frozenset((scene.bodies[c.body].name, scene.bodies[c.other].name))
+            for c in _side_contacts(scene)}
+    assert side == {frozenset((f"L{n}C1R1", f"L{n}C2R1")) for n in (1, 2)} | {
+        frozenset((f"L{n}C1R2", f"L{n}C2R2")) for n in (1, 2)}
+
+
+def test_one_layer_s_neighbours_meet_the_bundle_on_bundle_value_with_the_freedom_left():
+    """On one layer the resting contacts leave the bundles' common coefficient free (the sled's
+    and the pallet's trade against each other): it is set so that face-to-face neighbours,
+    each m = sqrt(0.3), press on each other at the bundle-bundle value."""
+    ss = StickSlip(unit(1).layout())
+    mu = ss.coefficients()
+    side = _side_contacts(ss.scene)
+    assert side and all(mu[c.body] * mu[c.other] == pytest.approx(0.3, rel=1e-4) for c in side)
+    assert products(ss)[(1, 0)] == pytest.approx(FRICTION.sled_pallet.static)  # still met
 
 
 def test_an_interlocked_stack_meets_its_resting_contacts_by_least_squares():
