@@ -63,6 +63,19 @@ def test_pulse_decelerates_at_decel_ratio_of_the_level_until_the_sled_stops(puls
 
 
 @pytest.mark.parametrize("pulse", PULSES, ids=PULSE_IDS)
+def test_the_braking_ramp_has_the_jerk_of_the_ramp_up(pulse):
+    """From the level a down to the deceleration -d at a / ramp_s: (a + d) ramp_s / a long."""
+    a, d = pulse.peak_mps2, pulse.decel_ratio * pulse.peak_mps2
+    start = pulse.ramp_s + pulse.dwell_s
+    if pulse.ramp_s == 0:
+        assert float(pulse.accel(start + 1e-9)) == pytest.approx(-d)
+        return
+    for share in (0.25, 0.5, 0.75):
+        dt = share * pulse.ramp_s * (a + d) / a
+        assert float(pulse.accel(start + dt)) == pytest.approx(a - a / pulse.ramp_s * dt)
+
+
+@pytest.mark.parametrize("pulse", PULSES, ids=PULSE_IDS)
 def test_sled_velocity_returns_to_rest_at_the_end_and_never_reverses(pulse):
     t, a, v = sampled(pulse)
     peak_v = v.max()
@@ -276,6 +289,7 @@ def test_profile_csv_time_may_start_later_than_zero(tmp_path):
     assert float(profile.accel(0.05)) == pytest.approx(1.5)
     assert float(profile.accel(0.3)) == 0.0
     assert float(profile.accel(-0.1)) == 0.0
+    assert profile.duration_s == pytest.approx(0.2)
 
 
 def test_profile_csv_saved_by_excel_with_a_byte_order_mark_is_read(tmp_path):
@@ -333,6 +347,10 @@ def test_a_logger_left_running_a_minute_is_a_measured_profile(tmp_path):
     lines = ["t_s,accel_mps2", "0,0", "0.5,4.9", "1.0,0"] + [f"{t},0" for t in range(2, 61)]
     path = write_csv(tmp_path, "\n".join(lines) + "\n")
     assert MeasuredProfile.from_csv(path).t_s[-1] == 60
+    # what counts is the span: a logger whose clock read 100 s at the first row
+    late = write_csv(tmp_path, "\n".join(
+        ["t_s,accel_mps2", "100,0", "100.5,4.9", "101.0,0", "160,0"]) + "\n")
+    assert MeasuredProfile.from_csv(late).duration_s == pytest.approx(60.0)
 
 
 def test_missing_profile_csv_is_rejected_naming_the_file(tmp_path, assert_input_error):
