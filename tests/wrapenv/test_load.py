@@ -19,7 +19,12 @@ from wrapenv.load import (
     LoadUnit,
     Pallet,
 )
-from wrapenv.load_checks import MAX_BUNDLES, MAX_LOAD_HEIGHT_M, MIN_BUNDLE_SIDE_M
+from wrapenv.load_checks import (
+    MAX_BUNDLES,
+    MAX_LOAD_HEIGHT_M,
+    MIN_BUNDLE_SIDE_M,
+    _bundle_count,
+)
 
 EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
 NAME = re.compile(r"^L(\d+)C(\d+)R(\d+)$")
@@ -33,6 +38,21 @@ def minimal(**tables) -> dict:
     }
     data.update(tables)
     return data
+
+
+@pytest.mark.parametrize("layers", [1, 2, 3, 4])
+@pytest.mark.parametrize("example", ["pet_2layer_columnar", "pet_3layer_interlocked",
+                                     "pet_3layer_half_pallet"])
+def test_the_bundles_counted_before_laying_out_are_those_laid_out(example, layers):
+    """The limits (the bench's most bundles, the pallet's safe load) are checked on a count
+    made without placing the bundles: it must be the layout's, straight and turned layers
+    alike."""
+    unit = LoadUnit.from_toml(f"examples/{example}.toml")
+    unit = replace(unit, stack=replace(unit.stack, layers=layers))
+    assert _bundle_count(unit) == len(unit.layout().bundles)
+    explicit = LoadUnit.from_dict(minimal(stack={"layers": layers, "pattern": "explicit",
+                                                 "positions": [[-0.3, 0.0], [0.3, 0.0]]}))
+    assert _bundle_count(explicit) == len(explicit.layout().bundles) == 2 * layers
 
 
 def by_layer(layout) -> dict[int, list]:
