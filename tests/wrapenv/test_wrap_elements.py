@@ -39,6 +39,8 @@ def test_strain_past_yield_leaves_permanent_stretch():
     # it takes the permanent stretch (0.02 - 11/1000 = 0.009 m) before it pulls again
     assert e.force(np.array([0.009]), np.zeros(1))[0] == pytest.approx(0.0, abs=1e-6)
     assert e.force(np.array([0.010]), np.zeros(1))[0] == pytest.approx(1.0, rel=1e-6)
+    # reloaded beyond where it yielded, it goes on along the hardened line: 12 N at 0.03 m
+    assert e.force(np.array([0.03]), np.zeros(1))[0] == pytest.approx(12.0, rel=1e-6)
 
 
 def test_element_tears_at_its_breaking_force_and_stays_torn():
@@ -46,6 +48,44 @@ def test_element_tears_at_its_breaking_force_and_stays_torn():
     assert e.force(np.array([0.05]), np.zeros(1))[0] == 0.0
     assert e.torn[0]
     assert e.force(np.array([0.001]), np.zeros(1))[0] == 0.0
+
+
+def test_an_element_stands_for_its_metres_of_web_in_series_with_the_load_s_give():
+    """Half a metre of web (yield 5 N, break 25 N of its 10 and 50 N/m) on a load that gives
+    as stiffly as the web: in series, 500 N/m; 2.5 N at 5 mm, yielding from 10 mm."""
+    e = element_set(k_web_n_per_m=np.array([1000.0]), material_strength=(10.0, 50.0, 0.1),
+                    web_m=np.array([0.5]), pretension_n=np.zeros(1), mass_kg=np.ones(1),
+                    height_m=np.zeros(1), length_m=np.ones(1), give_n_per_m=1000.0)
+    assert (e.yield_force_n[0], e.break_force_n[0]) == (5.0, 25.0)
+    assert e.force(np.array([0.005]), np.zeros(1))[0] == pytest.approx(2.5)
+    assert e.force(np.array([0.01]), np.zeros(1))[0] == pytest.approx(5.0)
+    assert e.plastic_m[0] == pytest.approx(0.0, abs=1e-12)
+
+
+def test_an_element_is_damped_at_its_share_of_critical_but_never_pushes():
+    """c = 2 zeta sqrt(k m): 1000 N/m joining 4 kg at 0.2 of critical, 25.3 N s/m; a slack
+    element is not damped, and damping never turns a pull into a push."""
+    e = element_set(k_web_n_per_m=np.array([1000.0]), material_strength=(10.0, 50.0, 0.1),
+                    web_m=np.ones(1), pretension_n=np.zeros(1), mass_kg=np.array([4.0]),
+                    height_m=np.zeros(1), length_m=np.ones(1), give_n_per_m=1e12,
+                    damping_ratio=0.2)
+    c = 2 * 0.2 * math.sqrt(1000.0 * 4.0)
+    assert e.force(np.array([0.005]), np.array([0.1]))[0] == pytest.approx(5.0 + 0.1 * c)
+    assert e.force(np.array([0.005]), np.array([-1.0]))[0] == 0.0
+    assert e.force(np.array([-0.005]), np.array([0.1]))[0] == 0.0
+
+
+def test_an_edge_tears_the_web_at_its_share_of_the_breaking_force_and_records_the_peak():
+    """Round an edge that makes it bear a fifth (factor 5), the element tears once its
+    12 N (10 N at yield, then 100 N/m for 20 mm) times 5 passes its 50 N: the place bore 10 N
+    (50 / 5), its utilisation capped at 1, at the time given."""
+    e = element()
+    e.force(np.array([0.005]), np.zeros(1), edge=5.0, t_s=0.1)
+    assert e.peak[0] == pytest.approx(5.0 * 5 / 50) and e.peak_t_s[0] == 0.1
+    assert not e.torn[0]
+    assert e.force(np.array([0.03]), np.zeros(1), edge=5.0, t_s=0.2)[0] == 0.0
+    assert e.torn[0] and e.peak[0] == 1.0 and e.peak_t_s[0] == 0.2
+    assert e.peak_force_n[0] == pytest.approx(10.0)
 
 
 # -- edges: the web bends round them ------------------------------------------------------
