@@ -12,9 +12,12 @@ from wrapenv.config import InputError
 from wrapenv.envs.observation import (
     MAX_FRICTION_STD,
     OBS_FEATURES,
+    OBS_NAMES,
     check_observable,
     material_features,
+    observe,
 )
+from wrapenv.load import LoadUnit
 from wrapenv.material import MATERIALS
 
 
@@ -42,3 +45,24 @@ def test_the_card_features_are_the_last_six_of_the_observation_and_fit_its_bound
     kraft = material_features(MATERIALS["kraft"])
     assert kraft[:2] == pytest.approx([0.9, math.log10(4e5) / 6])
     assert kraft[-1] == 1.0 and material_features(MATERIALS["lldpe"])[-1] == 0.0
+
+
+def test_a_unit_is_observed_over_fixed_scales_a_trained_policy_relies_on():
+    """The 2-layer example: 2 of 4 layers; its bundle (0.28 x 0.19 x 0.33 m, 9.3 kg) over
+    0.5 m and 20 kg; the EUR pallet over 1.2 m; the load's 0.804 m over 2 m; columnar; its
+    friction as given, no spread; the target in g."""
+    unit = LoadUnit.from_toml("examples/pet_2layer_columnar.toml")
+    calibration = Calibration({"pallet_bundle": CalibratedPair(0.5, 0.42, 0.03, 0.02)})
+    seen = dict(zip(OBS_NAMES, observe(unit, unit.layout(), 0.6, MATERIALS["kraft"],
+                                       calibration).tolist(), strict=True))
+    f = unit.friction
+    expected = {
+        "layers": 0.5, "bundle_length": 0.28 / 0.5, "bundle_width": 0.19 / 0.5,
+        "bundle_height": 0.33 / 0.5, "bundle_mass": 9.3 / 20, "pallet_length": 1.0,
+        "pallet_width": 0.8 / 1.2, "pallet_height": 0.144 / 1.2, "load_height": 0.804 / 2,
+        "pattern_columnar": 1.0, "pattern_interlocked": 0.0, "target_g": 0.6,
+        "friction_sled_pallet_static": f.sled_pallet.static,
+        "friction_pallet_bundle_kinetic": f.pallet_bundle.kinetic,
+        "friction_pallet_bundle_static_std": 0.03, "friction_pallet_bundle_kinetic_std": 0.02,
+        "friction_bundle_bundle_static_std": 0.0}
+    assert {k: seen[k] for k in expected} == pytest.approx(expected, rel=1e-6)
