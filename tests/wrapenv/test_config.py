@@ -12,6 +12,7 @@ from wrapenv.config import (
     InputError,
     Table,
     check_checkpoint,
+    check_distinct,
     check_output,
     check_output_folder,
     printable,
@@ -115,6 +116,26 @@ def test_printable_escapes_control_characters_and_truncates() -> None:
     assert printable("a\nb\tc\u200bd") == "a\\nb\\tc\\u200bd"
     long = printable("x" * 100_000, limit=80)
     assert len(long) <= 80 and long.startswith("x" * 20) and "99920 more characters" in long
+    # the middle is dropped: both ends are kept, and a text as long as the limit is whole
+    ends = printable("a" * 50 + "b" * 50, limit=40)
+    assert len(ends) == 40 and ends.startswith("a") and ends.endswith("b" * 2)
+    assert printable("c" * 40, limit=40) == "c" * 40
+
+
+def test_two_outputs_naming_one_file_by_any_path_are_refused(tmp_path: Path) -> None:
+    """The later write would replace the earlier one: the same path, a path through `..`, or
+    a hard link to the same file; outputs not asked (None) are no file."""
+    (tmp_path / "sub").mkdir()
+    check_distinct({"--json": tmp_path / "a.json", "--wrap-out": tmp_path / "b.toml",
+                    "--report": None})
+    with pytest.raises(InputError, match="is also --json") as info:
+        check_distinct({"--json": tmp_path / "a.json",
+                        "--wrap-out": tmp_path / "sub" / ".." / "a.json"})
+    assert info.value.field == "--wrap-out"
+    (tmp_path / "a.json").write_text("{}")
+    os.link(tmp_path / "a.json", tmp_path / "linked.json")
+    with pytest.raises(InputError, match="is also --json"):
+        check_distinct({"--json": tmp_path / "a.json", "--wrap-out": tmp_path / "linked.json"})
 
 
 def test_a_toml_file_with_a_byte_order_mark_is_read_as_without_one(tmp_path):
@@ -198,3 +219,13 @@ def test_a_whole_number_written_with_a_decimal_point_is_taken_as_one():
         table.integer("layers")
     with pytest.raises(InputError, match="flag: must be a whole number"):
         table.integer("flag")
+
+
+
+def test_a_whole_number_s_bounds_are_inclusive():
+    table = Table({"wraps": 20, "more": 21, "none": -1}, "f.toml")
+    assert table.integer("wraps", minimum=0, maximum=20) == 20
+    with pytest.raises(InputError, match=r"more: must be <= 20 \(got 21\)"):
+        table.integer("more", maximum=20)
+    with pytest.raises(InputError, match=r"none: must be >= 0 \(got -1\)"):
+        table.integer("none", minimum=0)
