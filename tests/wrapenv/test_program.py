@@ -252,6 +252,8 @@ def test_a_program_whose_web_misses_the_pallet_or_lies_above_the_load_is_warned_
             "above the load") in warned(top_overhang_m=0.39)
     assert ("program.reinforcement[0].from_m = 0.6 m: its wraps lay 0.30 m of their 0.5 m "
             "web above the load") in warned(reinforcements=(Reinforcement(0.6, 1, 100.0),))
+    # one from 0.4 m lays 0.096 m above the load, less than half its web: no warning
+    assert warned(reinforcements=(Reinforcement(0.4, 1, 100.0),)) == ""
     assert ("web_width_m = 1 m is more than the load's height (0.804 m) and "
             "program.top_overhang_m (0.05 m): the top wraps are laid from the sled and reach "
             "0.20 m above the load") in warned(web_m=1.0)

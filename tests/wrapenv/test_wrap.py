@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 import tomllib
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -216,6 +217,10 @@ def test_the_json_of_a_program_names_it_and_the_bands_it_lays(program_data):
     assert data["program"]["bottom_wraps"] == 3 and data["program"]["reinforcement"][0]["wraps"]
     assert len(data["bands"]) == len(wrap.bands)
     assert data["bands"][0] == {"from_m": 0.0, "to_m": 0.5, "layers": 3, "tension_n": 400.0}
+    # the machine it runs on, when it is not the default one
+    assert "machine" not in data
+    faster = replace(wrap, machine=replace(wrap.machine, rpm=20.0)).to_json()
+    assert faster["machine"]["rpm"] == 20.0
 
 
 # --- writing back --------------------------------------------------------------------------
