@@ -163,8 +163,9 @@ def test_windows_end_where_a_body_leaves_its_support_and_carry_up(body_map):
     (1, -0.03, "fall"),            # dropped more than FALL_M
 ])
 def test_windows_end_where_a_body_tips_over_or_falls(body_map, column, value, limit):
+    """Counted from where the body was first tracked (here 0.1 m or rad off the layout's)."""
     states = _still()
-    path = np.where(T < 1.0, 0.0, value)
+    path = 0.1 + np.where(T < 1.0, 0.0, value)
     states["L2C2R1"][1][:, column] = path
     frames = features.windows(states, body_map, sled_stop_s=5.0)
     assert frames["L2C2R1"] == int(np.sum(T < 1.0))
@@ -196,3 +197,30 @@ def test_a_column_that_tips_over_on_its_support_toppled(body_map):
     tumble = np.where(slide > L / 2 + 0.05, 1.0, 0.0)
     states["L1C1R1"][1][:] = np.stack([-slide, -0.2 * tumble, -tumble], axis=1)
     assert not features.toppled(states, body_map)
+
+
+def test_slips_and_turns_count_from_the_first_frame_tracked(body_map):
+    """A bundle already 12 mm back, another turned 0.05 rad, when the recording starts: what
+    each does is counted from there, not from where the layout put it."""
+    states = _still()
+    states["L2C2R1"][1][:, 0] = np.linspace(-0.012, -0.032, len(T))
+    states["L2C1R1"][1][:, 2] = np.linspace(0.05, 0.15, len(T))
+    frames = {name: len(T) for name in body_map}
+    assert features.slips(states, body_map)["L2C2R1"][[0, -1]] == pytest.approx([0.0, -0.02])
+    turn = features.vector(states, body_map, frames)[features.spans(frames)["L2C1R1"]][len(T):]
+    assert turn[[0, -1]] == pytest.approx([0.0, H / 2 * 0.1])
+
+
+def test_each_body_s_features_are_its_slip_then_its_turn_in_name_order():
+    frames = {"pallet": 3, "L1C1R1": 2}
+    assert {k: v.tolist() for k, v in features.spans(frames).items()} == {
+        "L1C1R1": [0, 1, 2, 3], "pallet": [4, 5, 6, 7, 8, 9]}
+
+
+def test_a_pallet_that_leaves_the_view_ends_every_window_above_it(body_map):
+    """Windows carry up from the supports, the pallet's first: a pallet sliding off the sled's
+    deck (dropping 5 cm at 1 s) ends every bundle's window there."""
+    states = _still()
+    states["pallet"][1][:, 1] = np.where(T < 1.0, 0.0, -0.05)
+    frames = features.windows(states, body_map, sled_stop_s=5.0)
+    assert set(frames.values()) == {int(np.sum(T < 1.0))}
