@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import types
 
 import numpy as np
 import pytest
@@ -79,6 +80,15 @@ def test_values_whose_replays_never_visit_the_recordings_mode_are_refused(monkey
     verdict = _unit_mode(monkeypatch, replays_in_mode=0)
     assert verdict.rms_m == pytest.approx(math.sqrt(3 * (0.03**2 - NOISE_VAR_M2) / 9))
     assert verdict.rms_m > LIMIT_M
+
+
+def test_a_replay_that_became_unphysical_leaves_its_recording_unexplained():
+    """A blown-up replay is no prediction: whatever the others did, the recording counts as
+    unexplained (infinitely), as it does with no replay at all."""
+    take = types.SimpleNamespace(source="take")
+    sound = {"pallet": (np.zeros(3), np.zeros((3, 3)))}
+    assert acceptance.recording(take, [sound, None]).rms_m == math.inf
+    assert acceptance.recording(take, []).rms_m == math.inf
 
 
 def test_small_units_excuse_no_body():
