@@ -4,16 +4,14 @@ checked before any work and drawn after; bad input exits 2 with one line, nothin
 from __future__ import annotations
 
 import json
-from dataclasses import replace
 from pathlib import Path
 
 import pytest
 
 from recommender import report
 from recommender.cli import main
+from tests.wrapenv.conftest import weak_wrap_on_a_slick_unit
 from wrapenv.bench import run_levels
-from wrapenv.load import FrictionPair, LoadUnit
-from wrapenv.wrap import WrapFormat
 
 EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
@@ -90,14 +88,8 @@ def test_a_torn_wrap_s_map_marks_every_torn_place(monkeypatch):
     """A web that breaks at 0.4 % strain round the 2-layer example on a slippery deck tears at
     0.5 g (tests/wrapenv/test_wrap_physics.py): the map crosses out each place that tore, and
     the glued seam that let go."""
-    load = LoadUnit.from_toml(EXAMPLES / "pet_2layer_columnar.toml")
-    slick = load.with_friction(replace(load.friction, pallet_bundle=FrictionPair(0.2, 0.15)))
-    weak = WrapFormat.from_dict({
-        "material": {"grammage_kg_m2": 0.05, "stiffness_n_per_m": 4e4, "yield_strain": 0.002,
-                     "break_strain": 0.004, "hardening_ratio": 0.5},
-        "web_width_m": 0.5,
-        "band": [{"from_m": 0.0, "to_m": 0.804, "layers": 1, "tension_n": 20.0}]})
-    run = run_levels(replace(slick, pallet_stopper=True), [0.5], wrap=weak)
+    slick, weak = weak_wrap_on_a_slick_unit()
+    run = run_levels(slick, [0.5], wrap=weak)
     places = run.traces[0].wrap.places
     failed = [(p.where, p.height_m) for p in places
               if p.torn or (p.opened and p.element == "seam")]

@@ -5,13 +5,12 @@ fail, and never stop a level that would pass; off by default, so `simulate` keep
 
 from __future__ import annotations
 
-from dataclasses import replace
-
 import pytest
 
+from tests.wrapenv.conftest import weak_wrap_on_a_slick_unit
 from wrapenv.bench import SimSettings, run_level
 from wrapenv.eumos import FALL_DROP_M, WRAP_TORN, evaluate
-from wrapenv.load import FrictionPair, LoadUnit
+from wrapenv.load import LoadUnit
 from wrapenv.profile import PulseProfile
 from wrapenv.wrap import WrapFormat
 
@@ -23,19 +22,6 @@ def example(material: str | None = None) -> tuple[LoadUnit, WrapFormat | None]:
     load = LoadUnit.from_toml(EXAMPLE_3)
     wrap = (WrapFormat.from_toml(f"examples/wrap_{material}_3layer.toml", load.load_height_m)
             if material else None)
-    return load, wrap
-
-
-def weak_wrap_on_a_slick_unit() -> tuple[LoadUnit, WrapFormat]:
-    """A web that yields at 0.2 % and breaks at 0.4 % on the 2-layer example whose bundles
-    slide on the pallet (0.2 / 0.15), as in test_wrap_physics.py: it tears at 0.5 g."""
-    load = LoadUnit.from_toml("examples/pet_2layer_columnar.toml")
-    friction = replace(load.friction, pallet_bundle=FrictionPair(0.2, 0.15))
-    load = replace(load.with_friction(friction), pallet_stopper=True)
-    web = dict(grammage_kg_m2=0.05, stiffness_n_per_m=4e4, yield_strain=0.002,
-               break_strain=0.004, hardening_ratio=0.5)
-    wrap = WrapFormat.from_dict({"material": web, "web_width_m": 0.5, "band": [
-        dict(from_m=0.0, to_m=0.804, layers=1, tension_n=20.0)]})
     return load, wrap
 
 

@@ -18,9 +18,10 @@ from typing import Any
 import numpy as np
 import pytest
 
+from tests.wrapenv.conftest import slick_two_layers, weak_wrap_on_a_slick_unit
 from wrapenv.bench import Push, SimSettings, run_level, run_levels
 from wrapenv.eumos import WRAP_OPENED, WRAP_TORN, evaluate
-from wrapenv.load import FrictionPair, LoadUnit
+from wrapenv.load import LoadUnit
 from wrapenv.material import MATERIALS
 from wrapenv.profile import PulseProfile
 from wrapenv.wrap import WrapFormat
@@ -346,17 +347,9 @@ def test_more_layers_or_more_tension_give_smaller_displacement(vary):
     assert disp[-1] < disp[0] / 2, disp
 
 
-def slick_two_layers() -> LoadUnit:
-    """The 2-layer example with a slippery pallet deck (0.2/0.15) and a stopper behind it."""
-    load = LoadUnit.from_toml(EXAMPLE_2)
-    friction = replace(load.friction, pallet_bundle=FrictionPair(0.2, 0.15))
-    return replace(load.with_friction(friction), pallet_stopper=True)
-
-
 def test_strain_past_break_tears_the_wrap_and_fails_the_verdict():
-    weak = custom(4e4, yield_strain=0.002, break_strain=0.004, hardening_ratio=0.5)
-    trace = run_level(slick_two_layers().layout(), PulseProfile(0.5),
-                      wrap=wrap_format(weak, [(0.0, 0.804, 1, 20.0)]))
+    load, wrap = weak_wrap_on_a_slick_unit()
+    trace = run_level(load.layout(), PulseProfile(0.5), wrap=wrap)
     verdict = evaluate(trace)
     assert trace.wrap.torn and trace.wrap.torn_at_m
     assert WRAP_TORN in verdict.damage

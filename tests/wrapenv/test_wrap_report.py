@@ -6,6 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from tests.wrapenv.conftest import weak_wrap_on_a_slick_unit
 from wrapenv.load import LoadUnit
 from wrapenv.wrap import WrapFormat
 from wrapenv.wrap_geometry import CORNER_NAMES, FACE_NAMES, corner_positions_m
@@ -84,10 +85,7 @@ def test_a_torn_ring_is_torn_where_it_bore_its_limit_its_corners_not_its_faces()
     rings tear. A ring carries one tension, which its corners bear less well (the web bends
     round the bundles' edges): they reached the limit and are the places marked torn, while
     its flat faces bore less and are not."""
-    weak = WrapFormat.from_dict({"material": {
-        "grammage_kg_m2": 0.05, "stiffness_n_per_m": 4e4, "yield_strain": 0.002,
-        "break_strain": 0.004, "hardening_ratio": 0.5}, "web_width_m": 0.5, "band": [
-        {"from_m": 0.0, "to_m": 0.804, "layers": 1, "tension_n": 20.0}]})
+    _, weak = weak_wrap_on_a_slick_unit()
     layout = UNIT.layout()
     net = WrapNet(weak, layout)
     pos = np.array([(0, 0, layout.pallet_size_m[2] / 2)] + [b.centre_m for b in layout.bundles])
