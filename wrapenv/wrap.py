@@ -22,6 +22,7 @@ import tomli_w
 
 from wrapenv.config import InputError, Table, read_toml
 from wrapenv.load import Layout
+from wrapenv.load_checks import MAX_LOAD_HEIGHT_M
 from wrapenv.material import (
     MATERIALS,
     Material,
@@ -52,7 +53,10 @@ from wrapenv.program_table import (
 __all__ = ["MATERIALS", "Band", "Material", "MaterialUsed", "Program",
            "Web", "WrapFormat", "program_to_dict"]
 
-#: Largest web width accepted; machine webs are 0.5 m, wide paper rolls about 1 m.
+#: Web widths accepted: machine webs are 0.5 m, wide paper rolls about 1 m; the narrowest
+#: banding film about 0.1 m. Outside them a width is a slip of units, and a narrow one would
+#: have a band laid as millions of revolutions (docs/materials.md, section 6).
+MIN_WEB_WIDTH_M = 0.05
 MAX_WEB_WIDTH_M = 2.0
 #: The web most spiral wrappers run (docs/materials.md, section 4).
 DEFAULT_WEB_WIDTH_M = 0.5
@@ -435,7 +439,7 @@ def _whole(x: float) -> float | int:
 def _web(top: Table) -> Web:
     """A WRAP.toml's card, web width and machine."""
     key, material = _material(top)
-    width = top.number("web_width_m", positive=True, maximum=MAX_WEB_WIDTH_M)
+    width = top.number("web_width_m", minimum=MIN_WEB_WIDTH_M, maximum=MAX_WEB_WIDTH_M)
     return Web(material, key, width, machine_from_table(top.table("machine")))
 
 
@@ -474,8 +478,8 @@ def _program_or_bands(top: Table, web: Web) -> Program | tuple[Band, ...] | None
 
 
 def _band(t: Table, material: Material, web_width_m: float) -> Band:
-    from_m = t.number("from_m", minimum=0.0)
-    to_m = t.number("to_m")
+    from_m = t.number("from_m", minimum=0.0, maximum=MAX_LOAD_HEIGHT_M)
+    to_m = t.number("to_m", maximum=MAX_LOAD_HEIGHT_M)
     if to_m <= from_m:
         raise t.error("to_m", f"must be above from_m ({from_m} m) (got {to_m})")
     layers = t.integer("layers", minimum=1, maximum=MAX_BAND_LAYERS)

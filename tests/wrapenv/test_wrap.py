@@ -283,6 +283,12 @@ BAD_WRAPS = {
     "missing web width": ({"web_width_m": None}, "web_width_m"),
     "zero web width": ({"web_width_m": 0.0}, "web_width_m"),
     "web wider than 2 m": ({"web_width_m": 2.5}, "web_width_m"),
+    # A band is laid as revolutions a web apart: until 2026-12-01 a 1 µm web, or a band 1e9 m
+    # tall, filled the memory before the band was found to lie above the load.
+    "web of a millimetre": ({"web_width_m": 0.001}, "web_width_m"),
+    "band taller than any load": ({"band.0.to_m": 1e9}, "band[0].to_m"),
+    "band starting above any load": ({"band.1.from_m": 450.0, "band.1.to_m": 804.0},
+                                     "band[1].from_m"),
     "neither a program nor bands (a web alone)": ({"band": None}, "program"),
     "empty band list": ({"band": []}, "band"),
     "band list of numbers": ({"band": [1, 2]}, "band[0]"),
@@ -495,6 +501,16 @@ def test_a_program_figure_in_the_wrong_unit_is_named_as_such(changes, field, say
         WrapFormat.from_toml(path, load_height_m=0.804)
     assert_input_error(info.value, str(path), field)
     assert info.value.message.endswith(says), info.value.message
+
+
+def test_a_band_in_millimetres_is_named_as_such(wrap_file, assert_input_error):
+    """Until 2026-12-01 it was "804.0 m is above the top of the load", and taken where no load
+    was known."""
+    path = wrap_file({"band.1.to_m": 804.0})
+    with pytest.raises(InputError) as info:
+        WrapFormat.from_toml(path)
+    assert_input_error(info.value, str(path), "band[1].to_m")
+    assert info.value.message.endswith("millimetres? to_m is in metres"), info.value.message
 
 
 def test_a_tension_too_slack_to_hold_anything_is_warned_about(wrap_file):
