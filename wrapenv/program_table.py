@@ -13,8 +13,14 @@ from wrapenv.config import InputError, Table, fraction_hint
 from wrapenv.material import MAX_PRESTRETCH, Material, check_tension
 from wrapenv.program import Machine, Program, Reinforcement
 
-#: Fastest rotation accepted: rotary-arm and ring wrappers reach a few tens of rpm.
+#: Rotation accepted: rotary-arm and ring wrappers reach a few tens of rpm; a turntable turns a
+#: fragile load a few times a minute. Below 1 a figure is per second (0.2 for 12 rpm), and the
+#: spiral would be laid as millions of revolutions.
+MIN_RPM = 1.0
 MAX_RPM = 100.0
+#: Carriage speeds accepted: wrappers' carriages climb 0.05-0.2 m/s (docs/materials.md, M1).
+MIN_CARRIAGE_SPEED_MPS = 0.01
+MAX_CARRIAGE_SPEED_MPS = 2.0
 #: Longest start or stop of the rotation accepted: a heavy turntable's is a few seconds.
 MAX_RAMP_S = 60.0
 
@@ -23,9 +29,10 @@ def machine_from_table(t: Table) -> Machine:
     """WRAP.toml's [machine] table: the wrapper's speeds, ramps and handling time."""
     default = Machine()
     machine = Machine(
-        rpm=t.number("rpm", default.rpm, positive=True, maximum=MAX_RPM),
+        rpm=_rpm(t, default.rpm),
         carriage_speed_mps=t.number("carriage_speed_mps", default.carriage_speed_mps,
-                                    positive=True, maximum=2.0),
+                                    minimum=MIN_CARRIAGE_SPEED_MPS,
+                                    maximum=MAX_CARRIAGE_SPEED_MPS),
         handling_s=t.number("handling_s", default.handling_s, minimum=0.0, maximum=3600.0),
         ramp_s=t.number("ramp_s", default.ramp_s, minimum=0.0, maximum=MAX_RAMP_S),
     )
@@ -86,7 +93,7 @@ def program_from_table(t: Table, material: Material, web_width_m: float) -> Prog
         top_overhang_m=_overhang(t, web_width_m),
         top_tension_n=check_tension(t, "top_tension_n", material, web_width_m),
         down_overlap=_overlap(t, "down_overlap") if t.has("down_overlap") else None,
-        rpm=t.number("rpm", positive=True, maximum=MAX_RPM) if t.has("rpm") else None,
+        rpm=_rpm(t) if t.has("rpm") else None,
         reinforcements=tuple(
             _reinforcement(Table(item, t.source, f"{t.field('reinforcement')}[{i}]"), material,
                            web_width_m)
@@ -110,6 +117,14 @@ def _overlap(t: Table, key: str) -> float:
                "parked wraps lay" if value < 1.0 else "at 1 or more the carriage never rises")
         raise t.error(key, f"must be at most {MAX_PROGRAM_OVERLAP}: {why} (got {value})"
                       f"{fraction_hint(value, ' of the web')}")
+    return value
+
+
+def _rpm(t: Table, default: float | None = None) -> float:
+    value = t.number("rpm", default, positive=True, maximum=MAX_RPM)
+    if value < MIN_RPM:
+        raise t.error("rpm", f"must be >= {MIN_RPM:g} (got {value:g}): revolutions per minute, "
+                             "not per second (0.2 a second is 12 rpm)")
     return value
 
 

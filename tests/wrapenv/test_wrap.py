@@ -456,6 +456,8 @@ BAD_PROGRAMS = {
                                   "program.top_tension_n": 90.0,
                                   "program.reinforcement": []}, "program.prestretch"),
     "zero rpm": ({"program.rpm": 0.0}, "program.rpm"),
+    # Until 2026-12-01 1e-12 rpm was taken: a cycle of 5e14 s.
+    "rpm per second": ({"program.rpm": 0.2}, "program.rpm"),
     "unknown program key": ({"program.spiral_up": 2}, "program.spiral_up"),
     "unknown machine key": ({"machine.speed": 2}, "machine.speed"),
 }
@@ -583,6 +585,29 @@ def test_a_machine_ramp_out_of_range_is_refused_naming_it(tmp_path, assert_input
     with pytest.raises(InputError) as info:
         Web.from_toml(path)
     assert_input_error(info.value, str(path), "machine.ramp_s")
+
+
+@pytest.mark.parametrize("line, field", [
+    ("rpm = 0.2", "machine.rpm"), ("rpm = 150.0", "machine.rpm"),
+    # Until 2026-12-01 a carriage at 1e-9 m/s was taken: the spiral down laid as 5e7
+    # revolutions, a thousand tonnes of film.
+    ("carriage_speed_mps = 1e-9", "machine.carriage_speed_mps"),
+    ("carriage_speed_mps = 5.0", "machine.carriage_speed_mps"),
+])
+def test_a_machine_speed_out_of_range_is_refused_naming_it(tmp_path, assert_input_error, line,
+                                                           field):
+    path = tmp_path / "today.toml"
+    path.write_text((EXAMPLES / "program_lldpe_default.toml").read_text()
+                    + f"\n[machine]\n{line}\n")
+    with pytest.raises(InputError) as info:
+        Web.from_toml(path)
+    assert_input_error(info.value, str(path), field)
+
+
+def test_a_rotation_per_second_is_named_as_such(wrap_file):
+    with pytest.raises(InputError, match=r"program\.rpm: must be >= 1 \(got 0\.2\): revolutions "
+                                         r"per minute, not per second \(0\.2 a second is 12 rpm\)"):
+        WrapFormat.from_toml(wrap_file({"program.rpm": 0.2}, program=True), load_height_m=0.804)
 
 
 def test_a_web_file_with_a_typo_is_refused_naming_the_key(tmp_path, assert_input_error):
