@@ -129,3 +129,33 @@ def test_a_worker_dies_with_its_parent():
     if alive:
         os.kill(worker, signal.SIGKILL)
     assert not alive
+
+
+#: A pool whose worker dies while calls the caller cancelled still wait in its queue: what a
+#: SIGTERM to the whole process group leaves (the workers die of it as the caller, interrupted,
+#: cancels its queue).
+_CANCELLED_THEN_KILLED = """
+import os, signal, time
+from wrapenv.pool import ProcessPool
+pool = ProcessPool(1)
+calls = [pool.submit(time.sleep, 3) for _ in range(8)]
+time.sleep(1.0)                       # the first few run or wait in the workers' queue
+assert sum(call.cancel() for call in calls) >= 4
+for worker in list(pool._processes.values()):
+    os.kill(worker.pid, signal.SIGKILL)
+time.sleep(1.0)                       # the pool finds itself broken
+pool.terminate()
+print("stopped")
+"""
+
+
+def test_a_pool_broken_with_cancelled_calls_queued_prints_no_traceback():
+    """Python 3.11's pool set its error on the cancelled calls too, and its thread died of that
+    with a traceback on stderr (gh-107219, ignored since 3.12): `wrapbench train` stopped by a
+    SIGTERM to its process group printed one on 3 runs of 4 (2026-12-01)."""
+    import subprocess
+    import sys
+
+    run = subprocess.run([sys.executable, "-c", _CANCELLED_THEN_KILLED], capture_output=True,
+                         text=True, timeout=60)
+    assert (run.returncode, run.stdout, run.stderr) == (0, "stopped\n", "")
