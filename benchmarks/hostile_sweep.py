@@ -242,6 +242,21 @@ CASES = [
          {"L.toml": LOAD, "W.toml": WRAP}, needles=("--hours-since-wrapping",)),
     Case("simulate --lev 0.2 (a flag abbreviated)", ["simulate", "L.toml", "--lev", "0.2"],
          {"L.toml": LOAD}, needles=("--lev",)),
+    # found by a fuzz of every example's fields (2026-12-01): each was taken, and filled the
+    # memory or took centuries
+    Case("wrap: a 1 µm web", ["simulate", "L.toml", "--wrap", "W.toml"],
+         {"L.toml": LOAD, "W.toml": WRAP.replace("web_width_m = 0.5", "web_width_m = 1e-6")},
+         needles=("W.toml", "web_width_m")),
+    Case("wrap: a band 1e9 m tall", ["simulate", "L.toml", "--wrap", "W.toml"],
+         {"L.toml": LOAD, "W.toml": 'material = "kraft"\nweb_width_m = 0.5\n[[band]]\n'
+                                    'from_m = 0.0\nto_m = 1e9\nlayers = 2\ntension_n = 200.0\n'},
+         needles=("W.toml", "band[0].to_m")),
+    Case("wrap: 0.2 rpm (per second)", ["simulate", "L.toml", "--wrap", "W.toml"],
+         {"L.toml": LOAD, "W.toml": WRAP.replace("[program]", "[program]\nrpm = 0.2")},
+         needles=("W.toml", "program.rpm", "per minute")),
+    Case("wrap: a carriage at 1e-9 m/s", ["simulate", "L.toml", "--wrap", "W.toml"],
+         {"L.toml": LOAD, "W.toml": WRAP + "\n[machine]\ncarriage_speed_mps = 1e-9\n"},
+         needles=("W.toml", "machine.carriage_speed_mps")),
     Case("a LOAD.toml saved with a byte-order mark", ["simulate", "L.toml", "--level", "0.2"],
          {"L.toml": "\ufeff" + LOAD}, status=0),
     Case("a load name with escape codes", ["simulate", "L.toml", "--level", "0.2"],
