@@ -566,6 +566,37 @@ def test_bottom_wraps_above_the_top_ones_are_refused(program_data):
         WrapFormat.from_dict(data, "wrap.toml", load_height_m=0.804)
 
 
+# Each limit of a program's fields is itself taken. On a 0.804 m load a 0.5 m web's top wraps
+# run from 0.354 m, and heights within FIT_TOLERANCE_M (1 mm) of a limit are taken as on it.
+@pytest.mark.parametrize("changes", [
+    {"program.bottom_from_m": 0.354}, {"program.bottom_from_m": 0.3549},
+    {"program.up_overlap": 0.9}, {"program.down_overlap": -1.0},
+    {"program.rpm": 1.0}, {"program.rpm": 100.0},
+    {"program.reinforcement": [{"from_m": 0.8039, "wraps": 2, "tension_n": 300.0}]},
+], ids=["bottom wraps where the top ones are laid", "bottom wraps within 1 mm of them",
+        "the densest spiral", "the widest gaps", "the slowest rotation", "the fastest rotation",
+        "a reinforcement just below the top"])
+def test_a_program_at_each_limit_is_accepted(program_data, changes):
+    WrapFormat.from_dict(program_data(changes), "wrap.toml", load_height_m=0.804)
+
+
+@pytest.mark.parametrize("changes, says", [
+    ({"program.bottom_from_m": 0.3551}, "program.bottom_from_m: 0.3551 m is above where the top "
+                                        "wraps are laid (0.354 m"),
+    ({"program.bottom_from_m": 0.804}, "program.bottom_from_m: 0.804 m is not below the top of "
+                                       "the load (0.804 m)"),
+    ({"program.reinforcement": [{"from_m": 0.804, "wraps": 2, "tension_n": 300.0}]},
+     "program.reinforcement[0].from_m: 0.804 m is outside the load (0 to 0.804 m)"),
+    ({"program.up_overlap": 0.95}, "program.up_overlap: must be at most 0.9: a spiral at 0.95 "
+                                   "lays 20 layers in one pass, which parked wraps lay"),
+], ids=["bottom wraps 1 mm above the top ones", "bottom wraps at the load's top",
+        "a reinforcement at the load's top", "a spiral of 20 layers"])
+def test_a_program_just_past_a_limit_is_refused_saying_which(program_data, changes, says):
+    with pytest.raises(InputError) as info:
+        WrapFormat.from_dict(program_data(changes), "wrap.toml", load_height_m=0.804)
+    assert info.value.args[0].startswith(f"wrap.toml: {says}"), info.value.args[0]
+
+
 # --- the web a program is sought for (recommend --web) ---------------------------------------
 
 def test_a_web_is_read_from_the_wrap_file_a_machine_runs_today(tmp_path):
