@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from recommender.problem import Problem, SearchSettings
-from tests.recommender.conftest import FAST
+from tests.recommender.conftest import FAST, SMALL
 from wrapenv.calibrated import Calibration
 from wrapenv.config import InputError
 from wrapenv.design import N_PARAMS
@@ -88,6 +88,36 @@ def test_the_objective_is_the_web_relative_to_the_machine_s_default_program(smal
     assert problem.objective(default, mass, [0.5], [True]) == pytest.approx(1.0 + 0.05)
 
 
+def test_the_objective_adds_the_margin_shortfall_and_the_price_of_each_second(small_load):
+    """A margin 0.1 short of the goal costs 10 x 0.1 = the web of one default program; a price
+    on cycle time adds that price times the cycle's seconds; a failure in any sample adds the
+    heaviest program's web."""
+    timed = SearchSettings(**{**FAST.__dict__, "cycle_weight": 0.01})
+    problem = Problem.build(small_load, timed)
+    default = problem.space.laid(problem.space.machine_default())
+    mass = problem.reference_mass_kg
+    short = problem.settings.margin_goal - 0.1
+    base = 1.0 + 0.05 + 0.01 * default.cycle_time_s
+    assert problem.objective(default, mass, [0.5, short], [True, True]) == pytest.approx(
+        base + 10 * 0.1)
+    assert problem.objective(default, mass, [0.5], [True]) == pytest.approx(base)
+    assert problem.objective(default, mass, [0.5], [False]) == pytest.approx(
+        base + problem.heaviest_ratio)
+
+
+def test_a_program_over_the_cycle_limit_pays_in_proportion_to_its_excess(small_load):
+    """At the limit it is within it; at 1.5 x the limit it scores 1e6 x 1.5."""
+    first = Problem.build(small_load, FAST)
+    default = first.space.laid(first.space.machine_default())
+
+    def limited(limit: float) -> Problem:
+        return Problem.build(small_load, SearchSettings(**{**FAST.__dict__,
+                                                           "max_cycle_s": limit}))
+
+    assert limited(default.cycle_time_s).too_slow(default) is None
+    assert limited(default.cycle_time_s / 1.5).too_slow(default) == pytest.approx(1.5e6)
+
+
 def test_a_program_of_the_space_has_a_search_vector_that_lays_it_again(small_load):
     """Where a search starts from a policy's proposal: the vector of any program of the space
     lays that program (wraps as they are, the rest as fractions of their range)."""
@@ -102,6 +132,16 @@ def test_a_program_of_the_space_has_a_search_vector_that_lays_it_again(small_loa
         assert problem.wrap(np.array(again)) == wrap
     with pytest.raises(ValueError, match="not from bands"):
         problem.vector(replace(wrap, program=None))
+
+
+def test_a_coordinate_whose_range_is_one_value_is_0_in_the_search_vector(small_load):
+    """A unit of one layer (0.474 m) is lower than the 0.5 m web: the reinforcement's lower
+    edge (coordinate 4) has a single place, 0.024 m, and its coordinate is 0, not 0 / 0."""
+    one_layer = LoadUnit.from_dict({**SMALL, "stack": {**SMALL["stack"], "layers": 1}})
+    problem = Problem.build(one_layer, FAST)
+    assert problem.space.low[4] == problem.space.high[4]
+    vector = problem.vector(problem.wrap(np.array([2, 2, 1] + [0.5] * 6)))
+    assert vector[4] == 0.0 and all(map(math.isfinite, vector))
 
 
 def test_a_slow_program_scores_below_any_simulated_failure(small_load):
