@@ -34,6 +34,20 @@ def test_stage_sizes_spend_every_point_and_keep_each_stage_fittable():
                 assert min(sizes) >= 2 * (1 + 2 * p)
 
 
+@pytest.mark.parametrize("points, p, sizes", [
+    # a stage needs 2 (1 + 2p) points; the first takes 40 %, the rest split evenly, the
+    # remainder to the first local stages
+    (97, 3, [39, 20, 19, 19]),
+    # six coefficients (three pairs): 26 a stage, so 54 points leave one local stage
+    (54, 6, [26, 28]),
+    (94, 6, [38, 28, 28]),
+    # fewer than two stages' worth: one global stage
+    (40, 6, [40]),
+])
+def test_stage_sizes_by_hand(points, p, sizes):
+    assert stage_sizes(points, p) == sizes
+
+
 @pytest.mark.parametrize("curved, order", [(False, "linear"), (True, "full")])
 def test_the_emulator_keeps_curvature_only_where_the_data_show_it(curved, order):
     rng = np.random.default_rng(0)
@@ -155,6 +169,18 @@ def test_a_box_is_moved_and_shrunk_to_lie_inside_the_unit_box(degrees):
             assert (hi - lo) / 2 == pytest.approx(half)
     lo, hi = _box(np.full(3, 0.5), np.full(3, 0.5), np.eye(3))
     assert np.array_equal(lo, np.zeros(3)) and np.array_equal(hi, np.ones(3))
+
+
+def test_the_accepted_points_are_those_nearest_in_features_scaled_by_their_spread():
+    """Four points, the nearest quarter (but at least 2) kept. Feature A's median absolute
+    deviation is 0.05 m, B's 0.01 m, so A's 0.1 counts as B's 0.02: distances 1, 4, 4.04 and
+    25, and the first two points are kept (unscaled, the third would be). They give mean
+    (0.3, 0.4), variances 0.04 and 0.01 and, judged by the same features, covariance 0.02."""
+    us = np.array([[0.1, 0.3], [0.5, 0.5], [0.9, 0.2], [0.7, 0.9]])
+    rs = np.array([[0.00, 0.01], [0.10, 0.00], [0.01, 0.02], [0.20, 0.03]])
+    mean, cov = _accepted(us, rs)
+    assert mean == pytest.approx([0.3, 0.4])
+    assert cov == pytest.approx(np.array([[0.04, 0.02], [0.02, 0.01]]))
 
 
 def test_parameters_judged_by_the_same_features_share_their_covariance():
