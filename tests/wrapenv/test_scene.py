@@ -16,6 +16,7 @@ from wrapenv.scene import (
     SLED_DECK_M,
     STOPPER_SIZE_M,
     BenchScene,
+    bundle_row,
 )
 
 EXAMPLE_2 = "examples/pet_2layer_columnar.toml"
@@ -42,7 +43,8 @@ def test_state_rows_are_the_moving_bodies_pallet_first(layout):
     assert scene.state_index("pallet") == PALLET == 0
     rows = np.arange(len(scene.moving))
     bundle_rows = [scene.state_index(b.name) for b in layout.bundles]
-    assert bundle_rows == rows[BUNDLES].tolist()
+    assert bundle_rows == rows[BUNDLES].tolist() == [bundle_row(k) for k in
+                                                     range(len(layout.bundles))]
     # each state row's world body is the body of that name
     for b in layout.bundles:
         assert scene.moving[scene.state_index(b.name)] == scene.index(b.name)
@@ -65,6 +67,8 @@ def test_geometry_deck_top_at_zero_pallet_on_it_stopper_behind_the_rear_face(lay
     px, py, pz = layout.pallet_size_m
     assert sled.centre_m[2] + sled.size_m[2] / 2 == pytest.approx(0.0)
     assert sled.size_m[2] == SLED_DECK_M and sled.mass_kg == 0.0
+    # the deck reaches 2 m beyond the pallet on every side: a bundle that falls off lands on it
+    assert sled.size_m[:2] == pytest.approx((px + 4.0, py + 4.0))
     assert pallet.centre_m[2] - pallet.size_m[2] / 2 == pytest.approx(0.0)
     assert pallet.mass_kg == layout.pallet_mass_kg
     # the bar stands on the deck, across the pallet's width, against its rear (-x) face: a lab
