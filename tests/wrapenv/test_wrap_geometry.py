@@ -8,20 +8,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from wrapenv import wrap_geometry as geometry
 from wrapenv.load import LoadUnit
 from wrapenv.wrap import Band, WrapFormat
-from wrapenv.wrap_geometry import (
-    CORNER_NAMES,
-    FACE_NAMES,
-    Panels,
-    Ring,
-    corner_positions_m,
-    hull_neighbours,
-    panel_specs,
-    ring_give,
-    ring_specs,
-    seam_rings,
-)
+from wrapenv.wrap_geometry import CORNER_NAMES, FACE_NAMES, Panels, Ring
 
 
 def test_a_staggered_bundle_on_the_hull_but_off_the_bounding_box_is_on_the_ring():
@@ -37,7 +27,7 @@ def test_a_staggered_bundle_on_the_hull_but_off_the_bounding_box_is_on_the_ring(
     wrap = WrapFormat.from_dict({"material": "kraft", "web_width_m": 0.5, "band": [
         {"from_m": 0.0, "to_m": 0.474, "layers": 1, "tension_n": 250.0}]},
         load_height_m=layout.load_height_m)
-    ring = ring_specs(wrap, layout)[1]        # the layer's lower ring (ring 0 is the pallet's)
+    ring = geometry.ring_specs(wrap, layout)[1]   # the layer's lower ring (0 is the pallet's)
     assert sorted({body for body, _ in ring.slots}) == [1, 2, 3]
     assert any(np.allclose(xy, (0.34, -0.245)) for xy in ring.rest_xy)
     # without it the web would run straight from (-0.26, -0.345) to (0.54, 0.155), at x = 0.34
@@ -59,7 +49,7 @@ _COLUMN = LoadUnit.from_dict({
 def _column() -> tuple[WrapFormat, list[Ring]]:
     wrap = WrapFormat.from_dict({"material": "kraft", "web_width_m": 0.5, "band": [
         {"from_m": 0.0, "to_m": 0.804, "layers": 2, "tension_n": 250.0}]}, load_height_m=0.804)
-    return wrap, ring_specs(wrap, _COLUMN.layout())
+    return wrap, geometry.ring_specs(wrap, _COLUMN.layout())
 
 
 def test_rings_stand_at_a_quarter_and_three_quarters_of_each_layer_and_share_its_height():
@@ -80,8 +70,8 @@ def test_a_ring_covers_only_heights_a_band_covers():
     """A band over the top layer only: no pallet round, no ring on the bottom layer."""
     wrap, _ = _column()
     top_only = WrapFormat(wrap.material, 0.5, (Band(0.474, 0.804, 2, 250.0),), "kraft")
-    assert [r.z_m for r in ring_specs(top_only, _COLUMN.layout())] == pytest.approx([0.5565,
-                                                                                    0.7215])
+    rings = geometry.ring_specs(top_only, _COLUMN.layout())
+    assert [r.z_m for r in rings] == pytest.approx([0.5565, 0.7215])
 
 
 def test_a_ring_s_give_is_its_four_edges_dents_in_series():
@@ -91,9 +81,9 @@ def test_a_ring_s_give_is_its_four_edges_dents_in_series():
     give 12 375 N/m."""
     _, rings = _column()
     stiffness = np.array([1e6, 6e5, 6e5])   # pallet, bundle 1, bundle 2 (N/m per metre)
-    assert ring_give(rings[1], stiffness) == pytest.approx(99_000 / 8)
+    assert geometry.ring_give(rings[1], stiffness) == pytest.approx(99_000 / 8)
     # the pallet's corners at 1e6 over 0.144 m
-    assert ring_give(rings[0], stiffness) == pytest.approx(1e6 * 0.144 / 8)
+    assert geometry.ring_give(rings[0], stiffness) == pytest.approx(1e6 * 0.144 / 8)
 
 
 def _panels(wrap: WrapFormat, rings: list[Ring]) -> Panels:
@@ -101,7 +91,8 @@ def _panels(wrap: WrapFormat, rings: list[Ring]) -> Panels:
     ids = np.cumsum([0] + [len(r.slots) for r in rings])
     corners = [[int(ids[i]) + j for j in r.corner_slots] for i, r in enumerate(rings)]
     node_body = np.array([b for r in rings for b, _ in r.slots])
-    return panel_specs(wrap, rings, corners, node_body, corner_positions_m(_COLUMN.layout()))
+    outline = geometry.corner_positions_m(_COLUMN.layout())
+    return geometry.panel_specs(wrap, rings, corners, node_body, outline)
 
 
 def test_panels_join_rings_on_different_bodies_only():
@@ -166,7 +157,7 @@ def test_slots_on_a_face_are_placed_along_it():
         "stack": {"layers": 1, "pattern": "explicit", "positions": [[-0.14, 0.0], [0.14, 0.0]]}})
     wrap = WrapFormat.from_dict({"material": "kraft", "web_width_m": 0.5, "band": [
         {"from_m": 0.0, "to_m": 0.474, "layers": 1, "tension_n": 250.0}]}, load_height_m=0.474)
-    ring = ring_specs(wrap, unit.layout())[1]
+    ring = geometry.ring_specs(wrap, unit.layout())[1]
     placed = sorted(zip(ring.places, np.round(ring.s_m, 6), strict=True))
     assert placed == [("corner +x+y", 0.75), ("corner +x-y", 0.56), ("corner -x+y", 1.31),
                       ("corner -x-y", 0.0), ("face +y", 1.03), ("face +y", 1.03),
@@ -182,8 +173,8 @@ def test_the_seam_lies_under_the_last_revolution_s_web():
         "bottom_wraps": 2, "bottom_tension_n": 250.0, "up_overlap": 0.5,
         "middle_tension_n": 250.0, "top_wraps": 2, "top_tension_n": 250.0}},
         load_height_m=0.804)
-    assert seam_rings(program, rings) == [2, 3, 4]
-    assert seam_rings(program, rings[:2]) == [1]
+    assert geometry.seam_rings(program, rings) == [2, 3, 4]
+    assert geometry.seam_rings(program, rings[:2]) == [1]
 
 
 def test_each_slot_s_neighbours_are_the_nearest_active_slots_round_the_ring():
@@ -191,6 +182,6 @@ def test_each_slot_s_neighbours_are_the_nearest_active_slots_round_the_ring():
     after, round the ring's end."""
     active = np.array([[True, False, True, True],
                        [False, True, False, False]])
-    prev, nxt = hull_neighbours(active)
+    prev, nxt = geometry.hull_neighbours(active)
     assert prev.tolist() == [[3, 0, 0, 2], [1, 1, 1, 1]]
     assert nxt.tolist() == [[2, 2, 3, 0], [1, 1, 1, 1]]
