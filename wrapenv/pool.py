@@ -11,7 +11,6 @@ import sys
 import threading
 from collections.abc import Sequence
 from concurrent.futures import InvalidStateError, ProcessPoolExecutor
-from concurrent.futures.process import _ExecutorManagerThread
 from multiprocessing.process import BaseProcess
 from types import TracebackType
 
@@ -64,20 +63,24 @@ def stop(processes: Sequence[BaseProcess]) -> None:
             process.join()
 
 
-def _quiet_cancelled_race(args: threading.ExceptHookArgs) -> None:
-    """CPython 3.11's pool, broken by a dead worker, sets its error on every pending call,
-    one the caller cancelled included, and its manager thread dies of that with a traceback on
-    stderr (gh-107219, ignored there since 3.12). A SIGTERM to the whole process group (`timeout`,
-    a batch system, `kill -- -PGID`) makes exactly that: the workers die of it while the
-    interrupted caller cancels its queue. `wrapbench train` printed it on 3 of 4 such stops
-    (2026-12-01). Other exceptions go to the hook that was there before."""
-    if args.exc_type is InvalidStateError and isinstance(args.thread, _ExecutorManagerThread):
-        return
-    _previous_excepthook(args)
-
-
-_previous_excepthook = threading.excepthook
 if sys.version_info < (3, 12):
+    # the pool's private thread class, imported only where the fix is needed
+    from concurrent.futures.process import _ExecutorManagerThread
+
+    _previous_excepthook = threading.excepthook
+
+    def _quiet_cancelled_race(args: threading.ExceptHookArgs) -> None:
+        """CPython 3.11's pool, broken by a dead worker, sets its error on every pending call,
+        one the caller cancelled included, and its manager thread dies of that with a traceback
+        on stderr (gh-107219, ignored there since 3.12). A SIGTERM to the whole process group
+        (`timeout`, a batch system, `kill -- -PGID`) makes exactly that: the workers die of it
+        while the interrupted caller cancels its queue. `wrapbench train` printed it on 3 of 4
+        such stops (2026-12-01). Other exceptions go to the hook that was there before."""
+        if (args.exc_type is InvalidStateError
+                and isinstance(args.thread, _ExecutorManagerThread)):
+            return
+        _previous_excepthook(args)
+
     threading.excepthook = _quiet_cancelled_race
 
 
