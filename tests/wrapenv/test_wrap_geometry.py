@@ -14,20 +14,28 @@ from wrapenv.wrap import Band, WrapFormat
 from wrapenv.wrap_geometry import CORNER_NAMES, FACE_NAMES, Panels, Ring
 
 
+def _unit(positions: list[list[float]], layers: int = 1) -> LoadUnit:
+    """PET bundles at `positions` on a EUR pallet, `layers` high."""
+    return LoadUnit.from_dict({
+        "pallet": {"preset": "EUR"}, "bundle": {"preset": "PET6x1.5L"},
+        "stack": {"layers": layers, "pattern": "explicit", "positions": positions}})
+
+
+def _kraft(height_m: float, layers: int) -> WrapFormat:
+    """Kraft at 250 N a layer on a 0.5 m web, from the sled to `height_m`."""
+    return WrapFormat.from_dict({"material": "kraft", "web_width_m": 0.5, "band": [
+        {"from_m": 0.0, "to_m": height_m, "layers": layers, "tension_n": 250.0}]},
+        load_height_m=height_m)
+
+
 def test_a_staggered_bundle_on_the_hull_but_off_the_bounding_box_is_on_the_ring():
     """Bundles at (-0.4, -0.25), (0.2, -0.15), (0.4, 0.25): the middle one's -y face lies
     0.1 m inside the layer's bounding box, yet its +x-y corner (0.34, -0.245) sticks out of the
     line from the first bundle's (-0.26, -0.345) to the third's (0.54, 0.155): the web bends
     round it."""
-    unit = LoadUnit.from_dict({
-        "pallet": {"preset": "EUR"}, "bundle": {"preset": "PET6x1.5L"},
-        "stack": {"layers": 1, "pattern": "explicit",
-                  "positions": [[-0.4, -0.25], [0.2, -0.15], [0.4, 0.25]]}})
-    layout = unit.layout()
-    wrap = WrapFormat.from_dict({"material": "kraft", "web_width_m": 0.5, "band": [
-        {"from_m": 0.0, "to_m": 0.474, "layers": 1, "tension_n": 250.0}]},
-        load_height_m=layout.load_height_m)
-    ring = geometry.ring_specs(wrap, layout)[1]   # the layer's lower ring (0 is the pallet's)
+    layout = _unit([[-0.4, -0.25], [0.2, -0.15], [0.4, 0.25]]).layout()
+    # the layer's lower ring (ring 0 is the pallet's)
+    ring = geometry.ring_specs(_kraft(layout.load_height_m, 1), layout)[1]
     assert sorted({body for body, _ in ring.slots}) == [1, 2, 3]
     assert any(np.allclose(xy, (0.34, -0.245)) for xy in ring.rest_xy)
     # without it the web would run straight from (-0.26, -0.345) to (0.54, 0.155), at x = 0.34
@@ -41,14 +49,11 @@ def test_a_staggered_bundle_on_the_hull_but_off_the_bounding_box_is_on_the_ring(
 # 0.804 m tall. Two Kraft layers at 250 N on a 0.5 m web all the way up: 1000 N per metre of
 # height. Kraft's card: 4e5 N/m per unit strain, CD 0.6 of it, in-plane shear 0.25 of it.
 
-_COLUMN = LoadUnit.from_dict({
-    "pallet": {"preset": "EUR"}, "bundle": {"preset": "PET6x1.5L"},
-    "stack": {"layers": 2, "pattern": "explicit", "positions": [[0.0, 0.0]]}})
+_COLUMN = _unit([[0.0, 0.0]], layers=2)
 
 
 def _column() -> tuple[WrapFormat, list[Ring]]:
-    wrap = WrapFormat.from_dict({"material": "kraft", "web_width_m": 0.5, "band": [
-        {"from_m": 0.0, "to_m": 0.804, "layers": 2, "tension_n": 250.0}]}, load_height_m=0.804)
+    wrap = _kraft(0.804, 2)
     return wrap, geometry.ring_specs(wrap, _COLUMN.layout())
 
 
@@ -152,12 +157,7 @@ def test_slots_on_a_face_are_placed_along_it():
     """Two bundles side by side along x: their touching corners lie on the faces -y and +y at
     x = 0, halfway along the 0.56 m faces: s = 0.28 m on face -y (from corner -x-y at 0) and
     0.75 + 0.28 = 1.03 m on face +y (which runs from corner +x+y at 0.56 + 0.19 m)."""
-    unit = LoadUnit.from_dict({
-        "pallet": {"preset": "EUR"}, "bundle": {"preset": "PET6x1.5L"},
-        "stack": {"layers": 1, "pattern": "explicit", "positions": [[-0.14, 0.0], [0.14, 0.0]]}})
-    wrap = WrapFormat.from_dict({"material": "kraft", "web_width_m": 0.5, "band": [
-        {"from_m": 0.0, "to_m": 0.474, "layers": 1, "tension_n": 250.0}]}, load_height_m=0.474)
-    ring = geometry.ring_specs(wrap, unit.layout())[1]
+    ring = geometry.ring_specs(_kraft(0.474, 1), _unit([[-0.14, 0.0], [0.14, 0.0]]).layout())[1]
     placed = sorted(zip(ring.places, np.round(ring.s_m, 6), strict=True))
     assert placed == [("corner +x+y", 0.75), ("corner +x-y", 0.56), ("corner -x+y", 1.31),
                       ("corner -x-y", 0.0), ("face +y", 1.03), ("face +y", 1.03),
