@@ -98,3 +98,44 @@ def test_one_sample_and_a_whole_trace_go_into_the_pallet_s_frame_alike():
         one = in_pallet_frame(t.pallet_pos_m[k], t.pallet_rot[k], t.bundle_pos_m[k])
         assert one == pytest.approx(whole[k])
         assert one == pytest.approx(ON_PALLET_M)
+
+
+def test_each_layer_s_shift_is_taken_on_the_layer_below_it():
+    # three layers of one bundle each: the first slid 1 cm on the pallet, the second 3 cm (2 on
+    # the first), the third 3.5 cm (0.5 on the second): the largest shift is the second's 2 cm
+    t = carried([(0.0, 0.0), (0.0, 0.0)], [0.0, 0.0])
+    bundles = np.zeros((2, 3, 3))
+    bundles[:, :, 2] = [0.25, 0.55, 0.85]
+    bundles[1, :, 0] = [-0.01, -0.03, -0.035]
+    upright = np.broadcast_to(np.eye(3), (2, 3, 3, 3))
+    three = Trace(**{**t.__dict__, "names": ("L1", "L2", "L3"), "bottom_z_m": np.zeros(3),
+                     "bundle_pos_m": bundles, "bundle_rot": upright,
+                     "layers": np.array([1, 2, 3])})
+    assert three.layer_shift_m() == pytest.approx(0.02)
+    # read as one layer, the three bundles' mean moved 2.5 cm on the pallet
+    assert Trace(**{**three.__dict__, "layers": None}).layer_shift_m() == pytest.approx(0.025)
+
+
+def test_the_pallet_s_slip_is_from_where_it_stood_when_the_level_began():
+    t = carried([(0.5, -0.2), (0.47, -0.16)], [0.0, 0.0])
+    assert t.pallet_slip_m() == pytest.approx(0.05)
+
+
+def test_what_a_later_level_carries_in_is_horizontal_and_from_its_first_sample():
+    # bundle 1 stood 3 cm ahead and 1 cm lower when this level began, then slid 4 cm more
+    origin = ON_PALLET_M + [[-0.03, 0.0, 0.01], [0.0, 0.0, 0.0]]
+    slid = np.zeros((2, 2, 3))
+    slid[1, 0, 0] = 0.04
+    t = carried([(0.0, 0.0), (0.0, 0.0)], [0.0, 0.0], slid)
+    later = Trace(**{**t.__dict__, "origin_m": origin})
+    assert later.moved_before_m() == pytest.approx(0.03)
+    assert later.permanent_total_m() == pytest.approx([0.07, 0.0])
+
+
+def test_a_rotation_rounded_a_hair_past_upright_is_no_tilt():
+    t = carried([(0.0, 0.0)] * 2, [0.0, 0.0])
+    rounded = t.bundle_rot.copy()
+    rounded[-1, 0, 2, 2] = 1.0 + 4e-16      # what a product of rotations can round to
+    rounded[-1, 1, 2, 2] = -1.0 - 4e-16     # upside down
+    assert Trace(**{**t.__dict__, "bundle_rot": rounded}).tilt_rad() == pytest.approx(
+        [0.0, math.pi])
