@@ -72,6 +72,8 @@ def test_the_table_holds_eumos_limits_with_their_comparisons():
     assert (LOW_ZONE.limit_m(0.8), LOW_ZONE.strict) == (0.04, True)  # metres, whatever the height
     assert PERMANENT.describe(0.804, "≤") == "≤ 40.2 mm (5 % of height)"
     assert LOW_ZONE.describe(0.804) == "< 40 mm (bundles below 20 cm)"
+    assert [c.label for c in EUMOS_CRITERIA] == [
+        "Elastic max", "Permanent max", "Lowest 20 cm, permanent"]
 
 
 def test_permanent_exactly_on_five_percent_passes_and_just_over_fails():
@@ -91,6 +93,14 @@ def test_exactly_four_cm_in_the_lowest_20_cm_fails():
     assert evaluate(moved_to(0.04, bottom_z_m=0.2)).passed
 
 
+def test_figures_are_judged_as_reported_to_the_micrometre():
+    """The JSON gives metres to six decimals, and the criteria read the same figures: a level
+    is never reported on its limit and judged over it."""
+    on, over = evaluate(moved_to(0.0500004)), evaluate(moved_to(0.0500006))
+    assert (on.permanent_total_max_m, on.passed) == (0.05, True)
+    assert (over.permanent_total_max_m, over.passed) == (0.050001, False)
+
+
 def test_elastic_exactly_on_ten_percent_passes():
     on = evaluate(trace([[0.0], [0.10], [0.0]], [0.5]))
     over = evaluate(trace([[0.0], [0.1001], [0.0]], [0.5]))
@@ -105,7 +115,7 @@ def test_a_toppled_bundle_is_damage_and_fails_however_little_it_moved():
     upright_enough = evaluate(trace([[0.0], [0.0]], [0.5], final_tilt_rad=math.radians(9)))
     assert leaning.damage == ("L1C1R1 toppled",)
     assert not leaning.criteria["no_damage"] and not leaning.passed
-    assert level_margin(leaning, HEIGHT_M) <= -1.0
+    assert level_margin(leaning, HEIGHT_M) == -1.0  # its figures are all 0: -1 at best
     assert upright_enough.passed
 
 
@@ -144,6 +154,12 @@ def test_a_unit_still_moving_at_the_end_is_judged_where_it_stands_and_says_so():
     assert "not_at_rest" not in evaluate(moved_to(0.001)).to_json()
 
 
+def test_a_level_stopped_early_says_why_and_only_then():
+    stopped = evaluate(replace(moved_to(0.2), stopped_early="L1C1R1 past 5 % of the height"))
+    assert stopped.to_json()["stopped_early"] == "L1C1R1 past 5 % of the height"
+    assert "stopped_early" not in evaluate(moved_to(0.2)).to_json()
+
+
 def test_no_level_of_a_run_that_blew_up_is_reported_as_passed():
     """CONTRACTS.md: `valid` false, then no level may be reported as passed, not even one
     that met its criteria before the blow-up."""
@@ -163,6 +179,7 @@ def test_each_figure_is_also_given_in_percent_of_the_load_height():
     level = evaluate(replace(trace([[0.0], [0.02], [0.01]], [0.5]), load_height_m=0.8))
     assert level.elastic_max_pct == pytest.approx(2.5)
     assert level.permanent_max_pct == level.permanent_total_max_pct == pytest.approx(1.25)
+    assert level.layer_shift_max_pct == pytest.approx(1.25)     # one layer: on the pallet
     assert ELASTIC.figure_text(level, 0.8) == "20.0 mm (2.5 %)"
     assert PERMANENT.figure_text(level, 0.8) == "10.0 mm (1.2 %)"
     low = evaluate(replace(trace([[0.0], [0.01]], [0.0]), load_height_m=0.8))
