@@ -180,3 +180,64 @@ def test_body_coefficients_do_not_depend_on_how_many_blas_threads_run():
         with threadpool_limits(limits=threads, user_api="blas"):
             coefficients.append(StickSlip(layout).coefficients().tobytes())
     assert coefficients[0] == coefficients[1]
+
+
+def test_a_unit_rocking_as_one_body_slides_nowhere_wherever_it_stands_on_the_sled():
+    """The whole unit turning about a horizontal axis through the middle of the pallet's
+    underside, which stands 0.3 m ahead and 0.1 m to the side on the sled: every body moves at
+    w x (its centre - that point), so every contact point moves with both of its bodies (the
+    pallet's underside, the pivot, stands still on the sled), and nothing slides. The contact
+    points are under each body's centre: at the pallet's underside, at each bundle's."""
+    layout = unit(2).layout()
+    ss = StickSlip(layout)
+    pos, rot, vel, omega = at_rest(ss.n_bodies)
+    pivot = np.array([0.3, 0.1, 0.0])
+    pos[1] = pivot + (0.0, 0.0, layout.pallet_size_m[2] / 2)
+    pos[2:] = pivot + [b.centre_m for b in layout.bundles]
+    w = np.array([0.03, 0.05, 0.0])                 # 58 mrad/s: its top at ~6 cm/s
+    omega[1:] = w
+    vel[1:] = np.cross(w, pos[1:] - pivot)
+    assert ss.update(pos, rot, vel, omega) == [] and not ss.sliding.any()
+    vel[2:], omega[2:] = 0.0, 0.0   # the bundles held still: they slide on the pallet only
+    ss.update(pos, rot, vel, omega)
+    assert ss.sliding.tolist() == [c.other == 1 for c in ss.resting]
+
+
+def test_the_moving_bodies_states_are_read_with_the_sled_at_rest_at_its_origin():
+    layout = unit(2).layout()
+    ss, full = StickSlip(layout), StickSlip(layout)
+    pos, rot, vel, omega = at_rest(ss.n_bodies)
+    vel[3, 0] = 2 * SLIP_SPEED_MPS
+    moving = ss.scene.moving
+    assert moving.tolist() == list(range(1, ss.n_bodies))
+    assert ss.update_moving(pos[moving], rot[moving], vel[moving], omega[moving]) == \
+        full.update(pos, rot, vel, omega) != []
+    assert ss.sliding.tolist() == full.sliding.tolist()
+
+
+def _rows(positions: list[list[float]]) -> set[frozenset[str]]:
+    """The side contacts of one layer of 0.28 x 0.19 m bundles at `positions`, by name."""
+    layout = LoadUnit.from_dict({
+        "name": "rows", "pallet": {"preset": "EUR"},
+        "bundle": {"length_m": 0.28, "width_m": 0.19, "height_m": 0.33, "mass_kg": 9.0},
+        "stack": {"layers": 1, "pattern": "explicit", "positions": positions}}).layout()
+    scene = BenchScene(layout)
+    return {frozenset((scene.bodies[c.body].name, scene.bodies[c.other].name))
+            for c in _side_contacts(scene)}
+
+
+def test_bundles_that_touch_only_at_a_corner_or_stand_apart_along_a_row_press_on_no_face():
+    x, y = 0.285 / 2, 0.195 / 2           # 5 mm apart along x and along y
+    assert _rows([[-x, -y], [x, y]]) == set()                 # corner to corner
+    # a row of three, the third 2 cm from the second: only the first two touch
+    assert _rows([[-x, -y], [x, -y], [x + 0.3, -y]]) == {frozenset(("L1C1R1", "L1C2R1"))}
+
+
+def test_a_single_column_has_no_side_contacts_and_gets_its_values_exactly():
+    column = LoadUnit.from_dict({
+        "name": "column", "pallet": {"preset": "EUR"}, "bundle": {"preset": "PET6x1.5L"},
+        "stack": {"layers": 3, "pattern": "explicit", "positions": [[0.0, 0.0]]},
+    }).with_friction(FRICTION)
+    ss = StickSlip(column.layout())
+    assert _side_contacts(ss.scene) == []
+    assert sorted(round(v, 9) for v in products(ss).values()) == [0.3, 0.3, 0.45, 0.5]
