@@ -125,6 +125,7 @@ def test_level_range_quoted_in_the_message_is_accepted():
         PulseProfile(5.0)
     upper = float(re.search(r"\(0, ([0-9.]+)\] g", str(info.value)).group(1))
     PulseProfile(upper)
+    assert upper == 1.019          # 10 / 9.81 = 1.0194 g, rounded down
 
 
 def test_a_level_given_in_mps2_is_named_as_such():
@@ -132,6 +133,8 @@ def test_a_level_given_in_mps2_is_named_as_such():
     with pytest.raises(InputError, match=r"\(got 4\.9\): m/s²\? Levels are in g "
                                          r"\(4\.9 m/s² is 0\.50 g\)$"):
         PulseProfile(4.9)
+    with pytest.raises(InputError, match=r"\(1\.5 m/s² is 0\.15 g\)$"):
+        PulseProfile(1.5)
     with pytest.raises(InputError, match=r"\(got 12\.0\)$"):
         eumos_levels(12.0)
 
@@ -329,6 +332,9 @@ BAD_CSVS = {
     "no forward acceleration": ("t_s,accel_mps2\n0,0\n0.1,-1\n0.2,0\n", "accel_mps2"),
     "acceleration beyond any bench": ("t_s,accel_mps2\n0,0\n0.1,98.1\n0.2,0\n", "accel_mps2"),
     "times in milliseconds": ("t_s,accel_mps2\n0,0\n1500,4.9\n3000,0\n", "t_s"),
+    "a logger left running 2.5 minutes": ("t_s,accel_mps2\n0,0\n0.5,4.9\n150,0\n", "t_s"),
+    "a spike of 2.5 x the bench's peak": ("t_s,accel_mps2\n0,0\n0.1,25\n0.2,0\n",
+                                           "accel_mps2"),
 }
 
 
