@@ -33,6 +33,30 @@ def test_a_body_is_unexplained_by_what_its_scatter_and_the_tracker_do_not_cover(
     assert body_unexplained(np.array([[0.001, -0.001]])) == 0.0   # within the tracker's noise
 
 
+def test_one_replay_has_no_scatter_to_count_and_two_have_their_sample_variance():
+    """One replay 20 mm off: 4e-4 less the tracker's 8e-6. Two replays 10 and 30 mm off: the
+    same mean, less their sample variance 2e-4 x (1 + 1/2) as well."""
+    assert body_unexplained(np.array([[0.02, 0.02]])) == pytest.approx(4e-4 - 8e-6)
+    two = np.array([[0.01, 0.01], [0.03, 0.03]])
+    assert body_unexplained(two) == pytest.approx(4e-4 - 2e-4 * 1.5 - 8e-6)
+
+
+def test_a_single_body_s_unexplained_rms_is_its_own():
+    assert judge({"pallet": 0.02**2}).rms_m == pytest.approx(0.02)
+
+
+def test_the_nearest_replay_is_judged_by_its_own_squared_residuals():
+    """Of three replays of one body (two features), one 12 mm off, two 40 mm: by their mean
+    30.7 mm less their scatter (sample variance 2.613e-4 x 4/3) and the tracker's they leave
+    sqrt(5.84e-4) = 24.2 mm; the nearest replay alone sqrt(0.012^2 - 8e-6) = 11.7 mm, which
+    is the verdict."""
+    r = np.array([[0.012, 0.012], [0.040, 0.040], [0.040, 0.040]])
+    assert body_unexplained(r) == pytest.approx(5.84e-4, rel=1e-3)
+    verdict = acceptance.by_residuals(r, {"L1C1R1": np.arange(2)}, "rec")
+    assert verdict.by == "replay 0"
+    assert verdict.rms_m == pytest.approx(math.sqrt(0.012**2 - NOISE_VAR_M2))
+
+
 def test_one_body_of_nine_in_a_mode_the_replays_never_visited_is_excused():
     """Eight bodies reproduced, one 50 mm off in every replay: the rare mode is excused."""
     bodies = {f"B{k}": 0.0 for k in range(8)} | {"rare": 0.05**2}

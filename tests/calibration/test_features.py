@@ -163,9 +163,10 @@ def test_windows_end_where_a_body_leaves_its_support_and_carry_up(body_map):
     (1, -0.03, "fall"),            # dropped more than FALL_M
 ])
 def test_windows_end_where_a_body_tips_over_or_falls(body_map, column, value, limit):
-    """Counted from where the body was first tracked (here 0.1 m or rad off the layout's)."""
+    """Counted from where the body was first tracked (here 0.1 m lower or 0.1 rad turned the
+    other way than the layout's)."""
     states = _still()
-    path = 0.1 + np.where(T < 1.0, 0.0, value)
+    path = -0.1 + np.where(T < 1.0, 0.0, value)
     states["L2C2R1"][1][:, column] = path
     frames = features.windows(states, body_map, sled_stop_s=5.0)
     assert frames["L2C2R1"] == int(np.sum(T < 1.0))

@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from calibration import features, validate
+from wrapenv.bench import SimSettings
 from wrapenv.calibrated import CalibratedPair, Calibration
 from wrapenv.load import LoadUnit
 
@@ -34,13 +35,16 @@ def recording(bottom_m: float, top_m: float) -> SimpleNamespace:
                            frames={n: len(T) for n in SEEN})
 
 
-def fake_replay(frictions: list[float]):
+def fake_replay(frictions: list[float], settled: list[float] | None = None):
     """A replay in which the bottom layer takes 20 mm of the top layer's 50 mm recorded slip,
     or, with the bundles' static coefficient above 0.35, none of it; it notes that
-    coefficient."""
+    coefficient, and how long the unit settled (in `settled`)."""
+    settled = [] if settled is None else settled
+
     def replay(o, friction, scales, sim):
         static = friction.pair("bundle_bundle").static
         frictions.append(static)
+        settled.append(sim.settle_s)
         return {n: recording(-0.05, -0.03 if static <= 0.35 else 0.0).states[n][1]
                 for n in o.states}
     return replay
@@ -53,11 +57,15 @@ def test_replays_with_the_calibration_then_with_draws_and_layers_judged_on_the_p
     the uncertain prediction, not the headline."""
     obs = recording(-0.03, -0.05)
     frictions: list[float] = []
-    monkeypatch.setattr(validate, "replay", fake_replay(frictions))
+    settled: list[float] = []
+    monkeypatch.setattr(validate, "replay", fake_replay(frictions, settled))
     cal = Calibration({"bundle_bundle": CalibratedPair(0.35, 0.30, static_std=0.02)})
     (check,) = validate.validate([obs], cal, inline_pool, repeats=8)
     draws = [cal.draw(k).friction["bundle_bundle"].static for k in range(8)]
     assert frictions == [0.35] * 8 + draws
+    # the k-th replay of each kind settles k x 0.05 s longer, as repeated tests differ
+    base = SimSettings().settle_s
+    assert settled == pytest.approx([base + 0.05 * (k % 8) for k in range(16)])
     assert check.replays == 8
     assert check.layers[2].recorded_m == pytest.approx(-0.05)
     assert check.layers[2].predicted_m == pytest.approx(-0.03)
@@ -66,6 +74,10 @@ def test_replays_with_the_calibration_then_with_draws_and_layers_judged_on_the_p
     assert on_pallet.recorded_m == pytest.approx(-0.08)
     assert on_pallet.predicted_m == pytest.approx(-0.08) and on_pallet.spread_m < 1e-12
     assert set(check.to_dict()["layers_on_pallet"]) == {"1", "2"}
+    assert set(check.layers) == {0, 1, 2}       # the pallet's slip on the sled is layer 0
+    # judged by the layer that moved most on the pallet, which CAL.json names as well
+    assert check.verdict == (2, on_pallet)
+    assert check.to_dict()["largest_layer_on_pallet"]["layer"] == 2
     held = [d > 0.35 for d in draws]
     assert 0 < sum(held) < 8
     assert on_pallet.uncertain_m == pytest.approx(np.mean([-0.05 if h else -0.08 for h in held]))
@@ -127,3 +139,20 @@ def test_the_share_of_replays_that_reproduce_a_take_within_15_pct_is_reported():
     assert check.reproduced == 0.5
     assert check.to_dict()["reproduced"] == 0.5
     assert validate._check(-0.005, [-0.005], [-0.005]).reproduced is None   # below MIN_SLIDE_M
+
+
+def test_a_check_s_error_is_the_prediction_less_the_recording():
+    """CAL.json's `error_m` and `error_pct`: 70 mm predicted of 80 mm recorded backwards is
+    10 mm (12.5 %) short of it; a slide under `MIN_SLIDE_M` has no percentage."""
+    check = validate.Check(-0.08, -0.07, 0.005, -0.07, 0.005)
+    assert check.error_m == pytest.approx(0.01)
+    assert check.error_pct == pytest.approx(12.5)
+    assert validate.Check(-0.005, -0.004, 0.0, -0.004, 0.0).error_pct is None
+
+
+def test_without_a_bundle_compared_a_calibration_is_judged_by_the_pallet_s_slip():
+    pallet = validate.Check(-0.03, -0.028, 0.001, -0.028, 0.001)
+    only_pallet = validate.Validation("held-out", 12, {"pallet": pallet}, {0: pallet}, {})
+    assert only_pallet.largest_on_pallet is None
+    assert only_pallet.verdict == (0, pallet)
+    assert "largest_layer_on_pallet" not in only_pallet.to_dict()
