@@ -77,6 +77,23 @@ def test_ring_pretension_is_the_wrapping_tension_of_the_layers_over_its_height()
     assert net.rings.pretension_n[0] == pytest.approx(1 * 100.0 / 0.5 * 0.144)  # pallet round
 
 
+def test_a_ring_lies_round_its_layer_wherever_the_layer_stands_on_the_pallet():
+    """Four bundles 0.28 x 0.19 m, 2 x 2 face to face, once centred and once 0.3 m forward and
+    0.1 m to the side on the pallet: each ring round them is 2 (0.56 + 0.38) = 1.88 m long,
+    and it presses each bundle towards the layer's own centre."""
+    for dx, dy in ((0.0, 0.0), (0.3, 0.1)):
+        layout = one_layer([[dx + sx * 0.14, dy + sy * 0.095]
+                            for sx in (-1, 1) for sy in (-1, 1)]).layout()
+        net = WrapNet(wrap_format("kraft", [(0.144, 0.474, 1, 250.0)]), layout)
+        pos, rot = rest_state(layout)
+        net.freeze(pos, rot)
+        assert net.rings.rest_m + net.rings.pretension_n / net.rings.k_elastic_n_per_m \
+            == pytest.approx([1.88, 1.88])
+        force, _ = net.forces(pos, rot, np.zeros_like(pos), np.zeros_like(pos))
+        inward = np.array([dx, dy]) - pos[1:, :2]
+        assert np.all(np.einsum("bk,bk->b", force[1:, :2], inward) > 0)
+
+
 def test_ring_squeezes_the_corners_inward_and_leaves_the_face_bundles_alone():
     layout = one_layer().layout()
     net = WrapNet(wrap_format("kraft", [(0.0, 0.474, 2, 250.0)]), layout)
@@ -530,6 +547,31 @@ def test_a_weak_seam_opens_and_fails_the_verdict():
     assert seam.opened and seam.utilisation == 1.0 and seam.t_s > 0   # during the pulse
     assert weak.to_json()["wrap"]["opened"] is True
     assert weak.elastic_max_m > strong.elastic_max_m + 0.05
+
+
+def test_once_the_seam_lets_go_its_rings_pull_nothing():
+    """The same tail of 700 N/m without the bench, the web on the bundles alone: it holds
+    the unit at rest, then the layer's bundles are pushed out 0.1 mm at a time until it lets
+    go. From that step on the rings it closes (both) are slack: they press on no corner,
+    however far the bundles are pushed (the face diagonals still pull)."""
+    layout = one_layer().layout()
+    wrap = wrap_format(kraft_card(seam_strength_n_per_m=700.0), [(0.144, 0.474, 1, 250.0)])
+    net = WrapNet(wrap, layout)
+    pos, rot = rest_state(layout)
+    net.freeze(pos, rot)
+    zero = np.zeros_like(pos)
+    outward = np.zeros_like(pos)
+    outward[1:, :2] = np.sign(pos[1:, :2])
+    for step in range(50):
+        force, _ = net.forces(pos + outward * 1e-4 * step, rot, zero, zero)
+        if net.rings.opened.any():
+            break
+    assert net.rings.opened[net.seam].all() and step > 1
+    assert net.seam_peak == 1.0
+    assert np.all(net.rings.last_n[net.seam] == 0.0)
+    force, _ = net.forces(pos + outward * 5e-4 * step, rot, zero, zero)
+    assert len(net.seam) == 2 and np.abs(force).max() > 0.0
+    assert np.all(net.rings.last_n == 0.0) and np.all(net._push == 0.0)
 
 
 @pytest.mark.slow
