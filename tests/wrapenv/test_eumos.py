@@ -135,6 +135,8 @@ def test_an_upright_bundle_lower_than_it_was_stacked_has_fallen_off_its_support(
     assert evaluate(lowered(FALL_DROP_M + 0.001)).damage == ("L1C1R1 fallen",)
     assert evaluate(lowered(0.005)).passed               # the solver's overlap: on its support
     assert evaluate(lowered(0.05, math.radians(30))).damage == ("L1C1R1 toppled",)
+    # tilted, but its centre ended below where its underside stood: it fell off
+    assert evaluate(lowered(0.2, math.radians(30))).damage == ("L1C1R1 fallen",)
 
 
 def test_an_invalid_run_never_passes_even_without_displacement():
