@@ -49,6 +49,17 @@ def test_the_legend_names_each_layer_once_and_the_bundle_that_moved_most():
         "elastic limit (10 % of height)", "permanent limit (5 % of height)"]
 
 
+def test_curves_and_limits_are_drawn_in_millimetres():
+    """On the 0.8 m unit the limits lie at 80 mm (10 %) and 40 mm (5 %); the bundle that moved
+    30 mm ends its curve at 30; the axis shows the elastic limit with room above it."""
+    ax = panel(three_bundles([0.004, 0.030, 0.010]))
+    ys = {line.get_label(): list(line.get_ydata()) for line in ax.get_lines()}
+    assert ys["L1C2R1, highest peak"] == pytest.approx([0.0, 30.0])
+    assert ys["elastic limit (10 % of height)"] == pytest.approx([80.0, 80.0])
+    assert ys["permanent limit (5 % of height)"] == pytest.approx([40.0, 40.0])
+    assert ax.get_ylim() == pytest.approx((0.0, 80.0 * 1.3))
+
+
 def test_the_bundle_that_moved_most_is_judged_by_its_largest_displacement():
     assert "L2C1R1, highest peak" in legend_of(three_bundles([0.004, 0.010, -0.050]))
 
