@@ -94,3 +94,18 @@ def test_pass_probability_carries_its_wilson_95_interval(passed, samples, low, h
     assert p.estimate == passed / samples
     assert p.interval == pytest.approx((low, high), abs=2e-4)
     assert p.to_json()["low95"] == pytest.approx(low, abs=2e-4)
+
+
+def test_a_sample_s_load_carries_its_drawn_mass_and_friction():
+    sample = Uncertainty.of(None, 0.0).draw(LOAD, 5)
+    drawn = sample.load(LOAD)
+    assert sample.mass_scale != 1.0
+    assert drawn.bundle.mass_kg == pytest.approx(LOAD.bundle.mass_kg * sample.mass_scale)
+    assert drawn.pallet == LOAD.pallet
+    for name, pair in sample.friction.items():
+        assert drawn.friction.pair(name) == pair
+
+
+def test_no_sample_knows_nothing_of_the_probability():
+    none = PassProbability(0, 0)
+    assert np.isnan(none.estimate) and none.interval == (0.0, 1.0)
