@@ -325,15 +325,21 @@ def result_json(data: dict[str, Any]) -> bytes:
     return (json.dumps(stamped, indent=2, allow_nan=False) + "\n").encode()
 
 
+#: How many times its bound a value must be before it reads as written in a unit a thousand
+#: times smaller: a bundle's 9.3 kg written in grams is 4.65 times the 2000 kg bound, a
+#: height written in millimetres over 10 times the 3 m one; a figure just past its bound
+#: (3.2 m, 2500 kg) is a figure too large.
+UNIT_SLIP_BEYOND = 2.0
 #: Units a value too large may have been written in, by the key's unit suffix: (factor, unit
 #: written, unit meant).
 _UNIT_SLIPS = {"_m": (1000.0, "millimetres", "metres"), "_kg": (1000.0, "grams", "kilograms")}
 
 
 def _unit_slip(key: str, value: float, maximum: float) -> str:
-    """": millimetres? <key> is in metres" when `value` read in that unit fits `maximum`."""
+    """": millimetres? <key> is in metres" when `value` is well beyond `maximum`
+    (`UNIT_SLIP_BEYOND`) and fits it read in that unit."""
     for suffix, (factor, written, meant) in _UNIT_SLIPS.items():
-        if key.endswith(suffix) and value / factor <= maximum:
+        if key.endswith(suffix) and UNIT_SLIP_BEYOND * maximum <= value <= factor * maximum:
             return f": {written}? {key} is in {meant}"
     return ""
 

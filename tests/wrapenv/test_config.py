@@ -3,9 +3,11 @@ in a failed write, a traceback, or a destroyed input."""
 
 from __future__ import annotations
 
+import math
 import os
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from wrapenv.config import (
@@ -15,6 +17,9 @@ from wrapenv.config import (
     check_distinct,
     check_output,
     check_output_folder,
+    fraction_hint,
+    is_finite_number,
+    is_real_number,
     printable,
     read_csv,
     read_json,
@@ -229,3 +234,89 @@ def test_a_whole_number_s_bounds_are_inclusive():
         table.integer("more", maximum=20)
     with pytest.raises(InputError, match=r"none: must be >= 0 \(got -1\)"):
         table.integer("none", minimum=0)
+
+
+# --- a table validated as it is taken ---------------------------------------------------------
+
+
+def _refuses(take, message: str) -> None:
+    with pytest.raises(InputError, match=message):
+        take()
+
+
+def test_a_number_is_finite_and_within_its_inclusive_bounds():
+    t = Table({"mass_kg": 20, "on": True, "name": "x", "nan": float("nan"), "zero": 0.0},
+              "load.toml", "pallet")
+    assert t.number("mass_kg", minimum=20, maximum=20) == 20.0
+    assert isinstance(t.number("mass_kg"), float)
+    assert t.number("absent_m", 0.5) == 0.5                          # a default when absent
+    _refuses(lambda: t.number("on"), r"pallet\.on: must be a number \(got True\)")
+    _refuses(lambda: t.number("name"), r"pallet\.name: must be a number \(got 'x'\)")
+    _refuses(lambda: t.number("nan"), r"pallet\.nan: must be finite \(got nan\)")
+    _refuses(lambda: t.number("zero", positive=True), r"must be > 0 \(got 0\.0\)")
+    _refuses(lambda: t.number("mass_kg", minimum=20.5), r"must be >= 20\.5 \(got 20\.0\)")
+    _refuses(lambda: t.number("mass_kg", maximum=19.5), r"must be <= 19\.5 \(got 20\.0\)$")
+    _refuses(lambda: t.number("height_m"), r"load\.toml: pallet\.height_m: missing")
+
+
+def test_a_value_too_large_names_the_unit_it_was_likely_written_in():
+    """144 for a height of at most 3 m reads as millimetres (0.144 m fits); 25 000 for at most
+    2000 kg as grams. A figure just past its bound (3.2 m, 2500 kg) is no slip of a thousand
+    (it read as one until 2026-12-01), and 5000 km is no height in millimetres either."""
+    t = Table({"height_m": 144.0, "far_m": 5000000.0, "mass_kg": 25000.0, "turns": 500.0,
+               "tall_m": 3.2, "safe_kg": 2500.0}, "load.toml")
+    _refuses(lambda: t.number("height_m", maximum=3.0),
+             r"must be <= 3\.0 \(got 144\.0\): millimetres\? height_m is in metres$")
+    _refuses(lambda: t.number("tall_m", maximum=3.0), r"must be <= 3\.0 \(got 3\.2\)$")
+    _refuses(lambda: t.number("safe_kg", maximum=2000.0), r"\(got 2500\.0\)$")
+    _refuses(lambda: t.number("far_m", maximum=3.0), r"\(got 5000000\.0\)$")
+    _refuses(lambda: t.number("mass_kg", maximum=2000.0),
+             r"\(got 25000\.0\): grams\? mass_kg is in kilograms$")
+    _refuses(lambda: t.number("turns", maximum=20.0), r"\(got 500\.0\)$")
+    _refuses(lambda: t.number("height_m", maximum=3.0, hint="a pallet is 0.144 m"),
+             r"\(got 144\.0\): a pallet is 0\.144 m$")
+    assert fraction_hint(50.0, " of the web") == ": a fraction of the web (0.5 for 50 %)"
+    assert fraction_hint(1.0) == ": a fraction (0.01 for 1 %)" and fraction_hint(0.5) == ""
+
+
+def test_strings_flags_choices_and_arrays_are_taken_by_their_type():
+    t = Table({"name": "EUR", "stopper": True, "pattern": "columnar", "positions": [[0, 0]],
+               "count": 3}, "load.toml", "stack")
+    assert t.string("name") == "EUR" and t.boolean("stopper") is True
+    assert t.choice("pattern", ("columnar", "interlocked")) == "columnar"
+    assert t.array("positions") == [[0, 0]]
+    assert t.string("absent", "default") == "default" and t.boolean("off", False) is False
+    _refuses(lambda: t.string("count"), r"stack\.count: must be a string \(got 3\)")
+    _refuses(lambda: t.boolean("name"), r"stack\.name: must be true or false \(got 'EUR'\)")
+    _refuses(lambda: t.choice("name", ("a", "b")), r"must be one of 'a', 'b' \(got 'EUR'\)")
+    _refuses(lambda: t.array("name"), r"stack\.name: must be an array \(got 'EUR'\)")
+    _refuses(lambda: t.array("absent_list"), r"stack\.absent_list: missing")
+
+
+def test_keys_left_untaken_are_unknown_the_first_in_order_named():
+    t = Table({"mass_kg": 20.0, "mass_kgs": 21.0, "colour": "red", "note": "x"}, "load.toml",
+              "bundle")
+    assert t.has("mass_kg") and not t.has("length_m")
+    t.number("mass_kg")
+    t.ignore("note")
+    _refuses(t.done, r"load\.toml: bundle\.colour: unknown key")
+    t.string("colour")
+    _refuses(t.done, r"bundle\.mass_kgs: unknown key")
+    t.number("mass_kgs")
+    t.done()
+
+
+def test_a_table_is_a_table_and_a_nested_one_names_its_path():
+    _refuses(lambda: Table([1, 2], "load.toml"), r"load\.toml: \(top level\): expected a table")
+    top = Table({"pallet": {"mass_kg": "heavy"}, "stack": 3}, "load.toml")
+    _refuses(lambda: top.table("pallet").number("mass_kg"), r"pallet\.mass_kg: must be a number")
+    _refuses(lambda: top.table("stack"), r"load\.toml: stack: expected a table")
+    assert top.table("fixture").has("pallet_stopper") is False      # absent: an empty table
+    _refuses(lambda: top.table("bundle", required=True), r"bundle: missing")
+
+
+def test_a_number_is_real_and_not_a_flag():
+    assert is_real_number(3) and is_real_number(np.float32(0.5)) and is_real_number(math.inf)
+    assert not is_real_number(True) and not is_real_number("3")
+    assert is_finite_number(0.5) and not is_finite_number(math.nan)
+    assert not is_finite_number(math.inf) and not is_finite_number(False)
