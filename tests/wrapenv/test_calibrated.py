@@ -119,6 +119,15 @@ def test_a_fit_on_a_take_near_a_threshold_says_so_to_its_users():
 def test_std_and_identified_are_optional_with_documented_defaults():
     cal = Calibration.from_dict({"friction": {"sled_pallet": {"static": 0.5, "kinetic": 0.4}}})
     assert cal.friction["sled_pallet"] == CalibratedPair(0.5, 0.4, 0.0, 0.0, True)
+    # a file of friction alone leaves the wrap and the load's give as they are, exactly
+    assert cal == Calibration({"sled_pallet": CalibratedPair(0.5, 0.4)})
+    assert (cal.stiffness_scale, cal.tension_scale, cal.give_scale) == (1.0, 1.0, 1.0)
+    assert (cal.stiffness_scale_std, cal.tension_scale_std, cal.give_scale_std) == (0, 0, 0)
+    assert cal.unexplained_rms_m == 0.0
+    accepted = Calibration.from_dict({"friction": {"sled_pallet": {"static": 0.5,
+                                                                   "kinetic": 0.4}},
+                                      "acceptance": {"max_residual_m": 0.01}})
+    assert accepted.unexplained_rms_m == 0.0
 
 
 def test_empty_calibration_changes_nothing():
@@ -173,6 +182,10 @@ def test_apply_keeps_the_load_files_pair_above_an_unidentified_bound():
     cal = Calibration.from_dict({"friction": {"sled_pallet": {
         "static": 0.11, "kinetic": 0.09, "identified": False}}})
     assert cal.apply(load()).friction.sled_pallet == FrictionPair(0.3, 0.2)
+    # a bound above the load file's value is taken, one on it changes nothing
+    above = Calibration.from_dict({"friction": {"sled_pallet": {
+        "static": 0.35, "kinetic": 0.3, "identified": False}}})
+    assert above.apply(load()).friction.sled_pallet == FrictionPair(0.35, 0.3)
 
 
 BAD_CALS = {
