@@ -268,6 +268,38 @@ def test_interlocked_turned_layer_bridges_the_joints_below():
             assert len(below) >= 2, f"{b.name} rests on {len(below)} bundle(s) only"
 
 
+def test_a_fourth_interlocked_layer_lies_as_the_second():
+    interlocked = LoadUnit.from_toml(EXAMPLES / "pet_3layer_interlocked.toml")
+    layers = by_layer(replace(interlocked, stack=replace(interlocked.stack, layers=4)).layout())
+    sizes = {layer: {b.size_m for b in bundles} for layer, bundles in layers.items()}
+    assert sizes[1] == sizes[3] != sizes[2] == sizes[4]
+
+
+def test_a_bundle_rests_on_the_bundles_of_the_layer_below_under_it():
+    """Three columns of three layers, two side by side and one off to the side: each bundle
+    above the first layer rests on the one beneath it alone, none on a bundle two layers down
+    or beside it."""
+    layout = LoadUnit.from_dict(minimal(stack={
+        "layers": 3, "pattern": "explicit",
+        "positions": [[-0.3, 0.0], [0.0, 0.0], [0.3, 0.2]]})).layout()
+    names = [b.name for b in layout.bundles]
+    resting = {names[k]: sorted(names[j] for j in below)
+               for k, below in enumerate(layout.supports())}
+    for b in layout.bundles:
+        beneath = [o.name for o in layout.bundles if o.layer == b.layer - 1
+                   and o.centre_m[:2] == b.centre_m[:2]]
+        assert resting[b.name] == beneath, b.name
+    assert sum(map(len, resting.values())) == 6      # layers 2 and 3, one each
+
+
+def test_the_outline_is_the_bundles_extent_seen_from_above():
+    """0.28 x 0.19 m bundles centred at x = -0.3 and 0.1, y = 0.0 and 0.2: from x = -0.44 to
+    0.24 and from y = -0.095 to 0.295, wherever they stand on the pallet."""
+    layout = LoadUnit.from_dict(minimal(stack={
+        "layers": 1, "pattern": "explicit", "positions": [[-0.3, 0.0], [0.1, 0.2]]})).layout()
+    assert layout.outline_m == pytest.approx((0.68, 0.39))
+
+
 def test_explicit_positions_are_used_on_every_layer():
     unit = LoadUnit.from_dict(minimal(
         stack={"layers": 3, "pattern": "explicit", "positions": [[-0.3, 0.0], [0.3, 0.1]]},
