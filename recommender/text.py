@@ -26,9 +26,11 @@ def _pct(x: float | None, height_m: float) -> str:
 
 
 def sample_figures(level: dict[str, Any]) -> str:
-    """A sample's level (its JSON) in the two figures a worst-sample line gives."""
-    return (f"elastic {1000 * (level['elastic_max_m'] or 0):.1f} mm, permanent "
-            f"{1000 * (level['permanent_max_m'] or 0):.1f} mm")
+    """A sample's level (its JSON) in the two figures a worst-sample line gives; a figure a
+    blown-up run could not give (null) is "n/a", as the HTML report has it, not 0 mm."""
+    elastic, permanent = (level[key] for key in ("elastic_max_m", "permanent_max_m"))
+    return (f"elastic {'n/a' if elastic is None else f'{1000 * elastic:.1f} mm'}, permanent "
+            f"{'n/a' if permanent is None else f'{1000 * permanent:.1f} mm'}")
 
 
 def level_result(verdict: Verdict, v: LevelVerdict) -> str:

@@ -18,6 +18,7 @@ from recommender.text import (
     orientation_tested,
     program_summary,
     program_text,
+    sample_figures,
     sequence_text,
     verdict_table,
 )
@@ -230,3 +231,12 @@ def test_a_calibration_names_the_values_it_put_in_place():
     same_give = replace(cal, give_scale=1.0)
     assert calibration_text("CAL.json", same_give, unit, wrapped=False) == (
         "calibrated by CAL.json: no friction pair")
+
+
+def test_a_worst_sample_gives_its_two_figures_and_none_that_a_blown_up_run_lacks():
+    """A sample whose level blew up has no figures (null in its JSON): "n/a", as the HTML
+    report writes it; it printed 0.0 mm, the figure of a unit that did not move."""
+    assert sample_figures({"elastic_max_m": 0.0123, "permanent_max_m": 0.0}) == (
+        "elastic 12.3 mm, permanent 0.0 mm")
+    assert sample_figures({"elastic_max_m": None, "permanent_max_m": None}) == (
+        "elastic n/a, permanent n/a")
