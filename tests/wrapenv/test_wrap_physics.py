@@ -222,6 +222,7 @@ def test_a_later_level_reports_its_own_peaks_on_the_wrap_it_inherited():
     rest = (net.rings.rest_m.copy(), net.panels.plastic_m.copy())
     net.next_level()
     assert net.rings.peak.max() == 0.0 and net.panels.peak.max() == 0.0
+    assert net.rings.peak_force_n.max() == 0.0 == net.panels.peak_force_n.max()
     assert np.isnan(net.rings.peak_t_s).all()
     assert np.all(net.ring_edge == 1.0)
     assert (net.seam_peak, net.seam_peak_force) == (0.0, 0.0) and math.isnan(net.seam_peak_t)
