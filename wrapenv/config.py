@@ -150,7 +150,7 @@ class Table:
     ) -> float:
         """A finite number within the bounds; `hint` says what a value above `maximum` most
         likely is (by default, for a key in metres or kilograms, a value in millimetres or
-        grams if it fits the bounds as one)."""
+        grams if it is well beyond the bound and fits it as one: `_unit_slip`)."""
         value = self._get(key, _REQUIRED if default is None else default)
         if isinstance(value, bool) or not isinstance(value, int | float):
             raise self.error(key, f"must be a number (got {value!r})")
