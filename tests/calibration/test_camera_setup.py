@@ -4,8 +4,19 @@ marker size may be left out."""
 from __future__ import annotations
 
 import tomllib
+from pathlib import Path
 
-from calibration.camera_setup import MarkerPlacement, MarkerSpec, Setup, setup_toml
+import pytest
+
+from calibration.camera_setup import (
+    MarkerPlacement,
+    MarkerSpec,
+    Setup,
+    check_markers,
+    setup_toml,
+)
+from wrapenv.config import InputError
+from wrapenv.load import LoadUnit
 
 SPEC = MarkerSpec("DICT_5X5_100", 0.05, (MarkerPlacement(7, "pallet", (0.5, 0.0)),
                                          MarkerPlacement(9, "L2C1R1", (-0.1, 0.12))))
@@ -27,3 +38,14 @@ def test_marker_size_may_be_left_out():
     data = tomllib.loads(setup_toml(25.0, 412.0, (960.5, 1001.0), spec))
     assert "size_m" not in data["markers"]
     assert Setup.parse(data, "setup.toml").markers == spec
+
+
+def test_a_marker_id_beyond_its_dictionary_is_named_with_the_dictionary_s_range():
+    load = LoadUnit.from_toml(Path(__file__).resolve().parents[2] / "examples"
+                              / "pet_2layer_columnar.toml")
+    beyond = MarkerSpec("DICT_4X4_50", 0.05, (MarkerPlacement(50, "pallet", (0.5, 0.0)),))
+    with pytest.raises(InputError, match=r"^setup\.toml: markers\.placement\[0\]\.id: "
+                                         r"DICT_4X4_50 has ids 0 to 49 \(got 50\)$"):
+        check_markers(beyond, load, "setup.toml")
+    check_markers(MarkerSpec("DICT_4X4_50", None, (MarkerPlacement(49, "sled", (0.0, 0.0)),)),
+                  load, "setup.toml")

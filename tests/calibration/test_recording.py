@@ -152,6 +152,8 @@ CASES = {
     "px_per_m 100 x too large": (_px_per_m_times(100.0), "setup.toml", "camera.px_per_m"),
     "origin not finite": (_edit("setup.toml", "origin_px = [", "origin_px = [nan, "),
                           "setup.toml", "camera.origin_px"),
+    "origin of three numbers": (_edit("setup.toml", "origin_px = [", "origin_px = [1.0, "),
+                                "setup.toml", "camera.origin_px"),
     "camera missing": (_edit("setup.toml", "[camera]", "[kamera]"), "setup.toml", "camera"),
     "unknown dictionary": (_edit("setup.toml", "DICT_4X4_50", "DICT_4X4_51"), "setup.toml",
                            "markers.dictionary"),
