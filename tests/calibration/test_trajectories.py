@@ -61,3 +61,18 @@ def test_error_vs_truth_ignores_start_offset() -> None:
     err = error_vs_truth(tracked, truth)["a"]
     assert err.frames == 9 and abs(err.offset_m - 0.5) < 1e-12
     assert abs(err.max_m - 0.001) < 1e-12 and 0 < err.rms_m < 0.001
+
+
+def test_error_vs_truth_counts_vertical_motion_and_frames_within_the_truth_s_span() -> None:
+    """A body 0.3 m up that truly drops 40 mm from 0.1 s to 1 s, tracked 3 mm to the side and
+    4 mm high at 0.1 s (5 mm: the offset, not an error) and dropping 30 mm: 10 mm short at the
+    end. The frame tracked at 0 s, before the truth starts, is not compared."""
+    t = np.linspace(0.0, 1.0, 11)
+    drop = (t - 0.1) / 0.9
+    truth = {"a": ObjectPath(t[1:], 0 * t[1:], 0.3 - 0.04 * drop[1:], 0 * t[1:])}
+    tracked = Trajectories({"a": ObjectPath(t, 0.003 + 0 * t, 0.304 - 0.03 * drop, 0 * t)})
+    err = error_vs_truth(tracked, truth)["a"]
+    assert err.frames == 10
+    assert err.offset_m == pytest.approx(0.005)
+    assert err.max_m == pytest.approx(0.01)
+    assert error_vs_truth(tracked, {"b": truth["a"]}) == {}       # nothing to compare
