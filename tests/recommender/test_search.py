@@ -25,6 +25,7 @@ from recommender.cli import EXAMPLE_LOAD, main
 from recommender.search import (
     DEFAULT,
     DOMINATED,
+    LIGHT_START,
     SCREENING,
     STRONGEST_PROGRAM,
     TIGHT_PROGRAMS,
@@ -68,6 +69,26 @@ def test_among_passes_laying_the_same_web_the_lower_tension_ranks_first(small_lo
     assert soft.rank(FAST.margin_goal) < hard.rank(FAST.margin_goal)
     short = search._evaluation(slack, [0.1], [True], DEFAULT)  # short of the margin goal
     assert hard.rank(FAST.margin_goal) < short.rank(FAST.margin_goal)
+
+
+def test_the_search_s_fixed_programs_are_what_their_names_say(small_load):
+    """On the small unit (Kraft on a 0.5 m web: 80-800 N, overlap 0-75 %, a reinforcement from
+    0.1 to 0.304 m): the start lays 2 bottom wraps, a spiral at 25 % and 1 top wrap at mid
+    tension (440 N); the tightest programs the least web (1, 0 %, 1) at 800, 440 and 80 N; the
+    strongest every wrap, 75 % and 4 reinforcement wraps halfway up their range, at 800 N."""
+    problem = Problem.build(small_load, FAST)
+
+    def program(x: tuple[float, ...]) -> tuple:
+        p = problem.wrap(np.array(x)).program
+        assert p is not None
+        r = [(r.wraps, r.from_m, r.tension_n) for r in p.reinforcements]
+        return (p.bottom_wraps, p.up_overlap, p.top_wraps, p.bottom_tension_n,
+                p.middle_tension_n, p.top_tension_n, r)
+
+    assert program(LIGHT_START) == (2, 0.25, 1, 440.0, 440.0, 440.0, [])
+    assert [program(x) for x in TIGHT_PROGRAMS] == [
+        (1, 0.0, 1, t, t, t, []) for t in (800.0, 440.0, 80.0)]
+    assert program(STRONGEST_PROGRAM) == (6, 0.75, 6, 800.0, 800.0, 800.0, [(4, 0.202, 800.0)])
 
 
 def test_wraps_are_integer_variables_of_the_search(small_load):
