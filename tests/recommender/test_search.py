@@ -20,6 +20,7 @@ import numpy as np
 import pytest
 import tomli_w
 
+from recommender import search as search_module
 from recommender.checkpoint import CHECKPOINT_FORMAT, FIRST_ROUND, Round, read_round
 from recommender.cli import EXAMPLE_LOAD, main
 from recommender.search import (
@@ -33,17 +34,20 @@ from recommender.search import (
     RobustSearch,
     SearchSettings,
     Trial,
+    Verification,
     next_start,
     stale_generations,
     verify,
     weakest,
 )
 from tests.recommender.conftest import FAST, SMALL
+from wrapenv.bench import BenchRun
 from wrapenv.calibrated import Calibration
 from wrapenv.config import InputError
-from wrapenv.eumos import LAYER_SHIFT, Limits
+from wrapenv.eumos import LAYER_SHIFT, LevelVerdict, Limits, Verdict
 from wrapenv.load import LoadUnit
 from wrapenv.material import MATERIALS
+from wrapenv.uncertainty import PassProbability
 from wrapenv.wrap import Web, WrapFormat
 
 
@@ -160,6 +164,38 @@ def test_search_finds_a_robust_pass_and_resumes_from_its_checkpoint(small_load, 
     assert resumed.history[:4] == stopped.history   # nothing of the first generation lost
     best = resumed.best(FAST.margin_goal)
     assert best is not None and best.robust_pass
+
+
+def test_a_search_counts_every_level_it_simulated(small_load, monkeypatch):
+    """What `recommend` reports as simulations: every level run in every generation, counted
+    here from the trials the search submitted to its pool."""
+    submitted: list[Any] = []
+
+    def counting(*args: Any) -> list[Any]:
+        futures = real(*args)
+        submitted.extend(futures)
+        return futures
+
+    real = search_module._submit_sample
+    monkeypatch.setattr(search_module, "_submit_sample", counting)
+    search = RobustSearch(Problem.build(small_load, FAST))
+    state = search.run(search.start())
+    assert state.generation >= 2
+    assert state.simulations == sum(f.result().simulations for f in submitted) > 0
+
+
+def test_an_answer_holds_only_if_its_nominal_sequences_and_every_sample_pass():
+    def run(passed: bool) -> BenchRun:
+        level = LevelVerdict(0.5, passed, True, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, (), {}, ())
+        return BenchRun(Verdict(0.8, (level,)), (), 20)
+
+    def verification(nominal: bool, samples_passed: int) -> Verification:
+        return Verification({"long": run(True), "short": run(nominal)},
+                            PassProbability(samples_passed, 8), None)
+
+    assert verification(True, 8).holds
+    assert not verification(False, 8).holds and not verification(False, 8).passed
+    assert not verification(True, 7).holds and verification(True, 7).passed
 
 
 def test_the_answer_is_confirmed_at_the_default_fidelity_and_the_search_repeats(small_load,
