@@ -347,8 +347,8 @@ def test_a_sample_is_as_strong_as_its_weakest_orientation():
     assert weakest([long, replace(short, passed=True, margin=0.3)]).passed
     # stopped once decided, a sample ends at its first failing orientation: a later one's
     # margin (a bound) is not told, though it ran beside it
-    first_fails = weakest([replace(long, passed=False, margin=-0.3), short],
-                          stop_when_decided=True)
+    first_fails = weakest([replace(long, passed=False, margin=-0.3),
+                           replace(short, margin=-0.9)], stop_when_decided=True)
     assert first_fails.margin == -0.3 and first_fails.orientation == "long"
     assert first_fails.simulations == 2
     assert weakest([long, short], stop_when_decided=True).margin == -0.2
