@@ -17,7 +17,15 @@ from pathlib import Path
 from typing import Any
 
 from recommender.search import Trial
-from recommender.text import TIGHT_WRAP_HINT, level_result, sequence_text, step_cells, wrapped
+from recommender.text import (
+    TIGHT_WRAP_HINT,
+    level_result,
+    mm_text,
+    sample_figures,
+    sequence_text,
+    step_cells,
+    wrapped,
+)
 from wrapenv import __version__
 from wrapenv.bench import BenchRun, SimSettings
 from wrapenv.config import printable
@@ -98,10 +106,6 @@ def _t(text: object, limit: int = 300) -> str:
 
 def _png(data: bytes) -> str:
     return "data:image/png;base64," + base64.b64encode(data).decode("ascii")
-
-
-def _mm(x: float | None) -> str:
-    return "n/a" if x is None else f"{1000 * x:.1f} mm"
 
 
 def _rows(cells: Iterable[Iterable[str]], tag: str = "td") -> str:
@@ -204,7 +208,7 @@ def _level_row(verdict: Verdict, level: LevelVerdict, criteria: tuple[Criterion,
         cells.append(f"{c.figure_text(level, height_m)} {_check(ok)}")
     ok = level.criteria.get(NO_DAMAGE, False) and level.valid
     cells.append(f'{_t(", ".join(level.damage) or "none")} {_check(ok)}')
-    cells.append(_mm(level.pallet_slip_m))
+    cells.append(mm_text(level.pallet_slip_m))
     cells.append(_wrap_cell(level.wrap))
     result = level_result(verdict, level)
     why = level.invalid_reason or level.stopped_early or level.not_at_rest
@@ -280,8 +284,7 @@ def _robust_section(r: Robustness) -> str:
                  "pass)" if search is not None and w.passed and w.margin < search.margin_goal
                  else "")
         facts.append(("Worst sample", f"{_t(w.orientation)} side, margin {w.margin:.2f}, "
-                      f"elastic {_mm(level.get('elastic_max_m'))}, permanent "
-                      f"{_mm(level.get('permanent_max_m'))}, "
+                      f"{sample_figures(level)}, "
                       f"{'passed' if w.passed else 'failed'}" + below
                       + (f" (its level stopped once decided: {_t(level['stopped_early'])})"
                          if level.get("stopped_early") else "")))

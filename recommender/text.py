@@ -25,12 +25,17 @@ def _pct(x: float | None, height_m: float) -> str:
     return "      " if x is None else f"({100 * x / height_m:4.1f} %)"
 
 
+def mm_text(x: float | None) -> str:
+    """A figure in mm as a sentence gives it; one a blown-up run could not give (null) is
+    "n/a", not 0 mm."""
+    return "n/a" if x is None else f"{1000 * x:.1f} mm"
+
+
 def sample_figures(level: dict[str, Any]) -> str:
-    """A sample's level (its JSON) in the two figures a worst-sample line gives; a figure a
-    blown-up run could not give (null) is "n/a", as the HTML report has it, not 0 mm."""
-    elastic, permanent = (level[key] for key in ("elastic_max_m", "permanent_max_m"))
-    return (f"elastic {'n/a' if elastic is None else f'{1000 * elastic:.1f} mm'}, permanent "
-            f"{'n/a' if permanent is None else f'{1000 * permanent:.1f} mm'}")
+    """A sample's level (its JSON) in the two figures a worst-sample line gives, printed and
+    in the HTML report."""
+    return (f"elastic {mm_text(level.get('elastic_max_m'))}, permanent "
+            f"{mm_text(level.get('permanent_max_m'))}")
 
 
 def level_result(verdict: Verdict, v: LevelVerdict) -> str:
