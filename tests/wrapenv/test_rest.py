@@ -58,6 +58,20 @@ def test_bundle_on_bundle_friction_counts_only_where_a_bundle_stands_on_another(
     assert quiet_accel_mps2(unit(static=(1.0, 1.0, 0.05))) == pytest.approx(G * 0.19 / 0.33)
 
 
+def test_a_bundle_standing_on_another_is_quiet_below_their_static_friction():
+    """Two layers of one bundle: bundle–bundle 0.2 decides, below the column's tipping
+    (0.19 / 0.66 = 0.29) and the pallet's friction."""
+    two = LoadUnit.from_dict({
+        "pallet": {"preset": "EUR"},
+        "bundle": {"length_m": 0.28, "width_m": 0.19, "height_m": 0.33, "mass_kg": 9.3},
+        "stack": {"layers": 2, "pattern": "explicit", "positions": [[0.0, 0.0]]},
+        "friction": {"sled_pallet": {"static": 0.45, "kinetic": 0.45},
+                     "pallet_bundle": {"static": 0.5, "kinetic": 0.5},
+                     "bundle_bundle": {"static": 0.2, "kinetic": 0.2}},
+    }).layout()
+    assert quiet_accel_mps2(two) == pytest.approx(G * 0.2)
+
+
 def test_a_load_as_wide_as_its_pallet_tips_with_the_pallet():
     # one 1.2 x 0.8 x 0.9 m bundle: the load tips about the pallet's edge at 0.8 / (0.144 + 0.9),
     # before the bundle would about its own (0.8 / 0.9)
@@ -109,6 +123,7 @@ def test_the_end_of_a_push_is_a_change_of_load():
 def test_a_quiet_flat_unit_at_rest_is_unchanged_until_the_step_before_the_next_change():
     rest = Rest(unit(), ACCEL, DRIFT_M)               # quiet below 0.45 g = 4.4 m/s²
     _, rot = poses()
+    assert rest.unchanged_until(0, rot, end=40) == 9      # from the level's first step
     assert rest.unchanged_until(3, rot, end=40) == 9
     assert rest.unchanged_until(12, rot, end=40) == 29
     assert rest.unchanged_until(12, rot, end=20) == 20  # never past the end asked for

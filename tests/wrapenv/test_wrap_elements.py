@@ -43,6 +43,46 @@ def test_strain_past_yield_leaves_permanent_stretch():
     assert e.force(np.array([0.03]), np.zeros(1))[0] == pytest.approx(12.0, rel=1e-6)
 
 
+def test_a_small_pull_is_a_pull():
+    # 0.5 mm on 1000 N/m: 0.5 N, however small
+    assert element().force(np.array([0.0005]), np.zeros(1))[0] == pytest.approx(0.5)
+
+
+def test_an_element_pulls_from_its_rest_length_not_from_zero():
+    """A ring frozen round the load at its rest length: only the stretch past it pulls."""
+    e = element()
+    e.rest_m[:] = 2.0
+    assert e.force(np.array([2.005]), np.zeros(1))[0] == pytest.approx(5.0)
+    assert e.force(np.array([1.995]), np.zeros(1))[0] == 0.0
+
+
+def test_elements_yield_each_by_its_own_overstretch():
+    """Two elements of one set: the one 0.5 N past its 10 N yield takes a permanent stretch
+    (bilinear: 10 + 100 x 0.0005 = 10.05 N, and 0.5 / (1000 + 111.1) = 0.45 mm of it
+    permanent); the one below yield stays elastic."""
+    e = element_set(k_web_n_per_m=np.full(2, 1000.0), material_strength=(10.0, 50.0, 0.1),
+                    web_m=np.ones(2), pretension_n=np.zeros(2), mass_kg=np.ones(2),
+                    height_m=np.zeros(2), length_m=np.ones(2), give_n_per_m=1e12)
+    force = e.force(np.array([0.0105, 0.008]), np.zeros(2))
+    assert force == pytest.approx([10.05, 8.0], rel=1e-6)
+    assert e.plastic_m == pytest.approx([0.0105 - 10.05 / 1000.0, 0.0], abs=1e-9)
+
+
+def test_an_element_whose_seam_opened_is_slack_however_far_it_is_pulled():
+    e = element()
+    e.opened[0] = True
+    assert e.force(np.array([0.005]), np.ones(1))[0] == 0.0
+    assert e.last_n[0] == 0.0
+
+
+def test_an_element_just_short_of_its_breaking_force_holds():
+    # 10 N at yield, then 100 N/m: 11.9 N at 29 mm, short of 12 N
+    e = element(k=1000.0, yield_n=10.0, break_n=12.0, hardening=0.1)
+    assert e.force(np.array([0.029]), np.zeros(1))[0] == pytest.approx(11.9, rel=1e-6)
+    assert not e.torn[0]
+    assert e.peak[0] == pytest.approx(11.9 / 12.0, rel=1e-6)
+
+
 def test_element_tears_at_its_breaking_force_and_stays_torn():
     e = element(k=1000.0, yield_n=10.0, break_n=12.0, hardening=0.1)
     assert e.force(np.array([0.05]), np.zeros(1))[0] == 0.0
@@ -117,6 +157,14 @@ def test_a_knife_edge_costs_at_most_half_the_stretch_to_break(edge_factor):
     # 3200 + 45000 x 0.017 = 3965 N/m
     assert edge_factor(STANDARD_KRAFT, 1e-5) == pytest.approx(3965.0 / 3402.5, rel=1e-4)
     assert bend_factor(STANDARD_KRAFT, np.array([0.0]))[0] == pytest.approx(1.0)
+
+
+def test_a_web_still_elastic_after_the_bend_bears_its_stiffness_times_what_is_left():
+    """A stiff paper yielding late (at 2 % of its 2.5 %): a bend of 1 % leaves 1.5 %, still
+    elastic, 4e5 x 0.015 = 6000 N/m against its 8000 + 40000 x 0.005 = 8200 N/m flat."""
+    late = Material("late-yielding paper", 0.09, 4.0e5, 0.02, 0.025, 0.1, 0.6, "paper",
+                    thickness_m=1.3e-4)
+    assert bend_factor(late, np.array([0.01]))[0] == pytest.approx(8200.0 / 6000.0)
 
 
 def test_a_small_kink_bends_a_tensioned_web_less_than_a_corner():
