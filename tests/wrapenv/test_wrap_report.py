@@ -11,7 +11,7 @@ from wrapenv.load import LoadUnit
 from wrapenv.wrap import WrapFormat
 from wrapenv.wrap_geometry import CORNER_NAMES, FACE_NAMES, corner_positions_m
 from wrapenv.wrap_physics import WrapNet
-from wrapenv.wrap_report import CRITICAL_COUNT
+from wrapenv.wrap_report import CRITICAL_COUNT, Place
 
 UNIT = LoadUnit.from_dict({"pallet": {"preset": "EUR"}, "bundle": {"preset": "PET6x1.5L"},
                            "stack": {"layers": 2}})
@@ -57,6 +57,28 @@ def test_places_lie_on_the_unrolled_envelope(report):
             f = FACE_NAMES.index(p.where)
             assert (p.s0_m, p.s1_m) == (corners[f], corners[f + 1])
         assert 0.0 <= p.z0_m <= p.height_m <= p.z1_m <= UNIT.load_height_m
+
+
+def test_the_seam_runs_round_the_whole_perimeter_at_the_rings_it_closes(report):
+    """The tail's joint is glued across the web's width at the last revolution: a place round
+    the whole outline (s from 0 to the perimeter), between its lowest and highest ring."""
+    (seam,) = [p for p in report.places if p.element == "seam"]
+    rings = sorted({p.height_m for p in report.places if p.element == "ring"})
+    assert (seam.s0_m, seam.s1_m) == (0.0, corner_positions_m(UNIT.layout())[-1])
+    assert seam.z0_m in rings and seam.z1_m in rings
+    assert seam.z0_m <= seam.height_m <= seam.z1_m
+    assert not seam.opened
+
+
+def test_a_place_is_written_to_a_tenth_of_a_millimetre_and_a_centinewton():
+    place = Place("ring", "corner -x-y", 0.123456, 0.987654, 123.4567, 0.1234567,
+                  0.0, 0.0, 0.123456, 0.123456)
+    assert place.to_json() == {"height_m": 0.1235, "where": "corner -x-y",
+                               "utilisation": 0.9877, "t_s": 0.1235, "element": "ring",
+                               "force_n": 123.46}
+    untimed = Place("seam", "seam", 0.5, 1.0, 80.0, None, 0.0, 4.0, 0.4, 0.6, opened=True)
+    assert untimed.to_json()["t_s"] is None and untimed.to_json()["opened"] is True
+    assert "torn" not in untimed.to_json()
 
 
 def test_the_pushed_corner_stretches_its_layer_s_rings_most_loaded_at_their_corners(report):
