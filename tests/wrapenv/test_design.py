@@ -29,6 +29,15 @@ def test_every_program_starts_with_a_parked_revolution_over_the_web_s_head(space
     assert space.program(space.high).bottom_wraps == MAX_WRAPS
 
 
+def test_wraps_range_as_the_space_documents_them(space):
+    """Bottom and top wraps 1 to 6 revolutions, reinforcement 0 (none) to 4, the spiral's
+    overlap up to 0.75 of the web (4 layers)."""
+    assert space.low[:3].tolist() == [1, 1, 0]
+    assert space.high[:4].tolist() == [6, 6, 4, 0.75]
+    strongest = space.program(space.high)
+    assert (strongest.top_wraps, strongest.reinforcements[0].wraps) == (6, 4)
+
+
 @pytest.mark.parametrize("load_height_m", [0.3, 0.804, 1.6])
 @pytest.mark.parametrize("web_width_m", [0.5, 0.75])
 def test_the_web_of_every_program_closes_round_the_load_at_every_height(load_height_m,
