@@ -124,6 +124,14 @@ def test_advice_on_an_unresolved_static_coefficient_brackets_the_first_slip():
     assert "below 0.40 g" in advice_static("bundle_bundle", obs[1:], 0.08)
 
 
+def test_the_bracket_s_lower_end_is_a_level_below_the_first_slip_that_held():
+    """Takes that held at or above the level where the pair first slipped (repeat takes
+    disagree near an onset) bracket nothing: the onset still lies between 0.30 and 0.40 g."""
+    obs = [_obs(0.30, set()), _obs(0.40, {"bundle_bundle"}), _obs(0.40, set()),
+           _obs(0.45, set()), _obs(0.50, {"bundle_bundle"})]
+    assert "between 0.30 and 0.40 g" in advice_static("bundle_bundle", obs, 0.08)
+
+
 def test_advice_on_an_unresolved_kinetic_coefficient_asks_for_a_longer_slide():
     """How far a slip runs pins the kinetic coefficient: a level above the highest the pair
     slipped at, not the highest tested (at 0.50 g the pair held); where a front row slides off
