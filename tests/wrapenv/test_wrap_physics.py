@@ -340,6 +340,35 @@ def test_paper_layers_outside_the_first_bear_only_what_friction_passes_them():
     assert k_el * h / (k_el + h) == pytest.approx(1 / (3 / k_web + 1 / give), rel=1e-6)
 
 
+def test_paper_layers_that_grip_harder_than_they_yield_act_together_until_the_web_yields():
+    """A coated paper whose layers grip at 2.0, the same card as film (clinging) otherwise,
+    3 layers at 1200 N round one bundle. Pressed that hard, the outer layers' grip on the
+    vertical at the -x-y corner exceeds their share of the web's own yield force: the panel
+    yields and hardens as the clinging web's, all layers at once. It still tears sooner: the
+    outer layers pass at most their yield share through friction, so it bears one layer's
+    breaking force plus 2/3 of the three layers' yield force. At 250 N the same paper's outer
+    layers slip first, below the web's yield."""
+    layout = one_layer([[0.0, 0.0]]).layout()
+    card = {"grammage_kg_m2": 0.09, "stiffness_n_per_m": 4e5, "yield_strain": 0.008,
+            "break_strain": 0.07, "hardening_ratio": 0.1125, "thickness_m": 1.3e-4}
+    nets = {}
+    for key, kind, tension_n in (("tacky", "paper", 1200.0), ("film", "film", 1200.0),
+                                 ("light", "paper", 250.0)):
+        table = {**card, "kind": kind}
+        if kind == "paper":
+            table["interlayer_friction"] = 2.0
+        nets[key] = WrapNet(wrap_format(table, [(0.0, 0.474, 3, tension_n)]), layout)
+        frozen_at_rest(nets[key], layout)
+    e = nets["tacky"].panel_spec.where.index("corner -x-y")
+    tacky, film = nets["tacky"].panels, nets["film"].panels
+    all_yield = 0.008 * 4e5 * nets["tacky"].panel_spec.web_metres[e]
+    assert tacky.yield_force_n[e] == pytest.approx(all_yield) == film.yield_force_n[e]
+    assert tacky.plastic_modulus[e] == pytest.approx(film.plastic_modulus[e])
+    assert tacky.break_force_n[e] == pytest.approx(film.break_force_n[e] / 3 + 2 / 3 * all_yield)
+    assert nets["light"].panels.yield_force_n[e] < 0.5 * all_yield
+    assert nets["light"].panels.plastic_modulus[e] > film.plastic_modulus[e]
+
+
 def test_film_layers_cling_and_share_every_panel():
     layout = one_layer([[0.0, 0.0]]).layout()
     net = WrapNet(wrap_format("lldpe", [(0.0, 0.474, 3, 70.0)]), layout)
