@@ -43,6 +43,17 @@ def test_lldpe_is_5_7_um_thick_clings_and_its_clung_tail_holds_as_the_film_does(
     assert film.seam_holds_n_per_m == pytest.approx(film.break_force_n_per_m)
 
 
+def test_film_laid_at_another_pre_stretch_weighs_what_came_off_the_roll():
+    """The card's film is laid at 250 %: 1 m² of it came off 1/3.5 m² of roll. Laid at 300 %,
+    1 m² comes off 1/4 m²: it weighs 3.5/4 as much. Paper, and film at no stated pre-stretch,
+    weigh the card's figure."""
+    film = MATERIALS["lldpe"]
+    assert film.grammage_at(3.0) == pytest.approx(film.grammage_kg_m2 * 3.5 / 4.0)
+    assert film.grammage_at(2.5) == pytest.approx(film.grammage_kg_m2)
+    assert film.grammage_at(None) == film.grammage_kg_m2
+    assert MATERIALS["kraft"].grammage_at(1.0) == MATERIALS["kraft"].grammage_kg_m2
+
+
 def test_a_custom_card_without_the_fields_gets_the_documented_defaults(wrap_data):
     film = WrapFormat.from_dict(wrap_data({"material": dict(CUSTOM), **LOW_TENSION})).material
     assert film.layer_thickness_m == pytest.approx(0.012 / DENSITY_KG_M3["film"])

@@ -335,11 +335,21 @@ BAD_WRAPS = {
                                    "material.shear_ratio"),
     "custom zero damping": ({"material": {**CUSTOM, "damping_ratio": 0.0}},
                             "material.damping_ratio"),
+    # stiffer in shear than in tension; damped past critical
+    "custom shear ratio of 1.2": ({"material": {**CUSTOM, "shear_ratio": 1.2}},
+                                  "material.shear_ratio"),
+    "custom damping past critical": ({"material": {**CUSTOM, "damping_ratio": 1.2}},
+                                     "material.damping_ratio"),
     "custom name not a string": ({"material": {**CUSTOM, "name": 7}}, "material.name"),
     "custom unknown key": ({"material": {**CUSTOM, "colour": "clear"}}, "material.colour"),
     "custom relaxation not adding up": (
         {"material": {**CUSTOM, "relaxation": {"plateau": 0.7, "terms": [[0.2, 1.0]]}}},
         "material.relaxation.terms"),
+    # adding up to 1 by a negative amplitude: a wrap that tightens as it stands
+    "custom relaxation of a negative amplitude": (
+        {"material": {**CUSTOM, "relaxation": {"plateau": 1.0,
+                                               "terms": [[-0.1, 5.0], [0.1, 50.0]]}}},
+        "material.relaxation.terms[0]"),
     "custom relaxation of a negative time": (
         {"material": {**CUSTOM, "relaxation": {"plateau": 0.7, "terms": [[0.3, -1.0]]}}},
         "material.relaxation.terms[0]"),
@@ -480,7 +490,10 @@ def test_bad_program_is_rejected_with_one_line_naming_file_and_field(
      "Strains are fractions (0.8 % is 0.008)"),
     ({"kind": "paper", "yield_strain": 0.008, "break_strain": 7.0}, "material.break_strain",
      "Strains are fractions (7 % is 0.07)"),
-], ids=["grammage in g/m²", "a modulus for a stiffness", "strains in percent", "paper's break"])
+    ({"relaxation": {"plateau": 0.7, "terms": [[0.2, 1.0]]}}, "material.relaxation.terms",
+     "amplitudes must add up to 1 - plateau (0.3)"),
+], ids=["grammage in g/m²", "a modulus for a stiffness", "strains in percent", "paper's break",
+        "relaxation's amplitudes"])
 def test_a_custom_card_figure_in_the_wrong_unit_is_named_as_such(
         changes, field, says, wrap_file, assert_input_error):
     """Each was taken until 2026-11-26: 90 "kg/m²" of paper costed a 323 kg unit's web at
