@@ -287,6 +287,23 @@ def test_cycle_time_of_the_default_program_by_hand():
     assert wrap.cycle_time_s == pytest.approx((6 + 0.354 / 0.25) * 5.0 + 3.0 + 15.0)
 
 
+def test_a_program_s_own_rpm_times_its_revolutions():
+    # the default program asking 6 rpm: 7.416 revolutions of 10 s, ramps 3 s, change 15 s
+    wrap = laid(program(bottom_wraps=3, up_overlap=0.5, top_wraps=3, top_overhang_m=0.05,
+                        rpm=6.0), 0.804)
+    assert wrap.rpm == 6.0
+    assert wrap.cycle_time_s == pytest.approx((6 + 1.416) * 10.0 + 3.0 + 15.0)
+
+
+def test_the_carriage_returns_to_the_bottom_wraps_height():
+    """Bottom wraps parked 0.1 m up, the top wraps at 0.354 m, no pallet change to hide the
+    return: 3 + 1.016 + 3 revolutions of 5 s, 3 s of ramps, then 0.254 m down at 0.1 m/s."""
+    prog = program(bottom_wraps=3, up_overlap=0.5, top_wraps=3, top_overhang_m=0.05,
+                   bottom_from_m=0.1)
+    wrap = WrapFormat.from_program(KRAFT, W, prog, 0.804, "kraft", Machine(handling_s=0.0))
+    assert wrap.cycle_time_s == pytest.approx((6 + 1.016) * 5.0 + 3.0 + 0.254 / 0.1)
+
+
 def test_a_spiral_faster_than_the_carriage_takes_the_carriage_s_time():
     spiral = Pass("spiral up", 0.0, 1.5, 3.0, 100.0)  # 0.5 m a turn
     fast = Machine(rpm=30.0, carriage_speed_mps=0.1, handling_s=0.0, ramp_s=0.0)
