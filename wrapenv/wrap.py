@@ -15,6 +15,7 @@ material is written as a ``[material]`` table of its values instead (TOML cannot
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass, field, replace
+from itertools import groupby
 from pathlib import Path
 from typing import Any
 
@@ -255,13 +256,17 @@ class WrapFormat:
         out = [UNHELD_HEAD] if self.material.kind == "paper" and program.bottom_wraps == 0 else []
         top = max((b.to_m for b in self.bands), default=0.0)
         steps = int((top - program.bottom_from_m) / OPEN_STEP_M)
-        heights = (program.bottom_from_m + k * OPEN_STEP_M for k in range(steps))
-        open_ = [z for z in heights if 1e-9 < self.layers_at(z) < 1 - 1e-9]
-        if open_:
-            out.append(f"the web does not close round the load from {open_[0]:.2f} to "
-                       f"{open_[-1] + OPEN_STEP_M:.2f} m (less than one layer: part of a spiral "
-                       "turn, which the bench averages round the load); raise the spiral's "
-                       "overlap, or add a reinforcement wrap there")
+        heights = [program.bottom_from_m + k * OPEN_STEP_M for k in range(steps)]
+        open_ = [1e-9 < self.layers_at(z) < 1 - 1e-9 for z in heights]
+        # each stretch on its own: a spiral alone is open at both ends, closed between them
+        stretches = [[z for z, _ in run] for is_open, run in
+                     groupby(zip(heights, open_, strict=True), key=lambda pair: pair[1]) if is_open]
+        if stretches:
+            where = " and ".join(f"from {run[0]:.2f} to {run[-1] + OPEN_STEP_M:.2f} m"
+                                 for run in stretches)
+            out.append(f"the web does not close round the load {where} (less than one layer: "
+                       "part of a spiral turn, which the bench averages round the load); raise "
+                       "the spiral's overlap, or add a reinforcement wrap there")
         return tuple(out)
 
     def _material_entry(self) -> str | dict[str, Any]:

@@ -234,6 +234,17 @@ def test_a_program_whose_web_does_not_close_somewhere_is_warned_about():
     assert laid(program(bottom_wraps=1, top_wraps=1, top_overhang_m=0.05), 0.804).warnings() == ()
 
 
+def test_each_stretch_where_the_web_does_not_close_is_named_on_its_own():
+    """A touching spiral alone, its lower edge from 0 to 1.5 m on a 2 m load: the first half
+    metre has z / 0.5 of a layer, the last (2 - z) / 0.5, one layer between. Until 2026-12-02
+    the warning said the web did not close from 0.01 to 2.00 m, the closed metre included."""
+    (said,) = [w for w in laid(program(bottom_wraps=1, up_overlap=0.0), 2.0).warnings()
+               if "does not close" in w]
+    assert "from 1.51 to 2.00 m (" in said and " and " not in said
+    (said,) = [w for w in laid(program(up_overlap=0.0), 2.0).warnings() if "does not close" in w]
+    assert "does not close round the load from 0.01 to 0.50 m and from 1.51 to 2.00 m (" in said
+
+
 def test_a_program_whose_web_misses_the_pallet_or_lies_above_the_load_is_warned_about():
     """On the 2-layer example (pallet 0.144 m, load 0.804 m, a 0.5 m web): bottom wraps from
     0.3 m leave the pallet bare; an overhang of 0.39 m and a reinforcement from 0.6 m put 0.39
