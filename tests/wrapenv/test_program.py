@@ -281,7 +281,9 @@ def test_a_spiral_the_carriage_cannot_rise_at_the_rpm_is_laid_at_the_overlap_it_
     assert spiral.turns == pytest.approx(1.25 / 0.6)   # the top wraps at 2.0 - 0.75 m
     assert wrap.layers_at(1.0) == pytest.approx(1.25)
     (said,) = [w for w in wrap.warnings() if "up_overlap" in w]
-    assert "at 10 rpm it rises at most 0.600 m (0.1 m/s), so the spiral is laid at 20 %" in said
+    assert said.startswith("program.up_overlap = 0 asks the carriage to rise 0.750 m a "
+                           "revolution; at 10 rpm it rises at most 0.600 m (0.1 m/s), so the "
+                           "spiral is laid at 20 % overlap")
     at_12 = WrapFormat.from_program(KRAFT, W, prog, 2.0, "kraft", Machine())  # 0.5 m: as fast
     assert [p.turns for p in at_12.passes if p.zone == "spiral up"] == [pytest.approx(3.0)]
     assert not any("up_overlap" in w for w in at_12.warnings())
