@@ -102,7 +102,8 @@ def test_a_checkpoint_of_other_recordings_or_another_version_or_none_is_refused(
     (b"", "line 1", "empty"),
     (b'{"format": "wrapbench-calibration', "line 1", "empty"),   # its head cut off mid-write
     (b"\xff\xfe binary\n", "", "cannot read the checkpoint"),
-], ids=["empty", "head cut off", "not text"])
+    (b"format: wrapbench\n", "line 1", "malformed JSON"),
+], ids=["empty", "head cut off", "not text", "head not JSON"])
 def test_a_checkpoint_without_a_whole_head_line_is_refused(content, field, says, slide_obs,
                                                            tmp_path, assert_input_error):
     path = tmp_path / "c.jsonl"
