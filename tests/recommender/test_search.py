@@ -395,11 +395,17 @@ def test_resume_refuses_values_the_search_never_writes(small_load, tmp_path):
     negative["generations"][0]["simulations"] = -1
     moved = json.loads(ckpt.read_text())      # a candidate CMA-ES did not ask for
     moved["generations"][0]["x"][0][3] += 0.25
+    nan_x = json.loads(ckpt.read_text())
+    nan_x["generations"][0]["x"][0][3] = float("nan")
+    unjudged = json.loads(ckpt.read_text())   # a generation without its fidelities
+    del unjudged["generations"][0]["fidelity"]
     for data, field in ((nan_margin, "generations[0].margins"),
                         (string_pass, "generations[0].passed"),
                         (negative, "generations[0].simulations"),
                         ({**saved, "generations": {}}, "generations"),
                         (moved, "generations"),
+                        (nan_x, "generations[0].x"),
+                        (unjudged, "generations"),
                         ({**saved, "problem": []}, "problem")):
         ckpt.write_text(json.dumps(data))
         with pytest.raises(InputError) as info:
