@@ -21,6 +21,7 @@ from calibration.fit import (
     _profiled,
     _replayed_more,
     _shifted,
+    _value_stds,
     fit,
     friction_local_stages,
     min_budget,
@@ -356,6 +357,52 @@ def test_a_resolved_claim_must_survive_the_acceptance_test_a_probe_away(
     refused = 0 if std > 0.025 else 2 - len(unrefused)
     assert progress.simulations == pool.submitted == (
         (0 if std > 0.025 else 2 * 2 * 6) + refused * 2 * 18)
+
+
+def _std_model(first: str) -> Model:
+    """Pallet-bundle in the box as `first` (0.2 .. 0.6) and the ratio kinetic / static
+    (0.5 .. 1.0), and the wrap's stiffness scale (2^-2 .. 2^2)."""
+    return Model((Param(first, "pallet_bundle", 0.2, 0.6),
+                  Param("ratio", "pallet_bundle", 0.5, 1.0),
+                  Param("stiffness", "", -2.0, 2.0)),
+                 Friction(sled_pallet=FrictionPair(0.45, 0.40),
+                          pallet_bundle=FrictionPair(0.50, 0.42),
+                          bundle_bundle=FrictionPair(0.36, 0.30)))
+
+
+#: The box's covariance: std 0.1 and 0.2, correlated at 0.5; the scale's std 0.1.
+BOX_COV = np.array([[0.01, 0.01, 0.0], [0.01, 0.04, 0.0], [0.0, 0.0, 0.01]])
+
+
+def test_a_fitted_value_s_std_is_carried_from_the_box_through_the_ratio_by_hand():
+    """At u = (0.5, 0.6, 0.75): static 0.4, ratio 0.8, kinetic 0.32, stiffness 2^1. The static
+    coefficient's std is its range times its coordinate's, 0.4 x 0.1; the kinetic one, ratio
+    x static, has the gradient (0.4 x 0.8, 0.4 x 0.5) = (0.32, 0.2): variance 0.32² 0.01 +
+    0.2² 0.04 + 2 x 0.32 x 0.2 x 0.01. With the kinetic coefficient in the box instead
+    (kinetic 0.4, static 0.5): static = kinetic / ratio, gradient (0.4 / 0.8,
+    -0.4 / 0.8² x 0.5) = (0.5, -0.3125). A scale s = 2^v: s ln 2 x 4 x 0.1."""
+    u = np.array([0.5, 0.6, 0.75])
+    stds = _value_stds(_std_model("static"), u, BOX_COV)
+    assert stds["static", "pallet_bundle"] == pytest.approx(0.04)
+    assert stds["kinetic", "pallet_bundle"] == pytest.approx(
+        math.sqrt(0.32**2 * 0.01 + 0.2**2 * 0.04 + 2 * 0.32 * 0.2 * 0.01))
+    assert stds["stiffness", ""] == pytest.approx(2.0 * math.log(2) * 4.0 * 0.1)
+    stds = _value_stds(_std_model("kinetic"), u, BOX_COV)
+    assert stds["kinetic", "pallet_bundle"] == pytest.approx(0.04)
+    assert stds["static", "pallet_bundle"] == pytest.approx(
+        math.sqrt(0.5**2 * 0.01 + 0.3125**2 * 0.04 - 2 * 0.5 * 0.3125 * 0.01))
+
+
+def test_a_coordinate_the_data_say_nothing_about_spreads_no_wider_than_its_range():
+    """A variance of 1 in a box of width 1 is capped at a uniform spread over the box,
+    1 / sqrt(12), its correlation kept: the static coefficient's std 0.4 / sqrt(12)."""
+    cov = BOX_COV.copy()
+    cov[0, 0], cov[0, 1], cov[1, 0] = 1.0, 0.1, 0.1      # std 1, correlation 0.5 kept
+    stds = _value_stds(_std_model("static"), np.array([0.5, 0.6, 0.75]), cov)
+    capped = 1 / math.sqrt(12)
+    assert stds["static", "pallet_bundle"] == pytest.approx(0.4 * capped)
+    assert stds["kinetic", "pallet_bundle"] == pytest.approx(math.sqrt(
+        (0.32 * capped) ** 2 + (0.2 * 0.2) ** 2 + 2 * 0.32 * 0.2 * 0.5 * capped * 0.2))
 
 
 def test_friction_fit_finds_the_hidden_values_from_tracked_paths(slide):
