@@ -123,6 +123,15 @@ def test_a_vector_survives_program_and_back(space):
     assert np.allclose(space.values(space.program(x)), x)
 
 
+def test_a_program_without_reinforcement_survives_vector_and_back(space):
+    """The machine's default has none: its vector says 0 wraps, and the program comes back."""
+    default = space.machine_default()
+    x = space.values(default)
+    assert x[2] == 0
+    assert space.program(x) == space.program(space.values(space.program(x)))
+    assert space.program(x).reinforcements == ()
+
+
 def test_a_program_is_given_as_an_operator_types_it(space):
     """Whole newtons, whole percent of overlap, the reinforcement's height in millimetres: no
     panel takes 447.73 N or a 37.46 % overlap."""
