@@ -691,11 +691,15 @@ def test_more_wrap_does_not_let_the_stack_creep_more(most, rests):
     twice the iterations: 100 hold it still (0.8 mm), as the default program is held."""
     load = LoadUnit.from_toml("examples/pet_2layer_columnar.toml")
     settings = SimSettings(max_wrapped_solver_iterations=most)
-    run = run_levels(load, [0.2], settings, wrap=_top_wraps(20, load.load_height_m))
+    heard: list[int] = []
+    run = run_levels(load, [0.2], settings, wrap=_top_wraps(20, load.load_height_m),
+                     on_rerun=heard.append)
     level = run.verdict.levels[0]
     if rests:
         assert run.solver_iterations == 100 and not level.not_at_rest
         assert level.permanent_max_m < 0.002, level.permanent_max_m
+        assert heard == [100] and run.crept_at == (50,)   # a progress bar starts again
     else:
         assert run.solver_iterations == 50 and level.not_at_rest
+        assert heard == [] and run.crept_at == ()
         assert level.permanent_max_m > 0.004, level.permanent_max_m
