@@ -21,6 +21,7 @@ from calibration.fit import (
     _profiled,
     _replayed_more,
     _shifted,
+    _stage_points,
     _value_stds,
     fit,
     friction_local_stages,
@@ -178,6 +179,18 @@ def test_five_takes_at_300_simulations_leave_the_friction_search_one_local_stage
     assert friction_local_stages([*takes(5), wrapped], FitSettings(params="all")) is None
     # friction alone beside a wrapped take: its 6 final replays are spent too
     assert friction_local_stages([*takes(5), wrapped], FitSettings()) == (1, 486)
+
+
+def test_a_wrapped_fit_shares_its_budget_between_friction_and_the_wrap_by_parameters():
+    """Three bare takes (both bundle pairs slipped: 4 parameters) and a wrapped one (the
+    wrap's 3 scales) at 300: 6 final replays of each take (24), 276 left. Friction gets 4 of
+    the 7 parameters' share, 276 x 4 // 7 = 157 simulations, 52 points of its 3 takes (156);
+    the wrap the rest, 120 points of its one take (docs/calibration.md's wrapped fits)."""
+    bare = [SimpleNamespace(peak_accel_g=(0.30 + 0.05 * k, 0.1), wrap=None,
+                            slipped=frozenset({"pallet_bundle", "bundle_bundle"}))
+            for k in range(3)]
+    wrapped = SimpleNamespace(peak_accel_g=(0.7, 0.1), wrap=object(), slipped=frozenset())
+    assert _stage_points([*bare, wrapped], FitSettings(params="all")) == [(4, 52), (3, 120)]
 
 
 def test_only_a_pair_whose_onset_is_bracketed_can_claim_a_resolved_static_coefficient():
