@@ -36,8 +36,8 @@ from calibration.replay import SLIP_M, observe, replay, residuals, upright_slide
 from calibration.surrogate import Emulator, Stage, SurrogateFit
 from calibration.track import track
 from calibration.trajectories import ObjectPath, Trajectories
-from wrapenv.calibrated import Calibration
-from wrapenv.load import Friction, FrictionPair
+from wrapenv.calibrated import CalibratedPair, Calibration
+from wrapenv.load import PAIRS, Friction, FrictionPair
 
 #: Its fitted takes are made once, in one test process (`--dist loadgroup`).
 pytestmark = pytest.mark.xdist_group("fit")
@@ -539,6 +539,31 @@ def test_a_scale_resolved_at_the_friction_the_same_fit_found_says_what_its_std_l
     assert result.advice["stiffness"].startswith(
         f"stiffness scale {cal.stiffness_scale:.2f} ± {cal.stiffness_scale_std:.2f} holds only "
         "at the friction fitted with it")
+
+
+def test_cal_json_reports_each_pair_as_the_recordings_know_it():
+    """Pallet-bundle's onset bracketed: its fitted values and stds. Bundle-bundle slipped in
+    every take (the least demand 0.35 g): its static coefficient is bounded only from above,
+    its std at least a uniform spread from its kinetic 0.30 to 0.36, 0.06 / sqrt(12). The
+    stopped pallet never slipped: its braking's 0.1125 g as a lower bound, the kinetic
+    coefficient at the nominal ratio (0.40 / 0.45), unidentified. No wrap scale fitted: 1, std 0."""
+    found = _Fitted(Friction(sled_pallet=FrictionPair(0.45, 0.40),
+                             pallet_bundle=FrictionPair(0.45, 0.38),
+                             bundle_bundle=FrictionPair(0.36, 0.30)),
+                    stds={("static", "pallet_bundle"): 0.01, ("kinetic", "pallet_bundle"): 0.005,
+                          ("static", "bundle_bundle"): 0.002,
+                          ("kinetic", "bundle_bundle"): 0.004})
+    bounds = {"sled_pallet": Bound(0.1125, "braking"), "pallet_bundle": Bound(0.45, "level"),
+              "bundle_bundle": Bound(0.35, "level")}
+    cal = _calibration(found, frozenset({"pallet_bundle", "bundle_bundle"}), bounds,
+                       {"bundle_bundle": Bound(0.35, "level")}, PAIRS, ())
+    assert cal.friction["sled_pallet"] == CalibratedPair(
+        0.1125, pytest.approx(0.1), identified=False)
+    assert cal.friction["pallet_bundle"] == CalibratedPair(0.45, 0.38, 0.01, 0.005)
+    assert cal.friction["bundle_bundle"] == CalibratedPair(
+        0.36, 0.30, pytest.approx(0.06 / math.sqrt(12)), 0.004)
+    assert (cal.stiffness_scale, cal.tension_scale, cal.give_scale) == (1.0, 1.0, 1.0)
+    assert (cal.stiffness_scale_std, cal.tension_scale_std, cal.give_scale_std) == (0, 0, 0)
 
 
 def test_a_pair_nothing_loaded_is_not_reported():
