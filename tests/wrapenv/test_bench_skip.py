@@ -111,12 +111,28 @@ def test_quiet_acceleration_is_the_lowest_friction_or_tipping_level():
     assert quiet_accel_mps2(one_bundle()) == pytest.approx(G * 0.5)
 
 
-def test_nothing_is_skipped_where_the_deceleration_could_tip_a_body(monkeypatch):
+@pytest.mark.parametrize("settings", [SimSettings(), SimSettings(simulate_stop=False)],
+                         ids=["default", "ending at the first rest"])
+def test_nothing_is_skipped_where_the_deceleration_could_tip_a_body(monkeypatch, settings):
     # a 0.10 x 0.40 m bundle tips at 0.25 g; at a 1.0 g level the sled decelerates at 0.25 g
     layout = one_bundle(size=(0.10, 0.2, 0.40), mass=5.0, static=0.9, kinetic=0.8, x=0.0)
-    trace, simulated = counted_run(monkeypatch, layout, PulseProfile(1.0), SimSettings())
+    trace, simulated = counted_run(monkeypatch, layout, PulseProfile(1.0), settings)
     settle = round(SimSettings().settle_s * 240)
     assert simulated == settle + len(trace.t_s) - 1
+
+
+def test_ending_at_the_first_rest_never_skips_a_later_stretch_that_moves_the_unit():
+    """A measured profile still for a second, then 0.6 g for 0.3 s: the bundle (static 0.5,
+    kinetic 0.4) rests through the first second, then slides: 0.2 g relative for 0.3 s,
+    1.962 x 0.3² / 2 = 88 mm, then from 0.589 m/s at 0.4 g, 0.589² / (2 x 3.924) = 44 mm. A
+    run that ends at the first rest after the sled stopped must not take that first rest for
+    the end."""
+    still_then_pulse = MeasuredProfile(np.array([0.0, 1.0, 1.01, 1.3, 1.31, 2.0]),
+                                       np.array([0.0, 0.0, -0.6 * G, -0.6 * G, 0.0, 0.0]))
+    slid = [run_level(one_bundle(), still_then_pulse, settings).bundle_displacement_m()[-1].max()
+            for settings in (SimSettings(), SimSettings(simulate_stop=False))]
+    assert slid[0] == pytest.approx(0.088 + 0.044, rel=0.1)
+    assert slid[1] == pytest.approx(slid[0], abs=TOLERANCE_M)
 
 
 def test_ending_at_the_first_rest_skips_the_stop_and_agrees_on_a_wrapped_pass(monkeypatch):
