@@ -256,11 +256,11 @@ class WrapFormat:
         out = [UNHELD_HEAD] if self.material.kind == "paper" and program.bottom_wraps == 0 else []
         top = max((b.to_m for b in self.bands), default=0.0)
         steps = int((top - program.bottom_from_m) / OPEN_STEP_M)
-        heights = [program.bottom_from_m + k * OPEN_STEP_M for k in range(steps)]
-        open_ = [1e-9 < self.layers_at(z) < 1 - 1e-9 for z in heights]
+        heights = (program.bottom_from_m + k * OPEN_STEP_M for k in range(steps))
         # each stretch on its own: a spiral alone is open at both ends, closed between them
-        stretches = [[z for z, _ in run] for is_open, run in
-                     groupby(zip(heights, open_, strict=True), key=lambda pair: pair[1]) if is_open]
+        stretches = [list(run) for is_open, run in
+                     groupby(heights, key=lambda z: 1e-9 < self.layers_at(z) < 1 - 1e-9)
+                     if is_open]
         if stretches:
             where = " and ".join(f"from {run[0]:.2f} to {run[-1] + OPEN_STEP_M:.2f} m"
                                  for run in stretches)
