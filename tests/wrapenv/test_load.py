@@ -24,6 +24,7 @@ from wrapenv.load_checks import (
     MAX_LOAD_HEIGHT_M,
     MIN_BUNDLE_SIDE_M,
     _bundle_count,
+    fit,
 )
 
 EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
@@ -482,6 +483,11 @@ BAD_LOADS = {
     "2 cm bundles": ({"bundle.width_m": 0.02}, "bundle.width_m"),
     "a million layers": ({"stack.layers": 1_000_000}, "stack.layers"),
     "200 layers, 66 m": ({"stack.layers": 200}, "stack.layers"),
+    # the field to change: the layers, unless one layer alone is too tall
+    "two layers of 1.45 m, 3.04 m": ({"stack.layers": 2, "bundle.height_m": 1.45},
+                                     "stack.layers"),
+    "one layer of 2.9 m, 3.04 m": ({"stack.layers": 1, "bundle.height_m": 2.9},
+                                   "bundle.height_m"),
     "more bundles than the bench simulates": (
         {"bundle.length_m": 0.05, "bundle.width_m": 0.05, "bundle.height_m": 0.05,
          "bundle.mass_kg": 0.1}, "stack.layers"),
@@ -510,6 +516,19 @@ def test_overlap_message_names_both_bundles(load_file):
     path = load_file({"stack.pattern": "explicit", "stack.positions": [[0.0, 0.0], [0.1, 0.0]]})
     with pytest.raises(InputError, match=r"L1C1R1.*L1C2R1.*overlap"):
         LoadUnit.from_toml(path)
+
+
+def test_a_bundle_over_nothing_is_named_with_the_layer_below(load_file):
+    path = load_file({"stack.pattern": "interlocked", "bundle.length_m": 0.5,
+                      "bundle.width_m": 0.1, "bundle.height_m": 0.2, "bundle.mass_kg": 1.0})
+    with pytest.raises(InputError, match=r"bundle L2C\d+R\d+ has its centre over no bundle of "
+                                         r"layer 1 and would fall"):
+        LoadUnit.from_toml(path)
+
+
+def test_as_many_bundles_fit_as_their_2_mm_gaps_allow_the_last_flush_with_the_edge():
+    # 4 x 0.298 m + 3 x 2 mm = 1.198 m: four, the fourth at the edge; 4 x 0.3 + 6 mm > 1.2 m
+    assert (fit(1.198, 0.298), fit(1.197, 0.298), fit(1.2, 0.3)) == (4, 3, 3)
 
 
 def test_overhang_message_names_the_bundle_and_amount(load_file):
