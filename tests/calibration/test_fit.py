@@ -158,6 +158,13 @@ def test_the_least_budget_gives_every_stage_a_fittable_design():
     assert min_budget(takes, FitSettings(method="momentum", budget=12)) == 30
 
 
+def sliding_takes(n: int) -> list[SimpleNamespace]:
+    """What the budget's split reads of `n` bare takes in which both bundle pairs slipped."""
+    return [SimpleNamespace(peak_accel_g=(0.30 + 0.05 * k, 0.1), wrap=None,
+                            slipped=frozenset({"pallet_bundle", "bundle_bundle"}))
+            for k in range(n)]
+
+
 def test_five_takes_at_300_simulations_leave_the_friction_search_one_local_stage():
     """Every point replays every take. Five bare takes in which both bundle pairs slipped
     (4 parameters) at 300 simulations: 6 final replays of each (30), 54 points; a global stage
@@ -165,11 +172,7 @@ def test_five_takes_at_300_simulations_leave_the_friction_search_one_local_stage
     90 points, 36 global and three local stages of 18. Three takes at 300 (94 points) and four
     (69, two local stages) are not told; nor is a descent, which has no stages, nor a fit with
     a wrap stage (on the film case more budget did not fit friction better)."""
-    def takes(n: int) -> list[SimpleNamespace]:
-        return [SimpleNamespace(peak_accel_g=(0.30 + 0.05 * k, 0.1), wrap=None,
-                                slipped=frozenset({"pallet_bundle", "bundle_bundle"}))
-                for k in range(n)]
-
+    takes = sliding_takes
     assert friction_local_stages(takes(5), FitSettings()) == (1, 480)
     assert friction_local_stages(takes(5), FitSettings(budget=480)) is None
     assert friction_local_stages(takes(4), FitSettings()) is None
@@ -186,11 +189,9 @@ def test_a_wrapped_fit_shares_its_budget_between_friction_and_the_wrap_by_parame
     wrap's 3 scales) at 300: 6 final replays of each take (24), 276 left. Friction gets 4 of
     the 7 parameters' share, 276 x 4 // 7 = 157 simulations, 52 points of its 3 takes (156);
     the wrap the rest, 120 points of its one take (docs/calibration.md's wrapped fits)."""
-    bare = [SimpleNamespace(peak_accel_g=(0.30 + 0.05 * k, 0.1), wrap=None,
-                            slipped=frozenset({"pallet_bundle", "bundle_bundle"}))
-            for k in range(3)]
     wrapped = SimpleNamespace(peak_accel_g=(0.7, 0.1), wrap=object(), slipped=frozenset())
-    assert _stage_points([*bare, wrapped], FitSettings(params="all")) == [(4, 52), (3, 120)]
+    assert _stage_points([*sliding_takes(3), wrapped], FitSettings(params="all")) == [
+        (4, 52), (3, 120)]
 
 
 def test_only_a_pair_whose_onset_is_bracketed_can_claim_a_resolved_static_coefficient():

@@ -20,15 +20,15 @@ from wrapenv.rest import FLAT_RAD, Rest, quiet_accel_mps2
 DRIFT_M = 0.001
 
 
-def unit(size=(0.28, 0.19, 0.33), static=(0.45, 0.5, 0.3)) -> Layout:
-    """One bundle on an EUR pallet (0.144 m high, 0.8 m wide); `static` the sled–pallet,
-    pallet–bundle and bundle–bundle static coefficients."""
+def unit(size=(0.28, 0.19, 0.33), static=(0.45, 0.5, 0.3), layers=1) -> Layout:
+    """One bundle (a column of `layers`) on an EUR pallet (0.144 m high, 0.8 m wide); `static`
+    the sled–pallet, pallet–bundle and bundle–bundle static coefficients."""
     sp, pb, bb = static
     return LoadUnit.from_dict({
         "pallet": {"preset": "EUR"},
         "bundle": dict(zip(("length_m", "width_m", "height_m"), size, strict=True),
                        mass_kg=9.3),
-        "stack": {"layers": 1, "pattern": "explicit", "positions": [[0.0, 0.0]]},
+        "stack": {"layers": layers, "pattern": "explicit", "positions": [[0.0, 0.0]]},
         "friction": {"sled_pallet": {"static": sp, "kinetic": sp},
                      "pallet_bundle": {"static": pb, "kinetic": pb},
                      "bundle_bundle": {"static": bb, "kinetic": bb}},
@@ -61,14 +61,7 @@ def test_bundle_on_bundle_friction_counts_only_where_a_bundle_stands_on_another(
 def test_a_bundle_standing_on_another_is_quiet_below_their_static_friction():
     """Two layers of one bundle: bundle–bundle 0.2 decides, below the column's tipping
     (0.19 / 0.66 = 0.29) and the pallet's friction."""
-    two = LoadUnit.from_dict({
-        "pallet": {"preset": "EUR"},
-        "bundle": {"length_m": 0.28, "width_m": 0.19, "height_m": 0.33, "mass_kg": 9.3},
-        "stack": {"layers": 2, "pattern": "explicit", "positions": [[0.0, 0.0]]},
-        "friction": {"sled_pallet": {"static": 0.45, "kinetic": 0.45},
-                     "pallet_bundle": {"static": 0.5, "kinetic": 0.5},
-                     "bundle_bundle": {"static": 0.2, "kinetic": 0.2}},
-    }).layout()
+    two = unit(static=(0.45, 0.5, 0.2), layers=2)
     assert quiet_accel_mps2(two) == pytest.approx(G * 0.2)
 
 
