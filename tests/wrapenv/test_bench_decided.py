@@ -8,7 +8,7 @@ from __future__ import annotations
 import pytest
 
 from tests.wrapenv.conftest import weak_wrap_on_a_slick_unit
-from wrapenv.bench import SimSettings, run_level
+from wrapenv.bench import BenchUnit, SimSettings, _Run, run_level
 from wrapenv.eumos import FALL_DROP_M, WRAP_TORN, evaluate
 from wrapenv.load import LoadUnit
 from wrapenv.profile import PulseProfile
@@ -56,3 +56,32 @@ def test_a_passing_level_runs_to_rest_exactly_as_without_the_option():
     assert early.dropped_m().max() < FALL_DROP_M / 10  # squeezed, on its supports: not fallen
     assert evaluate(early).to_json() == evaluate(full).to_json()
     assert "stopped_early" not in evaluate(full).to_json()
+
+
+def test_a_bundle_off_its_support_decides_the_level_before_any_displacement():
+    """`_Run._decided` on states set by hand, from where the unit stands at t = 0. On the bench
+    the elastic limit comes first in every run measured (a bundle slides a tenth of the load's
+    height before it can leave its support), so the fall is checked here: an upright bundle
+    dropped past `FALL_DROP_M` has slid off onto something lower, is named, and that damage is
+    the reason even where its displacement is past the elastic limit too."""
+    layout = LoadUnit.from_toml(EXAMPLE_3).layout()
+    with BenchUnit(layout, DECIDED) as unit:
+        run = _Run(unit.world, layout, PulseProfile(0.5), DECIDED, unit.stick_slip, None, None)
+        pos, rot, _, _ = run._state()
+    top = len(layout.bundles) - 1                   # a top-layer bundle, the last in the layout
+    row = 1 + top                                   # its state row (the pallet's is 0)
+    limit_m = run.elastic_limit_m
+
+    def moved(down_m: float = 0.0, along_m: float = 0.0):
+        out = pos.copy()
+        out[row] += (along_m, 0.0, -down_m)
+        return out
+
+    assert run._decided(pos, rot) == ""             # t = 0: the reference
+    assert run._decided(moved(down_m=FALL_DROP_M - 0.005), rot) == ""  # the solver's overlap
+    name = layout.bundles[top].name
+    assert run._decided(moved(down_m=FALL_DROP_M + 0.005), rot) == f"{name} fallen"
+    assert run._decided(moved(FALL_DROP_M + 0.005, 2 * limit_m), rot) == f"{name} fallen"
+    assert run._decided(moved(along_m=limit_m + 0.005), rot).startswith(
+        f"elastic displacement {(limit_m + 0.005) * 1000:.0f} mm past {limit_m * 1000:.0f} mm")
+    assert run._decided(moved(along_m=limit_m - 0.005), rot) == ""
