@@ -586,9 +586,17 @@ def test_bottom_wraps_above_the_top_ones_are_refused(program_data):
     {"program.up_overlap": 0.9}, {"program.down_overlap": -1.0},
     {"program.rpm": 1.0}, {"program.rpm": 100.0},
     {"program.reinforcement": [{"from_m": 0.8039, "wraps": 2, "tension_n": 300.0}]},
+    {"program.bottom_wraps": 0, "program.top_wraps": 0},
+    {"program.bottom_wraps": 20, "program.top_wraps": 20},
+    {"program.reinforcement": [{"from_m": 0.40, "wraps": 1, "tension_n": 300.0}]},
+    {"program.top_overhang_m": 0.0},
+    {"material": "lldpe", "program.prestretch": 0.0, "program.bottom_tension_n": 90.0,
+     "program.middle_tension_n": 70.0, "program.top_tension_n": 80.0,
+     "program.reinforcement": []},
 ], ids=["bottom wraps where the top ones are laid", "bottom wraps within 1 mm of them",
         "the densest spiral", "the widest gaps", "the slowest rotation", "the fastest rotation",
-        "a reinforcement just below the top"])
+        "a reinforcement just below the top", "a spiral alone", "the most wraps at one height",
+        "a reinforcement of one wrap", "top wraps flush with the top", "film not pre-stretched"])
 def test_a_program_at_each_limit_is_accepted(program_data, changes):
     WrapFormat.from_dict(program_data(changes), "wrap.toml", load_height_m=0.804)
 
@@ -621,7 +629,7 @@ def test_a_web_is_read_from_the_wrap_file_a_machine_runs_today(tmp_path):
     assert web == Web(MATERIALS["lldpe"], "lldpe", 0.5, Machine(rpm=9.0, ramp_s=5.0))
 
 
-@pytest.mark.parametrize("ramp", ["-1.0", "nan", "120.0"])
+@pytest.mark.parametrize("ramp", ["-1.0", "nan", "60.5", "120.0"])
 def test_a_machine_ramp_out_of_range_is_refused_naming_it(tmp_path, assert_input_error, ramp):
     path = tmp_path / "today.toml"
     path.write_text((EXAMPLES / "program_lldpe_default.toml").read_text()
@@ -637,6 +645,8 @@ def test_a_machine_ramp_out_of_range_is_refused_naming_it(tmp_path, assert_input
     # revolutions, a thousand tonnes of film.
     ("carriage_speed_mps = 1e-9", "machine.carriage_speed_mps"),
     ("carriage_speed_mps = 5.0", "machine.carriage_speed_mps"),
+    ("carriage_speed_mps = 2.1", "machine.carriage_speed_mps"),
+    ("handling_s = -1.0", "machine.handling_s"), ("handling_s = 3601.0", "machine.handling_s"),
 ])
 def test_a_machine_speed_out_of_range_is_refused_naming_it(tmp_path, assert_input_error, line,
                                                            field):
@@ -646,6 +656,20 @@ def test_a_machine_speed_out_of_range_is_refused_naming_it(tmp_path, assert_inpu
     with pytest.raises(InputError) as info:
         Web.from_toml(path)
     assert_input_error(info.value, str(path), field)
+
+
+@pytest.mark.parametrize("lines", [
+    "carriage_speed_mps = 0.01\nramp_s = 0.0\nhandling_s = 0.0",
+    "carriage_speed_mps = 2.0\nramp_s = 60.0\nhandling_s = 3600.0"],
+    ids=["the slowest carriage, no ramps, no handling", "the fastest, the longest ramps"])
+def test_a_machine_at_each_limit_is_accepted(tmp_path, lines):
+    path = tmp_path / "today.toml"
+    path.write_text((EXAMPLES / "program_lldpe_default.toml").read_text()
+                    + f"\n[machine]\n{lines}\n")
+    machine = Web.from_toml(path).machine
+    values = dict(line.split(" = ") for line in lines.splitlines())
+    assert (machine.carriage_speed_mps, machine.ramp_s, machine.handling_s) == tuple(
+        float(values[k]) for k in ("carriage_speed_mps", "ramp_s", "handling_s"))
 
 
 def test_a_rotation_per_second_is_named_as_such(wrap_file):
