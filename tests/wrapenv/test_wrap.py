@@ -569,6 +569,19 @@ def test_film_may_be_roped_and_pre_stretched(wrap_file):
     assert program is not None and program.roping and program.prestretch == 3.0
 
 
+def test_a_program_s_optional_keys_left_out_read_as_a_plain_program(program_data):
+    """Left out: the bottom wraps start at the sled, the top wraps' web reaches 5 cm above the
+    load (CONTRACTS.md's example), no spiral down, the machine's rpm, no reinforcement, no
+    roping, the card's own pre-stretch."""
+    data = program_data({f"program.{key}": None for key in (
+        "bottom_from_m", "top_overhang_m", "down_overlap", "rpm", "reinforcement")})
+    program = WrapFormat.from_dict(data, "wrap.toml", load_height_m=0.804).program
+    assert program is not None
+    assert (program.bottom_from_m, program.top_overhang_m, program.down_overlap, program.rpm,
+            program.reinforcements, program.roping, program.prestretch) == (
+        0.0, 0.05, None, None, (), False, None)
+
+
 def test_bottom_wraps_above_the_top_ones_are_refused(program_data):
     """On a 0.804 m load a 0.5 m web's top wraps run from 0.354 m: bottom wraps from 0.7 m would
     hang 0.4 m of web above the load and the spiral would run down to the 'top'."""
