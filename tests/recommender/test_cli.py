@@ -736,6 +736,21 @@ def test_samples_are_the_same_for_a_seed_however_many_workers_run_them(load_file
     assert {k: v for k, v in first.items() if k != "samples"} == json.loads(nominal.read_text())
 
 
+def test_levels_given_all_run_after_one_fails_in_the_nominal_run_and_in_each_sample(load_file,
+                                                                                  tmp_path):
+    """--level runs the levels named, each one (only the EUMOS sequence ends at its first
+    failure): a fresh bundle falls off at 0.8 g and another meets 0.3 g, in the nominal run and
+    in one sample, whose record is of the last level it ran."""
+    out = tmp_path / "out.json"
+    assert run(["simulate", str(load_file(base=ONE_BUNDLE)), "--level", "0.8", "--level", "0.3",
+                "--fresh", "--samples", "1", "--json", str(out)]) == 1
+    verdict = json.loads(out.read_text())
+    assert [(v["level_g"], v["passed"]) for v in verdict["levels"]] == [(0.8, False),
+                                                                       (0.3, True)]
+    assert verdict["samples"]["pass_probability"]["samples"] == 1
+    assert verdict["samples"]["worst"]["level"]["level_g"] == 0.3
+
+
 @pytest.mark.parametrize("argv, field", [
     (["--samples", "0"], "--samples"),
     (["--samples", "2", "--workers", "0"], "--workers"),
