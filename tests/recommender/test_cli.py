@@ -15,7 +15,10 @@ import numpy as np
 import pytest
 
 from recommender.cli import main
+from recommender.search import VERIFY_SEED
+from wrapenv.load import LoadUnit
 from wrapenv.profile import PulseProfile
+from wrapenv.uncertainty import Uncertainty
 
 EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
 
@@ -718,9 +721,12 @@ def test_samples_below_every_drawn_friction_all_pass_and_above_it_all_fail(load_
     drawn = worst["sample"]["friction"]["pallet_bundle"]
     assert 0.35 < drawn["static"] < 0.65 and drawn["kinetic"] <= drawn["static"]
     printed = capsys.readouterr().out
+    # Wilson's 95 % interval of 3 passes in 3: centre (1 + z²/6) / (1 + z²/3) = 0.719, half
+    # z / (1 + z²/3) x sqrt(z²/36) = 0.281 (z = 1.96), so 44 %-100 %; of none in 3, 0 %-56 %
     assert ("samples: passes in 3 of 3 samples of what the bench does not know (friction, "
-            "bundle mass; seed 0): pass probability 100%") in printed   # unwrapped: no web
-    assert "samples: passes in 0 of 3 samples" in printed
+            "bundle mass; seed 0): pass probability 100%, 95 % interval 44%-100%") in printed
+    assert ("samples: passes in 0 of 3 samples of what the bench does not know (friction, "
+            "bundle mass; seed 0): pass probability 0%, 95 % interval 0%-56%") in printed
 
 
 def test_samples_are_the_same_for_a_seed_however_many_workers_run_them(load_file, tmp_path):
@@ -730,6 +736,10 @@ def test_samples_are_the_same_for_a_seed_however_many_workers_run_them(load_file
     assert first == again
     assert first["samples"]["seed"] == 0 and other["samples"]["seed"] == 1
     assert other["samples"]["worst"]["sample"] != first["samples"]["worst"]["sample"]
+    # recommend's verification draws its k-th sample from VERIFY_SEED + seed + k: so do these
+    load = LoadUnit.from_dict(ONE_BUNDLE)
+    assert [Uncertainty.of(None, 0.0).draw(load, VERIFY_SEED + 1 + k).to_json()
+            for k in range(3)].count(other["samples"]["worst"]["sample"]) == 1
     # the nominal run is the run without samples
     nominal = tmp_path / "nominal.json"
     run(["simulate", str(load_file(base=ONE_BUNDLE)), "--level", "0.5", "--json", str(nominal)])
