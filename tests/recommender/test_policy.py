@@ -26,6 +26,7 @@ from stable_baselines3.common.env_util import make_vec_env
 
 import recommender.policy
 from recommender.cli import main
+from recommender.commands import most_workers
 from recommender.episodes import PooledVecEnv
 from recommender.policy import (
     CHECKPOINT_DIR,
@@ -141,6 +142,26 @@ def _trained_by_cli(tmp_path: Path, monkeypatch, flags: tuple[str, ...]) -> Trai
 def test_wrapbench_train_explores_with_the_noise_asked(tmp_path, monkeypatch, flags,
                                                        log_std_init):
     assert _trained_by_cli(tmp_path, monkeypatch, flags).log_std_init == log_std_init
+
+
+def test_wrapbench_train_says_when_whole_rollouts_train_more_than_asked(tmp_path, monkeypatch,
+                                                                        capsys):
+    """PPO collects n_steps x n_envs episodes before it counts (test_training_runs_whole_rollouts):
+    one timestep asked trains a whole rollout, and the user is told so; a whole rollout asked is
+    trained as asked, without a word."""
+    settings = _trained_by_cli(tmp_path, monkeypatch, ())
+    rollout = settings.n_steps * settings.n_envs
+    assert settings.rollout_timesteps == rollout > 1
+    assert (f"training {rollout} timesteps: PPO collects whole rollouts of {rollout} episodes"
+            in capsys.readouterr().out)
+    whole = _trained_by_cli(tmp_path / "whole", monkeypatch, ("--timesteps", str(rollout)))
+    assert whole.timesteps == whole.rollout_timesteps == rollout
+    assert "PPO collects whole rollouts" not in capsys.readouterr().out
+
+
+def test_wrapbench_train_takes_as_many_envs_as_it_allows(tmp_path, monkeypatch):
+    most = most_workers()
+    assert _trained_by_cli(tmp_path, monkeypatch, ("--envs", str(most))).workers == most
 
 
 def _weights(policy: Path) -> bytes:
