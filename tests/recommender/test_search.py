@@ -836,6 +836,9 @@ def test_ppo_method_answers_from_a_policy_and_verifies_it(load_file, tmp_path, c
     result = json.loads(out.read_text())
     assert result["method"] == "ppo" and result["verdict"]["levels"][-1]["passed"]
     assert result["robust_pass_rate"] == 1.0
+    # one program evaluated, no candidate searched, no search round
+    assert result["evaluations"] == 1 and result["candidates"] is None
+    assert "rounds" not in result and "search_samples" not in result
     # the same proposal over a cycle-time limit is not recommended, as a search would not
     code = main(["recommend", str(load), "--method", "ppo", "--policy", str(policy),
                  "--samples", "2", "--workers", "2", "--max-cycle-s", "10", "--rounds", "1",
