@@ -159,9 +159,11 @@ def test_wrapbench_train_says_when_whole_rollouts_train_more_than_asked(tmp_path
     assert "PPO collects whole rollouts" not in capsys.readouterr().out
 
 
-def test_wrapbench_train_takes_as_many_envs_as_it_allows(tmp_path, monkeypatch):
+def test_wrapbench_train_takes_as_many_envs_as_it_allows_and_half_a_minute(tmp_path,
+                                                                          monkeypatch):
     most = most_workers()
-    assert _trained_by_cli(tmp_path, monkeypatch, ("--envs", str(most))).workers == most
+    settings = _trained_by_cli(tmp_path, monkeypatch, ("--envs", str(most), "--minutes", "0.5"))
+    assert (settings.workers, settings.max_minutes) == (most, 0.5)
 
 
 def _weights(policy: Path) -> bytes:
