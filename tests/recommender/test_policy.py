@@ -315,7 +315,8 @@ def test_wrapbench_train_judges_episodes_by_the_test_asked(tmp_path, monkeypatch
 
 @pytest.mark.parametrize("flags, weight", [((), TrainSettings().material_weight),
                                            (("--material-weight", "1"), 1.0),
-                                           (("--material-weight", "0.3"), 0.3)])
+                                           (("--material-weight", "0.3"), 0.3),
+                                           (("--material-weight", "0"), 0.0)])
 def test_wrapbench_train_prices_web_as_asked_and_the_policy_records_it(tmp_path, monkeypatch,
                                                                        flags, weight):
     """The weight reaches every training env's reward and the policy's record, so a run is
