@@ -633,20 +633,25 @@ def test_a_program_just_past_a_limit_is_refused_saying_which(program_data, chang
 
 # --- the web a program is sought for (recommend --web) ---------------------------------------
 
-def test_a_web_is_read_from_the_wrap_file_a_machine_runs_today(tmp_path):
-    """Its card, width and machine; the program in it is the one being replaced, not read."""
+def machine_file(tmp_path: Path, machine: str) -> Path:
+    """The bundled film program as a machine runs it today, with `machine` as its [machine]
+    table's lines."""
     path = tmp_path / "today.toml"
     path.write_text((EXAMPLES / "program_lldpe_default.toml").read_text()
-                    + "\n[machine]\nrpm = 9.0\nramp_s = 5.0\n")
+                    + f"\n[machine]\n{machine}\n")
+    return path
+
+
+def test_a_web_is_read_from_the_wrap_file_a_machine_runs_today(tmp_path):
+    """Its card, width and machine; the program in it is the one being replaced, not read."""
+    path = machine_file(tmp_path, "rpm = 9.0\nramp_s = 5.0")
     web = Web.from_toml(path)
     assert web == Web(MATERIALS["lldpe"], "lldpe", 0.5, Machine(rpm=9.0, ramp_s=5.0))
 
 
 @pytest.mark.parametrize("ramp", ["-1.0", "nan", "60.5", "120.0"])
 def test_a_machine_ramp_out_of_range_is_refused_naming_it(tmp_path, assert_input_error, ramp):
-    path = tmp_path / "today.toml"
-    path.write_text((EXAMPLES / "program_lldpe_default.toml").read_text()
-                    + f"\n[machine]\nramp_s = {ramp}\n")
+    path = machine_file(tmp_path, f"ramp_s = {ramp}")
     with pytest.raises(InputError) as info:
         Web.from_toml(path)
     assert_input_error(info.value, str(path), "machine.ramp_s")
@@ -663,26 +668,20 @@ def test_a_machine_ramp_out_of_range_is_refused_naming_it(tmp_path, assert_input
 ])
 def test_a_machine_speed_out_of_range_is_refused_naming_it(tmp_path, assert_input_error, line,
                                                            field):
-    path = tmp_path / "today.toml"
-    path.write_text((EXAMPLES / "program_lldpe_default.toml").read_text()
-                    + f"\n[machine]\n{line}\n")
+    path = machine_file(tmp_path, line)
     with pytest.raises(InputError) as info:
         Web.from_toml(path)
     assert_input_error(info.value, str(path), field)
 
 
-@pytest.mark.parametrize("lines", [
-    "carriage_speed_mps = 0.01\nramp_s = 0.0\nhandling_s = 0.0",
-    "carriage_speed_mps = 2.0\nramp_s = 60.0\nhandling_s = 3600.0"],
-    ids=["the slowest carriage, no ramps, no handling", "the fastest, the longest ramps"])
-def test_a_machine_at_each_limit_is_accepted(tmp_path, lines):
-    path = tmp_path / "today.toml"
-    path.write_text((EXAMPLES / "program_lldpe_default.toml").read_text()
-                    + f"\n[machine]\n{lines}\n")
-    machine = Web.from_toml(path).machine
-    values = dict(line.split(" = ") for line in lines.splitlines())
-    assert (machine.carriage_speed_mps, machine.ramp_s, machine.handling_s) == tuple(
-        float(values[k]) for k in ("carriage_speed_mps", "ramp_s", "handling_s"))
+@pytest.mark.parametrize("speed, ramp, handling", [(0.01, 0.0, 0.0), (2.0, 60.0, 3600.0)],
+                         ids=["the slowest carriage, no ramps, no handling",
+                              "the fastest, the longest ramps"])
+def test_a_machine_at_each_limit_is_accepted(tmp_path, speed, ramp, handling):
+    lines = f"carriage_speed_mps = {speed}\nramp_s = {ramp}\nhandling_s = {handling}"
+    machine = Web.from_toml(machine_file(tmp_path, lines)).machine
+    assert (machine.carriage_speed_mps, machine.ramp_s, machine.handling_s) == (
+        speed, ramp, handling)
 
 
 def test_a_rotation_per_second_is_named_as_such(wrap_file):
