@@ -205,8 +205,6 @@ class EpisodeLog(BaseCallback):
         self.path, self.kept = path, kept
         self._file: IO[str] | None = None
         self._writer: Any = None
-        self.rows = 0
-        self.invalid = 0
 
     def _on_training_start(self) -> None:
         if self.kept is None:
@@ -234,17 +232,14 @@ class EpisodeLog(BaseCallback):
         for i, (info, done) in enumerate(zip(infos, dones, strict=True)):
             if not done or "passed" not in info:
                 continue
-            valid = bool(info["valid"])  # a blown-up run: a failure, counted and logged
-            self.invalid += not valid
             self._writer.writerow([
                 self.num_timesteps - n + i + 1,  # this episode's own count of timesteps
                 f"{float(rewards[i]):.6g}",
                 int(bool(info["passed"])),
                 f"{float(info['margin']):.6g}",
                 f"{float(info['material_used']['mass_kg']):.6g}",
-                int(valid),
+                int(bool(info["valid"])),  # a blown-up run: a failure, logged as one
             ])
-            self.rows += 1
         assert self._file is not None
         self._file.flush()
         return True

@@ -34,6 +34,7 @@ from recommender.policy import (
     MAKE_ID,
     POLICY_META,
     EpisodeLog,
+    TimeBudget,
     TrainSettings,
     env_kwargs,
     evaluate,
@@ -191,6 +192,39 @@ def test_train_writes_the_policy_checkpoints_and_one_log_row_per_episode(trained
             assert passed == "0"  # a blown-up run is logged as a failure
 
 
+class _Counted:
+    """What `EpisodeLog` reads of the model: the timesteps counted after the vector step."""
+
+    def __init__(self, num_timesteps: int) -> None:
+        self.num_timesteps = num_timesteps
+
+
+def _episode(passed: bool, valid: bool) -> dict:
+    return {"passed": passed, "valid": valid, "margin": -1.5 if not valid else 0.25,
+            "material_used": {"mass_kg": 0.4}}
+
+
+def test_the_log_writes_each_finished_episode_with_its_own_count_and_a_blown_up_one_as_invalid(
+        tmp_path):
+    """One vector step of three envs, counted 10 timesteps after it: the episodes are timesteps
+    8-10 in env order; a step that ends no episode (or carries no verdict) writes nothing; a
+    blown-up run is logged valid 0, a failure."""
+    log = EpisodeLog(tmp_path / "log.csv")
+    log.init_callback(_Counted(10))
+    log.on_training_start({}, {})
+    log.update_locals({"infos": [_episode(True, True), {}, _episode(False, False)],
+                       "dones": np.array([True, True, True]),
+                       "rewards": np.array([1.25, 0.0, -2.0])})
+    log.on_step()
+    log.update_locals({"infos": [_episode(True, True)], "dones": np.array([False]),
+                       "rewards": np.array([0.5])})
+    log.on_step()
+    log.close()
+    rows = list(csv.reader((tmp_path / "log.csv").open()))
+    assert rows == [list(LOG_COLUMNS), ["8", "1.25", "1", "0.25", "0.4", "1"],
+                    ["10", "-2", "0", "-1.5", "0.4", "0"]]
+
+
 def test_a_training_run_leaves_nothing_of_its_own_in_the_temp_folder(tmp_path, monkeypatch):
     """Many runs (tests, trials of settings) must not fill /tmp with SB3's empty log folders,
     one per run. (torch keeps one cache folder there, shared by every run.)"""
@@ -262,6 +296,25 @@ def test_a_time_budget_ends_training_early_and_still_writes_the_policy(tmp_path)
     assert last_checkpoint(tmp_path) == (tmp_path / CHECKPOINT_DIR / "policy_8_steps.zip", 8)
     with zipfile.ZipFile(path) as archive:
         assert json.loads(archive.read("data"))["num_timesteps"] == 8
+
+
+def test_a_time_budget_is_spent_at_the_end_of_the_rollout_in_which_its_minutes_pass(
+        monkeypatch):
+    """A minute's budget: a rollout ending at 59 s trains on; the one ending at 60 s is learned
+    from (its timesteps recorded) and the next one's first step stops training."""
+    now = [1000.0]
+    monkeypatch.setattr(recommender.policy.time, "monotonic", lambda: now[0])
+    model = _Counted(128)
+    budget = TimeBudget(minutes=1.0)
+    budget.init_callback(model)
+    budget.on_training_start({}, {})
+    now[0] += 59.0
+    budget.on_rollout_end()
+    assert budget.on_step() and budget.learned is None
+    now[0] += 1.0
+    model.num_timesteps = 256
+    budget.on_rollout_end()
+    assert not budget.on_step() and budget.learned == 256
 
 
 def test_a_policy_trained_on_a_calibration_observes_its_uncertainty_and_says_so(tmp_path,
