@@ -50,6 +50,13 @@ def test_the_smaller_half_box_decides_and_only_frames_both_were_seen_in_count() 
     assert swap_warnings(near, {"a": 0.14, "b": 0.08}, FPS) == []
 
 
+def test_a_single_frame_seen_together_is_compared() -> None:
+    """Two bundles whose paths meet in frame 9 only, where they overlap: that frame is named."""
+    paths = {"a": path(range(10), 0.0), "b": path(range(9, 20), 0.05)}
+    assert swap_warnings(paths, {"a": 0.14, "b": 0.14}, FPS) == [
+        "a and b overlap in frames 9: their identities may have swapped"]
+
+
 def test_objects_without_a_box_or_without_common_frames_are_not_compared() -> None:
     """The pallet (no half-box given) under a bundle, and two bundles never seen together."""
     paths = {"pallet": path(range(20), 0.0), "L1C1R1": path(range(20), 0.0),
@@ -72,3 +79,15 @@ def test_frames_missed_inside_a_path_are_interpolated_and_those_outside_it_left_
         "pallet: no marker followed in 5 frames (frames 0-4 left out)"]
     assert gap_warnings("sled", [0, 1, 4, 5], 6) == [
         "sled: no marker followed in 2 frames (frames 2-3 interpolated)"]
+
+
+@pytest.mark.parametrize("seen,frames,text", [
+    ([0, 2, 3], 4, "frames 1 interpolated"),          # right after the first sighting
+    ([0, 1, 3], 4, "frames 2 interpolated"),          # right before the last
+    ([1, 2, 3], 5, "frames 0, 4 left out"),           # one frame each side, none between
+])
+def test_a_missed_frame_next_to_a_path_s_ends_is_placed_on_its_side_of_them(
+        seen: list[int], frames: int, text: str) -> None:
+    """Frames beside the first and last sighting: between them interpolated, beyond left out."""
+    assert gap_warnings("L1C1R1", seen, frames) == [
+        f"L1C1R1: no marker followed in {frames - len(seen)} frames ({text})"]
