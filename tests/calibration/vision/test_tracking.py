@@ -10,6 +10,7 @@ from calibration.vision.tracking import (
     MultiTracker,
     PatchTracker,
     Pose,
+    Reference,
     Tracker,
     make_tracker,
 )
@@ -133,3 +134,109 @@ def test_every_tracker_scores_a_frame_without_its_object_as_lost(kind: str) -> N
     predicted = Pose(CENTRE[0] + 1.0, CENTRE[1])
     pose, score = tracker.update(Frame(texture(300, 400, seed=8)), predicted)
     assert score < LOST_SCORE and pose == predicted
+
+
+class _Drifting:
+    """A tracker that finds its object 2 px right, 1 px down and 0.01 rad turned from where it
+    was predicted, and records each prediction."""
+
+    box_size = (20, 20)
+
+    def __init__(self) -> None:
+        self.predicted: list[Pose] = []
+
+    def update(self, frame: Frame, predicted: Pose) -> tuple[Pose, float]:
+        self.predicted.append(predicted)
+        return Pose(predicted.u + 2.0, predicted.v + 1.0, predicted.theta + 0.01), 1.0
+
+
+def test_each_object_is_predicted_from_the_sled_s_shift_and_its_own_last_motion() -> None:
+    """Frame 1: the sled's 10 px alone (no motion of its own yet). Frame 2: the sled's further
+    10 px plus the 2 px, 1 px and 0.01 rad the object moved on the sled in frame 1. An object
+    first followed at a sled shift of 30 px is predicted from that shift on."""
+    tracker = _Drifting()
+    multi = MultiTracker({"a": tracker}, {"a": Pose(100.0, 50.0)}, threads=1)
+    multi.step(Frame(np.zeros((4, 4), np.uint8)), sled_u=10.0)
+    multi.step(Frame(np.zeros((4, 4), np.uint8)), sled_u=20.0)
+    late = _Drifting()
+    multi.add("b", late, Pose(300.0, 60.0), sled_u=30.0)
+    multi.step(Frame(np.zeros((4, 4), np.uint8)), sled_u=35.0)
+    assert tracker.predicted[:2] == [Pose(110.0, 50.0), Pose(124.0, 52.0, 0.02)]
+    assert late.predicted == [Pose(305.0, 60.0)]
+
+
+def test_a_retried_object_is_predicted_from_the_retry_s_result() -> None:
+    """Lost in frame 1 and found again from a better prediction (200, 80): frame 2 is
+    predicted from where the retry found it, moving as it moved since frame 0."""
+    tracker = _Drifting()
+    multi = MultiTracker({"a": tracker}, {"a": Pose(100.0, 50.0)}, threads=1)
+    multi.step(Frame(np.zeros((4, 4), np.uint8)), sled_u=10.0)
+    assert multi.retry("a", Frame(np.zeros((4, 4), np.uint8)), Pose(200.0, 80.0)) == (
+        Pose(202.0, 81.0, 0.01), 1.0)
+    multi.step(Frame(np.zeros((4, 4), np.uint8)), sled_u=20.0)
+    # on the sled it moved 202 - 10 - 100 = 92 px in frame 1, and 31 px down
+    assert tracker.predicted[-1] == Pose(202.0 - 10.0 + 20.0 + 92.0, 112.0, 0.02)
+
+
+@pytest.mark.parametrize("crop", [(0, 0), (10, 5)])
+@pytest.mark.parametrize("centre, fits", [((16.0, 14.0), True), ((83.0, 65.0), True),
+                                          ((15.5, 14.0), False), ((16.0, 13.5), False),
+                                          ((83.5, 65.0), False), ((83.0, 65.5), False)])
+def test_an_object_s_box_and_its_pad_must_lie_within_the_frame(centre: tuple[float, float],
+                                                               fits: bool,
+                                                               crop: tuple[int, int]) -> None:
+    """A 20 x 16 px box with the 6 px pad Farnebäck's window needs, in a 100 x 80 frame: centred
+    on (16, 14) it touches the top-left corner, on (83, 65) the bottom-right (pixels 0-99 and
+    0-79); half a pixel further it leaves the frame. A crop's corner is where the frame starts
+    in the full image, in which centres are given."""
+    frame = Frame(texture(80, 100), *crop)
+    at = (centre[0] + crop[0], centre[1] + crop[1])
+    if fits:
+        assert PatchTracker(frame, at, (20, 16)).box_size == (21, 17)
+    else:
+        with pytest.raises(ValueError, match="leaves the frame"):
+            PatchTracker(frame, at, (20, 16))
+
+
+def test_ncc_flow_searches_only_after_a_frame_its_prediction_missed(monkeypatch) -> None:
+    """An object carried by the sled alone (each prediction met): the NCC search runs in the
+    first frame only, Farnebäck alone follows it after; the other trackers' choice of search is
+    fixed (ncc always, flow never)."""
+    image = texture(300, 400, seed=5)
+    searches = {kind: 0 for kind in ("ncc+flow", "ncc", "flow")}
+    for kind in searches:
+        tracker = PatchTracker(Frame(image), CENTRE, SIZE, kind)
+        real = tracker._ncc
+
+        def counted(frame: Frame, pose: Pose, kind: str = kind, real=real) -> tuple[Pose, float]:
+            searches[kind] += 1
+            return real(frame, pose)
+
+        monkeypatch.setattr(tracker, "_ncc", counted)
+        for k in range(1, 6):
+            pose, score = tracker.update(Frame(moved(image, CENTRE, 0.0, 0.0, seed=k)),
+                                         Pose(*CENTRE))
+            assert score > 0.9 and abs(pose.u - CENTRE[0]) < 0.05
+    assert searches == {"ncc+flow": 1, "ncc": 5, "flow": 0}
+
+
+def test_a_reference_patch_is_the_object_s_own_pixels_centred_on_it() -> None:
+    """The chain and OpenCV trackers score by a patch cut around the object's centre: at a
+    whole-pixel centre it is the image's pixels around it, unresampled."""
+    image = texture(80, 100, seed=3)
+    reference = Reference.around(Frame(image), (50.0, 40.0), (21, 15))
+    assert np.array_equal(reference.patch, image[33:48, 40:61])
+    assert reference.centre == (10.0, 7.0)
+    assert reference.score(Frame(image), Pose(50.0, 40.0)) > 0.999
+
+
+def test_the_chain_tracker_adds_up_each_frame_s_rotation() -> None:
+    """Two frames each turned 0.02 rad (and moved 1 px, 0.5 px) from the last: the chain's
+    angle is their sum."""
+    image = texture(300, 400, seed=9)
+    tracker = make_tracker("chain", Frame(image), CENTRE, SIZE)
+    pose, _ = tracker.update(Frame(moved(image, CENTRE, 1.0, 0.5, 0.02)), Pose(*CENTRE))
+    assert abs(pose.theta - 0.02) < 2e-3
+    pose, score = tracker.update(Frame(moved(image, CENTRE, 2.0, 1.0, 0.04, seed=4)), pose)
+    assert abs(pose.theta - 0.04) < 2e-3 and score > 0.9
+    assert abs(pose.u - CENTRE[0] - 2.0) < 0.1 and abs(pose.v - CENTRE[1] - 1.0) < 0.1
