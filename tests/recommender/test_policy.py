@@ -32,7 +32,9 @@ from recommender.policy import (
     CHECKPOINT_DIR,
     LOG_COLUMNS,
     MAKE_ID,
+    MAX_ROLLOUT_STEPS,
     POLICY_META,
+    Checkpoints,
     EpisodeLog,
     TimeBudget,
     TrainSettings,
@@ -45,6 +47,7 @@ from recommender.policy import (
     pass_rate,
     policy_meta,
     propose,
+    read_meta,
     run_trial,
     stamp,
     train,
@@ -54,7 +57,9 @@ from wrapenv.calibrated import Calibration
 from wrapenv.config import InputError
 from wrapenv.design import MAX_REINFORCEMENT_WRAPS, MAX_WRAPS, N_PARAMS, NAMES, ProgramSpace
 from wrapenv.envs import OBS_NAMES, WrapBenchRandomEnv
+from wrapenv.envs.wrapbench import MAX_TESTS_PER_EPISODE
 from wrapenv.load import LoadUnit
+from wrapenv.uncertainty import TRANSPORT_HOURS
 from wrapenv.wrap import WrapFormat
 
 #: Its trained run is made once, in one test process (`--dist loadgroup`).
@@ -89,17 +94,38 @@ def test_default_settings_are_a_sane_short_run():
 @pytest.mark.parametrize("field, value", [("timesteps", 0), ("n_envs", 0), ("workers", 0),
                                           ("batch_size", 1.5),
                                           ("learning_rate", float("nan")),
+                                          ("learning_rate", float("inf")),
+                                          ("learning_rate", 0.0),
                                           ("max_minutes", -1.0), ("max_minutes", float("nan")),
                                           ("test", "easy"), ("material_weight", -0.1),
                                           ("material_weight", float("inf")),
                                           ("log_std_init", float("nan")),
-                                          ("log_std_init", 2.0), ("tests_per_episode", 0),
+                                          ("log_std_init", 1.5), ("log_std_init", -5.5),
+                                          ("tests_per_episode", 0),
                                           ("tests_per_episode", 17),
                                           ("tests_per_episode", 2.0)])
 def test_bad_settings_are_rejected_before_any_process_starts(tmp_path, field, value):
     with pytest.raises(ValueError, match=field):
         train(TrainSettings(**{field: value}), tmp_path / "out")
     assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize("field, value", [("log_std_init", -5.0), ("log_std_init", 1.0),
+                                          ("max_minutes", 0.0), ("material_weight", 0.0),
+                                          ("tests_per_episode", MAX_TESTS_PER_EPISODE)])
+def test_settings_at_the_edge_of_what_they_accept_are_taken(field, value):
+    TrainSettings(**{field: value}).check()
+
+
+def test_the_nominal_test_is_the_unit_freshly_wrapped_on_its_long_side_and_known_exactly():
+    """Training's two tests as the envs are given them: "verified" is what `recommend --method
+    ppo` verifies a proposal on (a random side, a sample, the wrap relaxed by transport)."""
+    nominal = env_kwargs(replace(TINY, test="nominal"))
+    assert (nominal["orientation"], nominal["hours_since_wrapping"], nominal["uncertain"]) == (
+        None, 0.0, False)
+    verified = env_kwargs(TINY)
+    assert (verified["orientation"], verified["hours_since_wrapping"], verified["uncertain"]) == (
+        "random", TRANSPORT_HOURS, True)
 
 
 def test_training_runs_whole_rollouts():
@@ -296,6 +322,25 @@ def test_a_time_budget_ends_training_early_and_still_writes_the_policy(tmp_path)
     assert last_checkpoint(tmp_path) == (tmp_path / CHECKPOINT_DIR / "policy_8_steps.zip", 8)
     with zipfile.ZipFile(path) as archive:
         assert json.loads(archive.read("data"))["num_timesteps"] == 8
+
+
+@pytest.mark.parametrize("start, saved", [(0, [8, 16]), (8, [16]), (6, [14])])
+def test_a_checkpoint_is_saved_once_its_timesteps_have_passed_since_the_last(
+        monkeypatch, tmp_path, start, saved):
+    """Every 8 timesteps, rollouts of 4, checked at each rollout's start: a run from 0 saves at
+    8 and 16; one resumed from a checkpoint at 8 saves next at 16, one from 6 at 14: counted
+    from the checkpoint."""
+    written: list[int] = []
+    monkeypatch.setattr(recommender.policy, "save_stamped",
+                        lambda model, path, meta: written.append(model.num_timesteps))
+    model = _Counted(start)
+    checkpoints = Checkpoints({}, 8, tmp_path)
+    checkpoints.init_callback(model)
+    checkpoints.on_training_start({}, {})
+    for steps in range(start + 4, 17, 4):
+        model.num_timesteps = steps
+        checkpoints.on_rollout_start()
+    assert written == saved
 
 
 def test_a_time_budget_is_spent_at_the_end_of_the_rollout_in_which_its_minutes_pass(
@@ -595,6 +640,22 @@ def test_a_malformed_policy_is_refused_in_one_line(trained, tmp_path, assert_inp
     assert_input_error(info.value, str(bad), field)
 
 
+def test_a_policy_file_may_ask_for_a_rollout_buffer_of_at_most_max_rollout_steps(trained,
+                                                                                 tmp_path):
+    """n_steps x n_envs is what SB3 allocates on loading: at the bound the file is read, one
+    step past it (in a product of two) refused before anything is allocated."""
+    path, _ = trained
+    with zipfile.ZipFile(path) as archive:
+        data = json.loads(archive.read("data"))
+    at_bound = _rewritten(path, tmp_path / "at.zip",
+                          data={**data, "n_steps": MAX_ROLLOUT_STEPS, "n_envs": 1})
+    assert read_meta(at_bound)["material"] == "kraft"
+    past = _rewritten(path, tmp_path / "past.zip",
+                      data={**data, "n_steps": MAX_ROLLOUT_STEPS // 2 + 1, "n_envs": 2})
+    with pytest.raises(InputError, match="data.n_steps"):
+        read_meta(past)
+
+
 def test_a_policy_with_weights_that_are_not_numbers_is_refused(trained, tmp_path,
                                                                assert_input_error):
     import torch
@@ -806,6 +867,32 @@ def test_a_run_is_resumed_only_as_it_was_started(trained, tmp_path, assert_input
         with pytest.raises(InputError) as info:
             train(settings, run, resume=True)
         assert_input_error(info.value, str(run / CHECKPOINT_DIR / "policy_4_steps.zip"), field)
+
+
+def test_a_checkpoint_from_before_its_test_and_weight_were_recorded_resumes_as_it_was_trained(
+        trained, tmp_path):
+    """Checkpoints written before the test (2026-11-28), web's price and tests an episode
+    (2026-12-01) were recorded were trained on the nominal test, web priced at 1, one test an
+    episode: they resume so, and only so."""
+    _, out = trained
+    run = tmp_path / "run"
+    (run / CHECKPOINT_DIR).mkdir(parents=True)
+    (run / "log.csv").write_bytes((out / "log.csv").read_bytes())
+    checkpoint = out / CHECKPOINT_DIR / "policy_4_steps.zip"
+    with zipfile.ZipFile(checkpoint) as archive:
+        meta = json.loads(archive.read(POLICY_META))
+    old = {k: v for k, v in meta.items()
+           if k not in ("test", "material_weight", "tests_per_episode")}
+    _rewritten(checkpoint, run / CHECKPOINT_DIR / "policy_4_steps.zip", meta=old)
+    then = replace(TINY, test="nominal", material_weight=1.0)
+    for settings, field in ((replace(then, test="verified"), "test"),
+                            (replace(then, material_weight=0.6), "material_weight")):
+        with pytest.raises(InputError, match=field):
+            train(settings, run, resume=True)
+    path = train(then, run, resume=True)
+    assert path == run / "policy.zip"
+    with zipfile.ZipFile(path) as archive:
+        assert json.loads(archive.read("data"))["num_timesteps"] == TINY.timesteps
 
 
 @pytest.mark.parametrize("files, needle", [
