@@ -3,7 +3,6 @@
 import numpy as np
 import pytest
 
-from calibration.vision.flow import RigidFlow, warp_to_reference
 from calibration.vision.tracking import (
     LOST_SCORE,
     Frame,
@@ -42,17 +41,6 @@ def test_crop_offset_is_accounted_for() -> None:
     frame = moved(image, CENTRE, 1.25, -0.5)
     pose, _ = tracker.update(Frame(frame[40:, 20:], 20, 40), Pose(*CENTRE))
     assert abs(pose.u - CENTRE[0] - 1.25) < 0.05 and abs(pose.v - CENTRE[1] + 0.5) < 0.05
-
-
-def test_rigid_flow_sign_conventions() -> None:
-    image = texture(300, 400)
-    ref_centre = (55.0, 65.0)
-    ref = warp_to_reference(image, CENTRE, 0.0, ref_centre, SIZE)
-    flow = RigidFlow(ref, ref_centre)
-    cur = warp_to_reference(moved(image, CENTRE, 0.4, 0.2, 0.01, noise=0.0), CENTRE, 0.0,
-                            ref_centre, SIZE)
-    m = flow.measure(cur)
-    assert abs(m.du - 0.4) < 0.05 and abs(m.dv - 0.2) < 0.05 and abs(m.dtheta - 0.01) < 1e-3
 
 
 def test_no_drift_over_a_long_sequence() -> None:
