@@ -69,3 +69,32 @@ def test_scale_warning_beyond_one_percent() -> None:
     assert scale_warning(403.0, 400.0) is None
     message = scale_warning(412.0, 400.0)
     assert message is not None and "+3.0 %" in message
+
+
+def test_rigid_pose_of_three_markers_placed_off_centre() -> None:
+    """Markers at offsets whose mean is off the object's centre, the object turned 0.3 rad
+    about (1.5, 0.7) m: its centre and rotation come back exactly."""
+    c, s = np.cos(0.3), np.sin(0.3)
+    offsets = [(-0.4, 0.2), (0.3, 0.25), (0.1, -0.3)]
+    centres = [(1.5 + c * dx - s * dz, 0.7 + s * dx + c * dz) for dx, dz in offsets]
+    pose = rigid_pose(centres, offsets, theta=0.0)
+    assert abs(pose.angle_rad - 0.3) < 1e-12
+    assert abs(pose.x_m - 1.5) < 1e-12 and abs(pose.z_m - 0.7) < 1e-12
+
+
+def test_a_marker_s_angle_is_the_mean_direction_of_its_top_and_bottom_edges() -> None:
+    """Corners as ArUco gives them (top-left, top-right, bottom-right, bottom-left; v down): a
+    top edge rising 1 px over 10 and a bottom edge rising 3 px over 10 turn 0.2 rad
+    counter-clockwise (arctan of 4 / 20)."""
+    corners = np.array([[0.0, 0.0], [10.0, -1.0], [10.0, 7.0], [0.0, 10.0]])
+    assert abs(angle_rad(corners) - np.arctan2(4.0, 20.0)) < 1e-12
+
+
+def test_the_scale_is_read_from_the_farthest_pair_wherever_it_comes_in_the_list() -> None:
+    """Marker 5's centre lies 2 px off (a pair with it would read 302 or 298 px/m); the
+    farthest pair, 0 and 1 two metres apart, reads 300. Two markers at one offset give none."""
+    square = np.array([[-1, -1], [1, -1], [1, 1], [-1, 1]], float) * 5
+    found = {0: square + (100.0, 50.0), 1: square + (700.0, 50.0), 5: square + (402.0, 50.0)}
+    offsets = {5: (0.0, 0.0), 0: (-1.0, 0.0), 1: (1.0, 0.0)}
+    assert baseline_scale(found, offsets) == 300.0
+    assert baseline_scale(found, {0: (0.5, 0.0), 1: (0.5, 0.0)}) is None
