@@ -2,8 +2,9 @@
 
 Identities come from the first-frame detections and never change afterwards: each tracker
 only searches a few pixels around its prediction (the sled's motion from the profile plus the
-object's own recent motion relative to the sled), far less than the distance to a neighbour,
-so a tracker cannot jump to the bundle next to it. Measuring against the first frame rather
+object's own recent motion relative to the sled: 8 px either side, walked on to at most 24 px
+while the peak lies on the window's edge), far less than the distance to a neighbour, so a
+tracker cannot jump to the bundle next to it. Measuring against the first frame rather
 than the previous one keeps sub-pixel errors from accumulating into drift.
 
 Trackers (the `kind` names `track()` and the benchmarks use):
@@ -44,6 +45,9 @@ LOST_SCORE = 0.5
 #: ncc+flow skips the NCC search in a frame when the last frame's result was this close (px) to
 #: its prediction: the motion is then smooth enough for Farnebäck's window alone.
 SKIP_NCC_PX = 0.25
+#: Search windows an NCC search may walk through while its peak lies on a window's edge (each
+#: `PatchTracker.search_px` either side): a found object up to 3 x 8 px from its prediction.
+MAX_SEARCHES = 3
 OWN_TRACKERS = ("ncc+flow", "ncc", "flow", "chain")
 OPENCV_TRACKERS = ("mil",)
 
@@ -168,6 +172,18 @@ class PatchTracker:
         return math.hypot(pose.u - predicted.u, pose.v - predicted.v) < SKIP_NCC_PX
 
     def _ncc(self, frame: Frame, pose: Pose) -> tuple[Pose, float]:
+        """The NCC search's peak around `pose`. A peak on the search window's edge that scores
+        as found is not bracketed (the object may lie beyond, as one that stopped while hidden
+        does from its prediction): the search goes on from it, up to `MAX_SEARCHES` windows;
+        one still on an edge then counts as not found (score 0), not as where the object is."""
+        for _ in range(MAX_SEARCHES):
+            pose, score, on_edge = self._search(frame, pose)
+            if not (on_edge and score >= LOST_SCORE):
+                return pose, score
+        return pose, 0.0
+
+    def _search(self, frame: Frame, pose: Pose) -> tuple[Pose, float, bool]:
+        """One search window's peak, its score, and whether it lies on the window's edge."""
         m = self.search_px
         crop = warp_to_reference(frame.gray, frame.local(pose), pose.theta, self.ref_centre,
                                  self.box_size, m)
@@ -175,7 +191,9 @@ class PatchTracker:
         row, col = (int(k) for k in np.unravel_index(int(np.argmax(scores)), scores.shape))
         dc, dr = subpixel_peak(scores, row, col)
         t = rotation_px(pose.theta) @ np.array([col + dc - m, row + dr - m])
-        return replace(pose, u=pose.u + t[0], v=pose.v + t[1]), float(scores[row, col])
+        on_edge = row in (0, scores.shape[0] - 1) or col in (0, scores.shape[1] - 1)
+        return (replace(pose, u=pose.u + t[0], v=pose.v + t[1]), float(scores[row, col]),
+                on_edge)
 
     def _refine(self, frame: Frame, pose: Pose) -> Pose:
         assert self.flow is not None

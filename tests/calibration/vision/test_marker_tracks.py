@@ -59,9 +59,10 @@ class _ShiftedDetector(MarkerDetector):
 
 
 def _follow(hidden: set[int], start_u: float = START_U, step_u: float = STEP_U,
-            detector: MarkerDetector | None = None) -> tuple[MarkerTracks, list[str]]:
+            detector: MarkerDetector | None = None,
+            stops_after: int = FRAMES) -> tuple[MarkerTracks, list[str]]:
     """Frames 0..FRAMES-1 through MarkerTracks as `track` drives it (OpenCV on one thread, the
-    sled not moving)."""
+    sled not moving); the marker stays where it is in frame `stops_after` from then on."""
     warnings: list[str] = []
     detector = detector or MarkerDetector("DICT_4X4_50")
     multi = MultiTracker({}, {}, threads=1)
@@ -69,7 +70,7 @@ def _follow(hidden: set[int], start_u: float = START_U, step_u: float = STEP_U,
                            multi, PIXMAP, warnings)
     with opencv_threads(1):
         for k in range(FRAMES):
-            frame = Frame(_frame(k, k in hidden, start_u, step_u))
+            frame = Frame(_frame(min(k, stops_after), k in hidden, start_u, step_u))
             if isinstance(detector, _ShiftedDetector):
                 detector.now = k
             if k == 0:
@@ -109,6 +110,28 @@ def test_a_hidden_marker_is_reported_lost_found_again_and_its_gap_bridged() -> N
     assert warnings == [
         f"marker 7 (L1C1R1): lost (NCC < {LOST_SCORE}) in frames 5-7",
         "L1C1R1: no marker followed in 3 frames (frames 5-7 interpolated)"]
+
+
+@pytest.mark.parametrize("step_u, hidden", [(3.0, {5, 6, 7}), (6.0, {5, 6, 7, 8, 9})])
+def test_a_marker_that_stopped_while_hidden_is_found_where_it_stopped(
+        step_u: float, hidden: set[int]) -> None:
+    """Covered after moving `step_u` px a frame, it stopped where it was in frame 4; its
+    prediction runs on past it. 12 px past (3 px a frame, 3 frames), the patch tracker's
+    search walks on from its window's edge and finds it (taken from the edge it was 1.2 px
+    off, and the bridged frames with it); 36 px past (6 px, 5 frames), the tracker loses it and
+    ArUco, looking for it because it is lost, finds it. Either way its path is right to a
+    quarter of a pixel, the hidden frames bridged."""
+    markers, warnings = _follow(hidden=hidden, step_u=step_u, stops_after=4)
+    assert markers.lost[7] == sorted(hidden)
+    path = markers.paths(FRAMES, FPS)["L1C1R1"]
+    k = np.rint(path.t_s * FPS)
+    assert np.array_equal(k, np.arange(FRAMES))
+    truth = (START_U + step_u * np.minimum(k, 4) - PIXMAP.u0) / PIXMAP.px_per_m - 0.05
+    assert np.max(np.abs(path.x_m - truth)) < 0.25 / PIXMAP.px_per_m
+    gap = f"{min(hidden)}-{max(hidden)}"
+    assert warnings == [
+        f"marker 7 (L1C1R1): lost (NCC < {LOST_SCORE}) in frames {gap}",
+        f"L1C1R1: no marker followed in {len(hidden)} frames (frames {gap} interpolated)"]
 
 
 @pytest.mark.parametrize("hidden,text", [({0, 1, 2}, "frames 0-2 left out"),

@@ -3,6 +3,7 @@
 import numpy as np
 import pytest
 
+import calibration.vision.tracking
 from calibration.vision.tracking import (
     LOST_SCORE,
     Frame,
@@ -84,6 +85,29 @@ def test_an_object_covered_in_a_frame_that_skips_ncc_is_lost(cover: str) -> None
     pose, score = tracker.update(Frame(covered), Pose(*CENTRE))
     assert score < LOST_SCORE and pose == Pose(*CENTRE)
     assert not tracker.predicted_well
+
+
+@pytest.mark.parametrize("off_px", [8.5, 9.0, 10.0])
+def test_an_object_just_beyond_the_search_window_is_found_where_it_is(off_px: float) -> None:
+    """The NCC search looks 8 px either side of the prediction. An object 8.5-10 px away peaks
+    on the window's edge, where the peak is not bracketed: the search goes on from there and
+    finds it to 0.05 px (taken from the edge, 10 px came out 0.39 px off, scoring 0.64)."""
+    image = texture(300, 400, seed=5)
+    tracker = PatchTracker(Frame(image), CENTRE, SIZE)
+    pose, score = tracker.update(Frame(moved(image, CENTRE, -off_px, 0.4)), Pose(*CENTRE))
+    assert abs(pose.u - CENTRE[0] + off_px) < 0.05 and abs(pose.v - CENTRE[1] - 0.4) < 0.05
+    assert score > 0.9
+
+
+def test_an_object_whose_peak_stays_on_the_window_s_edge_is_lost_not_misplaced(
+        monkeypatch) -> None:
+    """With a single window allowed, an object 10 px away still peaks on its edge: it counts
+    as not found (the prediction, score 0) instead of being reported at the edge."""
+    monkeypatch.setattr(calibration.vision.tracking, "MAX_SEARCHES", 1)
+    image = texture(300, 400, seed=5)
+    tracker = PatchTracker(Frame(image), CENTRE, SIZE)
+    assert tracker.update(Frame(moved(image, CENTRE, -10.0, 0.4)), Pose(*CENTRE)) == (
+        Pose(*CENTRE), 0.0)
 
 
 def test_sled_shift_drives_the_prediction() -> None:
