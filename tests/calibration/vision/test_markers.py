@@ -9,6 +9,7 @@ from calibration.vision.markers import (
     baseline_scale,
     rigid_pose,
     scale_warning,
+    size_warning,
 )
 from calibration.vision.roi import PixelMap
 from calibration.vision.tracking import Frame
@@ -98,3 +99,17 @@ def test_the_scale_is_read_from_the_farthest_pair_wherever_it_comes_in_the_list(
     offsets = {5: (0.0, 0.0), 0: (-1.0, 0.0), 1: (1.0, 0.0)}
     assert baseline_scale(found, offsets) == 300.0
     assert baseline_scale(found, {0: (0.5, 0.0), 1: (0.5, 0.0)}) is None
+
+
+def test_the_marker_size_cross_checks_the_scale_within_twenty_percent() -> None:
+    """5 cm markers at 400 px/m should measure 20 px a side: a median of 23 px (+15 %) passes,
+    25 px (+25 %) and 15 px (-25 %) are said with both figures; without a size nothing can be
+    checked (said), and without a marker seen nothing is compared."""
+    assert size_warning(0.05, 400.0, [22.0, 23.0, 40.0]) is None
+    high = size_warning(0.05, 400.0, [24.0, 25.0, 26.0])
+    assert high is not None and "20.0 px" in high and "25.0 px" in high and "+25 %" in high
+    low = size_warning(0.05, 400.0, [15.0])
+    assert low is not None and "15.0 px" in low and "-25 %" in low
+    assert size_warning(0.05, 400.0, []) is None
+    missing = size_warning(None, 400.0, [25.0])
+    assert missing is not None and "no markers.size_m" in missing
