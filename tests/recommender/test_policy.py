@@ -219,7 +219,7 @@ def test_train_writes_the_policy_checkpoints_and_one_log_row_per_episode(trained
 
 
 class _Counted:
-    """What `EpisodeLog` reads of the model: the timesteps counted after the vector step."""
+    """All the callbacks below read of the model: its count of timesteps."""
 
     def __init__(self, num_timesteps: int) -> None:
         self.num_timesteps = num_timesteps
@@ -246,7 +246,7 @@ def test_the_log_writes_each_finished_episode_with_its_own_count_and_a_blown_up_
                        "rewards": np.array([0.5])})
     log.on_step()
     log.close()
-    rows = list(csv.reader((tmp_path / "log.csv").open()))
+    rows = list(csv.reader((tmp_path / "log.csv").read_text().splitlines()))
     assert rows == [list(LOG_COLUMNS), ["8", "1.25", "1", "0.25", "0.4", "1"],
                     ["10", "-2", "0", "-1.5", "0.4", "0"]]
 
