@@ -33,10 +33,13 @@ def test_nms_keeps_best_of_overlapping_boxes() -> None:
     assert keep.tolist() == [1, 2]
 
 
+def _paraboloid(col: float, row: float, size: int = 5) -> np.ndarray:
+    x = np.arange(float(size))
+    return -((x[None, :] - col) ** 2) - ((x[:, None] - row) ** 2)
+
+
 def test_subpixel_peak_of_a_parabola() -> None:
-    x = np.arange(5.0)
-    scores = -((x[None, :] - 2.3) ** 2) - ((x[:, None] - 1.8) ** 2)
-    dc, dr = subpixel_peak(scores, 2, 2)
+    dc, dr = subpixel_peak(_paraboloid(2.3, 1.8), 2, 2)
     assert abs(dc - 0.3) < 1e-9 and abs(dr + 0.2) < 1e-9
 
 
@@ -58,11 +61,6 @@ def test_nms_drops_a_box_overlapping_a_better_one_by_more_than_the_iou() -> None
     assert nms(np.array([[10.0, 10.0], [20.0, 10.0]]), scores, (20, 20)).tolist() == [0]
     assert nms(np.array([[10.0, 10.0], [21.0, 10.0]]), scores, (20, 20)).tolist() == [0, 1]
     assert nms(np.array([[10.0, 10.0], [10.0, 21.0]]), scores, (20, 20)).tolist() == [0, 1]
-
-
-def _paraboloid(col: float, row: float, size: int = 5) -> np.ndarray:
-    x = np.arange(float(size))
-    return -((x[None, :] - col) ** 2) - ((x[:, None] - row) ** 2)
 
 
 def test_a_peak_next_to_the_map_s_edge_is_refined_and_one_on_it_is_not() -> None:
