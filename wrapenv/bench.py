@@ -183,7 +183,6 @@ class BenchUnit:
         (tests/wrapenv/test_sequence.py)."""
         new = self.origin_m is None
         if not new:
-            self.world.set_sled_accel(0.0)
             self.world.stop(self.scene.moving.tolist())
             _set_friction(self.world, self.scene, self.stick_slip, self.stick_slip.stick_all())
             if self.wrap is not None:
