@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import gc
 import json
+import math
 import os
 import platform
 import subprocess
@@ -14,10 +15,10 @@ import pytest
 
 from recommender.cli import main
 from wrapenv import bullet
-from wrapenv.bench import SimSettings, run_level, run_levels
+from wrapenv.bench import BenchUnit, SimSettings, _Run, run_level, run_levels
 from wrapenv.eumos import evaluate
 from wrapenv.load import LoadUnit
-from wrapenv.profile import PulseProfile
+from wrapenv.profile import G, PulseProfile
 from wrapenv.wrap import WrapFormat
 
 SMALL = {
@@ -222,3 +223,25 @@ def test_velocities_from_one_step_of_poses_are_bullets_own(monkeypatch, rigid):
     run_level(load.layout(), PulseProfile(0.5), SimSettings(rigid_boxes=rigid), wrap=wrap)
     assert len(errors) > 200
     assert max(errors) < 1e-9
+
+
+def test_a_body_faster_than_the_sled_s_whole_change_of_speed_plus_a_fall_is_a_blow_up():
+    """No body can move relative to the sled faster than the sled's whole change of speed plus
+    the speed of a fall from the load's top, with 1 m/s to spare: the 0.5 g pulse (ramp 0.05 s,
+    dwell 0.5 s, braking at a quarter of the level, its ramp down as steep as the ramp up)
+    brings the sled to a(r/2 + dwell) + (a - d) r_down/2 = 2.690 m/s by hand."""
+    a, d, r = 0.5 * G, 0.125 * G, 0.05
+    sled_mps = a * (r / 2 + 0.5) + (a - d) * (r * (a + d) / a) / 2
+    layout = LoadUnit.from_toml("examples/pet_3layer_columnar.toml").layout()
+    limit = sled_mps + math.sqrt(2 * G * layout.load_height_m) + 1.0
+    with BenchUnit(layout) as unit:
+        run = _Run(unit.world, layout, PulseProfile(0.5), SimSettings(), unit.stick_slip, None,
+                   None)
+        pos, _, vel, _ = run._state()
+        assert run.speed_limit == pytest.approx(limit, abs=0.01)
+        vel[-1] = (limit - 0.02, 0.0, 0.0)
+        run._check(pos, vel, step=1)
+        assert run.invalid == ""
+        vel[-1] = (0.0, limit + 0.02, 0.0)
+        run._check(pos, vel, step=1)
+    assert run.invalid == f"a body exceeded {limit:.1f} m/s (energy blow-up)"
