@@ -19,6 +19,7 @@ import numpy as np
 import pytest
 
 from tests.wrapenv.conftest import slick_two_layers, weak_wrap_on_a_slick_unit
+from wrapenv import bench
 from wrapenv.bench import Push, SimSettings, run_level, run_levels
 from wrapenv.eumos import WRAP_OPENED, WRAP_TORN, evaluate
 from wrapenv.load import LoadUnit
@@ -703,3 +704,17 @@ def test_more_wrap_does_not_let_the_stack_creep_more(most, rests):
         assert run.solver_iterations == 50 and level.not_at_rest
         assert heard == [] and run.crept_at == ()
         assert level.permanent_max_m > 0.004, level.permanent_max_m
+
+
+def test_a_stack_that_creeps_at_every_count_is_run_up_to_the_most_iterations_and_judged_there(
+        monkeypatch):
+    """Each run that creeps is made again with twice the iterations while that stays within
+    `max_wrapped_solver_iterations` (200: 50, 100, then 200, the most included), and the last
+    one's verdict is the answer, the counts it crept at said."""
+    monkeypatch.setattr(bench, "_crept", lambda run: True)
+    load = LoadUnit.from_toml("examples/pet_2layer_columnar.toml")
+    wrap = WrapFormat.from_toml("examples/wrap_kraft_2layer.toml", load.load_height_m)
+    heard: list[int] = []
+    run = run_levels(load, [0.2], wrap=wrap, on_rerun=heard.append)
+    assert heard == [100, 200] and run.crept_at == (50, 100)
+    assert run.solver_iterations == 200 and run.verdict.levels[0].passed
