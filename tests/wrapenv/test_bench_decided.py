@@ -85,3 +85,29 @@ def test_a_bundle_off_its_support_decides_the_level_before_any_displacement():
     assert run._decided(moved(along_m=limit_m + 0.005), rot).startswith(
         f"elastic displacement {(limit_m + 0.005) * 1000:.0f} mm past {limit_m * 1000:.0f} mm")
     assert run._decided(moved(along_m=limit_m - 0.005), rot) == ""
+
+
+def test_a_toppled_bundle_has_fallen_once_its_centre_is_below_where_its_underside_stood():
+    """Tipped onto its side, a bundle's centre drops by half the difference of its height and
+    width and it still rests on its support: not decided (a topple is judged at the end). Its
+    centre below where its underside stood means it left its support: fallen."""
+    layout = LoadUnit.from_toml(EXAMPLE_3).layout()
+    with BenchUnit(layout, DECIDED) as unit:
+        run = _Run(unit.world, layout, PulseProfile(0.5), DECIDED, unit.stick_slip, None, None)
+        pos, rot, _, _ = run._state()
+    top = len(layout.bundles) - 1
+    row, bundle = 1 + top, layout.bundles[top]
+    assert run._decided(pos, rot) == ""             # t = 0: the reference
+    on_its_side = rot.copy()
+    on_its_side[row] = [[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]]  # 90 degrees about x
+    half_height_m = bundle.size_m[2] / 2
+
+    def lowered(by_m: float):
+        out = pos.copy()
+        out[row, 2] -= by_m
+        return out
+
+    tipped_m = half_height_m - bundle.size_m[1] / 2
+    assert run._decided(lowered(tipped_m), on_its_side) == ""
+    assert run._decided(lowered(half_height_m + 0.005), on_its_side) == f"{bundle.name} fallen"
+    assert run._decided(lowered(half_height_m - 0.005), on_its_side) == ""
