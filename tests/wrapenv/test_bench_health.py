@@ -197,10 +197,12 @@ def test_a_state_turned_non_finite_during_the_level_is_invalid(monkeypatch):
 
 def test_bodies_the_solver_let_sink_into_each_other_make_the_level_invalid(monkeypatch):
     """Deeper than `PENETRATION_LIMIT_M` the solver has lost the contact: whatever the figures
-    say, the run is no test."""
-    _from_call(2, monkeypatch, "max_penetration_m", lambda depth: 0.05)   # every 24 steps
+    say, the run is no test. The depth, a query over every contact, is read every 24 steps
+    (0.1 s): the second reading, at step 24, ends the run."""
+    _from_call(2, monkeypatch, "max_penetration_m", lambda depth: 0.05)
     trace = run_level(LoadUnit.from_dict(SMALL).layout(), PulseProfile(0.2))
     assert (trace.valid, trace.invalid_reason) == (False, "bodies interpenetrate by 50 mm")
+    assert len(trace.t_s) == 25 and trace.t_s[-1] == pytest.approx(24 / 240)
     assert not evaluate(trace).passed
 
 
