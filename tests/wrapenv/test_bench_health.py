@@ -7,6 +7,7 @@ import json
 import math
 import os
 import platform
+import re
 import subprocess
 import sys
 
@@ -138,7 +139,10 @@ def test_a_unit_flung_apart_while_it_is_wrapped_is_invalid_not_a_failure():
     wrap = WrapFormat.from_toml("examples/program_kraft_default.toml", load.load_height_m)
     level = run_levels(load, [0.3], wrap=wrap).verdict.levels[0]
     assert not level.valid and not level.passed
-    assert level.invalid_reason.startswith("the unit came apart before the sled moved")
+    said = re.fullmatch(r"the unit came apart before the sled moved \((\S+) moved (\d+) mm "
+                        r"while it was stacked and wrapped\)", level.invalid_reason)
+    assert said and said[1] in {b.name for b in load.layout().bundles}
+    assert int(said[2]) > 1200                        # farther than the EUR pallet is long
 
 
 def test_a_unit_that_slides_off_the_sled_fails_and_is_no_blow_up():
