@@ -10,6 +10,7 @@ from __future__ import annotations
 import importlib
 import resource
 import warnings
+from dataclasses import replace
 from pathlib import Path
 
 import gymnasium as gym
@@ -303,11 +304,16 @@ def test_the_screening_settings_keep_the_reward_of_a_pass(tiny):
 
 
 def test_the_training_settings_judge_a_pass_as_a_pass(tiny):
-    """`SimSettings.training()` (PPO's, the screening fidelity at a longer step)
-    gives the same verdicts, the margin within the bench's own reproducibility (0.15). Its
-    limit: the space's heaviest program squeezes these two bundles into each other (174 mm)
-    at that step; the random units of training fill a pallet, and rarely blow up
-    (benchmarks/bench_train.py and a training run's log.csv count them)."""
+    """`SimSettings.training()` (PPO's: the screening fidelity at a 1.5 x longer step, its
+    rest held half as long) gives the same verdicts, the margin within the bench's own
+    reproducibility (0.15). Its limit: the space's heaviest program squeezes these two bundles
+    into each other (174 mm) at that step; the random units of training fill a pallet, and
+    rarely blow up (benchmarks/bench_train.py and a training run's log.csv count them)."""
+    fine, coarse = SimSettings(), SimSettings.training()
+    assert coarse.timestep_s == pytest.approx(1.5 * fine.timestep_s)
+    assert coarse.rest_hold_s == pytest.approx(fine.rest_hold_s / 2)
+    assert replace(coarse, timestep_s=fine.timestep_s, rest_hold_s=fine.rest_hold_s) == \
+        SimSettings.screening()
     default, training = (make(tiny, settings=s) for s in (SimSettings(),
                                                           SimSettings.training()))
     for action in (CHEAP, DEFAULT):
