@@ -718,3 +718,17 @@ def test_a_stack_that_creeps_at_every_count_is_run_up_to_the_most_iterations_and
     run = run_levels(load, [0.2], wrap=wrap, on_rerun=heard.append)
     assert heard == [100, 200] and run.crept_at == (50, 100)
     assert run.solver_iterations == 200 and run.verdict.levels[0].passed
+
+
+def test_a_wrapped_level_s_places_peak_at_times_of_the_run_the_most_loaded_in_the_pulse():
+    """The report's times count from the pulse's start, as the trace's do: every place peaks
+    within the run, and the 2-layer example's most loaded one (its Kraft rings' corners) while
+    the sled holds 0.5 g (0.05 to 0.55 s), where the load leans on the wrap."""
+    load = LoadUnit.from_toml("examples/pet_2layer_columnar.toml")
+    wrap = WrapFormat.from_toml("examples/wrap_kraft_2layer.toml", load.load_height_m)
+    trace = run_level(load.layout(), PulseProfile(0.5), wrap=wrap)
+    assert trace.wrap is not None
+    times = [p.t_s for p in trace.wrap.places if p.t_s is not None]
+    assert times and 0.0 <= min(times) and max(times) <= trace.t_s[-1]
+    peak_t_s = trace.wrap.critical[0].t_s
+    assert peak_t_s is not None and 0.05 <= peak_t_s <= 0.55
