@@ -135,6 +135,18 @@ def test_a_wrap_that_yielded_starts_the_next_level_looser():
         first.wrap.plastic_strain_max)
 
 
+def test_a_gentler_level_reports_its_own_peaks_not_the_last_level_s():
+    """The wrap's report is per level: after 0.5 g, a 0.2 g level on the same unit peaks lower,
+    at a time of its own run, where a report carried over would repeat the 0.5 g peak."""
+    load = two_by_two()
+    with BenchUnit(load.layout(), wrap=band("lldpe", 40.0, to_m=0.81)) as unit:
+        hard, gentle = unit.level(PulseProfile(0.5)), unit.level(PulseProfile(0.2))
+    assert hard.wrap is not None and gentle.wrap is not None
+    assert 0 < gentle.wrap.peak_utilisation < hard.wrap.peak_utilisation
+    peak_t_s = gentle.wrap.critical[0].t_s
+    assert peak_t_s is not None and peak_t_s <= gentle.t_s[-1]
+
+
 def test_a_cumulative_sequence_ends_where_a_level_did_not_come_to_rest():
     """A level stopped once its failure was decided leaves the unit moving: there is no state
     to carry; a fresh sequence goes on."""
