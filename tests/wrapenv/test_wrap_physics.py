@@ -732,3 +732,28 @@ def test_a_wrapped_level_s_places_peak_at_times_of_the_run_the_most_loaded_in_th
     assert times and 0.0 <= min(times) and max(times) <= trace.t_s[-1]
     peak_t_s = trace.wrap.critical[0].t_s
     assert peak_t_s is not None and 0.05 <= peak_t_s <= 0.55
+
+
+def test_the_wrap_is_laid_smoothly_over_the_first_two_thirds_of_the_settling(monkeypatch):
+    """The wrapping tension comes on as a smoothstep 3x^2 - 2x^3 of the settling's first two
+    thirds (x = step / (2/3 of the steps)): from nothing, half on at a third, all on from two
+    thirds to the end, never falling back; switched on at once, a full squeeze slams light
+    bundles into each other."""
+    laid: list[float] = []
+    real = WrapNet.laying
+
+    def heard(self: WrapNet, fraction: float) -> None:
+        laid.append(fraction)
+        real(self, fraction)
+
+    monkeypatch.setattr(WrapNet, "laying", heard)
+    load = LoadUnit.from_toml("examples/pet_2layer_columnar.toml")
+    wrap = WrapFormat.from_toml("examples/wrap_kraft_2layer.toml", load.load_height_m)
+    settings = SimSettings()
+    run_level(load.layout(), PulseProfile(0.2), settings, wrap)
+    n = round(settings.settle_s / settings.timestep_s)              # 72 steps
+    x = np.minimum(np.arange(n) / (2 * n / 3), 1.0)
+    assert laid == pytest.approx(list(3 * x**2 - 2 * x**3), abs=1e-12)
+    assert laid[0] == 0.0 and laid[n // 3] == pytest.approx(0.5) and laid[2 * n // 3:] == \
+        [1.0] * (n - 2 * n // 3)
+    assert all(b >= a for a, b in zip(laid, laid[1:], strict=False))
