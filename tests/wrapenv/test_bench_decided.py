@@ -89,8 +89,9 @@ def test_a_bundle_off_its_support_decides_the_level_before_any_displacement():
 
 def test_a_toppled_bundle_has_fallen_once_its_centre_is_below_where_its_underside_stood():
     """Tipped onto its side, a bundle's centre drops by half the difference of its height and
-    width and it still rests on its support: not decided (a topple is judged at the end). Its
-    centre below where its underside stood means it left its support: fallen."""
+    width and it still rests on its support: not decided (a topple is judged at the end), nor
+    is a drop of 160 mm an elastic displacement past the limit (EUMOS judges the horizontal
+    one). Its centre below where its underside stood means it left its support: fallen."""
     layout = LoadUnit.from_toml(EXAMPLE_3).layout()
     with BenchUnit(layout, DECIDED) as unit:
         run = _Run(unit.world, layout, PulseProfile(0.5), DECIDED, unit.stick_slip, None, None)
