@@ -136,11 +136,16 @@ def test_without_a_band_on_the_pallet_the_wrap_is_not_anchored():
     assert 0 not in floating.node_body and not touches_pallet(floating)
 
 
+def kraft_example() -> tuple[LoadUnit, WrapFormat]:
+    """The 2-layer example and its bundled Kraft wrap."""
+    load = LoadUnit.from_toml(EXAMPLE_2)
+    return load, WrapFormat.from_toml("examples/wrap_kraft_2layer.toml", load.load_height_m)
+
+
 def two_layer_kraft() -> tuple[WrapNet, Any]:
     """The 2-layer example under its Kraft wrap, frozen on the unit as stacked."""
-    load = LoadUnit.from_toml(EXAMPLE_2)
+    load, wrap = kraft_example()
     layout = load.layout()
-    wrap = WrapFormat.from_toml("examples/wrap_kraft_2layer.toml", load.load_height_m)
     net = WrapNet(wrap, layout)
     net.freeze(*rest_state(layout))
     return net, layout
@@ -712,8 +717,7 @@ def test_a_stack_that_creeps_at_every_count_is_run_up_to_the_most_iterations_and
     `max_wrapped_solver_iterations` (200: 50, 100, then 200, the most included), and the last
     one's verdict is the answer, the counts it crept at said."""
     monkeypatch.setattr(bench, "_crept", lambda run: True)
-    load = LoadUnit.from_toml("examples/pet_2layer_columnar.toml")
-    wrap = WrapFormat.from_toml("examples/wrap_kraft_2layer.toml", load.load_height_m)
+    load, wrap = kraft_example()
     heard: list[int] = []
     run = run_levels(load, [0.2], wrap=wrap, on_rerun=heard.append)
     assert heard == [100, 200] and run.crept_at == (50, 100)
@@ -724,8 +728,7 @@ def test_a_wrapped_level_s_places_peak_at_times_of_the_run_the_most_loaded_in_th
     """The report's times count from the pulse's start, as the trace's do: every place peaks
     within the run, and the 2-layer example's most loaded one (its Kraft rings' corners) while
     the sled holds 0.5 g (0.05 to 0.55 s), where the load leans on the wrap."""
-    load = LoadUnit.from_toml("examples/pet_2layer_columnar.toml")
-    wrap = WrapFormat.from_toml("examples/wrap_kraft_2layer.toml", load.load_height_m)
+    load, wrap = kraft_example()
     trace = run_level(load.layout(), PulseProfile(0.5), wrap=wrap)
     assert trace.wrap is not None
     times = [p.t_s for p in trace.wrap.places if p.t_s is not None]
@@ -747,8 +750,7 @@ def test_the_wrap_is_laid_smoothly_over_the_first_two_thirds_of_the_settling(mon
         real(self, fraction)
 
     monkeypatch.setattr(WrapNet, "laying", heard)
-    load = LoadUnit.from_toml("examples/pet_2layer_columnar.toml")
-    wrap = WrapFormat.from_toml("examples/wrap_kraft_2layer.toml", load.load_height_m)
+    load, wrap = kraft_example()
     settings = SimSettings()
     run_level(load.layout(), PulseProfile(0.2), settings, wrap)
     n = round(settings.settle_s / settings.timestep_s)              # 72 steps

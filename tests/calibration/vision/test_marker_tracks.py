@@ -5,6 +5,8 @@ followed from there, on an object already turned with the turn of a marker follo
 it (in frame 0, at rest); ArUco only cross-checks the followed marker, and a disagreement is
 reported."""
 
+from collections.abc import Callable
+
 import cv2
 import numpy as np
 import pytest
@@ -59,19 +61,16 @@ class _ShiftedDetector(MarkerDetector):
         return {i: c + shift for i, c in found.items()}
 
 
-def _follow(hidden: set[int], start_u: float = START_U, step_u: float = STEP_U,
-            detector: MarkerDetector | None = None,
-            stops_after: int = FRAMES) -> tuple[MarkerTracks, list[str]]:
-    """Frames 0..FRAMES-1 through MarkerTracks as `track` drives it (OpenCV on one thread, the
-    sled not moving); the marker stays where it is in frame `stops_after` from then on."""
+def _drive(placements: list[MarkerPlacement], detector: MarkerDetector,
+           image: Callable[[int], np.ndarray]) -> tuple[MarkerTracks, list[str]]:
+    """Frames 0..FRAMES-1 (`image(k)`) through MarkerTracks as `track` drives it (OpenCV on one
+    thread, the sled not moving)."""
     warnings: list[str] = []
-    detector = detector or MarkerDetector("DICT_4X4_50")
     multi = MultiTracker({}, {}, threads=1)
-    markers = MarkerTracks([MarkerPlacement(7, "L1C1R1", (0.05, 0.10))], None, detector,
-                           multi, PIXMAP, warnings)
+    markers = MarkerTracks(placements, None, detector, multi, PIXMAP, warnings)
     with opencv_threads(1):
         for k in range(FRAMES):
-            frame = Frame(_frame(min(k, stops_after), k in hidden, start_u, step_u))
+            frame = Frame(image(k))
             if isinstance(detector, _ShiftedDetector):
                 detector.now = k
             if k == 0:
@@ -80,6 +79,16 @@ def _follow(hidden: set[int], start_u: float = START_U, step_u: float = STEP_U,
                 markers.step(k, frame, 0.0, multi.step(frame, 0.0))
     multi.close()
     return markers, warnings
+
+
+def _follow(hidden: set[int], start_u: float = START_U, step_u: float = STEP_U,
+            detector: MarkerDetector | None = None,
+            stops_after: int = FRAMES) -> tuple[MarkerTracks, list[str]]:
+    """Marker 7 on object L1C1R1 through the frames; it stays where it is in frame
+    `stops_after` from then on."""
+    return _drive([MarkerPlacement(7, "L1C1R1", (0.05, 0.10))],
+                  detector or MarkerDetector("DICT_4X4_50"),
+                  lambda k: _frame(min(k, stops_after), k in hidden, start_u, step_u))
 
 
 def _true_x_m(k: np.ndarray, start_u: float = START_U) -> np.ndarray:
@@ -252,19 +261,9 @@ def test_a_marker_first_seen_on_a_turned_object_takes_the_turn_from_a_followed_m
     Marker 8's starting rotation is marker 7's tracked turn since frame 2 plus 7's own start,
     not its corners'. That matters once 7 is covered (frames 10-13): the card's rotation is
     then marker 8's alone, and stays right to the 0.2 degrees of 7's edges in frame 2."""
-    warnings: list[str] = []
     detector = _SkewedFirstDetector(8)
-    multi = MultiTracker({}, {}, threads=1)
     placements = [MarkerPlacement(i, "card", offset) for i, (offset, _) in CARD_MARKERS.items()]
-    markers = MarkerTracks(placements, None, detector, multi, PIXMAP, warnings)
-    with opencv_threads(1):
-        for index in range(FRAMES):
-            frame = Frame(_card_frame(index))
-            if index == 0:
-                markers.start(frame, detector.detect(frame), 0.0)
-            else:
-                markers.step(index, frame, 0.0, multi.step(frame, 0.0))
-    multi.close()
+    markers, _ = _drive(placements, detector, _card_frame)
     assert detector.skewed and markers.lost[7] == [10, 11, 12, 13]
     assert abs(np.degrees(markers.theta0[8]) - 5 * CARD_TURN_DEG) < 0.3
     path = markers.paths(FRAMES, FPS)["card"]
