@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 
 from calibration.recording import Recording, SledProfile, Truth
+from calibration.trajectories import ObjectPath, Trajectories
 from wrapenv.config import InputError, read_toml
 
 
@@ -177,11 +178,14 @@ CASES = {
     "profile without accel": (_edit("profile.csv", "accel_mps2", "acc"), "profile.csv",
                               "accel_mps2"),
     "profile of one sample": (_profile_rows(lambda rows: rows[:1]), "profile.csv", "t_s"),
+    "profile of its header only": (_profile_rows(lambda rows: []), "profile.csv", "t_s"),
     "profile out of time order": (_profile_rows(lambda rows: [rows[1], rows[0], *rows[2:]]),
                                   "profile.csv", "t_s"),
     "profile with a word for a number": (_profile_rows(lambda rows: [
         rows[0], "0.05,fast,0,0", *rows[2:]]), "profile.csv", "line 3"),
     "profile starting after the first frame": (_profile_rows(_later), "profile.csv", "t_s"),
+    "profile with a repeated time": (_profile_rows(lambda rows: [rows[0], rows[0], *rows[2:]]),
+                                     "profile.csv", "t_s"),
     "load missing": (_remove("load.toml"), "load.toml", ""),
     "load bad": (_edit("load.toml", "layers = 2", "layers = 0"), "load.toml", "stack.layers"),
 }
@@ -325,3 +329,135 @@ def test_marker_size_is_optional(copy_of):
     rec = Recording.read(folder)
     assert rec.markers is not None and rec.markers.size_m is None
     assert len(rec.markers.placements) == 2
+
+
+def _profile(path: Path, t_s: list[float]) -> Path:
+    path.write_text("t_s,accel_mps2\n" + "".join(f"{t!r},0.0\n" for t in t_s))
+    return path
+
+
+def test_two_samples_are_the_least_a_profile_needs(tmp_path):
+    profile = SledProfile.read(_profile(tmp_path / "profile.csv", [0.0, 3.2]))
+    np.testing.assert_array_equal(profile.t_s, [0.0, 3.2])
+
+
+@pytest.mark.parametrize("t_s, refused", [([-1.0, 1.0, 119.0], False),
+                                          ([-1.0, 1.0, 120.0], True)],
+                         ids=["120 s", "121 s"])
+def test_a_profile_spans_at_most_120_s_from_its_first_sample_to_its_last(
+        t_s, refused, tmp_path, assert_input_error):
+    """A pre-trigger record may start before the first frame; what counts is the whole span,
+    first sample to last (here 120 s is read, 121 s is milliseconds or a day's log)."""
+    path = _profile(tmp_path / "profile.csv", t_s)
+    if not refused:
+        assert SledProfile.read(path).t_s[-1] == t_s[-1]
+        return
+    with pytest.raises(InputError, match=r"spans 121 s, more than the 120 s") as err:
+        SledProfile.read(path)
+    assert_input_error(err.value, str(path), "t_s")
+
+
+def _ending_at(end_s: float) -> Callable[[Path], None]:
+    """profile.csv cut at `end_s`, its last sample there."""
+    def cut(folder: Path) -> None:
+        path = folder / "profile.csv"
+        header, *rows = path.read_text().splitlines()
+        kept = [r for r in rows if float(r.split(",")[0]) < end_s]
+        last = kept[-1].split(",")
+        path.write_text("\n".join([header, *kept, ",".join([repr(end_s), *last[1:]])]) + "\n")
+    return cut
+
+
+def test_a_profile_must_reach_the_last_frame(copy_of, assert_input_error):
+    """The fixture's video has 32 frames at 10 fps: its last is at 3.1 s. A profile that ends
+    there covers it; one that ends half a frame earlier does not, and says both times."""
+    folder = copy_of()
+    _ending_at(3.1)(folder)
+    assert Recording.read(folder).profile.t_s[-1] == 3.1
+    _ending_at(3.05)(folder)
+    with pytest.raises(InputError) as err:
+        Recording.read(folder)
+    assert_input_error(err.value, str(folder / "profile.csv"), "t_s")
+    assert "ends at 3.05 s, before the video's last frame at 3.1 s" in str(err.value)
+
+
+def test_a_late_profile_says_when_it_starts(copy_of):
+    folder = copy_of()
+    _profile_rows(_later)(folder)
+    with pytest.raises(InputError, match=r"starts at 1 s, after the first frame"):
+        Recording.read(folder)
+
+
+@pytest.mark.parametrize("fps, refused", [(10.005, False), (10.012, True)],
+                         ids=["0.05 % off", "0.12 % off"])
+def test_setup_fps_matches_the_container_within_a_tenth_of_a_percent(
+        fps, refused, copy_of, assert_input_error):
+    """Containers store the rate as a fraction: 0.1 % covers its rounding, and no more."""
+    folder = copy_of()
+    _edit("setup.toml", "fps = 10.0", f"fps = {fps}")(folder)
+    if not refused:
+        assert Recording.read(folder).fps == fps
+        return
+    with pytest.raises(InputError, match="does not match the video's 10 fps") as err:
+        Recording.read(folder)
+    assert_input_error(err.value, str(folder / "setup.toml"), "recording.fps")
+
+
+@pytest.mark.parametrize("share, refused", [(0.015, True), (0.025, False), (2.9, False),
+                                            (3.1, True)])
+def test_the_pallet_spans_2_to_300_percent_of_the_frame(share, refused, copy_of,
+                                                        assert_input_error):
+    """The fixture's 0.6 m pallet on an 800 px wide video: px_per_m is the share x 800 / 0.6."""
+    folder = copy_of()
+    _px_per_m_times(share * 800 / 0.6 / 243.0)(folder)
+    if not refused:
+        assert Recording.read(folder).px_per_m == pytest.approx(share * 800 / 0.6)
+        return
+    with pytest.raises(InputError) as err:
+        Recording.read(folder)
+    assert_input_error(err.value, str(folder / "setup.toml"), "camera.px_per_m")
+    assert f"spans {share * 800:.3g} px of the video's 800 px" in str(err.value)
+
+
+def test_inputs_name_the_template_only_when_there_is_one(copy_of):
+    folder = copy_of()
+    names = ("setup.toml", "profile.csv", "load.toml", "wrap.toml", "truth.json")
+    assert Recording.read(folder).inputs() == (
+        folder / "video.avi", *(folder / n for n in names), folder / "template.png")
+    _edit("setup.toml", 'template = "template.png"\n', "")(folder)
+    assert Recording.read(folder).inputs() == (folder / "video.avi",
+                                               *(folder / n for n in names))
+
+
+def _tracked(t_s: list[float], name: str = "L1C1R1") -> Trajectories:
+    t = np.array(t_s)
+    return Trajectories({name: ObjectPath(t, np.zeros_like(t), np.zeros_like(t),
+                                          np.zeros_like(t))})
+
+
+def test_trajectories_may_end_at_the_profile_rounded_up_to_the_microsecond(copy_of):
+    """trajectories.csv writes times to microseconds: a path to the profile's end may round
+    past it."""
+    rec = Recording.read(copy_of())
+    end_s = float(rec.profile.t_s[-1])
+    assert end_s != round(end_s, 6)
+    rec.check_trajectories(_tracked([0.0, math.ceil(end_s * 1e6) / 1e6]), "t.csv")
+
+
+@pytest.mark.parametrize("t_s, field, words", [
+    ([-0.5, 3.0], "object L1C1R1: t_s", "runs from -0.5 to 3 s, outside profile.csv's 0 to"),
+    ([0.0, 3.2], "object L1C1R1: t_s", "runs from 0 to 3.2 s, outside profile.csv's 0 to"),
+])
+def test_trajectories_outside_the_profile_are_refused(t_s, field, words, copy_of,
+                                                      assert_input_error):
+    rec = Recording.read(copy_of())
+    with pytest.raises(InputError, match=words) as err:
+        rec.check_trajectories(_tracked(t_s), "t.csv")
+    assert_input_error(err.value, "t.csv", field)
+
+
+def test_an_object_the_load_lacks_is_named_with_the_load_s_bundles(copy_of, assert_input_error):
+    rec = Recording.read(copy_of())
+    with pytest.raises(InputError, match=r"bundles L1C1R1 \.\.\. L2C2R2\)") as err:
+        rec.check_trajectories(_tracked([0.0, 1.0], "L3C1R1"), "t.csv")
+    assert_input_error(err.value, "t.csv", "object L3C1R1")
