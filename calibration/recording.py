@@ -203,8 +203,11 @@ def _check_video(path: Path, fps: float, setup_src: str) -> tuple[int, int]:
         container_fps = float(cap.get(cv2.CAP_PROP_FPS))
     finally:
         cap.release()
-    if not ok or frames < 1:
-        raise InputError(str(path), "", "no decodable frame")
+    if frames < 1:
+        raise InputError(str(path), "", "no decodable frame (the container states none)")
+    if not ok:
+        raise InputError(str(path), "", f"no decodable frame: the first of the {frames} it "
+                         "states does not decode (a damaged video?)")
     if not (math.isfinite(container_fps) and container_fps > 0):
         raise InputError(str(path), "", "the container states no frame rate")
     if abs(container_fps - fps) > FPS_TOLERANCE * fps:

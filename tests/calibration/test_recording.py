@@ -90,6 +90,16 @@ def _empty_video(folder: Path) -> None:
     writer.release()
 
 
+def _damage_first_frame(folder: Path) -> None:
+    """The first frame's JPEG overwritten with zeros, the container's index intact."""
+    path = folder / "video.avi"
+    data = bytearray(path.read_bytes())
+    start = data.find(b"\xff\xd8")
+    end = data.find(b"\xff\xd9", start) + 2
+    data[start:end] = bytes(end - start)
+    path.write_bytes(data)
+
+
 def _truncate_profile(folder: Path) -> None:
     path = folder / "profile.csv"
     lines = path.read_text().splitlines()
@@ -208,6 +218,23 @@ def test_bad_recording_is_one_input_error(case, copy_of, assert_input_error):
     with pytest.raises(InputError) as err:
         Recording.read(folder)
     assert_input_error(err.value, str(folder / file), field)
+
+
+@pytest.mark.parametrize("damage, words", [
+    (_empty_video, "no decodable frame (the container states none)"),
+    (_damage_first_frame, "the first of the 32 it states does not decode"),
+], ids=["no frame", "first frame damaged"])
+def test_a_video_must_decode_from_its_first_frame(damage, words, copy_of, capfd,
+                                                  assert_input_error):
+    """A damaged first frame was reported as no frame at all; the error says which it is, on
+    one line, without the decoder's own complaint."""
+    folder = copy_of()
+    damage(folder)
+    with pytest.raises(InputError) as err:
+        Recording.read(folder)
+    assert_input_error(err.value, str(folder / "video.avi"), "")
+    assert words in str(err.value)
+    assert capfd.readouterr().err == ""
 
 
 def test_missing_folder(tmp_path, assert_input_error):
