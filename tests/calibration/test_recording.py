@@ -301,9 +301,14 @@ def _pallet_backwards(objects: dict) -> None:
     objects["pallet"]["t_s"].reverse()
 
 
+def _pallet_time_repeated(objects: dict) -> None:
+    objects["pallet"]["t_s"][1] = objects["pallet"]["t_s"][0]
+
+
 @pytest.mark.parametrize("change, message", [(_empty_pallet, "at least one sample"),
-                                             (_pallet_backwards, "increase strictly")],
-                         ids=["empty", "backwards"])
+                                             (_pallet_backwards, "increase strictly"),
+                                             (_pallet_time_repeated, "increase strictly")],
+                         ids=["empty", "backwards", "a time repeated"])
 def test_truth_tracks_need_samples_in_time_order(change, message, copy_of, assert_input_error):
     """The error against truth interpolates in each track: an empty one was an IndexError,
     times out of order gave a wrong error silently."""
