@@ -8,7 +8,7 @@ import tempfile
 import numpy as np
 import pytest
 
-from wrapenv.bullet import BulletWorld, _rigid_world_bytes, rotation_matrices
+from wrapenv.bullet import BulletWorld, _rigid_world_bytes, _step_velocities, rotation_matrices
 from wrapenv.profile import G
 
 BOX_M = (0.28, 0.19, 0.33)
@@ -83,3 +83,77 @@ def test_a_torque_spins_a_free_box_at_its_inverse_inertia(rigid):
         omega = world.velocities([box])[1][0]
     expected = world.timestep_s * rot[0] @ ((rot[0].T @ torque) / inertia)
     np.testing.assert_allclose(omega, expected, rtol=1e-3)
+
+
+def _about(axis: tuple[float, float, float], angle_rad: float) -> np.ndarray:
+    """The unit quaternion (x y z w) of a turn by `angle_rad` about `axis`."""
+    unit = np.array(axis) / np.linalg.norm(axis)
+    return np.array([*(unit * math.sin(angle_rad / 2)), math.cos(angle_rad / 2)])
+
+
+def _times(q1: np.ndarray, q0: np.ndarray) -> np.ndarray:
+    """The quaternion product q1 q0 (x y z w): q0's turn, then q1's."""
+    v1, w1, v0, w0 = q1[:3], q1[3], q0[:3], q0[3]
+    return np.array([*(w1 * v0 + w0 * v1 + np.cross(v1, v0)), w1 * w0 - v1 @ v0])
+
+
+@pytest.mark.parametrize("sign", [1.0, -1.0], ids=["q", "-q"])
+def test_one_step_of_poses_gives_the_rotation_vector_over_the_step(sign):
+    """From a body turned anyhow, a further 0.3 rad about (1, 2, 2)/3 in a step of 1/240 s is
+    an angular velocity of 0.3 x 240 = 72 rad/s along that axis, world frame; the same if the
+    second pose is written -q (one rotation, two quaternions); and (x1 - x0) / dt."""
+    dt = 1 / 240
+    q0 = _about((0.3, -1.0, 0.5), 1.1)
+    q1 = sign * _times(_about((1.0, 2.0, 2.0), 0.3), q0)
+    x0, x1 = np.array([[0.1, 0.2, 0.3]]), np.array([[0.1 + 0.01, 0.2, 0.3 - 0.002]])
+    vel, omega = _step_velocities(x0, q0[None], x1, q1[None], dt)
+    np.testing.assert_allclose(vel, [[2.4, 0.0, -0.48]], rtol=1e-12)
+    np.testing.assert_allclose(omega, [[24.0, 48.0, 48.0]], rtol=1e-12)
+    _, still = _step_velocities(x0, q0[None], x0, -q0[None], dt)
+    np.testing.assert_allclose(still, np.zeros((1, 3)), atol=1e-12)
+
+
+@pytest.mark.parametrize("rigid", [False, True], ids=["reduced", "rigid"])
+def test_state_of_a_tumbling_box_is_bullets_own_velocities(rigid):
+    """`state` takes velocities from consecutive poses; a box tumbling freely (about 7 rad/s,
+    its axis precessing) checks the rotation part where a bench level's bodies barely turn."""
+    with BulletWorld(1 / 240, 20, rigid=rigid) as world:
+        box = world.add_box(BOX_M, (0.0, 0.0, 5.0), BOX_KG, MU)
+        pos, quat = world.poses([box])
+        world.apply_wrenches([box], pos, np.zeros((1, 3)), np.array([[150.0, -100.0, 50.0]]),
+                             rotation_matrices(quat))
+        world.step()
+        errors, speeds = [], []
+        for _ in range(30):
+            _, _, lin, ang = world.state([box])
+            own_lin, own_ang = world.velocities([box])
+            errors.append(max(np.abs(lin - own_lin).max(), np.abs(ang - own_ang).max()))
+            speeds.append(float(np.linalg.norm(own_ang)))
+            world.step()
+    assert min(speeds) > 5.0
+    assert max(errors) < 1e-9
+
+
+def test_state_asks_bullet_for_velocities_only_when_poses_cannot_give_them(monkeypatch):
+    """The finite difference saves a pybullet call per body, the point of `state`; it holds for
+    the same bodies one step after the last reading, not after two steps or for other bodies."""
+    with BulletWorld(1 / 240, 20) as world:
+        boxes = [world.add_box(BOX_M, (x, 0.0, 5.0), BOX_KG, MU) for x in (0.0, 1.0)]
+        asked = []
+        own = world.velocities
+
+        def counted(indices):
+            asked.append(indices)
+            return own(indices)
+
+        monkeypatch.setattr(world, "velocities", counted)
+        world.state(boxes)
+        world.step()
+        world.state(boxes)
+        assert len(asked) == 1
+        world.step()
+        world.state(boxes[:1])
+        world.step()
+        world.step()
+        world.state(boxes[:1])
+        assert asked == [boxes, boxes[:1], boxes[:1]]
