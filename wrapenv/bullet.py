@@ -210,7 +210,6 @@ class BulletWorld:
         self._id = self._client._client
         self._set_parameters(solver_iterations, contact_erp)
         self._ids: list[int] = []
-        self._dynamic: list[int] = []
         self._friction: dict[int, float] = {}
         #: a rigid body's inverse principal moments of inertia (1/(kg m²)), by Bullet id
         self._inverse_inertia: dict[int, np.ndarray] = {}
@@ -263,8 +262,6 @@ class BulletWorld:
             self._inverse_inertia[body] = 1.0 / np.array(inertia)
         self._anchor_wanted[body] = True
         self._ids.append(body)
-        if mass_kg > 0:
-            self._dynamic.append(len(self._ids) - 1)
         return len(self._ids) - 1
 
     # -- stepping -------------------------------------------------------------------------
