@@ -157,3 +157,26 @@ def test_state_asks_bullet_for_velocities_only_when_poses_cannot_give_them(monke
         world.step()
         world.state(boxes[:1])
         assert asked == [boxes, boxes[:1], boxes[:1]]
+
+
+def test_penetration_is_the_deepest_overlap_bullet_reports():
+    """0 with nothing touching; a box resting on the floor overlaps it by Bullet's contact
+    margin at most (under 1 mm); one set tilted into the floor, one edge 30 mm deep and the
+    other 10 mm, reads 30 mm after a step (the depth Bullet's collision pass finds, before the
+    solver pushes it out): tilted by asin(20 mm / 280 mm) about y, its centre at
+    -30 mm + (h/2) cos + (l/2) sin."""
+    with BulletWorld(1 / 240, 20) as world:
+        world.add_box((4.0, 4.0, 0.1), (0.0, 0.0, -0.05), 0.0, MU)
+        box = world.add_box(BOX_M, (0.0, 0.0, 1.0), BOX_KG, MU)
+        world.step()
+        assert world.max_penetration_m() == 0.0
+        world.set_pose(box, (0.0, 0.0, BOX_M[2] / 2), (0.0, 0.0, 0.0, 1.0))
+        for _ in range(240):
+            world.step()
+        assert 0.0 <= world.max_penetration_m() < 1e-3
+        tilt = math.asin(0.02 / BOX_M[0])
+        centre_z = -0.03 + BOX_M[2] / 2 * math.cos(tilt) + BOX_M[0] / 2 * math.sin(tilt)
+        world.set_pose(box, (0.0, 0.0, centre_z), (0.0, math.sin(tilt / 2), 0.0,
+                                                  math.cos(tilt / 2)))
+        world.step()
+        assert world.max_penetration_m() == pytest.approx(0.03, abs=1e-3)
