@@ -12,6 +12,7 @@ from calibration.vision.tracking import (
     Pose,
     Reference,
     Tracker,
+    check_tracker,
     make_tracker,
 )
 from tests.calibration.vision.vision_frames import moved, texture
@@ -252,3 +253,12 @@ def test_the_chain_tracker_adds_up_each_frame_s_rotation() -> None:
     pose, score = tracker.update(Frame(moved(image, CENTRE, 2.0, 1.0, 0.04, seed=4)), pose)
     assert abs(pose.theta - 0.04) < 2e-3 and score > 0.9
     assert abs(pose.u - CENTRE[0] - 2.0) < 0.1 and abs(pose.v - CENTRE[1] - 1.0) < 0.1
+
+
+def test_an_unknown_tracker_is_named_with_the_known_ones():
+    """Called from Python, where no argparse choice list stands before it."""
+    for kind in ("ncc+flow", "ncc", "flow", "chain", "mil"):
+        check_tracker(kind)
+    with pytest.raises(ValueError, match=r"^unknown tracker 'kcf'; known: ncc\+flow, ncc, "
+                                         r"flow, chain, mil$"):
+        check_tracker("kcf")
