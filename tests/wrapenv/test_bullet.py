@@ -115,7 +115,7 @@ def test_one_step_of_poses_gives_the_rotation_vector_over_the_step(sign):
 
 @pytest.mark.parametrize("rigid", [False, True], ids=["reduced", "rigid"])
 def test_state_of_a_tumbling_box_is_bullets_own_velocities(rigid):
-    """`state` takes velocities from consecutive poses; a box tumbling freely (about 7 rad/s,
+    """`state` takes velocities from consecutive poses; a box tumbling freely (6.7 rad/s,
     its axis precessing) checks the rotation part where a bench level's bodies barely turn."""
     with BulletWorld(1 / 240, 20, rigid=rigid) as world:
         box = world.add_box(BOX_M, (0.0, 0.0, 5.0), BOX_KG, MU)
