@@ -391,13 +391,10 @@ def test_a_profile_spans_at_most_120_s_from_its_first_sample_to_its_last(
 
 def _ending_at(end_s: float) -> Callable[[Path], None]:
     """profile.csv cut at `end_s`, its last sample there."""
-    def cut(folder: Path) -> None:
-        path = folder / "profile.csv"
-        header, *rows = path.read_text().splitlines()
+    def cut(rows: list[str]) -> list[str]:
         kept = [r for r in rows if float(r.split(",")[0]) < end_s]
-        last = kept[-1].split(",")
-        path.write_text("\n".join([header, *kept, ",".join([repr(end_s), *last[1:]])]) + "\n")
-    return cut
+        return [*kept, ",".join([repr(end_s), *kept[-1].split(",")[1:]])]
+    return _profile_rows(cut)
 
 
 def test_a_profile_must_reach_the_last_frame(copy_of, assert_input_error):
