@@ -196,7 +196,7 @@ def _settings(args: argparse.Namespace) -> SearchSettings:
     check_hours(args.hours_since_wrapping)
     return SearchSettings(targets=_targets(args), web=_web(args), samples=args.samples,
                           margin_goal=margin, max_candidates=budget, seed=args.seed,
-                          workers=args.workers, popsize=min(8, budget),
+                          workers=args.workers, popsize=min(SearchSettings.popsize, budget),
                           backend=args.backend, ray_address=args.ray_address,
                           max_cycle_s=args.max_cycle_s, cycle_weight=cycle_weight,
                           hours_since_wrapping=args.hours_since_wrapping,

@@ -670,6 +670,37 @@ def test_two_outputs_on_one_file_are_refused_before_any_simulation(command, flag
     assert "is also --json" in err and not (tmp_path / "same").exists()
 
 
+@pytest.mark.parametrize("flag", ["--json", "--wrap-out"])
+@pytest.mark.parametrize("where, says", [
+    ("LOAD", "is an input"),
+    ("FOLDER", "is a folder"),
+    ("MISSING", "the folder to write into does not exist"),
+])
+def test_each_output_of_recommend_is_refused_before_any_simulation(flag, where, says, load_file,
+                                                                   tmp_path, capsys):
+    """Each output is checked under its own flag before the search starts: the load file itself
+    (which the answer would overwrite), a folder, a folder that does not exist (and --json's
+    checkpoint, kept beside it, is not the one named)."""
+    load = load_file()
+    path = {"LOAD": load, "FOLDER": tmp_path, "MISSING": tmp_path / "no" / "out"}[where]
+    before = load.read_bytes()
+    assert run(["recommend", str(load), flag, str(path)]) == 2
+    out, err = capsys.readouterr()
+    line = one_line(err)
+    assert f": {flag}: {says}" in line and out == ""
+    assert load.read_bytes() == before and not (tmp_path / "no").exists()
+
+
+def test_a_report_folder_that_is_a_file_is_refused_before_any_simulation(load_file, tmp_path,
+                                                                        capsys):
+    notes = tmp_path / "notes.txt"
+    notes.write_text("my lab notes\n")
+    assert run(["recommend", str(load_file()), "--report", str(notes)]) == 2
+    out, err = capsys.readouterr()
+    assert ": --report: exists and is not a folder" in one_line(err) and out == ""
+    assert notes.read_text() == "my lab notes\n"
+
+
 def test_a_checkpoint_path_holding_a_user_s_file_is_refused_before_any_simulation(
         load_file, tmp_path, capsys):
     """The search would overwrite it, then remove it once it answered."""

@@ -20,9 +20,11 @@ import numpy as np
 import pytest
 import tomli_w
 
+from recommender import commands
 from recommender import search as search_module
 from recommender.checkpoint import CHECKPOINT_FORMAT, FIRST_ROUND, Round, read_round
-from recommender.cli import EXAMPLE_LOAD, main
+from recommender.cli import EXAMPLE_LOAD, build_parser, main
+from recommender.commands import most_workers
 from recommender.search import (
     DEFAULT,
     DOMINATED,
@@ -56,8 +58,6 @@ def two_verification_samples(monkeypatch) -> None:
     """An answer verified in 2 fresh samples instead of 8: how rounds follow each other, at a
     quarter of the verification's samples (8 are verified on the bundled example, and by the
     contract tests and the slow ones)."""
-    from recommender import commands
-
     monkeypatch.setattr(commands, "VERIFY_SAMPLES", 2)
 
 
@@ -964,6 +964,23 @@ def test_no_round_follows_a_proposal_when_even_the_strongest_program_fails(
     assert "searching from it" not in text
 
 
+def test_recommend_warns_of_a_calibration_accepted_under_a_looser_bound(tmp_path, capsys):
+    """As `simulate` does (tests/calibration/test_commands.py), whatever the search answers:
+    here that no program is within a 1 s cycle, nothing simulated."""
+    load = tmp_path / "small.toml"
+    load.write_text(tomli_w.dumps(SMALL))
+    cal = tmp_path / "cal.json"
+    cal.write_text(json.dumps({
+        "friction": {"pallet_bundle": {"static": 0.5, "kinetic": 0.4}},
+        "acceptance": {"max_residual_m": 0.03, "least_explained": "takes/0.45g",
+                       "unexplained_rms_m": 0.028, "explained_by": "replay 3", "excused": []}}))
+    assert main(["recommend", str(load), "--calibration", str(cal), "--max-cycle-s", "1",
+                 "--budget", "3", "--samples", "1", "--workers", "1"]) == 1
+    assert capsys.readouterr().err.splitlines() == [
+        "wrapbench recommend: warning: the calibration was accepted with 28.0 mm of a recording "
+        "unexplained, where a default fit refuses more than 10 mm"]
+
+
 def test_a_policy_used_with_a_calibration_it_was_not_trained_on_is_warned_about(
         load_file, tmp_path, capsys):
     """And the unit is judged as the policy observes it, calibrated, against the units it was
@@ -1199,6 +1216,37 @@ def test_too_many_workers_and_absurd_arguments_exit_2(load_file, tmp_path, capsy
         main(["simulate", str(load), "--level", "abc"])
     assert exit_.value.code == 2
     assert "expected a level in g such as 0.4 (got 'abc')" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("backend, most", [("process", most_workers()), ("ray", 4096)])
+def test_the_most_workers_a_backend_takes_are_taken_and_one_more_is_refused(
+        backend, most, load_file, capsys):
+    """At the limit the next check speaks (a --policy a search does not use, refused before any
+    simulation, as is everything here); one worker more is refused under --workers."""
+    load = str(load_file(base=SMALL))
+    for workers, named in ((most, "--policy"), (most + 1, "--workers")):
+        code = main(["recommend", load, "--backend", backend, "--workers", str(workers),
+                     "--policy", "p.zip"])
+        err = capsys.readouterr().err.strip()
+        assert code == 2 and "\n" not in err and f": {named}: " in err, err
+    assert f"must be <= {most} on the {backend} backend (got {most + 1})" in err
+
+
+def test_only_a_budget_too_small_says_what_the_first_generation_tries(load_file, capsys):
+    load = str(load_file(base=SMALL))
+    assert main(["recommend", load, "--budget", "2"]) == 2
+    assert capsys.readouterr().err.strip().endswith(
+        "--budget: must be >= 3 (got 2): the first generation tries the lightest program at "
+        "three tensions")
+    assert main(["recommend", load, "--samples", "0"]) == 2
+    assert capsys.readouterr().err.strip().endswith("--samples: must be >= 1 (got 0)")
+
+
+@pytest.mark.parametrize("budget, popsize", [(None, 8), ("9", 8), ("8", 8), ("5", 5),
+                                             ("3", 3)])
+def test_a_generation_is_8_programs_or_the_whole_budget_when_it_is_smaller(budget, popsize):
+    argv = ["recommend", *(("--budget", budget) if budget else ())]
+    assert commands._settings(build_parser().parse_args(argv)).popsize == popsize
 
 
 
