@@ -137,11 +137,13 @@ def test_programs_over_the_cycle_limit_are_not_simulated_and_score_worst(small_l
 def test_recommend_says_when_no_program_is_within_the_cycle_time_limit(tmp_path, capsys):
     """Every program of the space takes longer than 1 s (the lightest, one bottom and one top
     wrap, about half a minute at 12 rpm): nothing is simulated, and the answer says the limit,
-    not the EUMOS sequence, left no program."""
+    not the EUMOS sequence, left no program. Nothing is written, and the search's checkpoint
+    (kept beside --json while it runs) is gone: the search answered."""
     load = tmp_path / "small.toml"
     load.write_text(tomli_w.dumps(SMALL))
     assert main(["recommend", str(load), "--max-cycle-s", "1", "--budget", "3", "--samples",
-                 "1", "--workers", "1"]) == 1
+                 "1", "--workers", "1", "--json", str(tmp_path / "rec.json")]) == 1
+    assert [p.name for p in tmp_path.iterdir()] == ["small.toml"]
     out = capsys.readouterr().out.strip().splitlines()[-1]
     assert out.startswith("no program within the cycle-time limit of 1 s: all 3 candidates")
     fastest = float(out.split("the fastest ")[1].split(" s")[0])
@@ -530,6 +532,8 @@ def test_a_round_whose_passes_all_fail_their_verification_is_followed_by_a_sturd
     result = json.loads(out.read_text())
     assert result["rounds"] == 2 and result["search_samples"] == 2
     assert 4 < result["candidates"] <= 4 + 8
+    assert (f"searched {result['candidates']} candidates ({result['evaluations']} simulations)"
+            in text)   # both rounds'
     page = (report / "report.html").read_text()
     assert f"{result['candidates']} candidate programs" in page   # both rounds'
     assert "EUMOS margin (the round that answered)" in page       # the figure: the second's
@@ -890,6 +894,7 @@ def test_a_proposal_that_does_not_hold_is_searched_from(load_file, tmp_path, cap
     result = json.loads(out.read_text())
     assert result["method"] == "ppo" and result["rounds"] == 2
     assert result["robust_pass_rate"] == 1.0 and result["program"]["middle_tension_n"] == 94.0
+    assert result["candidates"] <= 6   # round 2's budget: the proposal is no candidate searched
     assert main([*argv, "--rounds", "1", "--json", str(tmp_path / "one.json")]) == 1
     assert capsys.readouterr().out.strip().splitlines()[-1] == (
         "the policy's proposal fails: nothing written (--rounds 1); search from it with more "
