@@ -668,6 +668,27 @@ def test_an_interrupted_second_round_resumes_in_that_round(monkeypatch, load_fil
     assert not ckpt.exists()
 
 
+@pytest.mark.usefixtures("two_verification_samples")
+def test_a_second_round_interrupted_before_it_simulates_anything_resumes_in_that_round(
+        monkeypatch, load_file, tmp_path, capsys):
+    """A round's checkpoint is written as the round starts: interrupted before its first
+    generation, the search resumes the second round, not the first, whose passes all failed."""
+    real = commands._run_search
+
+    def run_search(search, state, settings, round_number):
+        if round_number == 2:
+            raise KeyboardInterrupt
+        return real(search, state, settings, round_number)
+
+    monkeypatch.setattr(commands, "_run_search", run_search)
+    _failing_first_rounds(monkeypatch)
+    assert main(["recommend", str(load_file(base=SMALL)), "--budget", "4", "--samples", "1",
+                 "--workers", "2", "--json", str(tmp_path / "rec.json")]) == 130
+    assert "--resume continues it" in capsys.readouterr().err
+    kept = read_round(tmp_path / "rec.checkpoint.json")
+    assert kept.number == 2 and 0 < kept.earlier_candidates <= 4
+
+
 def test_resume_without_a_checkpoint_is_a_clear_error(small_load, tmp_path):
     search = RobustSearch(Problem.build(small_load, FAST), tmp_path / "none.ckpt")
     with pytest.raises(InputError, match="no checkpoint"):
