@@ -8,6 +8,7 @@ from __future__ import annotations
 import json
 import math
 import os
+import re
 import time
 import tomllib
 from concurrent.futures import ThreadPoolExecutor
@@ -528,7 +529,10 @@ def test_a_round_whose_passes_all_fail_their_verification_is_followed_by_a_sturd
     assert ("failed their verification (the whole EUMOS sequence, or one of 2 samples); "
             "searching again with 2 samples and a budget of 8 candidates (round 2 of at most "
             "2)") in text
-    assert "round 2, 2 samples a candidate" in text
+    assert re.search(r"\(round 2 of at most 2\), every tension at the top of its range "
+                     r"\(\d+ N\), from the lightest of them\n", text)
+    assert text.strip().endswith("; round 2, 2 samples a candidate, every tension at the top: "
+                                 "the round before found no pass that held its verification)")
     result = json.loads(out.read_text())
     assert result["rounds"] == 2 and result["search_samples"] == 2
     assert 4 < result["candidates"] <= 4 + 8
@@ -665,6 +669,7 @@ def test_an_interrupted_second_round_resumes_in_that_round(monkeypatch, load_fil
     assert "searching again" not in text and "round 2, 2 samples a candidate" in text
     result = json.loads((tmp_path / "rec.json").read_text())
     assert result["rounds"] == 2 and result["candidates"] > kept.earlier_candidates
+    assert result["evaluations"] > kept.earlier_simulations
     assert not ckpt.exists()
 
 
@@ -687,6 +692,19 @@ def test_a_second_round_interrupted_before_it_simulates_anything_resumes_in_that
     assert "--resume continues it" in capsys.readouterr().err
     kept = read_round(tmp_path / "rec.checkpoint.json")
     assert kept.number == 2 and 0 < kept.earlier_candidates <= 4
+
+
+def test_a_search_interrupted_without_a_checkpoint_says_nothing_was_written(
+        monkeypatch, load_file, capsys):
+    """No --json, no --checkpoint: the search keeps no state, and the interrupt says only
+    that, on one line (exit 130)."""
+    def interrupted(*args):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(commands, "_run_search", interrupted)
+    assert main(["recommend", str(load_file(base=SMALL)), "--budget", "4", "--samples", "1",
+                 "--workers", "2"]) == 130
+    assert capsys.readouterr().err == "wrapbench recommend: interrupted, nothing written\n"
 
 
 def test_resume_without_a_checkpoint_is_a_clear_error(small_load, tmp_path):
@@ -722,6 +740,11 @@ def test_recommend_writes_the_contract_json_and_a_wrap_simulate_accepts(load_fil
     assert written.material_used_on(LoadUnit.from_toml(load).layout()).mass_kg == pytest.approx(
         result["material_used"]["mass_kg"])
     assert not list(tmp_path.glob("*checkpoint*")), "the checkpoint goes when the search ends"
+    assert result["pallets_per_hour"] == round(3600 / result["cycle_time_s"], 2)
+    # answered in its first round: the last line says nothing of rounds
+    assert re.fullmatch(rf"searched {result['candidates']} candidates "
+                        rf"\({result['evaluations']} simulations\) in \d+ s "
+                        rf"\(2 workers, process\)", text.strip().splitlines()[-1])
     assert main(["simulate", str(load), "--wrap", str(wrap), "--level", "0.5"]) == 0
 
 
