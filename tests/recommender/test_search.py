@@ -878,8 +878,9 @@ def test_ppo_method_answers_from_a_policy_and_verifies_it(load_file, tmp_path, c
     out = tmp_path / "ppo.json"
     code = main(["recommend", str(load), "--method", "ppo", "--policy", str(policy),
                  "--samples", "2", "--workers", "2", "--json", str(out)])
-    printed = capsys.readouterr().out
+    printed, err = capsys.readouterr()
     assert code == 0 and "recommended wrapping program for" in printed
+    assert "the policy was trained for" not in err   # asked for its own 0.5 g
     assert " nominal; 0.20 asked)" in printed and "search's" not in printed  # nothing searched
     result = json.loads(out.read_text())
     assert result["method"] == "ppo" and result["verdict"]["levels"][-1]["passed"]
