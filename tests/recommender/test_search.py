@@ -723,6 +723,8 @@ def test_recommend_writes_the_contract_json_and_a_wrap_simulate_accepts(load_fil
     assert code == 0
     assert "recommended wrapping program" in text and "material used" in text
     assert "spiral up" in text and "cycle time" in text
+    assert text.index("-- long side along the motion --\n") < text.index(
+        "-- short side along the motion --\n")   # each side's verdict under its heading
     result = json.loads(out.read_text())
     assert {"format", "program", "material_used", "cycle_time_s", "verdict",
             "robust_pass_rate", "evaluations", "method", "pass_probability", "worst_sample",
