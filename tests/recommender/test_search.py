@@ -743,6 +743,9 @@ def test_recommend_writes_the_contract_json_and_a_wrap_simulate_accepts(load_fil
         result["material_used"]["mass_kg"])
     assert not list(tmp_path.glob("*checkpoint*")), "the checkpoint goes when the search ends"
     assert result["pallets_per_hour"] == round(3600 / result["cycle_time_s"], 2)
+    worst = result["worst_sample"]   # of the verification's samples, printed as written
+    assert (f"\nworst sample: {worst['orientation']} side, margin {worst['margin']:.2f}, "
+            f"elastic ") in text
     # answered in its first round: the last line says nothing of rounds
     assert re.fullmatch(rf"searched {result['candidates']} candidates "
                         rf"\({result['evaluations']} simulations\) in \d+ s "
