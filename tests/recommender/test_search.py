@@ -1141,6 +1141,16 @@ def test_train_refuses_an_out_that_cannot_be_its_folder(tmp_path, capsys):
     assert a_file.read_text() == "mine"
 
 
+def test_train_refuses_a_folder_whose_policy_zip_could_not_be_written(tmp_path, capsys):
+    """A folder named policy.zip in --out is where the trained policy goes: refused as such
+    before any training, not as an earlier run."""
+    (tmp_path / "run" / "policy.zip").mkdir(parents=True)
+    assert main(["train", "--out", str(tmp_path / "run")]) == 2
+    assert capsys.readouterr().err == (f"wrapbench train: {tmp_path / 'run' / 'policy.zip'}: "
+                                       f"--out: is a folder; name a file to write\n")
+    assert [p.name for p in (tmp_path / "run").iterdir()] == ["policy.zip"]
+
+
 @pytest.mark.parametrize("given, says", [("nope.zip", "no such file"),
                                           (".", "is a folder, not a policy.zip")])
 def test_a_policy_that_is_not_a_file_is_named_for_what_it_is(given, says, load_file, tmp_path,
