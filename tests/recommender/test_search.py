@@ -746,6 +746,8 @@ def test_recommend_writes_the_contract_json_and_a_wrap_simulate_accepts(load_fil
     worst = result["worst_sample"]   # of the verification's samples, printed as written
     assert (f"\nworst sample: {worst['orientation']} side, margin {worst['margin']:.2f}, "
             f"elastic ") in text
+    assert f"; margin {worst['margin']:.2f} in the worst sample, " in text
+    assert text.count("\nhighest level passed: 0.50 g\n") == 2   # each side's table
     # answered in its first round: the last line says nothing of rounds
     assert re.fullmatch(rf"searched {result['candidates']} candidates "
                         rf"\({result['evaluations']} simulations\) in \d+ s "
