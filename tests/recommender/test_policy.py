@@ -165,6 +165,26 @@ def _trained_by_cli(tmp_path: Path, monkeypatch, flags: tuple[str, ...]) -> Trai
     return settings
 
 
+def test_wrapbench_train_warns_of_a_calibration_accepted_under_a_looser_bound(
+        tmp_path, monkeypatch, capsys):
+    """As `simulate` and `recommend` do; training then goes on with it, and says where it
+    wrote the policy and its log."""
+    cal = tmp_path / "cal.json"
+    cal.write_text(json.dumps({
+        "friction": {"pallet_bundle": {"static": 0.5, "kinetic": 0.4}},
+        "acceptance": {"max_residual_m": 0.03, "least_explained": "takes/0.45g",
+                       "unexplained_rms_m": 0.028, "explained_by": "replay 3", "excused": []}}))
+    settings = _trained_by_cli(tmp_path, monkeypatch, ("--calibration", str(cal)))
+    assert settings.calibration is not None
+    out, err = capsys.readouterr()
+    assert err.splitlines() == [
+        "wrapbench train: warning: the calibration was accepted with 28.0 mm of a recording "
+        "unexplained, where a default fit refuses more than 10 mm"]
+    run = tmp_path / "run"
+    assert out.splitlines()[-1] == (f"policy written to {run / 'policy.zip'} "
+                                    f"(log: {run / 'log.csv'})")
+
+
 @pytest.mark.parametrize("flags, log_std_init", [((), 0.0), (("--log-std-init", "-1"), -1.0)])
 def test_wrapbench_train_explores_with_the_noise_asked(tmp_path, monkeypatch, flags,
                                                        log_std_init):
