@@ -52,6 +52,7 @@ from recommender.policy import (
     stamp,
     train,
 )
+from tests.recommender.conftest import LOOSE_CALIBRATION, LOOSE_WARNING
 from wrapenv.bench import SimSettings
 from wrapenv.calibrated import Calibration
 from wrapenv.config import InputError
@@ -170,16 +171,11 @@ def test_wrapbench_train_warns_of_a_calibration_accepted_under_a_looser_bound(
     """As `simulate` and `recommend` do; training then goes on with it, and says where it
     wrote the policy and its log."""
     cal = tmp_path / "cal.json"
-    cal.write_text(json.dumps({
-        "friction": {"pallet_bundle": {"static": 0.5, "kinetic": 0.4}},
-        "acceptance": {"max_residual_m": 0.03, "least_explained": "takes/0.45g",
-                       "unexplained_rms_m": 0.028, "explained_by": "replay 3", "excused": []}}))
+    cal.write_text(json.dumps(LOOSE_CALIBRATION))
     settings = _trained_by_cli(tmp_path, monkeypatch, ("--calibration", str(cal)))
     assert settings.calibration is not None
     out, err = capsys.readouterr()
-    assert err.splitlines() == [
-        "wrapbench train: warning: the calibration was accepted with 28.0 mm of a recording "
-        "unexplained, where a default fit refuses more than 10 mm"]
+    assert err.splitlines() == [f"wrapbench train: {LOOSE_WARNING}"]
     run = tmp_path / "run"
     assert out.splitlines()[-1] == (f"policy written to {run / 'policy.zip'} "
                                     f"(log: {run / 'log.csv'})")

@@ -43,7 +43,7 @@ from recommender.search import (
     verify,
     weakest,
 )
-from tests.recommender.conftest import FAST, SMALL
+from tests.recommender.conftest import FAST, LOOSE_CALIBRATION, LOOSE_WARNING, SMALL
 from wrapenv.bench import BenchRun
 from wrapenv.calibrated import Calibration
 from wrapenv.config import InputError
@@ -1021,21 +1021,16 @@ def test_no_round_follows_a_proposal_when_even_the_strongest_program_fails(
     assert "searching from it" not in text
 
 
-def test_recommend_warns_of_a_calibration_accepted_under_a_looser_bound(tmp_path, capsys):
+def test_recommend_warns_of_a_calibration_accepted_under_a_looser_bound(load_file, tmp_path,
+                                                                        capsys):
     """As `simulate` does (tests/calibration/test_commands.py), whatever the search answers:
     here that no program is within a 1 s cycle, nothing simulated."""
-    load = tmp_path / "small.toml"
-    load.write_text(tomli_w.dumps(SMALL))
+    load = load_file(base=SMALL)
     cal = tmp_path / "cal.json"
-    cal.write_text(json.dumps({
-        "friction": {"pallet_bundle": {"static": 0.5, "kinetic": 0.4}},
-        "acceptance": {"max_residual_m": 0.03, "least_explained": "takes/0.45g",
-                       "unexplained_rms_m": 0.028, "explained_by": "replay 3", "excused": []}}))
+    cal.write_text(json.dumps(LOOSE_CALIBRATION))
     assert main(["recommend", str(load), "--calibration", str(cal), "--max-cycle-s", "1",
                  "--budget", "3", "--samples", "1", "--workers", "1"]) == 1
-    assert capsys.readouterr().err.splitlines() == [
-        "wrapbench recommend: warning: the calibration was accepted with 28.0 mm of a recording "
-        "unexplained, where a default fit refuses more than 10 mm"]
+    assert capsys.readouterr().err.splitlines() == [f"wrapbench recommend: {LOOSE_WARNING}"]
 
 
 def test_a_policy_used_with_a_calibration_it_was_not_trained_on_is_warned_about(
