@@ -91,8 +91,8 @@ def load(path: Path | None, identity: dict[str, Any]) -> list[dict[str, Any]]:
     problem = data.get("problem")
     if not isinstance(problem, dict):
         raise InputError(str(path), "problem", "must be an object")
-    for key, value in identity.items():
-        if problem.get(key) != value:
+    for key in sorted(identity.keys() | problem.keys()):  # a setting on one side only differs
+        if problem.get(key) != identity.get(key):
             raise InputError(str(path), f"problem.{key}", "the checkpoint is of another "
                              "search (load, material, target, seed, calibration or fidelity "
                              "differ)")

@@ -375,6 +375,19 @@ def test_resume_refuses_another_search_s_checkpoint(small_load, tmp_path, other,
     assert_input_error(info.value, str(ckpt), f"problem.{field}")
 
 
+def test_resume_refuses_a_checkpoint_of_a_search_with_a_setting_this_one_lacks(
+        small_load, tmp_path, assert_input_error):
+    """A setting recorded only when asked for (here a layer-shift limit) differs whichever side
+    has it: a checkpoint judged with the limit is not replayed into a search without one."""
+    ckpt = tmp_path / "search.json"
+    limited = replace(FAST, max_candidates=4, limits=Limits(layer_shift_fraction=0.05))
+    RobustSearch(Problem.build(small_load, limited), ckpt).run(
+        RobustSearch(Problem.build(small_load, limited), ckpt).start())
+    with pytest.raises(InputError) as info:
+        RobustSearch(Problem.build(small_load, replace(limited, limits=Limits())), ckpt).resume()
+    assert_input_error(info.value, str(ckpt), "problem.layer_shift_limit")
+
+
 def test_resume_refuses_a_file_that_is_no_checkpoint(small_load, tmp_path):
     ckpt = tmp_path / "search.json"
     ckpt.write_text('{"format": "pickle"}')
