@@ -224,10 +224,10 @@ def _add_recommend_problem(rec: argparse.ArgumentParser) -> None:
     rec.add_argument("--fresh", action="store_true",
                      help="verify on a fresh unit per level (default: one unit through the "
                           "EUMOS sequence, as a lab)")
-    rec.add_argument("--ordered-tensions", action="store_true",
+    rec.add_argument("--ordered-tensions", action=argparse.BooleanOptionalAction, default=True,
                      help="lay the bottom and top wraps at least as tight as the spiral, as "
-                          "machine practice orders the zones (default: each zone's tension "
-                          "is searched freely)")
+                          "machine practice orders the zones (default; --no-ordered-tensions "
+                          "searches each zone's tension freely)")
     _layer_shift_flag(rec)
 
 

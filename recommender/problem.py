@@ -80,10 +80,11 @@ class SearchSettings:
     #: Lay every zone at the top of the tension range (the search then chooses wraps, overlap
     #: and the reinforcement's height only): what a later round does (`in_round`).
     top_tension: bool = False
-    #: Lay the bottom and the top wraps at least as tight as the spiral: the source paper's
-    #: model pulls hardest at the bottom and a little harder at the top than in the middle.
-    #: Off by default: each zone's tension is searched freely (docs/recommend.md).
-    ordered_tensions: bool = False
+    #: Lay the bottom and the top wraps at least as tight as the spiral, as machine practice
+    #: and the source paper's model order the zones (hardest at the bottom, a little harder at
+    #: the top than in the middle). Off, each zone's tension is searched freely, and an answer
+    #: may lay its bottom wraps looser than its spiral (docs/recommend.md).
+    ordered_tensions: bool = True
 
     @property
     def target_g(self) -> float:

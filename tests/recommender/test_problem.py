@@ -176,11 +176,11 @@ def test_a_later_round_lays_every_zone_at_the_top_tension_and_changes_nothing_el
     """Tension costs no web: a later round searches wraps, overlap and the reinforcement's
     height, each zone at the top of the range, whatever the vector's tension coordinates."""
     first, second = Problem.build(small_load, FAST), Problem.build(small_load, FAST).in_round(2)
-    x = np.array([3.0, 2.0, 1.0, 0.4, 0.5, 0.0, 0.2, 0.4, 0.6])
+    x = np.array([3.0, 2.0, 1.0, 0.4, 0.5, 0.2, 0.0, 0.4, 0.6])   # the zones ordered
     low, top = first.space.tension_range_n
     gentle, tight = first.wrap(x).program, second.wrap(x).program
     assert [gentle.bottom_tension_n, gentle.middle_tension_n, gentle.top_tension_n] == [
-        round(low + f * (top - low)) for f in (0.0, 0.2, 0.4)]
+        round(low + f * (top - low)) for f in (0.2, 0.0, 0.4)]
     assert {tight.bottom_tension_n, tight.middle_tension_n, tight.top_tension_n,
             tight.reinforcements[0].tension_n} == {top}
     assert replace(tight, bottom_tension_n=gentle.bottom_tension_n,
@@ -191,11 +191,11 @@ def test_a_later_round_lays_every_zone_at_the_top_tension_and_changes_nothing_el
 
 
 def test_ordered_tensions_lay_the_bottom_and_top_at_least_as_tight_as_the_spiral(small_load):
-    """--ordered-tensions: a zone looser than the spiral is raised to it, a tighter one kept;
-    the wraps, overlap, reinforcement and the vector's meaning are untouched, and the search is
-    another search (a checkpoint of the free one is not resumed as an ordered one)."""
-    ordered = Problem.build(small_load, replace(FAST, ordered_tensions=True))
-    free = Problem.build(small_load, FAST)
+    """Ordered tensions (the default): a zone looser than the spiral is raised to it, a tighter
+    one kept; the wraps, overlap, reinforcement and the vector's meaning are untouched against
+    the free search (--no-ordered-tensions)."""
+    ordered = Problem.build(small_load, FAST)
+    free = Problem.build(small_load, replace(FAST, ordered_tensions=False))
     low, top = free.space.tension_range_n
     at = [round(low + f * (top - low)) for f in (0.0, 0.2, 0.4, 0.6)]
     loose = np.array([3.0, 2.0, 1.0, 0.4, 0.5, 0.0, 0.4, 0.2, 0.6])  # bottom, top under spiral

@@ -362,7 +362,7 @@ def test_a_sample_is_as_strong_as_its_weakest_orientation():
     ({"web": Web(MATERIALS["kraft"], "kraft", 0.75)}, "material"),   # the same card, wider
     ({"targets": (("long", 0.6),)}, "targets"), ({"seed": 3}, "seed"),
     ({"hours_since_wrapping": 16.0}, "hours_since_wrapping"), ({"screen": None}, "screen"),
-    ({"screen_samples": 2}, "screen_samples"), ({"ordered_tensions": True}, "ordered_tensions")])
+    ({"screen_samples": 2}, "screen_samples"), ({"ordered_tensions": False}, "ordered_tensions")])
 def test_resume_refuses_another_search_s_checkpoint(small_load, tmp_path, other, field,
                                                     assert_input_error):
     ckpt = tmp_path / "search.json"
@@ -920,20 +920,35 @@ def test_ppo_method_answers_from_a_policy_and_verifies_it(load_file, tmp_path, c
 @pytest.mark.usefixtures("two_verification_samples")
 def test_ordered_tensions_hold_for_a_search_s_answer_and_a_policy_s_proposal(load_file,
                                                                               tmp_path):
-    """What `recommend --ordered-tensions` writes lays the bottom and top wraps at least as
-    tight as the spiral, whichever method answered; the policy's proposal (bottom wraps at the
-    range's foot, every other zone in its middle) is raised to the spiral's tension."""
+    """What `recommend` writes lays the bottom and top wraps at least as tight as the spiral,
+    whichever method answered; the policy's proposal (bottom wraps at the range's foot, every
+    other zone in its middle) is raised to the spiral's tension. With --no-ordered-tensions the
+    same proposal is verified as the policy gave it."""
     load = load_file(base=SMALL)
     policy = fixed_policy(load, [0.0] * 5 + [-1.0, 0.0, 0.0, 0.0], tmp_path / "loose.zip")
-    runs = {"cmaes": ["--budget", "8"], "ppo": ["--policy", str(policy), "--rounds", "1"]}
-    for method, argv in runs.items():
-        out = tmp_path / f"{method}.json"
-        assert main(["recommend", str(load), "--method", method, *argv, "--samples", "2",
-                     "--workers", "2", "--ordered-tensions", "--json", str(out)]) == 0
-        program = json.loads(out.read_text())["program"]
-        middle = program["middle_tension_n"]
-        assert program["bottom_tension_n"] >= middle <= program["top_tension_n"], method
-    assert program["bottom_tension_n"] == middle == 440.0   # the proposal's 80 N raised
+    runs = {"cmaes": ["--budget", "8"], "ppo": ["--policy", str(policy), "--rounds", "1"],
+            "free": ["--method", "ppo", "--policy", str(policy), "--rounds", "1",
+                     "--no-ordered-tensions"]}
+    programs = {}
+    for name, argv in runs.items():
+        out = tmp_path / f"{name}.json"
+        method = [] if name == "free" else ["--method", name]
+        assert main(["recommend", str(load), *method, *argv, "--samples", "2", "--workers", "2",
+                     "--json", str(out)]) == 0
+        programs[name] = json.loads(out.read_text())["program"]
+    for name in ("cmaes", "ppo"):
+        middle = programs[name]["middle_tension_n"]
+        assert programs[name]["bottom_tension_n"] >= middle <= programs[name]["top_tension_n"]
+    assert programs["ppo"]["bottom_tension_n"] == programs["ppo"]["middle_tension_n"] == 440.0
+    assert programs["free"]["bottom_tension_n"] == 80.0   # the proposal's foot, as given
+    assert programs["free"]["middle_tension_n"] == 440.0
+
+
+@pytest.mark.parametrize("flag, ordered", [((), True), (("--ordered-tensions",), True),
+                                           (("--no-ordered-tensions",), False)])
+def test_tensions_are_ordered_unless_asked_free(flag, ordered):
+    argv = ["recommend", *flag]
+    assert commands._settings(build_parser().parse_args(argv)).ordered_tensions is ordered
 
 
 @pytest.mark.usefixtures("two_verification_samples")
