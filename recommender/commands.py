@@ -586,7 +586,7 @@ def _propose_with_policy(args: argparse.Namespace, problem: Problem, samples: in
     from wrapenv.envs.random_units import base_friction, outside
 
     _check_policy_file(args.policy)
-    calibration = _observable_calibration(args.calibration)
+    calibration = None if args.calibration is None else Calibration.from_json(args.calibration)
     meta = read_meta(args.policy)
     # refused (another env version, material or observation) before any warning about it
     model = load_policy(args.policy, problem.settings.web.material_key)
@@ -711,17 +711,6 @@ def _write_report(args: argparse.Namespace, problem: Problem, check: Verificatio
 # --- train -------------------------------------------------------------------------------------
 
 
-def _observable_calibration(path: Path | None) -> Calibration | None:
-    """The calibration a policy is trained or asked under (None: none given)."""
-    from wrapenv.envs.observation import check_observable
-
-    if path is None:
-        return None
-    calibration = Calibration.from_json(path)
-    check_observable(calibration, str(path))
-    return calibration
-
-
 def _check_train_numbers(args: argparse.Namespace) -> None:
     from recommender.policy import LOG_STD_INIT_RANGE
     from wrapenv.envs.wrapbench import MAX_TESTS_PER_EPISODE
@@ -776,9 +765,8 @@ def run_train(args: argparse.Namespace) -> int:
     _check_train_numbers(args)
     _material(args.material)
     _target(args.target)
-    calibration = _observable_calibration(args.calibration)
-    if calibration is not None:
-        warn("train", calibration.warnings())
+    calibration = (None if args.calibration is None
+                   else read_calibration(args.calibration, "train"))
     settings = TrainSettings(timesteps=args.timesteps, workers=args.envs, material=args.material,
                              target_g=args.target, seed=args.seed, max_minutes=args.minutes,
                              calibration=calibration, test=args.test,

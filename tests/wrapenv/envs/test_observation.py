@@ -3,6 +3,7 @@ take in, and the card figures a policy records."""
 
 from __future__ import annotations
 
+import json
 import math
 
 import pytest
@@ -13,7 +14,6 @@ from wrapenv.envs.observation import (
     MAX_FRICTION_STD,
     OBS_FEATURES,
     OBS_NAMES,
-    check_observable,
     material_features,
     observe,
 )
@@ -21,16 +21,22 @@ from wrapenv.load import LoadUnit
 from wrapenv.material import MATERIALS
 
 
-def test_a_calibration_within_the_observed_spread_is_taken():
-    check_observable(Calibration({"pallet_bundle": CalibratedPair(
-        0.5, 0.4, static_std=MAX_FRICTION_STD, kinetic_std=0.03)}), "cal.json")
-
-
-def test_a_spread_a_policy_cannot_observe_is_refused_naming_the_pair(assert_input_error):
-    wide = Calibration({"bundle_bundle": CalibratedPair(0.4, 0.33, kinetic_std=2.5)})
-    with pytest.raises(InputError) as info:
-        check_observable(wide, "cal.json")
-    assert_input_error(info.value, "cal.json", "friction.bundle_bundle.kinetic_std")
+def test_every_spread_a_calibration_file_may_hold_is_observed(tmp_path, assert_input_error):
+    """CAL.json's loader bounds a friction spread where the observation does, so a policy
+    observes any calibration that loads; a wider spread is refused as the file is read."""
+    unit = LoadUnit.from_toml("examples/pet_2layer_columnar.toml")
+    cal = tmp_path / "cal.json"
+    for std in (MAX_FRICTION_STD, MAX_FRICTION_STD + 0.5):
+        cal.write_text(json.dumps({"friction": {"bundle_bundle": {
+            "static": 0.4, "kinetic": 0.33, "static_std": 0.01, "kinetic_std": std}}}))
+        if std > MAX_FRICTION_STD:
+            with pytest.raises(InputError) as info:
+                Calibration.from_json(cal)
+            assert_input_error(info.value, str(cal), "friction.bundle_bundle.kinetic_std")
+            continue
+        seen = observe(unit, unit.layout(), 0.5, MATERIALS["kraft"], Calibration.from_json(cal))
+        i = OBS_NAMES.index("friction_bundle_bundle_kinetic_std")
+        assert seen[i] == MAX_FRICTION_STD == OBS_FEATURES[i][1]
 
 
 def test_the_card_features_are_the_last_six_of_the_observation_and_fit_its_bounds():
