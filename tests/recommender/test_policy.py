@@ -927,6 +927,29 @@ def test_resume_needs_a_run_to_continue(files, needle, tmp_path, capsys):
     assert "\n" not in err and "--resume" in err and needle in err
 
 
+@pytest.mark.parametrize("files", [
+    ("log.csv", f"{CHECKPOINT_DIR}/policy_128_steps.zip"),                 # interrupted
+    ("log.csv", "policy.zip", f"{CHECKPOINT_DIR}/policy_128_steps.zip"),   # finished
+])
+def test_resume_goes_on_from_an_interrupted_run_or_a_finished_one_asked_for_more(
+        files, tmp_path, monkeypatch):
+    """What the refusals above leave: a run with its log and a checkpoint is resumed, finished
+    or not, while --timesteps asks for more than its last checkpoint holds."""
+    run = tmp_path / "run"
+    (run / CHECKPOINT_DIR).mkdir(parents=True)
+    for name in files:
+        (run / name).write_bytes(b"")
+    resumed: list[tuple[Path, bool]] = []
+
+    def train(settings: TrainSettings, folder: Path, resume: bool = False) -> Path:
+        resumed.append((folder, resume))
+        return folder / "policy.zip"
+
+    monkeypatch.setattr(recommender.policy, "train", train)
+    assert main(["train", "--out", str(run), "--resume", "--timesteps", "256"]) == 0
+    assert resumed == [(run, True)]
+
+
 def test_resume_into_a_folder_that_does_not_exist_is_refused_leaving_none(tmp_path, capsys):
     assert main(["train", "--out", str(tmp_path / "never"), "--resume"]) == 2
     assert "no run to resume" in capsys.readouterr().err
