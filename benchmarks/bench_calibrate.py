@@ -46,7 +46,7 @@ slid most in the validation recording, recorded against predicted (goal ±15 %);
 as a Markdown table row.
 
     python -m benchmarks.bench_calibrate [--case columnar2 ...] [--method surrogate ...]
-                                         [--budget 300] [--workers 2] [--seed 0 ...]
+                                         [--budget N] [--workers 2] [--seed 0 ...]
 
 Without a fit, what the best calibration could do: `--truth N` replays each case's recordings N
 times with their true values (what the fit's acceptance test says of them, on all N replays and
@@ -84,7 +84,14 @@ from calibration import acceptance, surrogate
 from calibration.acceptance import Unexplained
 from calibration.commands import known_scales
 from calibration.features import TRACK_NOISE_M
-from calibration.fit import FINAL_REPLAYS, METHODS, FitResult, FitSettings, fit
+from calibration.fit import (
+    FINAL_REPLAYS,
+    METHODS,
+    FitResult,
+    FitSettings,
+    default_budget,
+    fit,
+)
 from calibration.recording import Recording, Truth
 from calibration.replay import Observation, observe, replay, resettled, residuals
 from calibration.surrogate import Stage
@@ -329,9 +336,10 @@ def run_case(name: str, method: str, seed: int, args: argparse.Namespace) -> Out
         held_out = [replace(o, load=exact.apply(o.load)) for o in held_out]
         params = "wrap"
     t0 = time.perf_counter()
-    result = fit([o for o, _ in observed],
-                 FitSettings(method=method, params=params, budget=args.budget,
-                             workers=args.workers, seed=seed, known=args.known))
+    settings = FitSettings(method=method, params=params, workers=args.workers, seed=seed,
+                           known=args.known)
+    budget = args.budget or default_budget([o for o, _ in observed], settings)
+    result = fit([o for o, _ in observed], replace(settings, budget=budget))
     with ProcessPoolExecutor(args.workers) as pool:
         checks = validate(held_out, result.calibration, pool) if held_out else []
     wall = time.perf_counter() - t0
@@ -475,7 +483,8 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--case", nargs="+", choices=list(CASES), default=list(CASES))
     parser.add_argument("--method", nargs="+", choices=METHODS, default=["surrogate"])
-    parser.add_argument("--budget", type=int, default=300)
+    parser.add_argument("--budget", type=int,
+                        help="the fit's budget (default: calibrate's, fit.default_budget)")
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--seed", type=int, nargs="+", default=[0],
                         help="fit seeds; with several, a summary of the errors over them")

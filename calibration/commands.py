@@ -14,6 +14,7 @@ import sys
 import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
+from dataclasses import replace
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -221,9 +222,12 @@ def add_calibrate(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--params", choices=PARAMS, default="all",
                    help="friction, wrap (the web's stiffness and tension scales and the "
                         "load's give) or all (default)")
-    p.add_argument("--budget", type=int, default=300, metavar="N",
+    p.add_argument("--budget", type=int, metavar="N",
                    help="most simulations of the fit's search and final replays (default "
-                        "300); a static coefficient it would report resolved is probed on top, "
+                        "300, or where the recordings would share them so thinly that the "
+                        "friction search gets one local stage or none, as five do, the least "
+                        "that gives it all); a static coefficient it would report resolved is "
+                        "probed on top, "
                         "12 replays per bare recording, up to 24 when the other values are "
                         "refitted; a recording the final replays, or a probe's, leave "
                         "unexplained is replayed up to 24 times in all before it is judged")
@@ -326,7 +330,7 @@ def known_scales(entries: list[str]) -> tuple[tuple[str, float], ...]:
 
 
 def _check_calibrate_args(args: argparse.Namespace) -> None:
-    if args.budget < 10:
+    if args.budget is not None and args.budget < 10:
         raise InputError("arguments", "--budget", f"must be >= 10 (got {args.budget})")
     if args.workers < 1:
         raise InputError("arguments", "--workers", f"must be >= 1 (got {args.workers})")
@@ -389,7 +393,7 @@ def _check_outputs(args: argparse.Namespace, recordings: list) -> None:
 
 
 def run_calibrate(args: argparse.Namespace) -> int:
-    from calibration.fit import FitSettings, min_budget
+    from calibration.fit import DEFAULT_BUDGET, FitSettings
 
     _check_calibrate_args(args)
     fitted, held = _recordings(args)
@@ -399,12 +403,9 @@ def run_calibrate(args: argparse.Namespace) -> int:
                          "wrap: none of the recordings is of a wrapped unit (no wrap.toml)")
     observations = _observations(fitted, args.retrack)
     held_out = _observations(held, args.retrack)
-    settings = FitSettings(args.method, args.params, args.budget, args.workers, args.seed,
-                           args.max_residual_mm / 1000, known=known_scales(args.known))
-    if args.budget < (least := min_budget(observations, settings)):
-        raise InputError("arguments", "--budget",
-                         f"must be >= {least} to fit these {len(observations)} recordings "
-                         f"(got {args.budget})")
+    settings = _budgeted(args.budget, observations, FitSettings(
+        args.method, args.params, args.budget or DEFAULT_BUDGET, args.workers, args.seed,
+        args.max_residual_mm / 1000, known=known_scales(args.known)))
     checkpoint = _checkpoint(args)
     try:
         return _fitted_and_written(args, observations, held_out, settings, checkpoint)
@@ -413,6 +414,25 @@ def run_calibrate(args: argparse.Namespace) -> int:
             exc.add_note(f"interrupted, nothing written; the fit's replays are kept in "
                          f"{_shown(checkpoint)} (--resume continues it)")
         raise
+
+
+def _budgeted(asked: int | None, observations: list, settings: FitSettings) -> FitSettings:
+    """The settings with the budget `--budget` asked, refused below what every stage needs to
+    search at all; none asked, `fit.default_budget`, said when it is not the usual 300."""
+    from calibration.fit import DEFAULT_BUDGET, default_budget, min_budget
+
+    n = len(observations)
+    if asked is None:
+        budget = default_budget(observations, settings)
+        if budget != DEFAULT_BUDGET:
+            print(f"note: {n} recording{'s' * (n != 1)} share the fit's simulations: "
+                  f"{budget}, not {DEFAULT_BUDGET}, so that each stage of the search has the "
+                  "points it needs (--budget sets them)")
+        return replace(settings, budget=budget)
+    if asked < (least := min_budget(observations, settings)):
+        raise InputError("arguments", "--budget",
+                         f"must be >= {least} to fit these {n} recordings (got {asked})")
+    return settings
 
 
 def _fitted_and_written(args: argparse.Namespace, observations: list, held_out: list,
@@ -485,8 +505,9 @@ def _parts(simulations_by_part: dict[str, int]) -> str:
 
 
 def _thin_search(observations: list, settings: FitSettings) -> str:
-    """A note, when the recordings share the budget so thinly that the friction search gets
-    one local stage (`fit.friction_local_stages`), of the budget that gives it all; else ""."""
+    """A note, when the budget asked is shared so thinly by the recordings that the friction
+    search gets one local stage (`fit.friction_local_stages`), of the budget that gives it
+    all; else ""."""
     from calibration.fit import friction_local_stages
     from calibration.surrogate import MAX_STAGES
 
@@ -495,9 +516,10 @@ def _thin_search(observations: list, settings: FitSettings) -> str:
     (local, budget), n = thin, len(observations)
     return (f"\nnote: with {n} recording{'s' * (n != 1)} the {settings.budget} simulations give "
             f"the friction search {local} local stage{'s' * (local != 1)} of "
-            f"{MAX_STAGES - 1}: --budget {budget} or more gives it all {MAX_STAGES - 1} (on "
-            "five takes 500 fitted the true friction within ±0.03 kinetic and ±0.05 static on "
-            "4 seeds of 6, 300 on 2: docs/calibration.md, \"Pallet–bundle's ridge\")")
+            f"{MAX_STAGES - 1}: --budget {budget} or more gives it all {MAX_STAGES - 1}, as "
+            "calibrate does when no --budget is asked (on five takes 480 fitted the true "
+            "friction within ±0.03 kinetic and ±0.05 static on 5 seeds of 6, 300 on 2: "
+            "docs/calibration.md, \"Five takes get the budget their search needs\")")
 
 
 def _refused(result: FitResult, settings: FitSettings, checkpoint: Path, named: bool,

@@ -45,6 +45,8 @@ from wrapenv.calibrated import DEFAULT_MAX_RESIDUAL_M, CalibratedPair, Calibrati
 from wrapenv.load import PAIRS, Friction, FrictionPair
 from wrapenv.pool import ProcessPool
 
+#: `calibrate`'s budget of simulations when none is given, unless spread thin (`default_budget`)
+DEFAULT_BUDGET = 300
 METHODS = ("surrogate", "cmaes", "momentum")
 PARAMS = ("friction", "wrap", "all")
 STATIC_RANGE = (0.05, 1.2)
@@ -99,8 +101,9 @@ class FitSettings:
     #: would report resolved costs its probes on top (`_probe`: 2 x the final replays of each
     #: bare recording, up to twice that when the other values are refitted), and so does a
     #: recording the final replays, or a probe's, leave unexplained (up to
-    #: `UNEXPLAINED_REPLAYS` in all)
-    budget: int = 300
+    #: `UNEXPLAINED_REPLAYS` in all); `calibrate` raises its default where it is spread thin
+    #: (`default_budget`)
+    budget: int = DEFAULT_BUDGET
     workers: int = max(1, os.cpu_count() or 1)
     seed: int = 0
     #: The fit fails (no output) when a recording's residual its replays' own scatter does not
@@ -410,6 +413,18 @@ def friction_local_stages(observations: Sequence[Observation], settings: FitSett
     while local(budget) < MAX_STAGES - 1:
         budget += 1
     return now, budget
+
+
+def default_budget(observations: Sequence[Observation], settings: FitSettings) -> int:
+    """`calibrate`'s budget when none is given: `DEFAULT_BUDGET`, or where the recordings share
+    it so thinly that a surrogate fit of friction alone gets one local stage or none
+    (`friction_local_stages`, five takes and more), the least that gives it all: on the
+    2-layer unit's five takes 300 simulations fitted every coefficient within issue 13's goals
+    on 2 seeds of 6, 480 on 5 (docs/calibration.md, "Five takes get the budget their search
+    needs"). Never below what every stage needs to search at all (`min_budget`)."""
+    thin = friction_local_stages(observations, replace(settings, budget=DEFAULT_BUDGET))
+    budget = DEFAULT_BUDGET if thin is None else thin[1]
+    return max(budget, min_budget(observations, settings))
 
 
 def _replayed_more(observations: Sequence[Observation], friction: Friction,

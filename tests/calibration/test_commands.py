@@ -214,6 +214,43 @@ def test_calibrate_writes_cal_json_that_simulate_accepts(slide_dir, tmp_path, ca
                  "--level", "0.3"]) in (0, 1)
 
 
+class _FitReached(Exception):
+    """Raised in place of the fit, once `calibrate` has settled its settings."""
+
+
+def test_takes_that_share_the_default_budget_thinly_get_what_their_search_needs(
+        slide_dir, tmp_path, capsys, monkeypatch):
+    """Every point of the friction search replays every take. Ten takes in which one pair
+    slipped (2 coefficients) at 300 simulations: 6 final replays of each (60), 24 points, a
+    global stage of 10 and one local stage of 14 (a local stage needs 2 x (1 + 2 x 2) = 10).
+    50 points give a global stage of 20 and three local ones of 10: 60 + 50 x 10 = 560
+    simulations, which `calibrate` takes when no --budget is asked, and says so. A budget asked
+    is kept."""
+    paths = {k: ObjectPath(*(np.asarray(a) for a in (v.t_s, v.x_m, v.z_m, v.angle_rad)))
+             for k, v in Truth.read(slide_dir).objects.items()}
+    takes = []
+    for k in range(10):
+        shutil.copytree(slide_dir, rec := tmp_path / f"take{k}")
+        Trajectories(paths).to_csv(rec / "trajectories.csv")
+        takes.append(str(rec))
+    budgets = []
+
+    def fit(observations, settings, *_):
+        budgets.append(settings.budget)
+        raise _FitReached
+
+    monkeypatch.setattr("calibration.fit.fit", fit)
+    cal = str(tmp_path / "cal.json")
+    with pytest.raises(_FitReached):
+        main(["calibrate", *takes, "--out", cal])
+    assert re.search(r"^note: 10 recordings share the fit's simulations: 560, not 300, ",
+                     capsys.readouterr().out, re.MULTILINE)
+    with pytest.raises(_FitReached):
+        main(["calibrate", *takes, "--out", cal, "--budget", "300"])
+    assert "share the fit's simulations" not in capsys.readouterr().out
+    assert budgets == [560, 300]
+
+
 def test_calibrate_that_does_not_converge_writes_nothing(slide_dir, tmp_path, capsys):
     """A recording no friction explains (a bundle's tracked path jumps 30 mm forward at the
     start of the pulse): the fit is refused and nothing is written, but what it found and the
@@ -238,7 +275,8 @@ def test_calibrate_that_does_not_converge_writes_nothing(slide_dir, tmp_path, ca
     assert any(line.startswith("refused: the least explained recording") for line in found)
     # 7 points of the one take after its 3 final replays: no local stage of the surrogate
     assert re.search(r"^note: with 1 recording the 10 simulations give the friction search 0 "
-                     r"local stages of 3: --budget \d+ or more gives it all 3 ", captured.out,
+                     r"local stages of 3: --budget \d+ or more gives it all 3, as calibrate "
+                     r"does when no --budget is asked ", captured.out,
                      re.MULTILINE), captured.out
     assert list(out.iterdir()) == []
 

@@ -23,6 +23,7 @@ from calibration.fit import (
     _shifted,
     _stage_points,
     _value_stds,
+    default_budget,
     fit,
     friction_local_stages,
     min_budget,
@@ -182,6 +183,22 @@ def test_five_takes_at_300_simulations_leave_the_friction_search_one_local_stage
     assert friction_local_stages([*takes(5), wrapped], FitSettings(params="all")) is None
     # friction alone beside a wrapped take: its 6 final replays are spent too
     assert friction_local_stages([*takes(5), wrapped], FitSettings()) == (1, 486)
+
+
+def test_calibrates_default_budget_gives_the_friction_search_all_its_stages():
+    """300 simulations, unless the takes share them so thinly that a surrogate fit of friction
+    alone gets one local stage: then the least that gives it all three (five takes of two
+    slipping pairs: 480, above). Four takes keep two local stages at 300, and keep 300; so does
+    a descent. Never below the least with which every stage searches at all: a CMA-ES fit of
+    four coefficients needs 18 points (its start, a generation of 8, the best point again, 8
+    curvature probes), which on twenty takes is 360 replays, and one final replay of each:
+    380."""
+    takes = sliding_takes
+    assert default_budget(takes(5), FitSettings()) == 480
+    assert default_budget(takes(3), FitSettings()) == 300
+    assert default_budget(takes(4), FitSettings()) == 300
+    assert default_budget(takes(5), FitSettings(method="cmaes")) == 300
+    assert default_budget(takes(20), FitSettings(method="cmaes")) == 380
 
 
 def test_a_wrapped_fit_shares_its_budget_between_friction_and_the_wrap_by_parameters():
