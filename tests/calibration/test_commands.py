@@ -225,7 +225,7 @@ def test_takes_that_share_the_default_budget_thinly_get_what_their_search_needs(
     global stage of 10 and one local stage of 14 (a local stage needs 2 x (1 + 2 x 2) = 10).
     50 points give a global stage of 20 and three local ones of 10: 60 + 50 x 10 = 560
     simulations, which `calibrate` takes when no --budget is asked, and says so. A budget asked
-    is kept."""
+    is kept; one take keeps 300."""
     paths = {k: ObjectPath(*(np.asarray(a) for a in (v.t_s, v.x_m, v.z_m, v.angle_rad)))
              for k, v in Truth.read(slide_dir).objects.items()}
     takes = []
@@ -248,7 +248,11 @@ def test_takes_that_share_the_default_budget_thinly_get_what_their_search_needs(
     with pytest.raises(_FitReached):
         main(["calibrate", *takes, "--out", cal, "--budget", "300"])
     assert "share the fit's simulations" not in capsys.readouterr().out
-    assert budgets == [560, 300]
+    # one take has points enough at 300, said nothing of
+    with pytest.raises(_FitReached):
+        main(["calibrate", takes[0], "--out", cal])
+    assert "share the fit's simulations" not in capsys.readouterr().out
+    assert budgets == [560, 300, 300]
 
 
 def test_calibrate_that_does_not_converge_writes_nothing(slide_dir, tmp_path, capsys):
