@@ -585,7 +585,7 @@ def _result(observations: Sequence[Observation], bare: Sequence[Observation],
     replayed = {o.source: len(runs) for o, runs in zip(observations, replays, strict=True)}
     near = near_threshold(replayed, _final_replays(settings, len(observations)))
     reason = _failure(rms, verdict, replayed.get(verdict.source, 0), progress.simulations,
-                      found, settings)
+                      found, settings, _unphysical(observations, replays))
     return FitResult(calibration, rms, progress.simulations, settings.method, progress.curve,
                      [runs[0] for runs in replays], not reason, spread_rms, replay_rms, reason,
                      advice, tuple(found.stages), verdict,
@@ -622,14 +622,23 @@ def near_threshold(replayed: dict[str, int], repeats: int) -> tuple[str, ...]:
     return tuple(source for source, n in replayed.items() if n > repeats)
 
 
+def _unphysical(observations: Sequence[Observation],
+                replays: list[list[dict[str, np.ndarray] | None]]) -> dict[str, tuple[int, int]]:
+    """Per recording some of whose replays became unphysical: how many did, of how many."""
+    return {o.source: (sum(run is None for run in runs), len(runs))
+            for o, runs in zip(observations, replays, strict=True) if None in runs}
+
+
 def _failure(rms: float, verdict: acceptance.Unexplained, replays: int, simulations: int,
-             found: _Fitted, settings: FitSettings) -> str:
+             found: _Fitted, settings: FitSettings, blown: dict[str, tuple[int, int]]) -> str:
     """Why the fit is not to be trusted ("" when it is): a replay of the fitted values that
-    became unphysical, a recording the replays leave unexplained (`calibration.acceptance`), or
-    a search most of whose replays became unphysical. `replays`: how often the recording the
-    verdict names was replayed."""
-    if not math.isfinite(rms) or not math.isfinite(verdict.rms_m):
-        return "the fitted values' replay became unphysical"
+    became unphysical (`blown`: per recording, how many of its replays did, of how many), a
+    recording the replays leave unexplained (`calibration.acceptance`), or a search most of
+    whose replays became unphysical. `replays`: how often the recording the verdict names was
+    replayed."""
+    if blown:
+        return ("the fitted values' replays became unphysical: "
+                + "; ".join(f"{source} in {n} of {of}" for source, (n, of) in blown.items()))
     if verdict.rms_m > settings.max_residual_m:
         excused = (f" (excused as a rare mode: {', '.join(verdict.excused)})"
                    if verdict.excused else "")

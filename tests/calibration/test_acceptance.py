@@ -13,7 +13,7 @@ import pytest
 
 from calibration import acceptance
 from calibration.acceptance import NOISE_VAR_M2, body_unexplained, judge
-from calibration.fit import FitSettings, _failure, _Fitted
+from calibration.fit import FitSettings, _failure, _Fitted, _unphysical
 from calibration.recording import Recording, Truth
 from calibration.replay import observe, replay, resettled
 from calibration.track import track
@@ -122,13 +122,13 @@ def test_small_units_excuse_no_body():
 
 def test_a_refusal_names_the_recording_and_the_excused_body():
     verdict = acceptance.Unexplained("rec-0.45g", 0.0237, ("L2C2R1",))
-    reason = _failure(0.05, verdict, 24, 300, _Fitted(Friction()), FitSettings())
+    reason = _failure(0.05, verdict, 24, 300, _Fitted(Friction()), FitSettings(), {})
     assert reason.startswith("its values do not reproduce rec-0.45g, which is left 23.7 mm "
                              "unexplained > 10 mm by the scatter of "
                              "its 24 replays")
     assert "L2C2R1" in reason
     explained = dataclasses.replace(verdict, rms_m=0.009)
-    assert _failure(0.05, explained, 24, 300, _Fitted(Friction()), FitSettings()) == ""
+    assert _failure(0.05, explained, 24, 300, _Fitted(Friction()), FitSettings(), {}) == ""
 
 
 def test_a_search_most_of_whose_replays_blew_up_is_refused():
@@ -137,9 +137,23 @@ def test_a_search_most_of_whose_replays_blew_up_is_refused():
     explained = acceptance.Unexplained("rec", 0.001)
     half = _Fitted(Friction(), replays=200, unphysical=100)
     most = _Fitted(Friction(), replays=200, unphysical=101)
-    assert _failure(0.005, explained, 6, 240, half, FitSettings()) == ""
-    assert _failure(0.005, explained, 6, 240, most, FitSettings()) == (
+    assert _failure(0.005, explained, 6, 240, half, FitSettings(), {}) == ""
+    assert _failure(0.005, explained, 6, 240, most, FitSettings(), {}) == (
         "101 of the search's 200 replays became unphysical")
+
+
+def test_a_fit_whose_final_replays_blew_up_names_the_recordings_and_how_often():
+    """A whole unit can blow the bench up at the fitted values in one replay of several: the
+    fit is not trusted, and the engineer learns which take did it."""
+    blown = {"one-layer-0.5g": (1, 6), "three-layer-0.32g": (2, 6)}
+    reason = _failure(math.inf, acceptance.Unexplained("one-layer-0.5g", math.inf), 6, 480,
+                      _Fitted(Friction()), FitSettings(), blown)
+    assert reason == ("the fitted values' replays became unphysical: one-layer-0.5g in 1 of 6; "
+                      "three-layer-0.32g in 2 of 6")
+    takes = [types.SimpleNamespace(source=name) for name in ("two-layer-0.3g", *blown)]
+    run: dict = {}
+    replays = [[run] * 6, [run, None, run, run, run, run], [None, run, None, run, run, run]]
+    assert _unphysical(takes, replays) == blown
 
 
 @pytest.fixture(scope="module")
