@@ -393,7 +393,7 @@ def _check_outputs(args: argparse.Namespace, recordings: list) -> None:
 
 
 def run_calibrate(args: argparse.Namespace) -> int:
-    from calibration.fit import DEFAULT_BUDGET, FitSettings
+    from calibration.fit import FitSettings
 
     _check_calibrate_args(args)
     fitted, held = _recordings(args)
@@ -404,8 +404,8 @@ def run_calibrate(args: argparse.Namespace) -> int:
     observations = _observations(fitted, args.retrack)
     held_out = _observations(held, args.retrack)
     settings = _budgeted(args.budget, observations, FitSettings(
-        args.method, args.params, args.budget or DEFAULT_BUDGET, args.workers, args.seed,
-        args.max_residual_mm / 1000, known=known_scales(args.known)))
+        args.method, args.params, workers=args.workers, seed=args.seed,
+        max_residual_m=args.max_residual_mm / 1000, known=known_scales(args.known)))
     checkpoint = _checkpoint(args)
     try:
         return _fitted_and_written(args, observations, held_out, settings, checkpoint)
@@ -417,7 +417,7 @@ def run_calibrate(args: argparse.Namespace) -> int:
 
 
 def _budgeted(asked: int | None, observations: list, settings: FitSettings) -> FitSettings:
-    """The settings with the budget `--budget` asked, refused below what every stage needs to
+    """`settings` with the budget `--budget` asked, refused below what every stage needs to
     search at all; none asked, `fit.default_budget`, said when it is not the usual 300."""
     from calibration.fit import DEFAULT_BUDGET, default_budget, min_budget
 
@@ -432,7 +432,7 @@ def _budgeted(asked: int | None, observations: list, settings: FitSettings) -> F
     if asked < (least := min_budget(observations, settings)):
         raise InputError("arguments", "--budget",
                          f"must be >= {least} to fit these {n} recordings (got {asked})")
-    return settings
+    return replace(settings, budget=asked)
 
 
 def _fitted_and_written(args: argparse.Namespace, observations: list, held_out: list,
