@@ -30,7 +30,17 @@ from wrapenv.trace import Trace, in_pallet_frame
 from wrapenv.wrap import WrapFormat
 from wrapenv.wrap_physics import WrapNet
 
-PENETRATION_LIMIT_M = 0.02   # deeper overlap than this means the solver lost the contact
+#: Deeper overlap than this, kept for `PENETRATION_HOLD_S`, means the solver lost the contact.
+PENETRATION_LIMIT_M = 0.02
+#: How long an overlap may stay past the limit: an impact drives a body in for a few steps.
+#: A bundle falling off the 3-layer example is driven up to 22 mm into the deck, and the solver
+#: pushes it back within the limit in a step or two (docs/bench.md, "An impact is not a lost
+#: contact"). Judged on the overlap of one step, such a fall made a level invalid or
+#: not by whether the depth, read every `PENETRATION_READ_STEPS`, fell on the impact's step.
+PENETRATION_HOLD_S = 0.1
+#: The depth, a query over every contact, is read every this many steps, and every step while
+#: an overlap stands past the limit.
+PENETRATION_READ_STEPS = 24
 
 
 @dataclass(frozen=True)
@@ -331,6 +341,8 @@ class _Run:
                          self.stop_step if push else None)
         self.samples: list[tuple[float, float, np.ndarray, np.ndarray]] = []
         self.invalid = ""
+        #: The step since which an overlap has stood past `PENETRATION_LIMIT_M` (None: none).
+        self.deep_since: int | None = None
         self.stopped_early = ""
         self.not_at_rest = ""
         #: Whether this level began with the unit stacked (and wrapped) on the still sled.
@@ -355,10 +367,20 @@ class _Run:
             self.invalid = "non-finite state"
         elif np.max(norms(vel)) > self.speed_limit:
             self.invalid = f"a body exceeded {self.speed_limit:.1f} m/s (energy blow-up)"
-        elif step % 24 == 0:
-            depth = self.world.max_penetration_m()
-            if depth > PENETRATION_LIMIT_M:
-                self.invalid = f"bodies interpenetrate by {depth * 1000:.0f} mm"
+        elif step % PENETRATION_READ_STEPS == 0 or self.deep_since is not None:
+            self._check_overlap(step)
+
+    def _check_overlap(self, step: int) -> None:
+        """Invalid once bodies have stood deeper in each other than the limit for
+        `PENETRATION_HOLD_S`: the solver did not push them out, as it does after an impact."""
+        depth = self.world.max_penetration_m()
+        if depth <= PENETRATION_LIMIT_M:
+            self.deep_since = None
+        elif self.deep_since is None:
+            self.deep_since = step
+        elif (step - self.deep_since) * self.s.timestep_s >= PENETRATION_HOLD_S - 1e-9:
+            self.invalid = (f"bodies interpenetrate by {depth * 1000:.0f} mm "
+                            f"for {PENETRATION_HOLD_S:g} s")
 
     def _came_apart(self, pos: np.ndarray) -> str:
         """Which body moved farther than the pallet is long from where it was stacked while
@@ -443,6 +465,11 @@ class _Run:
                 self.world.set_sled_accel(float(self.accel[step + 1]))
                 self.world.step()
                 step += 1
+        if self.deep_since is not None and not (self.invalid or self.stopped_early or
+                                                self.not_at_rest):
+            # at rest, no impact is still being pushed out
+            depth = self.world.max_penetration_m()
+            self.invalid = f"bodies interpenetrate by {depth * 1000:.0f} mm at rest"
         return self._trace()
 
     def _observe(self, step: int) -> int | None:

@@ -10,15 +10,16 @@ import platform
 import re
 import subprocess
 import sys
+from dataclasses import replace
 
 import numpy as np
 import pytest
 
 from recommender.cli import main
-from wrapenv import bullet
+from wrapenv import bench, bullet
 from wrapenv.bench import BenchUnit, SimSettings, _Run, run_level, run_levels
 from wrapenv.eumos import evaluate
-from wrapenv.load import LoadUnit
+from wrapenv.load import FrictionPair, LoadUnit
 from wrapenv.profile import G, PulseProfile
 from wrapenv.wrap import WrapFormat
 
@@ -200,14 +201,80 @@ def test_a_state_turned_non_finite_during_the_level_is_invalid(monkeypatch):
 
 
 def test_bodies_the_solver_let_sink_into_each_other_make_the_level_invalid(monkeypatch):
-    """Deeper than `PENETRATION_LIMIT_M` the solver has lost the contact: whatever the figures
-    say, the run is no test. The depth, a query over every contact, is read every 24 steps
-    (0.1 s): the second reading, at step 24, ends the run."""
+    """Deeper than `PENETRATION_LIMIT_M` for `PENETRATION_HOLD_S` the solver has lost the
+    contact: whatever the figures say, the run is no test. The depth, a query over every
+    contact, is read every 24 steps, and every step while it stands past the limit: past it
+    from the reading at step 24, still past it at step 48 (0.1 s later), which ends the run."""
     _from_call(2, monkeypatch, "max_penetration_m", lambda depth: 0.05)
-    trace = run_level(LoadUnit.from_dict(SMALL).layout(), PulseProfile(0.2))
-    assert (trace.valid, trace.invalid_reason) == (False, "bodies interpenetrate by 50 mm")
-    assert len(trace.t_s) == 25 and trace.t_s[-1] == pytest.approx(24 / 240)
+    every_step = SimSettings(skip_still=False)
+    trace = run_level(LoadUnit.from_dict(SMALL).layout(), PulseProfile(0.2), every_step)
+    assert (trace.valid, trace.invalid_reason) == (False,
+                                                   "bodies interpenetrate by 50 mm for 0.1 s")
+    assert len(trace.t_s) == 49 and trace.t_s[-1] == pytest.approx(48 / 240)
     assert not evaluate(trace).passed
+
+
+def _deep_at_readings(monkeypatch, readings: range) -> None:
+    """BulletWorld.max_penetration_m answers 50 mm at the given readings (counted from 1),
+    as Bullet does at the others."""
+    real, calls = bullet.BulletWorld.max_penetration_m, {"n": 0}
+
+    def deep(self):
+        calls["n"] += 1
+        return 0.05 if calls["n"] in readings else real(self)
+
+    monkeypatch.setattr(bullet.BulletWorld, "max_penetration_m", deep)
+
+
+def test_an_overlap_pushed_out_within_the_hold_is_an_impact_not_a_lost_contact(monkeypatch):
+    # past the limit at the readings of steps 24 to 27, then as Bullet says: what a body
+    # driven in by an impact and pushed out by the solver looks like
+    layout = LoadUnit.from_dict(SMALL).layout()
+    clean = run_level(layout, PulseProfile(0.2))
+    _deep_at_readings(monkeypatch, range(2, 6))
+    trace = run_level(layout, PulseProfile(0.2))
+    assert trace.valid and trace.invalid_reason == ""
+    np.testing.assert_array_equal(trace.bundle_pos_m, clean.bundle_pos_m)
+
+
+def test_an_overlap_still_past_the_limit_when_the_level_comes_to_rest_is_a_lost_contact(
+        monkeypatch):
+    # at rest no impact is being pushed out: the overlap counts however briefly it was read
+    layout, every_step = LoadUnit.from_dict(SMALL).layout(), SimSettings(skip_still=False)
+    steps = len(run_level(layout, PulseProfile(0.2), every_step).t_s) - 1
+    assert steps % bench.PENETRATION_READ_STEPS, "the last step must fall between readings"
+    first_deep = steps // bench.PENETRATION_READ_STEPS + 1  # the last regular reading's number
+    _deep_at_readings(monkeypatch, range(first_deep, first_deep + 1000))
+    trace = run_level(layout, PulseProfile(0.2), every_step)
+    assert len(trace.t_s) - 1 == steps and not trace.not_at_rest
+    assert (trace.valid, trace.invalid_reason) == (False, "bodies interpenetrate by 50 mm at rest")
+
+
+def test_a_bundle_falling_onto_the_deck_is_a_failed_level_not_an_invalid_one(monkeypatch):
+    """A top-layer bundle of the 3-layer example falls about a metre onto the sled's deck at
+    0.5 g: the solver lets it 24 mm into the deck and pushes it out within a few steps. Read
+    at every step, that impact made the level invalid under a limit on one step's overlap
+    (the level then was invalid or not by whether the reading every 24 steps fell on it)."""
+    monkeypatch.setattr(bench, "PENETRATION_READ_STEPS", 1)
+    depths: list[float] = []
+    real = bullet.BulletWorld.max_penetration_m
+
+    def recorded(self):
+        depths.append(real(self))
+        return depths[-1]
+
+    monkeypatch.setattr(bullet.BulletWorld, "max_penetration_m", recorded)
+    load = LoadUnit.from_toml("examples/pet_3layer_columnar.toml")
+    load = load.with_friction(replace(load.friction,
+                                      pallet_bundle=FrictionPair(0.463, 0.393),
+                                      bundle_bundle=FrictionPair(0.36, 0.283)))
+    trace = run_level(load.layout(), PulseProfile(0.5))
+    assert trace.valid, trace.invalid_reason
+    deepest = int(np.argmax(depths))
+    assert depths[deepest] > bench.PENETRATION_LIMIT_M  # the impact, read
+    assert max(depths[deepest + 6:]) < bench.PENETRATION_LIMIT_M  # pushed out in a few steps
+    verdict = evaluate(trace)
+    assert not verdict.passed and any("fallen" in d for d in verdict.damage)
 
 
 @pytest.mark.parametrize("rigid", [False, True], ids=["reduced", "rigid"])
