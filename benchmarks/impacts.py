@@ -2,12 +2,12 @@
 
 The bench calls a level invalid where bodies stand deeper in each other than
 `PENETRATION_LIMIT_M` for `PENETRATION_HOLD_S` (wrapenv/bench.py): the solver lost the contact.
-An impact drives a body in for a few steps before the solver pushes it out. This measures
-those impacts on the unwrapped columnar examples and on the 3-layer one in a light film that
-gives way, at levels where bundles fall, over friction drawn around the examples' own: the deepest overlap of each level read at every step, the
-steps it stood past the limit, and how each rule judges the level: the hold (today), and a
-limit on one reading every `PENETRATION_READ_STEPS` steps (until 2026-12-03), which judged an
-impact by whether a reading fell on its step.
+An impact drives a body in for a few steps before the solver pushes it out. This measures those
+impacts on the unwrapped columnar examples and on the 3-layer one in a light film that gives
+way, at levels where bundles fall, over friction drawn around the examples' own: the deepest
+overlap of each level read at every step, the steps it stood past the limit, and how each rule
+judges the level: the hold (today), and a limit on one reading every `PENETRATION_READ_STEPS`
+steps (until 2026-12-03), which judged an impact by whether a reading fell on its step.
 
     python -m benchmarks.impacts [--draws 10] [--seed 0] [--workers 2]
 """
