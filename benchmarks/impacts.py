@@ -9,7 +9,7 @@ overlap of each level read at every step, the steps it stood past the limit, and
 judges the level: the hold (today), and a limit on one reading every `PENETRATION_READ_STEPS`
 steps (until 2026-12-03), which judged an impact by whether a reading fell on its step.
 
-    python -m benchmarks.impacts [--draws 10] [--seed 0] [--workers 2]
+    python -m benchmarks.impacts [--draws 10] [--seed 0] [--workers 2] [--training]
 """
 
 from __future__ import annotations
@@ -44,6 +44,7 @@ class Draw:
     path: str
     wrap_path: str | None
     level_g: float
+    training: bool  # at PPO training's settings (SimSettings.training) instead of the defaults
     pallet_bundle: FrictionPair
     bundle_bundle: FrictionPair
 
@@ -81,13 +82,13 @@ def _drawn(pair: FrictionPair, rng: np.random.Generator) -> FrictionPair:
     return FrictionPair(round(static, 3), round(kinetic, 3))
 
 
-def draws(n: int, seed: int) -> list[Draw]:
+def draws(n: int, seed: int, training: bool) -> list[Draw]:
     rng = np.random.default_rng(seed)
     out: list[Draw] = []
     for path, wrap_path, levels in CASES:
         friction = LoadUnit.from_toml(path).friction
         for level in levels:
-            out.extend(Draw(path, wrap_path, level, _drawn(friction.pallet_bundle, rng),
+            out.extend(Draw(path, wrap_path, level, training, _drawn(friction.pallet_bundle, rng),
                             _drawn(friction.bundle_bundle, rng)) for _ in range(n))
     return out
 
@@ -99,7 +100,8 @@ def measure(draw: Draw) -> Impact:
     layout = load.layout()
     wrap = (WrapFormat.from_toml(draw.wrap_path, layout.load_height_m) if draw.wrap_path
             else None)
-    with bench.BenchUnit(layout, wrap=wrap) as unit:
+    settings = bench.SimSettings.training() if draw.training else bench.SimSettings()
+    with bench.BenchUnit(layout, settings, wrap) as unit:
         run = _Recorded(unit.world, layout, PulseProfile(draw.level_g), unit.settings,
                         unit.stick_slip, unit.wrap, None)
         trace = run.execute()
@@ -117,12 +119,16 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--draws", type=int, default=10, help="friction draws per level")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--workers", type=int, default=2)
+    parser.add_argument("--training", action="store_true",
+                        help="at PPO training's settings: a 1/160 s step, a level ended once "
+                             "decided failed")
     args = parser.parse_args(argv)
     t0 = time.perf_counter()
     with Pool(args.workers) as pool:
-        impacts = pool.map(measure, draws(args.draws, args.seed))
+        impacts = pool.map(measure, draws(args.draws, args.seed, args.training))
     print(f"limit {1000 * bench.PENETRATION_LIMIT_M:g} mm, hold {bench.PENETRATION_HOLD_S:g} s, "
-          f"{args.draws} friction draws a level")
+          f"{args.draws} friction draws a level, "
+          f"{'training' if args.training else 'default'} settings")
     print(f"{'example':46s} level  deepest overlap, mm  past the limit  most steps past it  "
           "invalid: the hold / one reading (expected)")
     for path, wrap_path, levels in CASES:
