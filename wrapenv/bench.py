@@ -342,8 +342,10 @@ class _Run:
                          self.stop_step if push else None)
         self.samples: list[tuple[float, float, np.ndarray, np.ndarray]] = []
         self.invalid = ""
-        #: The step since which an overlap has stood past `PENETRATION_LIMIT_M` (None: none).
+        #: The step since which an overlap has stood past `PENETRATION_LIMIT_M` (None: none),
+        #: and the depth last read.
         self.deep_since: int | None = None
+        self.depth_m = 0.0
         self.stopped_early = ""
         self.not_at_rest = ""
         #: Whether this level began with the unit stacked (and wrapped) on the still sled.
@@ -374,13 +376,13 @@ class _Run:
     def _check_overlap(self, step: int) -> None:
         """Invalid once bodies have stood deeper in each other than the limit for
         `PENETRATION_HOLD_S`: the solver did not push them out, as it does after an impact."""
-        depth = self.world.max_penetration_m()
-        if depth <= PENETRATION_LIMIT_M:
+        self.depth_m = self.world.max_penetration_m()
+        if self.depth_m <= PENETRATION_LIMIT_M:
             self.deep_since = None
         elif self.deep_since is None:
             self.deep_since = step
         elif (step - self.deep_since) * self.s.timestep_s >= PENETRATION_HOLD_S - 1e-9:
-            self.invalid = (f"bodies interpenetrate by {depth * 1000:.0f} mm "
+            self.invalid = (f"bodies interpenetrate by {self.depth_m * 1000:.0f} mm "
                             f"for {PENETRATION_HOLD_S:g} s")
 
     def _came_apart(self, pos: np.ndarray) -> str:
@@ -468,9 +470,8 @@ class _Run:
                 step += 1
         if self.deep_since is not None and not (self.invalid or self.stopped_early or
                                                 self.not_at_rest):
-            # at rest, no impact is still being pushed out
-            depth = self.world.max_penetration_m()
-            self.invalid = f"bodies interpenetrate by {depth * 1000:.0f} mm at rest"
+            # at rest, no impact is still being pushed out (the depth was read at the last step)
+            self.invalid = f"bodies interpenetrate by {self.depth_m * 1000:.0f} mm at rest"
         return self._trace()
 
     def _observe(self, step: int) -> int | None:

@@ -180,15 +180,16 @@ def test_non_finite_state_is_invalid(monkeypatch):
     assert not evaluate(trace).passed
 
 
-def _from_call(n: int, monkeypatch, method: str, change) -> None:
-    """BulletWorld.`method` answers as Bullet does, then `change`d from its `n`-th call on:
-    the level is under way (the settled state, the first call, was sound)."""
+def _from_call(n: int, monkeypatch, method: str, change, until: float = math.inf) -> None:
+    """BulletWorld.`method` answers as Bullet does, then `change`d from its `n`-th call on
+    (before its `until`-th): the level is under way (the settled state, the first call, was
+    sound)."""
     real, calls = getattr(bullet.BulletWorld, method), {"n": 0}
 
     def later(self, *args):
         calls["n"] += 1
         answer = real(self, *args)
-        return change(answer) if calls["n"] >= n else answer
+        return change(answer) if n <= calls["n"] < until else answer
 
     monkeypatch.setattr(bullet.BulletWorld, method, later)
 
@@ -217,13 +218,8 @@ def test_bodies_the_solver_let_sink_into_each_other_make_the_level_invalid(monke
 def _deep_at_readings(monkeypatch, readings: range) -> None:
     """BulletWorld.max_penetration_m answers 50 mm at the given readings (counted from 1),
     as Bullet does at the others."""
-    real, calls = bullet.BulletWorld.max_penetration_m, {"n": 0}
-
-    def deep(self):
-        calls["n"] += 1
-        return 0.05 if calls["n"] in readings else real(self)
-
-    monkeypatch.setattr(bullet.BulletWorld, "max_penetration_m", deep)
+    _from_call(readings.start, monkeypatch, "max_penetration_m", lambda depth: 0.05,
+               until=readings.stop)
 
 
 def test_an_overlap_pushed_out_within_the_hold_is_an_impact_not_a_lost_contact(monkeypatch):
