@@ -298,7 +298,8 @@ def _sample_run(load: LoadUnit, levels: list[Profile], laid: WrapFormat | None,
 
 
 def _rerun(bar: Any, iterations: int) -> None:
-    """Progress starts again: the squeezed stack crept, the levels run with more iterations."""
+    """Progress starts again: the squeezed stack was not solved, the levels run with more
+    iterations."""
     bar.reset()
     bar.set_description(f"levels ({iterations} solver iterations)")
 

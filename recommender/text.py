@@ -140,11 +140,11 @@ def verdict_table(load: LoadUnit, run: BenchRun, orientation: Orientation | None
 
 def rerun_note(run: BenchRun) -> str:
     """A line when the run had to be made again with more solver iterations ("" if not)."""
-    if not run.crept_at:
+    if not run.unsolved_at:
         return ""
-    tried = " and ".join(map(str, run.crept_at))
-    return (f"solved with {run.solver_iterations} solver iterations: at {tried} the squeezed "
-            "stack crept on under static friction (a wrap many times the bundles' weight)")
+    tried = ", ".join(f"at {iterations} it {why}" for iterations, why in run.unsolved_at)
+    return (f"solved with {run.solver_iterations} solver iterations: the squeezed stack (a wrap "
+            f"many times the bundles' weight) was not solved with fewer ({tried})")
 
 
 def _carriage(p: Pass, wrap: WrapFormat, load_height_m: float) -> str:

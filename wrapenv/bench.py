@@ -61,10 +61,11 @@ class SimSettings:
     #: A squeeze harder still (ten top wraps where the Kraft default lays three, all at its
     #: 800 N) leaves 50 iterations unconverged too: on the 2-layer example the stack crept 6.9 mm
     #: at 0.2 g and was still moving 3 s after the sled stopped, so more wrap looked worse than
-    #: less; with 100 it rests at 0.5 mm, and in a fifth of the CPU. So a wrapped sequence in
-    #: which a level ends still moving with nothing damaged (what a creeping squeezed stack
-    #: does) is run again from the start with twice the iterations, up to this many
-    #: (`run_levels`; benchmarks/bench_solver.py).
+    #: less; with 100 it rests at 0.5 mm, and in a fifth of the CPU. At training's 1/160 s
+    #: step such squeezes also leave bodies inside each other or blow up at 50, not at 100
+    #: (benchmarks/training_invalid.py). So a wrapped sequence whose squeeze a level shows
+    #: unsolved (`unconverged`) is run again from the start with twice the iterations, up to
+    #: this many (`run_levels`; benchmarks/bench_solver.py).
     max_wrapped_solver_iterations: int = 200
     #: A wrapped unit's contact ERP, the share of a penetration Bullet corrects per step
     #: (pybullet's default: 0.08). Converged under a squeeze of many times the bundles' weight,
@@ -142,10 +143,11 @@ class BenchRun:
     verdict: Verdict
     traces: tuple[Trace, ...]
     #: The solver iterations the run was made with (more than the settings' when a wrapped
-    #: stack crept: `run_levels`).
+    #: stack's solve did not converge: `run_levels`).
     solver_iterations: int
-    #: The iterations of the runs made before it whose squeezed stack crept (none: the first).
-    crept_at: tuple[int, ...] = ()
+    #: The runs made before it, each as its iterations and what showed its squeezed stack
+    #: unsolved (`unconverged`; none: the first run is the answer).
+    unsolved_at: tuple[tuple[int, str], ...] = ()
 
 
 def run_level(layout: Layout, profile: Profile, settings: SimSettings = SimSettings(),
@@ -232,30 +234,39 @@ def run_levels(
     or stopped once decided); a level still moving at the longest wait is judged where it
     stands, and the next starts from there.
     `on_level` hears each level's verdict as it is decided (progress for people).
-    A wrapped sequence whose stack crept (a level still moving at its end with nothing
-    damaged) is run again with twice the solver iterations, up to
-    `SimSettings.max_wrapped_solver_iterations`; `BenchRun.solver_iterations` says how many
-    the answer took; `on_rerun` hears of a run started again, with its iterations."""
+    A wrapped sequence whose squeezed stack the solver did not converge (`unconverged`) is run
+    again with twice the solver iterations, up to `SimSettings.max_wrapped_solver_iterations`;
+    `BenchRun.solver_iterations` says how many the answer took; `on_rerun` hears of a run
+    started again, with its iterations."""
     levels = tuple(levels)
-    crept: tuple[int, ...] = ()
+    unsolved: tuple[tuple[int, str], ...] = ()
     while True:
         run = _run_levels_once(load, levels, settings, orientation, stop_at_failure, wrap,
                                fresh, limits, on_level)
+        why = unconverged(run) if wrap is not None else ""
         doubled = 2 * settings.wrapped_solver_iterations
-        if not (wrap is not None and _crept(run) and
-                doubled <= settings.max_wrapped_solver_iterations):
-            return replace(run, crept_at=crept)
-        crept += (settings.wrapped_solver_iterations,)
+        if not why or doubled > settings.max_wrapped_solver_iterations:
+            return replace(run, unsolved_at=unsolved)
+        unsolved += ((settings.wrapped_solver_iterations, why),)
         settings = replace(settings, wrapped_solver_iterations=doubled)
         if on_rerun is not None:
             on_rerun(doubled)
 
 
-def _crept(run: BenchRun) -> bool:
-    """A level of a valid run ended still moving though nothing broke, fell or tore: the
-    squeezed stack's solve did not converge."""
-    return run.verdict.valid and any(level.not_at_rest and not level.damage
-                                     for level in run.verdict.levels)
+def unconverged(run: BenchRun) -> str:
+    """What shows that a run's squeezed stack was not solved at its iterations ("" if
+    nothing): a level made invalid by the solver (bodies left inside each other past the
+    limit, or an energy blow-up: at 1/160 s heavy Kraft programs do both at 50 iterations,
+    not at 100), or, in a valid run, a level that ended still moving though nothing broke,
+    fell or tore (the stack crept on under static friction). A unit that came apart is no
+    unsolved squeeze."""
+    for trace in run.traces:
+        if trace.unsolved:
+            return trace.unsolved
+    if run.verdict.valid and any(level.not_at_rest and not level.damage
+                                 for level in run.verdict.levels):
+        return "crept on under static friction"
+    return ""
 
 
 def _run_levels_once(
@@ -346,6 +357,7 @@ class _Run:
         #: and the depth last read.
         self.deep_since: int | None = None
         self.depth_m = 0.0
+        self.unsolved = ""  # what showed the solver failed, when that made the level invalid
         self.stopped_early = ""
         self.not_at_rest = ""
         #: Whether this level began with the unit stacked (and wrapped) on the still sled.
@@ -370,6 +382,7 @@ class _Run:
             self.invalid = "non-finite state"
         elif np.max(norms(vel)) > self.speed_limit:
             self.invalid = f"a body exceeded {self.speed_limit:.1f} m/s (energy blow-up)"
+            self.unsolved = "blew up"
         elif step % PENETRATION_READ_STEPS == 0 or self.deep_since is not None:
             self._check_overlap(step)
 
@@ -384,6 +397,7 @@ class _Run:
         elif (step - self.deep_since) * self.s.timestep_s >= PENETRATION_HOLD_S - 1e-9:
             self.invalid = (f"bodies interpenetrate by {self.depth_m * 1000:.0f} mm "
                             f"for {PENETRATION_HOLD_S:g} s")
+            self.unsolved = "left bodies inside each other"
 
     def _came_apart(self, pos: np.ndarray) -> str:
         """Which body moved farther than the pallet is long from where it was stacked while
@@ -472,6 +486,7 @@ class _Run:
                                                 self.not_at_rest):
             # at rest, no impact is still being pushed out (the depth was read at the last step)
             self.invalid = f"bodies interpenetrate by {self.depth_m * 1000:.0f} mm at rest"
+            self.unsolved = "left bodies inside each other"
         return self._trace()
 
     def _observe(self, step: int) -> int | None:
@@ -541,6 +556,7 @@ class _Run:
             invalid_reason=self.invalid,
             stopped_early=self.stopped_early,
             not_at_rest=self.not_at_rest,
+            unsolved=self.unsolved,
             wrap=self.wrap.report() if self.wrap is not None else None,
             layers=np.array([b.layer for b in self.layout.bundles]),
             origin_m=self.origin_m,

@@ -39,6 +39,10 @@ class Trace:
     #: Why the run ended with a body still moving ("": it ended at rest or stopped early): its
     #: permanent figures are those of its last poses, which may not be where it would rest.
     not_at_rest: str = ""
+    #: Why the level is invalid if the solver failed ("": it did not): bodies left inside each
+    #: other past the limit, or a blow-up; in a wrapped unit, a squeeze its iterations did not
+    #: solve.
+    unsolved: str = ""
     #: (n,) the layer of each bundle (1 at the bottom); None: all in one layer.
     layers: np.ndarray | None = None
     #: (n, 3) bundle centres in the pallet's frame when the unit was first put on the sled

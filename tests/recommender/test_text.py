@@ -18,6 +18,7 @@ from recommender.text import (
     orientation_tested,
     program_summary,
     program_text,
+    rerun_note,
     sample_figures,
     sequence_text,
     verdict_table,
@@ -240,3 +241,14 @@ def test_a_worst_sample_gives_its_two_figures_and_none_that_a_blown_up_run_lacks
         "elastic 12.3 mm, permanent 0.0 mm")
     assert sample_figures({"elastic_max_m": None, "permanent_max_m": None}) == (
         "elastic n/a, permanent n/a")
+
+
+def test_a_run_made_again_with_more_iterations_says_why_each_count_fell_short():
+    run = BenchRun(Verdict(0.804, (level(True),)), (), 200,
+                   ((50, "left bodies inside each other"),
+                    (100, "crept on under static friction")))
+    assert rerun_note(run) == (
+        "solved with 200 solver iterations: the squeezed stack (a wrap many times the bundles' "
+        "weight) was not solved with fewer (at 50 it left bodies inside each other, at 100 it "
+        "crept on under static friction)")
+    assert rerun_note(replace(run, unsolved_at=())) == ""
