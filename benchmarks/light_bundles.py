@@ -7,7 +7,8 @@ an EUR pallet against its stop bar, of several masses, each wrapped by the least
 `recommend`'s space (one bottom wrap, a touching spiral, one top wrap) at several tensions and by
 the machine's default Kraft program (examples/program_kraft_default.toml: 800 N, 3 bottom and 3
 top wraps, a 50 % overlap spiral), a fresh unit at 0.2 g and at 0.5 g. Prints a Markdown table:
-P pass, F fail, I invalid (with the reason).
+P pass, F fail, I invalid (with the reason), and the solver iterations of the answer (more than
+50 when the squeeze was not solved with fewer and the run was made again: `run_levels`).
 
     python -m benchmarks.light_bundles [--workers 2]
 """
@@ -43,9 +44,10 @@ def _wrap(load: LoadUnit, program: str) -> WrapFormat:
 def case(args: tuple[float, str]) -> str:
     mass, program = args
     load = unit(mass)
-    verdict = run_levels(load, LEVELS_G, wrap=_wrap(load, program), fresh=True).verdict
+    run = run_levels(load, LEVELS_G, wrap=_wrap(load, program), fresh=True)
     cells = [("P" if v.passed else "F" if v.valid else f"I ({v.invalid_reason})")
-             for v in verdict.levels]
+             for v in run.verdict.levels]
+    cells.append(str(run.solver_iterations))
     name = "default Kraft program (800 N)" if program == "default" else \
         f"least web at {float(program):.0f} N"
     return f"| {mass:g} kg | {name} | " + " | ".join(cells) + " |"
@@ -54,7 +56,7 @@ def case(args: tuple[float, str]) -> str:
 def main() -> None:
     cases = [(m, p) for m in MASSES_KG
              for p in (*(f"{t}" for t in LEAST_WEB_TENSIONS_N), "default")]
-    print_table(("carton", "wrap", *(f"{g} g" for g in LEVELS_G)), case, cases,
+    print_table(("carton", "wrap", *(f"{g} g" for g in LEVELS_G), "solver iterations"), case, cases,
                 __doc__.splitlines()[0])
 
 
