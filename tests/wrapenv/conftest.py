@@ -27,3 +27,9 @@ def weak_wrap_on_a_slick_unit() -> tuple[LoadUnit, WrapFormat]:
     wrap = WrapFormat.from_dict({"material": WEAK_WEB, "web_width_m": 0.5, "band": [
         {"from_m": 0.0, "to_m": 0.804, "layers": 1, "tension_n": 20.0}]})
     return slick_two_layers(), wrap
+
+
+def kraft_example() -> tuple[LoadUnit, WrapFormat]:
+    """The 2-layer example and its bundled Kraft wrap."""
+    load = LoadUnit.from_toml("examples/pet_2layer_columnar.toml")
+    return load, WrapFormat.from_toml("examples/wrap_kraft_2layer.toml", load.load_height_m)

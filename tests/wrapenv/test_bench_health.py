@@ -16,6 +16,7 @@ import numpy as np
 import pytest
 
 from recommender.cli import main
+from tests.wrapenv.conftest import kraft_example
 from wrapenv import bench, bullet
 from wrapenv.bench import BenchUnit, SimSettings, _Run, run_level, run_levels
 from wrapenv.eumos import evaluate
@@ -316,17 +317,12 @@ def test_a_body_faster_than_the_sled_s_whole_change_of_speed_plus_a_fall_is_a_bl
     assert run.invalid == f"a body exceeded {limit:.1f} m/s (energy blow-up)"
 
 
-def _kraft_example() -> tuple[LoadUnit, WrapFormat]:
-    load = LoadUnit.from_toml("examples/pet_2layer_columnar.toml")
-    return load, WrapFormat.from_toml("examples/wrap_kraft_2layer.toml", load.load_height_m)
-
-
 def test_a_wrapped_run_left_with_bodies_inside_each_other_is_solved_again_up_to_the_most(
         monkeypatch):
     """An overlap that stands past the limit in a wrapped unit is a squeeze the solver did not
     solve, as a creeping stack is: the run is made again with twice the iterations (50, 100,
     200), and an overlap still there at the most leaves the run invalid, each count said."""
-    load, wrap = _kraft_example()
+    load, wrap = kraft_example()
     _from_call(2, monkeypatch, "max_penetration_m", lambda depth: 0.05)
     heard: list[int] = []
     run = run_levels(load, [0.2], wrap=wrap, on_rerun=heard.append)
@@ -340,7 +336,7 @@ def test_a_wrapped_run_that_blew_up_is_solved_again_a_bare_one_is_not(monkeypatc
     """A wrapped unit's energy blow-up is its squeeze unsolved too, and is made again; a bare
     unit is solved with `solver_iterations`, which a rerun does not raise, so its blow-up or
     overlap stays invalid from its first run."""
-    load, wrap = _kraft_example()
+    load, wrap = kraft_example()
     heard: list[int] = []
     with monkeypatch.context() as patched:
         _from_call(100, patched, "state", lambda s: (s[0], s[1], s[2] + 100.0, s[3]))

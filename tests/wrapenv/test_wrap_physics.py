@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from tests.wrapenv.conftest import slick_two_layers, weak_wrap_on_a_slick_unit
+from tests.wrapenv.conftest import kraft_example, slick_two_layers, weak_wrap_on_a_slick_unit
 from wrapenv import bench
 from wrapenv.bench import Push, SimSettings, run_level, run_levels
 from wrapenv.eumos import WRAP_OPENED, WRAP_TORN, evaluate
@@ -31,7 +31,6 @@ from wrapenv.wrap import WrapFormat
 from wrapenv.wrap_physics import PALLET_CORNER_STIFFNESS_N_PER_M2, WrapNet
 
 EXAMPLE_3 = "examples/pet_3layer_columnar.toml"
-EXAMPLE_2 = "examples/pet_2layer_columnar.toml"
 #: Differences smaller than this are solver noise (a squeezed stack jitters by ~1 mm).
 MONOTONE_TOLERANCE_M = 0.002
 
@@ -136,12 +135,6 @@ def test_without_a_band_on_the_pallet_the_wrap_is_not_anchored():
 
     assert touches_pallet(anchored)
     assert 0 not in floating.node_body and not touches_pallet(floating)
-
-
-def kraft_example() -> tuple[LoadUnit, WrapFormat]:
-    """The 2-layer example and its bundled Kraft wrap."""
-    load = LoadUnit.from_toml(EXAMPLE_2)
-    return load, WrapFormat.from_toml("examples/wrap_kraft_2layer.toml", load.load_height_m)
 
 
 def two_layer_kraft() -> tuple[WrapNet, Any]:
@@ -728,7 +721,7 @@ def test_a_stack_that_creeps_at_every_count_is_run_up_to_the_most_iterations_and
 
 
 def test_a_squeeze_that_leaves_bodies_inside_each_other_is_solved_again_with_more_iterations():
-    """Found in training's random episodes: one layer of five light, tall bundles (4.3 kg)
+    """Found in training's random episodes: one layer of fifteen light, tall bundles (4.3 kg)
     under six bottom wraps at Kraft's 800 N, three reinforcement wraps at 247 N and two top
     wraps at 594 N, laid 9 % tighter and 22 % stiffer than nominal (a verification sample), at
     training's 1/160 s step. Relaxed for 16 h the bottom wraps hold 774 N each, and six of them
