@@ -115,7 +115,8 @@ def main() -> None:
         print(f"  {n:5d}  {why}")
     ended = Counter(("valid" if e["valid"] else "invalid") + (", passed" if e["passed"] else "")
                     for e in rerun)
-    print("  ended: " + ", ".join(f"{n} {end}" for end, n in ended.most_common()))
+    if rerun:
+        print("  ended: " + ", ".join(f"{n} {end}" for end, n in ended.most_common()))
     if args.log:
         with open(args.log, "a", encoding="utf-8") as log:
             for e in played:
