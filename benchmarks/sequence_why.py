@@ -50,7 +50,7 @@ def _moves(trace: Trace) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _own_max_mm(trace: Trace) -> float:
-    return 1000 * float(np.linalg.norm(_moves(trace)[1], axis=1).max())
+    return 1000 * float(trace.bundle_displacement_m()[-1].max())
 
 
 def _perturbed(layout: Layout, g: float, wrap: WrapFormat | None) -> str:
@@ -80,11 +80,9 @@ def _layer_pull_g(net: WrapNet, trace: Trace) -> float:
 def _wrap_state(net: WrapNet, trace: Trace) -> str:
     """At the end of `trace`: the rings' tension as a share of the laid tension, the largest
     plastic stretch, and the wrap's largest pull on a layer."""
-    r, p = net.rings, net.panels
-    laid = float(r.pretension_n.sum())
-    share = float(r.last_n.sum()) / laid if laid > 0 else float("nan")
-    strain = [e.plastic_m / np.maximum(e.length_m, 1e-9) for e in (r, p) if len(e.plastic_m)]
-    plastic = max((float(s.max()) for s in strain), default=0.0)
+    laid = float(net.rings.pretension_n.sum())
+    share = float(net.rings.last_n.sum()) / laid if laid > 0 else float("nan")
+    plastic = net.report().plastic_strain_max
     return f"{share:9.2f} {1000 * plastic:9.2f} {_layer_pull_g(net, trace):7.3f}"
 
 
@@ -92,7 +90,7 @@ def _carried_row(trace: Trace) -> tuple[str, str, bool]:
     """The carried unit's columns (before and after the fresh unit's), and whether the sequence
     stops there (the level failed, as `benchmarks/sequence.py` stops at a failure)."""
     carried, own = _moves(trace)
-    total = np.linalg.norm(carried + own, axis=1)
+    total = trace.permanent_total_m()
     worst = int(total.argmax())
     c, o = carried[worst], own[worst]
     lengths = float(np.linalg.norm(c) * np.linalg.norm(o))
