@@ -30,7 +30,14 @@ from wrapenv import __version__
 from wrapenv.bench import BenchRun, SimSettings
 from wrapenv.config import printable
 from wrapenv.eumos import EUMOS_CRITERIA, NO_DAMAGE, Criterion, LevelVerdict, Verdict
-from wrapenv.load import PAIRS, Layout, LoadUnit, Orientation
+from wrapenv.load import (
+    PAIRS,
+    PET_CORNER_STIFFNESS_N_PER_M2,
+    Bundle,
+    Layout,
+    LoadUnit,
+    Orientation,
+)
 from wrapenv.uncertainty import PassProbability
 from wrapenv.wrap import WrapFormat, program_to_dict
 from wrapenv.wrap_report import WrapReport
@@ -144,12 +151,25 @@ def _load_section(load: LoadUnit, layout: Layout, calibrated: bool) -> str:
                   f"bundles on the first, {len(layout.bundles)} in all"),
         ("Load height, gross mass", f"{load.load_height_m:.3f} m, {load.mass_kg:.0f} kg"),
         ("Pallet stopper on the sled", "yes" if load.pallet_stopper else "no"),
+        ("Bundles' give under the web", _give_text(b, calibrated)),
     ]
     friction = [(name.replace("_", "–"), f"{load.friction.pair(name).static:.3f}",
                  f"{load.friction.pair(name).kinetic:.3f}") for name in PAIRS]
     return ("<section><h2>Load unit</h2>" + _facts(facts)
             + _table([f"Friction pair ({'calibrated' if calibrated else 'the load file'})",
                       "static", "kinetic"], friction, "num") + "</section>\n")
+
+
+def _give_text(bundle: Bundle, calibrated: bool) -> str:
+    """The edges' give and where it came from: no source gives it, and a film answer leans on
+    it (docs/recommend.md, "A film answer and a give nobody measured")."""
+    figure = (f"{bundle.corner_stiffness_n_per_m2 / 1e3:.0f} kN/m per m of edge, edges of "
+              f"{bundle.edge_radius_m * 1000:.0f} mm radius")
+    if bundle.corner_stiffness_n_per_m2 == PET_CORNER_STIFFNESS_N_PER_M2:
+        return (f"{figure}: assumed, a shrink-wrapped PET bundle's, which no source gives "
+                f"(docs/materials.md, B1); a film answer leans on it, so measure yours and "
+                f"enter it in the load file")
+    return f"{figure}: the load file's" + (", with its calibration" if calibrated else "")
 
 
 def _program_rows(wrap: WrapFormat) -> list[tuple[str, str]]:

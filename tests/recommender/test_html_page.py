@@ -253,6 +253,23 @@ def test_the_friction_table_says_whether_it_was_calibrated():
     assert "Friction pair (calibrated)" in heads
 
 
+def test_the_load_section_says_whether_the_bundles_give_was_assumed():
+    """No source gives a bundle's give under a web and a film answer leans on it
+    (docs/recommend.md): a report on the PET preset's says it is assumed; one whose load file
+    gives its own says whose it is."""
+    assumed = Parsed(render(page())).facts()["Bundles' give under the web"]
+    assert assumed.startswith("600 kN/m per m of edge, edges of 45 mm radius: assumed")
+    assert "measure yours" in assumed
+    measured = LoadUnit.from_dict({**LOAD, "bundle": {"preset": "PET6x1.5L",
+                                                      "corner_stiffness_n_per_m2": 2.0e5}})
+    given = page(load=measured)
+    assert Parsed(render(given)).facts()["Bundles' give under the web"] == (
+        "200 kN/m per m of edge, edges of 45 mm radius: the load file's")
+    calibrated = page(load=measured, inputs=(("load unit", "l.toml"), ("calibration", "c.json")))
+    assert Parsed(render(calibrated)).facts()["Bundles' give under the web"].endswith(
+        "the load file's, with its calibration")
+
+
 def test_the_wrap_cell_says_where_the_peak_was_and_whether_the_test_added_it():
     """A roped program's rope bears its laid tension at every level: a peak at the level's
     first instant is the tension as laid, not what the pulse added."""
