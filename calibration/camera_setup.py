@@ -16,6 +16,7 @@ import cv2
 
 from wrapenv.config import InputError, Table, is_finite_number, write_atomic
 from wrapenv.load import LoadUnit
+from wrapenv.profile import PulseProfile
 
 SETUP = "setup.toml"
 
@@ -64,6 +65,9 @@ class Setup:
     markers: MarkerSpec | None
     template: str | None
     template_field: str
+    #: The levels (g) the unit ran on the bench before this take, in order (a lab's EUMOS
+    #: sequence: one unit level after level); empty: a freshly stacked unit.
+    levels_before_g: tuple[float, ...] = ()
 
     @classmethod
     def parse(cls, data: dict[str, Any], src: str) -> Setup:
@@ -75,6 +79,7 @@ class Setup:
         fps = rec.number("fps", positive=True)
         if rec.has("template"):
             template, where = rec.string("template"), "recording.template"
+        before = _levels_before(rec) if rec.has(LEVELS_BEFORE) else ()
         rec.done()
         cam = top.table("camera", required=True)
         px_per_m = cam.number("px_per_m", positive=True)
@@ -87,7 +92,31 @@ class Setup:
                 template, where = table.string("template"), "markers.template"
             markers = _marker_spec(table)
         top.done()
-        return cls(fps, px_per_m, origin, markers, template, where)
+        return cls(fps, px_per_m, origin, markers, template, where, before)
+
+
+#: setup.toml's `[recording]` key for the levels a unit ran before its take.
+LEVELS_BEFORE = "levels_before_g"
+#: At most this many levels before a take: a EUMOS sequence from 0.2 g to the bench's 1.02 g
+#: has 9; each is simulated again in every replay of the take [A].
+MAX_LEVELS_BEFORE = 20
+
+
+def _levels_before(t: Table) -> tuple[float, ...]:
+    """`levels_before_g = [0.2, 0.3]`: each a level the bench runs (`PulseProfile`)."""
+    raw = t.array(LEVELS_BEFORE)
+    if len(raw) > MAX_LEVELS_BEFORE:
+        raise t.error(LEVELS_BEFORE, f"at most {MAX_LEVELS_BEFORE} levels (got {len(raw)})")
+    levels = []
+    for i, value in enumerate(raw):
+        if not is_finite_number(value):
+            raise t.error(LEVELS_BEFORE, f"must be levels in g (item {i}: {value!r})")
+        try:
+            PulseProfile(float(value))
+        except InputError as exc:
+            raise t.error(LEVELS_BEFORE, f"item {i} {exc.message}") from None
+        levels.append(float(value))
+    return tuple(levels)
 
 
 def _pair(t: Table, key: str) -> tuple[float, float]:
@@ -143,14 +172,17 @@ def check_markers(spec: MarkerSpec, load: LoadUnit, src: str) -> None:
 
 
 def setup_toml(fps: float, px_per_m: float, origin_px: tuple[float, float],
-               markers: MarkerSpec | None = None, template: str | None = None) -> str:
+               markers: MarkerSpec | None = None, template: str | None = None,
+               levels_before_g: tuple[float, ...] = ()) -> str:
     """The setup.toml text (contract keys, template at the top level)."""
     lines = ["# Recording setup: side camera looking along +y, u = u0 + px_per_m x,"
              " v = v0 - px_per_m z."]
     if template is not None:
         lines.append(f"template = {json.dumps(template)}")
-    lines += ["", "[recording]", f"fps = {exact(fps)}",
-              "", "[camera]", f"px_per_m = {exact(px_per_m)}",
+    lines += ["", "[recording]", f"fps = {exact(fps)}"]
+    if levels_before_g:
+        lines.append(f"{LEVELS_BEFORE} = [{', '.join(exact(g) for g in levels_before_g)}]")
+    lines += ["", "[camera]", f"px_per_m = {exact(px_per_m)}",
               f"origin_px = [{exact(origin_px[0])}, {exact(origin_px[1])}]"]
     if markers is not None:
         lines += ["", "[markers]", f"dictionary = {json.dumps(markers.dictionary)}"]
@@ -164,7 +196,8 @@ def setup_toml(fps: float, px_per_m: float, origin_px: tuple[float, float],
 
 
 def write_setup(folder: str | Path, fps: float, px_per_m: float, origin_px: tuple[float, float],
-                markers: MarkerSpec | None = None, template: str | None = None) -> None:
-    write_atomic(Path(folder) / SETUP,
-                 setup_toml(fps, px_per_m, origin_px, markers, template).encode())
+                markers: MarkerSpec | None = None, template: str | None = None,
+                levels_before_g: tuple[float, ...] = ()) -> None:
+    write_atomic(Path(folder) / SETUP, setup_toml(fps, px_per_m, origin_px, markers, template,
+                                                  levels_before_g).encode())
 

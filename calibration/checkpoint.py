@@ -34,10 +34,13 @@ CHECKPOINT_FORMAT = FORMAT_FAMILY + "1"
 
 def recording_key(obs: Observation) -> str:
     """What a replay of `obs` depends on, hashed: its load, wrap and profile, the frames the fit
-    compares and the recorded features they are compared with."""
+    compares, the recorded features they are compared with, and the levels the unit ran before
+    the take (only where it ran any: a fresh take's key is as it was before they were read)."""
     h = hashlib.sha256()
     for part in (repr(obs.load), repr(obs.wrap), repr(sorted(obs.frames.items()))):
         h.update(part.encode())
+    if obs.levels_before_g:
+        h.update(repr(obs.levels_before_g).encode())
     for array in (obs.profile.t_s, obs.profile.accel_mps2, obs.target):
         h.update(np.ascontiguousarray(array, dtype=float).tobytes())
     return h.hexdigest()

@@ -44,6 +44,7 @@ MESSAGE_CHARS = 2000
 #: them.
 SYNTH_FLAGS = {("arguments", "size"): "--size", ("arguments", "fps"): "--fps",
                ("arguments", "friction_jitter"): "--friction-jitter",
+               ("arguments", "levels_before_g"): "--levels-before",
                ("profile", "level_g"): "--level"}
 
 
@@ -92,6 +93,9 @@ def add_synth(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--wrap", type=Path, metavar="WRAP.toml", help="wrap the unit in this format")
     p.add_argument("--level", type=level_g, default=0.4, metavar="G",
                    help="test level in g (default 0.4)")
+    p.add_argument("--levels-before", type=level_g, nargs="+", default=[], metavar="G",
+                   help="levels the unit runs first, unfilmed, as a lab runs one unit through "
+                        "the EUMOS levels (setup.toml's recording.levels_before_g)")
     p.add_argument("--seed", type=seed, default=0,
                    help="textures, noise and the friction jitter's draw (takes of one unit at "
                         "several levels share it)")
@@ -140,6 +144,16 @@ def _frame_bar() -> Iterator[Callable[[int, int], None]]:
         yield progress
 
 
+def _after_levels(levels_g: tuple[float, ...]) -> str:
+    return f" (after {', '.join(f'{g:.2f}' for g in levels_g)} g)" if levels_g else ""
+
+
+def _replayed_after(levels_g: tuple[float, ...]) -> str:
+    """What a calibration's replays of a take run first (setup.toml's levels_before_g)."""
+    return (f"; replayed after the levels its unit ran before it, "
+            f"{', '.join(f'{g:.2f}' for g in levels_g)} g" if levels_g else "")
+
+
 def run_synth(args: argparse.Namespace) -> int:
     from calibration.synth import marker_warning, synthesize
 
@@ -158,7 +172,8 @@ def run_synth(args: argparse.Namespace) -> int:
             rec = synthesize(load, args.out, wrap=wrap, level_g=args.level, seed=args.seed,
                              size=args.size, fps=args.fps, friction_jitter=args.friction_jitter,
                              stiffness_scale=args.stiffness_scale,
-                             tension_scale=args.tension_scale, progress=progress)
+                             tension_scale=args.tension_scale,
+                             levels_before_g=tuple(args.levels_before), progress=progress)
     except InputError as exc:
         option = SYNTH_FLAGS.get((exc.source, exc.field))
         if option is None:
@@ -172,7 +187,8 @@ def run_synth(args: argparse.Namespace) -> int:
     frames = round(rec.profile.t_s[-1] * rec.fps) + 1
     print(f"wrote {_shown(rec.folder)}: {rec.video.name} {args.size[0]}x{args.size[1]}, "
           f"{frames} frames at {rec.fps:g} fps, {rec.px_per_m:g} px/m, level {args.level:.2f} g"
-          f"{', wrapped' if wrap else ''}, in {time.perf_counter() - t0:.0f} s")
+          f"{_after_levels(rec.levels_before_g)}{', wrapped' if wrap else ''}, in "
+          f"{time.perf_counter() - t0:.0f} s")
     return 0
 
 
@@ -292,14 +308,16 @@ def _observations(recordings: list, retrack: bool) -> list:
         if csv.exists() and not retrack:
             tracked = Trajectories.from_csv(csv)
             rec.check_trajectories(tracked, str(csv))
-            print(f"{_shown(rec.folder)}: trajectories from {csv.name}")
+            print(f"{_shown(rec.folder)}: trajectories from {csv.name}"
+                  f"{_replayed_after(rec.levels_before_g)}")
         else:
             result = track(rec)
             for warning in result.warnings:
                 sys.stderr.write(f"wrapbench calibrate: warning: {_shown(rec.folder)}: "
                                  f"{warning}\n")
             tracked = result.trajectories
-            print(f"{_shown(rec.folder)}: tracked {len(tracked.objects)} objects")
+            print(f"{_shown(rec.folder)}: tracked {len(tracked.objects)} objects"
+                  f"{_replayed_after(rec.levels_before_g)}")
         observations.append(observe(rec, tracked))
     return observations
 

@@ -125,6 +125,9 @@ class Recording:
     wrap: WrapFormat | None
     markers: MarkerSpec | None
     template: Path | None
+    #: The levels (g) the unit ran before this take, in order (setup.toml's
+    #: `recording.levels_before_g`); empty: a freshly stacked unit.
+    levels_before_g: tuple[float, ...] = ()
 
     @classmethod
     def read(cls, folder: str | Path) -> Recording:
@@ -153,7 +156,7 @@ class Recording:
         profile = SledProfile.read(profile_path)
         _check_covers(profile, (frames - 1) / setup.fps, str(profile_path))
         return cls(folder, video, setup.fps, setup.px_per_m, setup.origin_px, profile, load,
-                   wrap, setup.markers, template)
+                   wrap, setup.markers, template, setup.levels_before_g)
 
     def inputs(self) -> tuple[Path, ...]:
         """The folder's files a run reads, which no output may replace."""

@@ -1,10 +1,11 @@
 """Synthetic recordings of bench tests whose ground truth is known (issue 5).
 
 No real ESTL footage exists yet, so the tracker and the calibration are measured on recordings
-made from the bench itself: one level is simulated (`wrapenv.bench.run_level`), the sled's motion
-is integrated from the pulse, and the side camera films it (`calibration.filming`: rendered,
-textured, wrapped, marked with ArUco codes, degraded like a camera). The true poses of every
-object the tracker must follow go to `truth.json`.
+made from the bench itself: one level is simulated (`wrapenv.bench.BenchUnit`, after any
+levels the unit ran before it, as a lab runs one unit through the EUMOS levels), the sled's
+motion is integrated from the pulse, and the side camera films it (`calibration.filming`:
+rendered, textured, wrapped, marked with ArUco codes, degraded like a camera). The true poses of
+every object the tracker must follow go to `truth.json`.
 
 The recording starts with `pre_roll_s` of the unit standing still, then the pulse (t = pre-roll
 is the pulse's start) until the unit rests. World x = sled x + x in the sled frame.
@@ -24,7 +25,12 @@ from pathlib import Path
 import numpy as np
 
 from calibration import opencv_threads, textures
-from calibration.camera_setup import MarkerPlacement, MarkerSpec, write_setup
+from calibration.camera_setup import (
+    MAX_LEVELS_BEFORE,
+    MarkerPlacement,
+    MarkerSpec,
+    write_setup,
+)
 from calibration.filming import Scene, States, drawn_size_m, png, web_alpha, write_video
 from calibration.recording import (
     LOAD,
@@ -36,7 +42,7 @@ from calibration.recording import (
     write_profile,
     write_truth,
 )
-from wrapenv.bench import SimSettings, run_level
+from wrapenv.bench import BenchUnit, SimSettings
 from wrapenv.config import InputError, check_output_folder, write_atomic
 from wrapenv.load import PAIRS, Friction, FrictionPair, Layout, LoadUnit
 from wrapenv.profile import PulseProfile
@@ -79,24 +85,26 @@ def synthesize(load: LoadUnit, out_dir: str | Path, *, wrap: WrapFormat | None =
                fps: float = 20.0, friction_jitter: float = 0.0, pre_roll_s: float = 0.25,
                stiffness_scale: float = 1.0, tension_scale: float = 1.0,
                marker_size_m: float = 0.06, settings: SimSettings | None = None,
+               levels_before_g: tuple[float, ...] = (),
                progress: Callable[[int, int], None] | None = None) -> Recording:
     """Simulate one level of `load` and write its recording folder to `out_dir` (which must not
     exist or be empty). `friction_jitter` draws the true friction of each pair from the load's
     values times U(1 - j, 1 + j) (seeded); the wrap's stiffness and tension are scaled as a
-    calibration would find them. load.toml and wrap.toml hold the load and wrap as given, the
-    truth holds what was simulated; `progress(frame, frames)` is called as each frame is
-    written. Returns the recording as `Recording.read` reads it."""
+    calibration would find them. The unit first runs `levels_before_g`, unfilmed, as a lab's
+    unit runs the levels before the one filmed (setup.toml says which). load.toml and wrap.toml
+    hold the load and wrap as given, the truth holds what was simulated; `progress(frame,
+    frames)` is called as each frame is written. Returns the recording as `Recording.read`
+    reads it."""
     out_dir = Path(out_dir)
-    _check_arguments(out_dir, size, fps, friction_jitter, pre_roll_s, marker_size_m)
+    _check_arguments(out_dir, size, fps, friction_jitter, pre_roll_s, marker_size_m,
+                     levels_before_g)
     pulse = PulseProfile(level_g)
     friction = _jittered(load.friction, friction_jitter, seed)
     layout = load.with_friction(friction).layout()
     true_wrap = wrap.scaled(stiffness_scale, tension_scale) if wrap is not None else None
     if true_wrap is not None:
         true_wrap.check_fits(layout.load_height_m, "wrap")
-    trace = run_level(layout, pulse, settings or SimSettings(), true_wrap)
-    if not trace.valid:
-        raise ValueError(f"the simulation became unphysical ({trace.invalid_reason})")
+    trace = _filmed_level(layout, pulse, settings or SimSettings(), true_wrap, levels_before_g)
     n_pre = round(pre_roll_s * fps)
     profile = _sled_profile(trace, n_pre / fps)
     states = _states(trace, profile, n_pre, fps)
@@ -110,6 +118,7 @@ def synthesize(load: LoadUnit, out_dir: str | Path, *, wrap: WrapFormat | None =
         "wrap": None if wrap is None else {"material": wrap.material_key,
                                            "stiffness_scale": stiffness_scale,
                                            "tension_scale": tension_scale},
+        "levels_before_g": list(levels_before_g),
         "pallet_slip_m": trace.pallet_slip_m(),
         "size": list(size),
     }
@@ -125,7 +134,7 @@ def synthesize(load: LoadUnit, out_dir: str | Path, *, wrap: WrapFormat | None =
             write_atomic(tmp / "template.png", png(scene.template(states)))
         write_profile(tmp, profile)
         write_setup(tmp, fps, camera.px_per_m, camera.origin_px,  # type: ignore[arg-type]
-                    markers, "template.png")
+                    markers, "template.png", levels_before_g)
         write_atomic(tmp / LOAD, load.to_toml().encode())
         if wrap is not None:
             write_atomic(tmp / WRAP, wrap.to_toml().encode())
@@ -183,7 +192,8 @@ def _remove_stale_staging(parent: Path) -> None:
 
 
 def _check_arguments(out_dir: Path, size: tuple[int, int], fps: float, jitter: float,
-                     pre_roll_s: float, marker_size_m: float) -> None:
+                     pre_roll_s: float, marker_size_m: float,
+                     levels_before_g: tuple[float, ...]) -> None:
     check_output_folder(out_dir, "")
     low, high = SIZE_RANGE_PX
     if not (len(size) == 2 and all(isinstance(v, int) and low <= v <= high for v in size)):
@@ -204,6 +214,14 @@ def _check_arguments(out_dir: Path, size: tuple[int, int], fps: float, jitter: f
         raise InputError("arguments", "marker_size_m",
                          f"must be in (0, {SLED_DECK_M * 0.75:g}] m to fit the sled's side"
                          f" (got {marker_size_m})")
+    if len(levels_before_g) > MAX_LEVELS_BEFORE:
+        raise InputError("arguments", "levels_before_g", f"at most {MAX_LEVELS_BEFORE} levels "
+                         f"(got {len(levels_before_g)})")
+    for level_g in levels_before_g:
+        try:
+            PulseProfile(level_g)
+        except InputError as exc:
+            raise InputError("arguments", "levels_before_g", exc.message) from None
 
 
 def marker_warning(rec: Recording, size: tuple[int, int]) -> str:
@@ -233,6 +251,18 @@ def _jittered(friction: Friction, jitter: float, seed: int) -> Friction:
     return Friction(**{name: FrictionPair(float(friction.pair(name).static * f),
                                           float(friction.pair(name).kinetic * f))
                        for name, f in zip(PAIRS, factors, strict=True)})
+
+
+def _filmed_level(layout: Layout, pulse: PulseProfile, settings: SimSettings,
+                  wrap: WrapFormat | None, levels_before_g: tuple[float, ...]) -> Trace:
+    """The level filmed, on a unit that ran `levels_before_g` first (each to rest)."""
+    with BenchUnit(layout, settings, wrap) as unit:
+        for level_g in (*levels_before_g, pulse.level_g):
+            trace = unit.level(PulseProfile(level_g))
+            if not trace.valid:
+                raise ValueError(f"the simulation of {level_g:g} g became unphysical "
+                                 f"({trace.invalid_reason})")
+    return trace
 
 
 def _sled_profile(trace: Trace, pre_s: float) -> SledProfile:

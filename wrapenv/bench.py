@@ -187,20 +187,25 @@ class BenchUnit:
         #: Bundle centres in the pallet frame when the unit was put on (None: before level 1).
         self.origin_m: np.ndarray | None = None
 
-    def level(self, profile: Profile, push: Push | None = None) -> Trace:
+    def level(self, profile: Profile, push: Push | None = None,
+              max_rest_wait_s: float | None = None) -> Trace:
         """Run one level on the unit as it stands: settled and wrapped first if it is new.
+        `max_rest_wait_s` replaces the unit's settings' for this level (a replay of a recording
+        ends where the recording's compared frames do, the levels before it at rest).
 
         A later level starts with every body still, so every contact sticks; only the contacts
         that slid when the last level ended are rebuilt. Rebuilding them all let the pallet's
         grip on the sled give: 1.9 mm of slip at 0.3 g in each level after the first
         (tests/wrapenv/test_sequence.py)."""
+        settings = (self.settings if max_rest_wait_s is None
+                    else replace(self.settings, max_rest_wait_s=max_rest_wait_s))
         new = self.origin_m is None
         if not new:
             self.world.stop(self.scene.moving.tolist())
             _set_friction(self.world, self.scene, self.stick_slip, self.stick_slip.stick_all())
             if self.wrap is not None:
                 self.wrap.next_level()
-        run = _Run(self.world, self.layout, profile, self.settings, self.stick_slip, self.wrap,
+        run = _Run(self.world, self.layout, profile, settings, self.stick_slip, self.wrap,
                    push, self.origin_m)
         trace = run.execute(settle=new)
         self.origin_m = trace.origin()

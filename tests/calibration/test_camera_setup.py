@@ -49,3 +49,26 @@ def test_a_marker_id_beyond_its_dictionary_is_named_with_the_dictionary_s_range(
         check_markers(beyond, load, "setup.toml")
     check_markers(MarkerSpec("DICT_4X4_50", None, (MarkerPlacement(49, "sled", (0.0, 0.0)),)),
                   load, "setup.toml")
+
+
+def test_the_levels_a_unit_ran_before_its_take_round_trip_and_a_fresh_unit_writes_none():
+    """A lab runs one unit through the EUMOS levels; a take of its 0.4 g level says so."""
+    data = tomllib.loads(setup_toml(20.0, 500.0, (960.0, 900.0), None, None, (0.2, 0.3)))
+    assert data["recording"]["levels_before_g"] == [0.2, 0.3]
+    assert Setup.parse(data, "setup.toml").levels_before_g == (0.2, 0.3)
+    fresh = tomllib.loads(setup_toml(20.0, 500.0, (960.0, 900.0)))
+    assert "levels_before_g" not in fresh["recording"]
+    assert Setup.parse(fresh, "setup.toml").levels_before_g == ()
+
+
+@pytest.mark.parametrize("levels, says", [
+    ("[0.2, 3.0]", r"item 1 must be in \(0, 1\.019\] g, the bench's 10 m/s² \(got 3\.0\)"),
+    ("[0.2, 'nan']", r"must be levels in g \(item 1: 'nan'\)"),
+    ("0.3", r"must be an array \(got 0\.3\)"),
+    ("[" + ", ".join(["0.2"] * 21) + "]", r"at most 20 levels \(got 21\)"),
+])
+def test_levels_before_a_take_the_bench_cannot_run_are_refused_naming_the_key(levels, says):
+    data = tomllib.loads(setup_toml(20.0, 500.0, (960.0, 900.0)).replace(
+        "fps = 20.0", f"fps = 20.0\nlevels_before_g = {levels}"))
+    with pytest.raises(InputError, match=r"^setup\.toml: recording\.levels_before_g: " + says):
+        Setup.parse(data, "setup.toml")

@@ -3,6 +3,7 @@ the uninterrupted one writes, without simulating again what the checkpoint holds
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import shutil
 
@@ -10,7 +11,7 @@ import numpy as np
 import pytest
 
 import calibration.fit
-from calibration.checkpoint import CHECKPOINT_FORMAT, ReplayLog
+from calibration.checkpoint import CHECKPOINT_FORMAT, ReplayLog, recording_key
 from calibration.recording import Recording, Truth
 from calibration.replay import observe
 from calibration.trajectories import ObjectPath, Trajectories
@@ -77,6 +78,15 @@ def test_a_line_the_fit_never_writes_is_refused_naming_it(line, field, slide_obs
         f.write(line + "\n")
     with pytest.raises(InputError, match=field.replace(".", r"\.")):
         ReplayLog(path, [slide_obs], resume=True)
+
+
+def test_a_take_s_key_names_the_levels_its_unit_ran_before_it(slide_obs):
+    """The same frames of a unit that ran 0.2 g first replay otherwise: their replays are not
+    those of the fresh take."""
+    carried = dataclasses.replace(slide_obs, levels_before_g=(0.2,))
+    assert recording_key(carried) != recording_key(slide_obs)
+    assert recording_key(carried) != recording_key(
+        dataclasses.replace(slide_obs, levels_before_g=(0.3,)))
 
 
 def test_a_checkpoint_of_other_recordings_or_another_version_or_none_is_refused(slide_obs,

@@ -84,6 +84,8 @@ def test_track_writes_into_the_recording_by_default(recording_dir, tmp_path, cap
     (["--stiffness-scale", "nan"], ["--stiffness-scale"]),
     (["--tension-scale", "1.3"], ["--tension-scale", "needs --wrap"]),   # the load is unwrapped
     (["--level", "3"], ["--level", "1.019"]),
+    (["--levels-before", "0.2", "3"], ["--levels-before", "1.019"]),
+    (["--levels-before", *["0.2"] * 21], ["--levels-before", "at most 20 levels"]),
 ])
 def test_synth_rejects_bad_arguments_and_writes_nothing(args, needles, tmp_path, load_path,
                                                         capsys):

@@ -147,6 +147,20 @@ def test_friction_jitter_changes_the_true_friction_only(tmp_path, small_load):
     assert rec.load == small_load  # load.toml says what was given, truth what was simulated
 
 
+def test_a_take_after_earlier_levels_says_so_and_starts_where_they_left_the_unit(
+        tmp_path, small_load):
+    """A lab films one unit level after level: a take at 0.1 g after 0.3 g, at which the small
+    unit's top layer slides 0.13 m back, starts with it there; setup.toml and the truth say
+    which levels came before."""
+    fresh = synthesize(small_load, tmp_path / "fresh", **TINY)
+    after = synthesize(small_load, tmp_path / "after", levels_before_g=(0.3,), **TINY)
+    assert (fresh.levels_before_g, after.levels_before_g) == ((), (0.3,))
+    assert Truth.read(after.folder).params["levels_before_g"] == [0.3]
+    start = {name: Truth.read(rec.folder).objects["L2C2R1"].x_m[0] for name, rec in
+             (("fresh", fresh), ("after", after))}
+    assert start["fresh"] - start["after"] > 0.1
+
+
 def test_refuses_a_folder_in_use(tmp_path, small_load, assert_input_error):
     (tmp_path / "busy").mkdir()
     (tmp_path / "busy" / "x").write_text("")
