@@ -36,6 +36,10 @@ than its material card; then tracked by `track`. Cases:
 - lldpe-apart: lldpe with columnar2-apart's bare takes (0.30, 0.35 and 0.425 g), its 0.45 g
   take held out with the wrapped 0.5 g one;
 - lldpe2: the lldpe case with the wrapped 0.5 g take fitted too, validated at 0.6 g;
+- kraft-lab, lldpe-lab: kraft and lldpe with the wrapped takes a lab makes, one unit through
+  the EUMOS levels from 0.2 g, its 0.7 g level fitted and its 0.5 g level held out (each take's
+  setup.toml names the levels before it); `--as-fresh` fits them as calibrate did before it
+  read those levels, each as a fresh unit;
 - slide: examples/calibration_slide.toml at 0.45 g and 0.55 g (two bundles sliding on their
   own), every method.
 
@@ -119,12 +123,22 @@ class Take:
     level_g: float
     size: tuple[int, int] = SMALL
     wrap: str | None = None
+    #: the levels the unit ran before the take (a lab's sequence; empty: a fresh unit)
+    before: tuple[float, ...] = ()
 
     def folder(self) -> Path:
         """The cache folder (`CACHE` names the code that made it)."""
         wrap = f"-{Path(self.wrap).stem}-x{TRUE_STIFFNESS}" if self.wrap else ""
-        return CACHE / "calibrate" / (f"{Path(self.load).stem}{wrap}-{self.level_g}g-"
+        after = f"-after{'-'.join(f'{g:g}' for g in self.before)}" if self.before else ""
+        return CACHE / "calibrate" / (f"{Path(self.load).stem}{wrap}-{self.level_g}g{after}-"
                                       f"{self.size[0]}x{self.size[1]}-seed{SEED}")
+
+
+def lab(level_g: float, wrap: str) -> Take:
+    """A wrapped take of one unit run through the EUMOS levels from 0.2 g, as a lab runs it:
+    filmed at `level_g` after every level below it."""
+    before = tuple(round(0.2 + 0.1 * k, 1) for k in range(round((level_g - 0.2) / 0.1)))
+    return Take(C2, level_g, LARGE, wrap, before)
 
 
 CASES: dict[str, tuple[tuple[Take, ...], tuple[Take, ...]]] = {
@@ -180,6 +194,12 @@ CASES: dict[str, tuple[tuple[Take, ...], tuple[Take, ...]]] = {
                 Take(C2, 0.5, LARGE, "examples/wrap_lldpe_2layer.toml"),
                 Take(C2, 0.7, LARGE, "examples/wrap_lldpe_2layer.toml")),
                (Take(C2, 0.6, LARGE, "examples/wrap_lldpe_2layer.toml"),)),
+    # kraft and lldpe with their wrapped takes as a lab films them: one unit through the
+    # EUMOS levels, its 0.5 and 0.7 g levels filmed (the bare takes made on fresh units, as a
+    # calibration campaign restacks them); `--as-fresh` fits them as if each were fresh
+    **{f"{m}-lab": ((Take(C2, 0.35), Take(C2, 0.425), Take(C2, 0.45),
+                     lab(0.7, f"examples/wrap_{m}_2layer.toml")),
+                    (lab(0.5, f"examples/wrap_{m}_2layer.toml"),)) for m in ("kraft", "lldpe")},
     "slide": ((Take("examples/calibration_slide.toml", 0.45),
                Take("examples/calibration_slide.toml", 0.55)), ()),
 }
@@ -194,7 +214,8 @@ def observation(take: Take) -> tuple[Observation, Truth]:
         wrap = WrapFormat.from_toml(take.wrap) if take.wrap else None
         synthesize(LoadUnit.from_toml(take.load), folder, wrap=wrap, level_g=take.level_g,
                    seed=SEED, size=take.size, friction_jitter=JITTER,
-                   stiffness_scale=TRUE_STIFFNESS if wrap else 1.0)
+                   stiffness_scale=TRUE_STIFFNESS if wrap else 1.0,
+                   levels_before_g=take.before)
     rec = Recording.read(folder)
     csv = folder / "trajectories.csv"
     if not csv.exists():
@@ -327,6 +348,9 @@ def run_case(name: str, method: str, seed: int, args: argparse.Namespace) -> Out
     fitted, held = CASES[name]
     observed = [observation(t) for t in fitted]
     held_out = [observation(t)[0] for t in held]
+    if args.as_fresh:   # the takes fitted and predicted as if each unit were fresh
+        observed = [(replace(o, levels_before_g=()), t) for o, t in observed]
+        held_out = [replace(o, levels_before_g=()) for o in held_out]
     truth = observed[0][1]
     params = "all"
     if args.true_friction:
@@ -507,6 +531,10 @@ def main() -> None:
     parser.add_argument("--oriented", action="store_true",
                         help="local boxes along the estimate's principal axes "
                              "(calibration.surrogate.ORIENTED): a search that follows a ridge")
+    parser.add_argument("--as-fresh", action="store_true",
+                        help="replay every take as a fresh unit, ignoring the levels its unit "
+                             "ran before it (setup.toml's levels_before_g): how calibrate "
+                             "judged a lab's takes before it read them")
     parser.add_argument("--sensitivity", action="store_true",
                         help="no fit: how much each wrap scale moves the wrapped recording")
     args = parser.parse_args()
