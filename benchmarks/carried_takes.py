@@ -10,8 +10,9 @@ Per level and layer, in mm: the median displacement along the motion, in the pal
 during the level, of the layer's bundles in the camera's row (what a take's tracked row shows,
 from the take's first frame), and the mean of all its bundles' (the layer's shift), as mean ±
 standard deviation over the replays, carried and fresh;
-`differ` is carried − fresh, in the fresh replays' standard deviations (`sd`) and in % of the
-fresh mean where that is 10 mm or more (the held-out goal's unit). A sequence stops after its
+`differ` is carried − fresh, in the two sets' pooled standard deviation (`sd`: a carried
+unit's history spreads its replays more than a fresh unit's) and in % of the fresh mean where
+that is 10 mm or more (the held-out goal's unit). A sequence stops after its
 first failed level, as a lab's does.
 
     PYTHONPATH=. python benchmarks/carried_takes.py [--replays N] [--case NAME ...]
@@ -76,13 +77,15 @@ def carried(layout: Layout, levels: tuple[float, ...], settings: SimSettings,
 
 def row(g: float, what: str, carried_m: np.ndarray, fresh_m: np.ndarray) -> str:
     c, f = 1000 * carried_m, 1000 * fresh_m
-    sd = float(f.std(ddof=1)) if len(f) > 1 else 0.0
+    sd = (float(np.sqrt((c.var(ddof=1) + f.var(ddof=1)) / 2))
+          if min(len(c), len(f)) > 1 else 0.0)
     diff = float(c.mean() - f.mean())
     in_sd = f"{diff / sd:6.1f}" if sd > 1e-9 else f"{'-':>6}"
     pct = (f"{100 * diff / abs(f.mean()):+5.0f} %" if abs(f.mean()) >= 1000 * PCT_FROM_M
            else f"{'-':>7}")
     return (f"{g:5.2f} g  {what:14}  carried {c.mean():8.1f} ± {c.std(ddof=1):5.1f}  "
-            f"fresh {f.mean():8.1f} ± {sd:5.1f}  differ {diff:+7.1f} mm {in_sd} sd {pct}")
+            f"fresh {f.mean():8.1f} ± {f.std(ddof=1):5.1f}  differ {diff:+7.1f} mm {in_sd} sd "
+            f"{pct}")
 
 
 def run_case(name: str, replays: int) -> None:

@@ -573,7 +573,9 @@ def _result(observations: Sequence[Observation], bare: Sequence[Observation],
             text = identify.advice_kinetic(name, bare, p.kinetic_std)
             advice[name] = f"{advice[name]}; {text}" if name in advice else text
     paper = any(o.wrap is not None and o.wrap.material.kind == "paper" for o in observations)
-    advice |= {name: identify.advice_scale(name, found.scales[name], found.stds[name, ""], paper)
+    carried = any(o.wrap is not None and o.levels_before_g for o in observations)
+    advice |= {name: identify.advice_scale(name, found.scales[name], found.stds[name, ""], paper,
+                                           carried)
                for name in found.scales if (name, "") in found.stds
                and found.stds[name, ""] / (found.scales[name] * math.log(2))
                > RESOLVED_LOG2_SCALE_STD}

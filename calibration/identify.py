@@ -184,7 +184,8 @@ def advice_slipped_throughout(bound: Bound, static: float, std: float) -> str:
             f"test at {_level_below(bound.demand_g):.2f} g or lower, where it holds")
 
 
-def advice_scale(name: str, scale: float, std: float, paper: bool) -> str:
+def advice_scale(name: str, scale: float, std: float, paper: bool,
+                 carried: bool = False) -> str:
     """For a wrap scale the recordings do not resolve, with the reason that fits the web: a
     paper web is much stiffer than the load's edges, whose give then decides the motion; a film
     is much softer, so its stiffness does show (LLDPE: x2 moves the 0.7 g take's features 3-5
@@ -193,7 +194,11 @@ def advice_scale(name: str, scale: float, std: float, paper: bool) -> str:
     truth's 1.3, 1 and 1, and predicted the held-out take within 5 %; with the tension and the
     give known, +15 % and +14 % over two fit seeds; a second wrapped level instead, +13 to +120 %
     over three (docs/calibration.md).
-    What is measured elsewhere is given as known (`calibrate --known`)."""
+    What is measured elsewhere is given as known (`calibrate --known`). `carried`: the wrapped
+    takes were filmed after earlier levels on the same unit, whose replays scatter several
+    times more than a fresh unit's (the film-wrapped 2-layer unit at 0.5 g after 0.2-0.4 g:
+    +- 4.2 mm against +- 0.4 mm fresh): with the true friction and the tension and give known,
+    LLDPE's stiffness came out +61 to +115 % from such a take, -3 to +11 % from a fresh one."""
     hardly = "the recorded motion hardly depends on it"
     known = "give it as known (--known)"
     if name == "stiffness" and paper:
@@ -213,6 +218,10 @@ def advice_scale(name: str, scale: float, std: float, paper: bool) -> str:
                f"{known}")
     else:
         why = hardly
+    if carried:
+        why += ("; the wrapped takes were filmed after earlier levels of the same unit, whose "
+                "replays scatter several times more than a fresh unit's: for the wrap, film a "
+                "freshly stacked and wrapped unit")
     return f"{name} scale not resolved ({scale:.2f} ± {std:.2f}): {why}"
 
 

@@ -212,6 +212,16 @@ def test_advice_on_an_unresolved_wrap_scale_gives_the_reason_of_its_web():
     assert "film" not in advice_scale("give", 0.4, 0.1, paper=True)
 
 
+def test_a_wrap_scale_unresolved_on_takes_after_earlier_levels_asks_for_a_fresh_unit():
+    """A lab's takes of one unit through the levels replay with several times a fresh unit's
+    scatter, and LLDPE's stiffness was not pinned by them (docs/calibration.md, "A lab's
+    takes"): the advice asks for the wrapped take on a freshly wrapped unit, only then."""
+    carried = advice_scale("stiffness", 2.4, 1.9, paper=False, carried=True)
+    assert carried.startswith(advice_scale("stiffness", 2.4, 1.9, paper=False))
+    assert "film a freshly stacked and wrapped unit" in carried
+    assert "freshly" not in advice_scale("stiffness", 2.4, 1.9, paper=False)
+
+
 def test_a_scale_resolved_at_a_fitted_friction_says_what_its_standard_deviation_leaves_out():
     """The wrap stage holds the friction fitted in the same run, so a scale's ± says nothing of
     that friction's uncertainty (friction errors of 0.01 moved LLDPE's stiffness by a quarter):
