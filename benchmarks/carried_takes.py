@@ -115,7 +115,7 @@ def run_case(name: str, replays: int) -> None:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--replays", type=int, default=6)
+    parser.add_argument("--replays", type=int, default=12)
     parser.add_argument("--case", nargs="+", choices=list(CASES), default=list(CASES))
     args = parser.parse_args()
     t0 = time.perf_counter()
