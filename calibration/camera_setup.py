@@ -20,6 +20,12 @@ from wrapenv.profile import PulseProfile
 
 SETUP = "setup.toml"
 
+#: setup.toml's `[recording]` key for the levels a unit ran before its take.
+LEVELS_BEFORE = "levels_before_g"
+#: At most this many levels before a take: a EUMOS sequence from 0.2 g to the bench's 1.02 g
+#: has 9; each is simulated again in every replay of the take [A].
+MAX_LEVELS_BEFORE = 20
+
 
 def exact(value: float) -> str:
     """A float written so that it reads back equal."""
@@ -93,13 +99,6 @@ class Setup:
             markers = _marker_spec(table)
         top.done()
         return cls(fps, px_per_m, origin, markers, template, where, before)
-
-
-#: setup.toml's `[recording]` key for the levels a unit ran before its take.
-LEVELS_BEFORE = "levels_before_g"
-#: At most this many levels before a take: a EUMOS sequence from 0.2 g to the bench's 1.02 g
-#: has 9; each is simulated again in every replay of the take [A].
-MAX_LEVELS_BEFORE = 20
 
 
 def _levels_before(t: Table) -> tuple[float, ...]:
