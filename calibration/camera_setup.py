@@ -8,6 +8,7 @@ back by `setup_toml` for synthetic recordings.
 from __future__ import annotations
 
 import json
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -102,20 +103,28 @@ class Setup:
 
 
 def _levels_before(t: Table) -> tuple[float, ...]:
-    """`levels_before_g = [0.2, 0.3]`: each a level the bench runs (`PulseProfile`)."""
+    """`levels_before_g = [0.2, 0.3]`: numbers, then `check_levels_before`."""
     raw = t.array(LEVELS_BEFORE)
-    if len(raw) > MAX_LEVELS_BEFORE:
-        raise t.error(LEVELS_BEFORE, f"at most {MAX_LEVELS_BEFORE} levels (got {len(raw)})")
-    levels = []
     for i, value in enumerate(raw):
         if not is_finite_number(value):
             raise t.error(LEVELS_BEFORE, f"must be levels in g (item {i}: {value!r})")
+    return check_levels_before([float(v) for v in raw],
+                               lambda message: t.error(LEVELS_BEFORE, message))
+
+
+def check_levels_before(levels_g: Sequence[float],
+                        error: Callable[[str], InputError]) -> tuple[float, ...]:
+    """The levels a take's unit ran before it, as setup.toml and `synth` take them: at most
+    `MAX_LEVELS_BEFORE`, each a level the bench runs (`PulseProfile`); `error(message)` is
+    the InputError naming where they were given."""
+    if len(levels_g) > MAX_LEVELS_BEFORE:
+        raise error(f"at most {MAX_LEVELS_BEFORE} levels (got {len(levels_g)})")
+    for i, level_g in enumerate(levels_g):
         try:
-            PulseProfile(float(value))
+            PulseProfile(level_g)
         except InputError as exc:
-            raise t.error(LEVELS_BEFORE, f"item {i} {exc.message}") from None
-        levels.append(float(value))
-    return tuple(levels)
+            raise error(f"item {i} {exc.message}") from None
+    return tuple(levels_g)
 
 
 def _pair(t: Table, key: str) -> tuple[float, float]:

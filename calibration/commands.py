@@ -144,14 +144,18 @@ def _frame_bar() -> Iterator[Callable[[int, int], None]]:
         yield progress
 
 
+def _levels_text(levels_g: tuple[float, ...]) -> str:
+    return ", ".join(f"{g:.2f}" for g in levels_g) + " g"
+
+
 def _after_levels(levels_g: tuple[float, ...]) -> str:
-    return f" (after {', '.join(f'{g:.2f}' for g in levels_g)} g)" if levels_g else ""
+    return f" (after {_levels_text(levels_g)})" if levels_g else ""
 
 
 def _replayed_after(levels_g: tuple[float, ...]) -> str:
     """What a calibration's replays of a take run first (setup.toml's levels_before_g)."""
-    return (f"; replayed after the levels its unit ran before it, "
-            f"{', '.join(f'{g:.2f}' for g in levels_g)} g" if levels_g else "")
+    return (f"; replayed after the levels its unit ran before it, {_levels_text(levels_g)}"
+            if levels_g else "")
 
 
 def run_synth(args: argparse.Namespace) -> int:

@@ -26,9 +26,9 @@ import numpy as np
 
 from calibration import opencv_threads, textures
 from calibration.camera_setup import (
-    MAX_LEVELS_BEFORE,
     MarkerPlacement,
     MarkerSpec,
+    check_levels_before,
     write_setup,
 )
 from calibration.filming import Scene, States, drawn_size_m, png, web_alpha, write_video
@@ -214,14 +214,8 @@ def _check_arguments(out_dir: Path, size: tuple[int, int], fps: float, jitter: f
         raise InputError("arguments", "marker_size_m",
                          f"must be in (0, {SLED_DECK_M * 0.75:g}] m to fit the sled's side"
                          f" (got {marker_size_m})")
-    if len(levels_before_g) > MAX_LEVELS_BEFORE:
-        raise InputError("arguments", "levels_before_g", f"at most {MAX_LEVELS_BEFORE} levels "
-                         f"(got {len(levels_before_g)})")
-    for level_g in levels_before_g:
-        try:
-            PulseProfile(level_g)
-        except InputError as exc:
-            raise InputError("arguments", "levels_before_g", exc.message) from None
+    check_levels_before(levels_before_g,
+                        lambda message: InputError("arguments", "levels_before_g", message))
 
 
 def marker_warning(rec: Recording, size: tuple[int, int]) -> str:
