@@ -21,7 +21,7 @@ from typing import Any
 from calibration import commands
 from calibration.commands import level_g, seed
 from recommender import commands as bench_commands
-from recommender import simulate
+from recommender import simulate, train
 from recommender.parallel import BACKENDS
 from wrapenv import __version__
 from wrapenv.config import InputError
@@ -380,7 +380,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     command = {"simulate": simulate.run_simulate,
                "recommend": bench_commands.run_recommend,
-               "train": bench_commands.run_train,
+               "train": train.run_train,
                "synth": commands.run_synth, "track": commands.run_track,
                "calibrate": commands.run_calibrate}[args.command]
     _Forking.owner_pid = os.getpid()

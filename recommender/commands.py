@@ -1,5 +1,5 @@
-"""The bench's own commands `recommend` and `train` (`simulate` is recommender/simulate.py),
-and what they share with it.
+"""The bench's own command `recommend`, and what `simulate` and `train` (recommender/simulate.py
+and recommender/train.py) share with it.
 
 Each takes the parsed arguments, checks every input and output before any simulation, and maps
 the domain's errors (which name domain fields) onto the flags a user typed.
@@ -8,8 +8,6 @@ the domain's errors (which name domain fields) onto the flags a user typed.
 from __future__ import annotations
 
 import argparse
-import contextlib
-import math
 import os
 import sys
 import time
@@ -79,7 +77,7 @@ def as_flag(exc: InputError) -> InputError:
     return InputError("arguments", FLAGS.get(exc.field, exc.field), exc.message)
 
 
-def _target(target_g: float, flag: str = "--target") -> None:
+def check_target(target_g: float, flag: str = "--target") -> None:
     """A target level the bench can produce, or a usage error naming the flag."""
     try:
         PulseProfile(target_g)
@@ -87,7 +85,7 @@ def _target(target_g: float, flag: str = "--target") -> None:
         raise InputError("arguments", flag, exc.message) from None
 
 
-def _material(key: str) -> Web:
+def named_web(key: str) -> Web:
     """A named card on the default web, or a usage error naming --material."""
     try:
         return Web.named(key)
@@ -98,7 +96,7 @@ def _material(key: str) -> Web:
 def _web(args: argparse.Namespace) -> Web:
     """The web a program is sought for: a named card on the default web, or a WRAP.toml's."""
     if args.web is None:
-        return _material(args.material or "kraft")
+        return named_web(args.material or "kraft")
     if args.material is not None:
         raise InputError("arguments", "--material", "cannot be combined with --web (the web's "
                          "file names its material)")
@@ -147,11 +145,11 @@ def _targets(args: argparse.Namespace) -> tuple[tuple[Orientation, float], ...]:
     given = {"long": args.target_long, "short": args.target_short}
     for side, target in given.items():
         if target is not None:
-            _target(target, f"--target-{side}")
+            check_target(target, f"--target-{side}")
             if side not in sides:
                 raise InputError("arguments", f"--target-{side}",
                                  f"needs --orientation {side} or both")
-    _target(args.target)
+    check_target(args.target)
     return tuple((side, given[side] if given[side] is not None else args.target)
                  for side in sides)
 
@@ -706,125 +704,3 @@ def _write_report(args: argparse.Namespace, problem: Problem, check: Verificatio
     given = {"load unit": args.load, "calibration": args.calibration, "policy": args.policy}
     write_report(args.report, lambda stage: recommend_page(stage, problem, check, best, state,
                                                            given, tuple(said), candidates))
-
-
-# --- train -------------------------------------------------------------------------------------
-
-
-def _check_train_numbers(args: argparse.Namespace) -> None:
-    from recommender.policy import LOG_STD_INIT_RANGE
-    from wrapenv.envs.wrapbench import MAX_TESTS_PER_EPISODE
-
-    for flag, value in (("--timesteps", args.timesteps), ("--envs", args.envs)):
-        if value < 1:
-            raise InputError("arguments", flag, f"must be >= 1 (got {value})")
-    most = most_workers()
-    if args.envs > most:
-        raise InputError("arguments", "--envs", f"must be <= {most} (got {args.envs}): each "
-                                                "is a process simulating on a core")
-    if args.minutes is not None and not (math.isfinite(args.minutes) and args.minutes > 0):
-        raise InputError("arguments", "--minutes", f"must be > 0 (got {args.minutes})")
-    if not args.material_weight >= 0:
-        raise InputError("arguments", "--material-weight",
-                         f"must be >= 0 (got {args.material_weight})")
-    if not 1 <= args.tests_per_episode <= MAX_TESTS_PER_EPISODE:
-        raise InputError("arguments", "--tests-per-episode", f"must be from 1 to "
-                         f"{MAX_TESTS_PER_EPISODE} (got {args.tests_per_episode})")
-    if args.tests_per_episode > 1 and args.test != "verified":
-        raise InputError("arguments", "--tests-per-episode", "above 1 needs --test verified: "
-                                                             "the nominal test draws nothing")
-    if not LOG_STD_INIT_RANGE[0] <= args.log_std_init <= LOG_STD_INIT_RANGE[1]:
-        raise InputError("arguments", "--log-std-init", f"must be between "
-                         f"{LOG_STD_INIT_RANGE[0]:g} and {LOG_STD_INIT_RANGE[1]:g} "
-                         f"(got {args.log_std_init:g})")
-
-
-def _run_folder(out: Path, resume: bool, timesteps: int) -> bool:
-    """The training run's folder, made if missing and checked (`timesteps`: the run's total);
-    whether it was made (a refusal leaves no folder behind)."""
-    if out.exists() and not out.is_dir():
-        raise InputError(str(out), "--out", "exists and is not a folder")
-    made = not out.exists()
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise InputError(str(out), "--out", f"cannot be created ({exc.strerror})") from None
-    try:
-        check_output(out / "policy.zip", "--out")
-        _check_run_folder(out, resume, timesteps)
-    except InputError:
-        if made:
-            out.rmdir()
-        raise
-    return made
-
-
-def run_train(args: argparse.Namespace) -> int:
-    from recommender.policy import TrainSettings, last_checkpoint, train
-
-    _check_train_numbers(args)
-    _material(args.material)
-    _target(args.target)
-    calibration = (None if args.calibration is None
-                   else read_calibration(args.calibration, "train"))
-    settings = TrainSettings(timesteps=args.timesteps, workers=args.envs, material=args.material,
-                             target_g=args.target, seed=args.seed, max_minutes=args.minutes,
-                             calibration=calibration, test=args.test,
-                             material_weight=args.material_weight,
-                             log_std_init=args.log_std_init,
-                             tests_per_episode=args.tests_per_episode)
-    made = _run_folder(args.out, args.resume, settings.rollout_timesteps)
-    if settings.rollout_timesteps != settings.timesteps:
-        print(f"training {settings.rollout_timesteps} timesteps: PPO collects whole rollouts of "
-              f"{settings.n_steps * settings.n_envs} episodes")
-    try:
-        path = train(settings, args.out, resume=args.resume)
-    except KeyboardInterrupt as exc:
-        kept = last_checkpoint(args.out)
-        if kept:
-            exc.add_note(f"interrupted; no policy.zip written, the last checkpoint is {kept[0]} "
-                         f"(--resume continues from it)")
-        else:
-            _forget_run(args.out, made)
-            exc.add_note("interrupted before the first checkpoint: nothing written (the same "
-                         "command starts the run again)")
-        raise
-    print(f"policy written to {path} (log: {args.out / 'log.csv'})")
-    return 0
-
-
-def _forget_run(out: Path, made: bool) -> None:
-    """What a run interrupted before its first checkpoint wrote: its log and its empty
-    checkpoints/, and `out` itself if the run `made` it. Kept, the log made a folder that could
-    be neither resumed (no checkpoint) nor trained into again (an earlier run's log)."""
-    from recommender.policy import CHECKPOINT_DIR, LOG_FILE
-
-    (out / LOG_FILE).unlink(missing_ok=True)
-    for folder in (out / CHECKPOINT_DIR, out) if made else (out / CHECKPOINT_DIR,):
-        with contextlib.suppress(OSError):   # not empty: something else is there, kept
-            folder.rmdir()
-
-
-def _check_run_folder(out: Path, resume: bool, timesteps: int) -> None:
-    """A new run needs a folder without one; a resumed run, an interrupted one (checkpoints,
-    its log, no policy.zip), or a finished one to train on past its last checkpoint."""
-    from recommender.policy import CHECKPOINT_DIR, last_checkpoint
-
-    if resume:
-        kept = last_checkpoint(out)
-        if kept is None or not (out / "log.csv").is_file():
-            raise InputError(str(out), "--resume", "holds no run to resume (checkpoints/ and "
-                                                   "log.csv)")
-        if (out / "policy.zip").exists() and kept[1] >= timesteps:
-            raise InputError(str(out), "--resume", f"the run finished, its last checkpoint at "
-                             f"{kept[1]} timesteps: give --timesteps above {kept[1]} to train "
-                             f"it on, or train a new one into another folder")
-        return
-    # a run that failed before its first checkpoint leaves an empty checkpoints/: no run
-    earlier = [name for name in ("policy.zip", "log.csv") if (out / name).exists()]
-    if any((out / CHECKPOINT_DIR).glob("*")):
-        earlier.append(CHECKPOINT_DIR)
-    if earlier:
-        raise InputError(str(out), "--out", f"holds an earlier training run "
-                                            f"({', '.join(earlier)}): give a new folder, or "
-                                            f"--resume the run it holds")
