@@ -16,6 +16,7 @@ from wrapenv.config import InputError, check_output
 
 
 def _check_train_numbers(args: argparse.Namespace) -> None:
+    """`train`'s numeric flags, each refused by name before a folder is made."""
     from recommender.policy import LOG_STD_INIT_RANGE
     from wrapenv.envs.wrapbench import MAX_TESTS_PER_EPISODE
 
