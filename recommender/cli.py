@@ -21,7 +21,7 @@ from typing import Any
 from calibration import commands
 from calibration.commands import level_g, seed
 from recommender import commands as bench_commands
-from recommender import simulate, train
+from recommender import simulate
 from recommender.parallel import BACKENDS
 from wrapenv import __version__
 from wrapenv.config import InputError
@@ -376,11 +376,19 @@ def _stop_children() -> None:
     stop(multiprocessing.active_children())
 
 
+def _run_train(args: argparse.Namespace) -> int:
+    """`train`, whose module brings torch and stable-baselines3: imported for a training run
+    only, so that the other commands start without them."""
+    from recommender import train
+
+    return train.run_train(args)
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     command = {"simulate": simulate.run_simulate,
                "recommend": bench_commands.run_recommend,
-               "train": train.run_train,
+               "train": _run_train,
                "synth": commands.run_synth, "track": commands.run_track,
                "calibrate": commands.run_calibrate}[args.command]
     _Forking.owner_pid = os.getpid()

@@ -1,7 +1,7 @@
 """The bench's command `train`: a PPO policy on random load units, in a folder it can resume.
 
-The policy's module (and torch with it) is imported only when a run starts, so that the other
-commands start without it.
+It imports the policy's module, and torch with it: `wrapbench` imports this module only for a
+training run, so that the other commands start without them.
 """
 
 from __future__ import annotations
@@ -11,15 +11,14 @@ import contextlib
 import math
 from pathlib import Path
 
+from recommender import policy
 from recommender.commands import check_target, most_workers, named_web, read_calibration
 from wrapenv.config import InputError, check_output
+from wrapenv.envs.wrapbench import MAX_TESTS_PER_EPISODE
 
 
 def _check_train_numbers(args: argparse.Namespace) -> None:
     """`train`'s numeric flags, each refused by name before a folder is made."""
-    from recommender.policy import LOG_STD_INIT_RANGE
-    from wrapenv.envs.wrapbench import MAX_TESTS_PER_EPISODE
-
     for flag, value in (("--timesteps", args.timesteps), ("--envs", args.envs)):
         if value < 1:
             raise InputError("arguments", flag, f"must be >= 1 (got {value})")
@@ -38,10 +37,10 @@ def _check_train_numbers(args: argparse.Namespace) -> None:
     if args.tests_per_episode > 1 and args.test != "verified":
         raise InputError("arguments", "--tests-per-episode", "above 1 needs --test verified: "
                                                              "the nominal test draws nothing")
-    if not LOG_STD_INIT_RANGE[0] <= args.log_std_init <= LOG_STD_INIT_RANGE[1]:
-        raise InputError("arguments", "--log-std-init", f"must be between "
-                         f"{LOG_STD_INIT_RANGE[0]:g} and {LOG_STD_INIT_RANGE[1]:g} "
-                         f"(got {args.log_std_init:g})")
+    low, high = policy.LOG_STD_INIT_RANGE
+    if not low <= args.log_std_init <= high:
+        raise InputError("arguments", "--log-std-init", f"must be between {low:g} and {high:g} "
+                                                        f"(got {args.log_std_init:g})")
 
 
 def _run_folder(out: Path, resume: bool, timesteps: int) -> bool:
@@ -65,27 +64,24 @@ def _run_folder(out: Path, resume: bool, timesteps: int) -> bool:
 
 
 def run_train(args: argparse.Namespace) -> int:
-    from recommender.policy import TrainSettings, last_checkpoint, train
-
     _check_train_numbers(args)
     named_web(args.material)
     check_target(args.target)
     calibration = (None if args.calibration is None
                    else read_calibration(args.calibration, "train"))
-    settings = TrainSettings(timesteps=args.timesteps, workers=args.envs, material=args.material,
-                             target_g=args.target, seed=args.seed, max_minutes=args.minutes,
-                             calibration=calibration, test=args.test,
-                             material_weight=args.material_weight,
-                             log_std_init=args.log_std_init,
-                             tests_per_episode=args.tests_per_episode)
+    settings = policy.TrainSettings(
+        timesteps=args.timesteps, workers=args.envs, material=args.material,
+        target_g=args.target, seed=args.seed, max_minutes=args.minutes, calibration=calibration,
+        test=args.test, material_weight=args.material_weight, log_std_init=args.log_std_init,
+        tests_per_episode=args.tests_per_episode)
     made = _run_folder(args.out, args.resume, settings.rollout_timesteps)
     if settings.rollout_timesteps != settings.timesteps:
         print(f"training {settings.rollout_timesteps} timesteps: PPO collects whole rollouts of "
               f"{settings.n_steps * settings.n_envs} episodes")
     try:
-        path = train(settings, args.out, resume=args.resume)
+        path = policy.train(settings, args.out, resume=args.resume)
     except KeyboardInterrupt as exc:
-        kept = last_checkpoint(args.out)
+        kept = policy.last_checkpoint(args.out)
         if kept:
             exc.add_note(f"interrupted; no policy.zip written, the last checkpoint is {kept[0]} "
                          f"(--resume continues from it)")
@@ -102,10 +98,8 @@ def _forget_run(out: Path, made: bool) -> None:
     """What a run interrupted before its first checkpoint wrote: its log and its empty
     checkpoints/, and `out` itself if the run `made` it. Kept, the log made a folder that could
     be neither resumed (no checkpoint) nor trained into again (an earlier run's log)."""
-    from recommender.policy import CHECKPOINT_DIR, LOG_FILE
-
-    (out / LOG_FILE).unlink(missing_ok=True)
-    for folder in (out / CHECKPOINT_DIR, out) if made else (out / CHECKPOINT_DIR,):
+    (out / policy.LOG_FILE).unlink(missing_ok=True)
+    for folder in (out / policy.CHECKPOINT_DIR, out) if made else (out / policy.CHECKPOINT_DIR,):
         with contextlib.suppress(OSError):   # not empty: something else is there, kept
             folder.rmdir()
 
@@ -113,10 +107,8 @@ def _forget_run(out: Path, made: bool) -> None:
 def _check_run_folder(out: Path, resume: bool, timesteps: int) -> None:
     """A new run needs a folder without one; a resumed run, an interrupted one (checkpoints,
     its log, no policy.zip), or a finished one to train on past its last checkpoint."""
-    from recommender.policy import CHECKPOINT_DIR, last_checkpoint
-
     if resume:
-        kept = last_checkpoint(out)
+        kept = policy.last_checkpoint(out)
         if kept is None or not (out / "log.csv").is_file():
             raise InputError(str(out), "--resume", "holds no run to resume (checkpoints/ and "
                                                    "log.csv)")
@@ -127,8 +119,8 @@ def _check_run_folder(out: Path, resume: bool, timesteps: int) -> None:
         return
     # a run that failed before its first checkpoint leaves an empty checkpoints/: no run
     earlier = [name for name in ("policy.zip", "log.csv") if (out / name).exists()]
-    if any((out / CHECKPOINT_DIR).glob("*")):
-        earlier.append(CHECKPOINT_DIR)
+    if any((out / policy.CHECKPOINT_DIR).glob("*")):
+        earlier.append(policy.CHECKPOINT_DIR)
     if earlier:
         raise InputError(str(out), "--out", f"holds an earlier training run "
                                             f"({', '.join(earlier)}): give a new folder, or "
