@@ -44,7 +44,7 @@ def wrapbench(*argv: str) -> subprocess.CompletedProcess:
     return done
 
 
-#: `recommend`'s reasons for recommending nothing (recommender/commands.py), as a cell says them.
+#: `recommend`'s reasons for recommending nothing (recommender/recommend.py), as a cell says them.
 NONE_BECAUSE = {"no program recommended": "its passes failed their verification",
                 "no program passed": "nothing passed",
                 "no program within the cycle-time limit": "every candidate too slow"}

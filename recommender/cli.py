@@ -20,8 +20,7 @@ from typing import Any
 
 from calibration import commands
 from calibration.commands import level_g, seed
-from recommender import commands as bench_commands
-from recommender import simulate
+from recommender import recommend, simulate
 from recommender.parallel import BACKENDS
 from wrapenv import __version__
 from wrapenv.config import InputError
@@ -387,7 +386,7 @@ def _run_train(args: argparse.Namespace) -> int:
 def main(argv: Sequence[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     command = {"simulate": simulate.run_simulate,
-               "recommend": bench_commands.run_recommend,
+               "recommend": recommend.run_recommend,
                "train": _run_train,
                "synth": commands.run_synth, "track": commands.run_track,
                "calibrate": commands.run_calibrate}[args.command]

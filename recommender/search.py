@@ -82,7 +82,7 @@ TIGHT_PROGRAMS = tuple((float(MIN_BOTTOM_WRAPS), float(MIN_TOP_WRAPS), 0.0, 0.0,
 #: of 12 held-out film units whose first round found none, the strongest program held 8 of 8
 #: verification samples on 3 (a round from it answers all 3), 7 of 8 on 2 and 3 of 8 on one
 #: (2026-11-28, docs/recommend.md). A round from it searches lighter, weaker programs, so it
-#: starts only once this program has held its verification (`recommender.commands`).
+#: starts only once this program has held its verification (`recommender.recommend`).
 STRONGEST_PROGRAM = (float(MAX_WRAPS), float(MAX_WRAPS), float(MAX_REINFORCEMENT_WRAPS), 1.0,
                      0.5, 1.0, 1.0, 1.0, 1.0)
 #: Initial spread per coordinate, times `sigma0`: wraps by whole revolutions, the rest by a

@@ -379,7 +379,7 @@ def test_an_interrupted_command_leaves_no_worker_behind(monkeypatch, load_file, 
     stopped)."""
     import multiprocessing
 
-    from recommender import commands as bench_commands
+    from recommender import recommend
 
     worker = multiprocessing.get_context("fork").Process(target=_idle_worker,
                                                            args=(os.getpid(),))
@@ -388,7 +388,7 @@ def test_an_interrupted_command_leaves_no_worker_behind(monkeypatch, load_file, 
         worker.start()
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(bench_commands, "run_recommend", interrupted)
+    monkeypatch.setattr(recommend, "run_recommend", interrupted)
     assert main(["recommend", str(load_file())]) == 130
     assert not worker.is_alive() and worker.exitcode is not None
     assert "interrupted, nothing written" in capsys.readouterr().err
@@ -617,7 +617,7 @@ def test_nothing_passed_counts_only_slow_candidates_as_over_the_limit():
     """Candidates heavier than a pass are not simulated either; they are not slow."""
     from types import SimpleNamespace
 
-    from recommender.commands import _nothing_passed
+    from recommender.recommend import _nothing_passed
 
     settings = SimpleNamespace(max_cycle_s=40.0, targets=(("long", 0.5),), margin_goal=0.2,
                                samples=3)
@@ -636,7 +636,7 @@ def test_a_search_pass_that_fails_a_verification_sample_is_not_recommended(monke
     from types import SimpleNamespace
 
     from recommender import search
-    from recommender.commands import _nothing_passed, _verified
+    from recommender.recommend import _nothing_passed, _verified
     from wrapenv.uncertainty import PassProbability
 
     def holding(problem, wrap, samples, workers=1):

@@ -21,7 +21,7 @@ import numpy as np
 import pytest
 import tomli_w
 
-from recommender import commands
+from recommender import recommend
 from recommender import search as search_module
 from recommender.checkpoint import CHECKPOINT_FORMAT, FIRST_ROUND, Round, read_round
 from recommender.cli import EXAMPLE_LOAD, build_parser, main
@@ -59,7 +59,7 @@ def two_verification_samples(monkeypatch) -> None:
     """An answer verified in 2 fresh samples instead of 8: how rounds follow each other, at a
     quarter of the verification's samples (8 are verified on the bundled example, and by the
     contract tests and the slow ones)."""
-    monkeypatch.setattr(commands, "VERIFY_SAMPLES", 2)
+    monkeypatch.setattr(recommend, "VERIFY_SAMPLES", 2)
 
 
 def test_among_passes_laying_the_same_web_the_lower_tension_ranks_first(small_load):
@@ -557,7 +557,7 @@ def test_a_round_whose_passes_all_fail_their_verification_is_followed_by_a_sturd
 
 
 def test_passes_that_failed_their_verification_in_the_last_round_say_what_makes_them_sturdier():
-    from recommender.commands import _nothing_passed
+    from recommender.recommend import _nothing_passed
 
     settings = SimpleNamespace(max_cycle_s=math.inf, targets=(("long", 0.5),), margin_goal=0.2,
                                samples=1)
@@ -645,7 +645,7 @@ def test_the_strongest_program_must_hold_every_sample_for_a_round_to_start_from_
 
 
 def test_no_program_says_so_when_even_the_strongest_failed():
-    from recommender.commands import _nothing_passed
+    from recommender.recommend import _nothing_passed
 
     settings = SimpleNamespace(max_cycle_s=math.inf, targets=(("long", 0.5),), margin_goal=0.2,
                                samples=4)
@@ -691,14 +691,14 @@ def test_a_second_round_interrupted_before_it_simulates_anything_resumes_in_that
         monkeypatch, load_file, tmp_path, capsys):
     """A round's checkpoint is written as the round starts: interrupted before its first
     generation, the search resumes the second round, not the first, whose passes all failed."""
-    real = commands._run_search
+    real = recommend._run_search
 
     def run_search(search, state, settings, round_number):
         if round_number == 2:
             raise KeyboardInterrupt
         return real(search, state, settings, round_number)
 
-    monkeypatch.setattr(commands, "_run_search", run_search)
+    monkeypatch.setattr(recommend, "_run_search", run_search)
     _failing_first_rounds(monkeypatch)
     assert main(["recommend", str(load_file(base=SMALL)), "--budget", "4", "--samples", "1",
                  "--workers", "2", "--json", str(tmp_path / "rec.json")]) == 130
@@ -714,7 +714,7 @@ def test_a_search_interrupted_without_a_checkpoint_says_nothing_was_written(
     def interrupted(*args):
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(commands, "_run_search", interrupted)
+    monkeypatch.setattr(recommend, "_run_search", interrupted)
     assert main(["recommend", str(load_file(base=SMALL)), "--budget", "4", "--samples", "1",
                  "--workers", "2"]) == 130
     assert capsys.readouterr().err == "wrapbench recommend: interrupted, nothing written\n"
@@ -948,7 +948,7 @@ def test_ordered_tensions_hold_for_a_search_s_answer_and_a_policy_s_proposal(loa
                                            (("--no-ordered-tensions",), False)])
 def test_tensions_are_ordered_unless_asked_free(flag, ordered):
     argv = ["recommend", *flag]
-    assert commands._settings(build_parser().parse_args(argv)).ordered_tensions is ordered
+    assert recommend._settings(build_parser().parse_args(argv)).ordered_tensions is ordered
 
 
 @pytest.mark.usefixtures("two_verification_samples")
@@ -1025,7 +1025,7 @@ def test_a_failing_proposal_is_followed_by_as_many_search_rounds_as_a_search_has
     ("cmaes", None, 2), ("ppo", None, 3), ("ppo", 2, 2), ("cmaes", 1, 1)])
 def test_ppo_has_one_round_more_by_default_as_its_first_searches_nothing(method, rounds,
                                                                           expected):
-    from recommender.commands import _rounds
+    from recommender.recommend import _rounds
 
     assert _rounds(SimpleNamespace(method=method, rounds=rounds)) == expected
 
@@ -1104,7 +1104,7 @@ def test_a_policy_asked_about_a_unit_unlike_its_training_units_is_warned_about(
 
 def test_a_proposal_is_recommended_only_if_it_passes_every_sample():
     """A proposal must pass every sample of its verification, as a search's answer must."""
-    from recommender.commands import _refused_proposal
+    from recommender.recommend import _refused_proposal
     from wrapenv.uncertainty import PassProbability
 
     problem = SimpleNamespace(settings=SearchSettings(max_cycle_s=100.0))
@@ -1336,7 +1336,7 @@ def test_only_a_budget_too_small_says_what_the_first_generation_tries(load_file,
                                              ("3", 3)])
 def test_a_generation_is_8_programs_or_the_whole_budget_when_it_is_smaller(budget, popsize):
     argv = ["recommend", *(("--budget", budget) if budget else ())]
-    assert commands._settings(build_parser().parse_args(argv)).popsize == popsize
+    assert recommend._settings(build_parser().parse_args(argv)).popsize == popsize
 
 
 
