@@ -44,7 +44,7 @@ from recommender.search import (
     at_top_tension,
     next_start,
 )
-from recommender.text import program_text, sample_figures, verdict_table
+from recommender.text import calibration_text, program_text, sample_figures, verdict_table
 from wrapenv.calibrated import Calibration
 from wrapenv.config import (
     InputError,
@@ -205,6 +205,9 @@ def run_recommend(args: argparse.Namespace) -> int:
     _check_flags(args)
     checkpoint = _check_outputs(args)
     problem = Problem.build(load, settings, calibration)
+    if calibration is not None:   # said first: every program below is judged with it
+        print(calibration_text(str(args.calibration), calibration, problem.load, wrapped=True),
+              flush=True)
     samples = max(VERIFY_SAMPLES, args.samples)
     if args.method == "ppo" and not args.resume:   # resumed: its proposal was refused
         return _recommend_by_policy(args, problem, checkpoint, samples, said)
@@ -598,7 +601,8 @@ def _write_outputs(args: argparse.Namespace, problem: Problem, best: Evaluation,
                "evaluations": evaluations, "candidates": candidates,
                **({} if state is None else {"rounds": round_.number,
                                             "search_samples": problem.settings.samples}),
-               "method": args.method, "target_g": problem.settings.target_g}
+               "method": args.method, "target_g": problem.settings.target_g,
+               **({} if args.calibration is None else {"calibration": str(args.calibration)})}
         files[Path(args.json)] = result_json(out)
     if args.wrap_out:
         files[Path(args.wrap_out)] = best.wrap.to_toml().encode()

@@ -918,6 +918,27 @@ def test_ppo_method_answers_from_a_policy_and_verifies_it(load_file, tmp_path, c
 
 
 @pytest.mark.usefixtures("two_verification_samples")
+def test_a_recommendation_says_which_calibration_it_was_judged_with(load_file, tmp_path,
+                                                                    capsys):
+    """As `simulate` does: the values CAL.json put in place are printed before any program is
+    judged with them, and the JSON on file names the calibration (a new user found neither)."""
+    load = load_file(base=SMALL)
+    policy = fixed_policy(load, 0.0, tmp_path / "middle.zip")
+    cal, out = tmp_path / "cal.json", tmp_path / "rec.json"
+    cal.write_text(json.dumps({"friction": {"pallet_bundle": {
+        "static": 0.5, "kinetic": 0.4, "static_std": 0.01, "kinetic_std": 0.01}}}))
+    code = main(["recommend", str(load), "--method", "ppo", "--policy", str(policy),
+                 "--samples", "2", "--workers", "2", "--calibration", str(cal), "--json",
+                 str(out)])
+    printed = capsys.readouterr().out
+    assert code == 0
+    assert printed.splitlines()[0] == (f"calibrated by {cal}: friction (static / kinetic) "
+                                       "pallet_bundle 0.500 / 0.400; web stiffness x 1.00, "
+                                       "laid tension x 1.00")
+    assert json.loads(out.read_text())["calibration"] == str(cal)
+
+
+@pytest.mark.usefixtures("two_verification_samples")
 def test_ordered_tensions_hold_for_a_search_s_answer_and_a_policy_s_proposal(load_file,
                                                                               tmp_path):
     """What `recommend` writes lays the bottom and top wraps at least as tight as the spiral,
