@@ -603,3 +603,20 @@ def test_the_short_side_renders_turned(tiny):
         frames.append(env.render())
         env.close()
     assert not np.array_equal(*frames)
+
+
+def test_the_readme_s_example_runs_as_pasted_in_a_new_interpreter():
+    """The README's Gymnasium block, run on its own: a new user pasted it without the import
+    that registers the environments and got `NamespaceNotFound`."""
+    import subprocess
+    import sys
+
+    root = Path(__file__).resolve().parents[3]
+    readme = (root / "README.md").read_text()
+    start = readme.index("    import gymnasium as gym\n")
+    block = readme[start:readme.index("\n\n", start)]
+    code = "\n".join(line.removeprefix("    ") for line in block.splitlines())
+    assert "env.step(" in code and "env.close()" in code
+    done = subprocess.run([sys.executable, "-c", code], cwd=root, capture_output=True,
+                          text=True, timeout=300)
+    assert done.returncode == 0, done.stderr
