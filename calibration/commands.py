@@ -144,8 +144,13 @@ def _frame_bar() -> Iterator[Callable[[int, int], None]]:
         yield progress
 
 
+def _level(level_g: float) -> str:
+    """A take's level as given: two decimals, three where it has them (0.425, not 0.42)."""
+    return f"{level_g:.2f}" if abs(level_g - round(level_g, 2)) < 1e-9 else f"{level_g:.3f}"
+
+
 def _levels_text(levels_g: tuple[float, ...]) -> str:
-    return ", ".join(f"{g:.2f}" for g in levels_g) + " g"
+    return ", ".join(_level(g) for g in levels_g) + " g"
 
 
 def _after_levels(levels_g: tuple[float, ...]) -> str:
@@ -190,7 +195,7 @@ def run_synth(args: argparse.Namespace) -> int:
         sys.stderr.write(f"wrapbench synth: warning: {warning}\n")
     frames = round(rec.profile.t_s[-1] * rec.fps) + 1
     print(f"wrote {_shown(rec.folder)}: {rec.video.name} {args.size[0]}x{args.size[1]}, "
-          f"{frames} frames at {rec.fps:g} fps, {rec.px_per_m:g} px/m, level {args.level:.2f} g"
+          f"{frames} frames at {rec.fps:g} fps, {rec.px_per_m:g} px/m, level {_level(args.level)} g"
           f"{_after_levels(rec.levels_before_g)}{', wrapped' if wrap else ''}, in "
           f"{time.perf_counter() - t0:.0f} s")
     return 0
@@ -375,8 +380,8 @@ def _check_recording_folders(flag: str, folders: list[Path]) -> None:
     seen: dict[Path, Path] = {}
     for d in folders:
         if not d.is_dir():
-            raise InputError(str(d), flag, "not a folder (a recording folder holds "
-                                           "video.mp4, profile.csv, setup.toml, load.toml)")
+            raise InputError(str(d), flag, "not a folder (a recording folder holds video.mp4 "
+                                           "or video.avi, profile.csv, setup.toml, load.toml)")
         if d.resolve() in seen:
             first = seen[d.resolve()]
             also = "" if first == d else f" (also as {first})"

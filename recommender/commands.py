@@ -15,7 +15,7 @@ from pathlib import Path
 from typing import Any
 
 from wrapenv.calibrated import Calibration
-from wrapenv.config import InputError
+from wrapenv.config import InputError, printable
 from wrapenv.eumos import EUMOS_LIMITS, Limits
 from wrapenv.load import Layout
 from wrapenv.material import check_hours_since_wrapping
@@ -61,6 +61,13 @@ def warn(command: str, messages: tuple[str, ...], said: list[str] | None = None)
         sys.stderr.write(f"wrapbench {command}: warning: {message}\n")
     if said is not None:
         said.extend(messages)
+
+
+def say_written(paths: list[Path]) -> None:
+    """What a command wrote, one line, as `synth`, `track` and `calibrate` say it (none: no
+    line): a user who asked for a report and a JSON sees where they went."""
+    if paths:
+        print(f"wrote {', '.join(printable(str(path)) for path in paths)}")
 
 
 def read_calibration(path: Path, command: str, said: list[str] | None = None) -> Calibration:

@@ -23,6 +23,7 @@ from recommender.commands import (
     most_workers,
     named_web,
     read_calibration,
+    say_written,
     warn,
     wrap_json,
 )
@@ -57,6 +58,7 @@ from wrapenv.config import (
     write_together,
 )
 from wrapenv.load import ORIENTATIONS, LoadUnit, Orientation
+from wrapenv.profile import target_warnings
 from wrapenv.wrap import Web, WrapFormat
 
 #: Robust passes tried, lightest first, until one passes the whole EUMOS sequence.
@@ -203,6 +205,8 @@ def run_recommend(args: argparse.Namespace) -> int:
                    else None)
     settings = _settings(args)
     _check_flags(args)
+    warn("recommend", tuple(dict.fromkeys(w for _, g in settings.targets
+                                          for w in target_warnings(g))), said)
     checkpoint = _check_outputs(args)
     problem = Problem.build(load, settings, calibration)
     if calibration is not None:   # said first: every program below is judged with it
@@ -582,8 +586,8 @@ def _write_outputs(args: argparse.Namespace, problem: Problem, best: Evaluation,
     --json and --wrap-out together: an interrupt leaves the report at most. `round_`: the
     search round that answered (`evaluations` counts every round's simulations)."""
     candidates = None if state is None else round_.earlier_candidates + len(state.history)
-    if args.report:
-        _write_report(args, problem, check, best, state, candidates, said)
+    page = (_write_report(args, problem, check, best, state, candidates, said) if args.report
+            else None)
     files = {}
     if args.json:
         weakest = check.runs[check.weakest]
@@ -607,13 +611,14 @@ def _write_outputs(args: argparse.Namespace, problem: Problem, best: Evaluation,
     if args.wrap_out:
         files[Path(args.wrap_out)] = best.wrap.to_toml().encode()
     write_together(files)
+    say_written([*([page] if page else []), *files])
 
 
 def _write_report(args: argparse.Namespace, problem: Problem, check: Verification,
                   best: Evaluation, state: SearchState | None, candidates: int | None,
-                  said: list[str]) -> None:
+                  said: list[str]) -> Path:
     """report.html and its files (state None: a policy's proposal, no search; `candidates`:
-    tried in every round)."""
+    tried in every round); returns the page."""
     given = {"load unit": args.load, "calibration": args.calibration, "policy": args.policy}
-    write_report(args.report, lambda stage: recommend_page(stage, problem, check, best, state,
-                                                           given, tuple(said), candidates))
+    return write_report(args.report, lambda stage: recommend_page(
+        stage, problem, check, best, state, given, tuple(said), candidates))

@@ -20,6 +20,7 @@ from recommender.commands import (
     criteria_limits,
     most_workers,
     read_calibration,
+    say_written,
     warn,
     wrap_json,
 )
@@ -46,7 +47,7 @@ from wrapenv.calibrated import Calibration
 from wrapenv.config import InputError, check_distinct, check_output, result_json, write_together
 from wrapenv.eumos import LevelVerdict, Limits
 from wrapenv.load import Layout, LoadUnit, Orientation
-from wrapenv.profile import MeasuredProfile, Profile, PulseProfile, eumos_levels
+from wrapenv.profile import MeasuredProfile, Profile, PulseProfile, eumos_levels, target_warnings
 from wrapenv.uncertainty import PassProbability, Uncertainty
 from wrapenv.wrap import WrapFormat
 
@@ -129,6 +130,8 @@ def run_simulate(args: argparse.Namespace) -> int:
     levels = _levels(args)
     warn("simulate", tuple(w for p in levels if isinstance(p, MeasuredProfile)
                            for w in p.warnings()), said)
+    if args.target is not None:
+        warn("simulate", target_warnings(args.target), said)
     if laid is not None:
         warn("simulate", laid.warnings(layout), said)
     limits = criteria_limits(args)
@@ -148,11 +151,12 @@ def run_simulate(args: argparse.Namespace) -> int:
     if laid is not None:
         print(program_text(laid, layout))
         print(age_text(laid.material, args.hours_since_wrapping))
+    page = None
     if args.report:   # first: the slowest to make, and nothing of it shows until it is whole
         named = {"load unit": args.load, "wrap": args.wrap, "calibration": args.calibration,
                  "sled profile": args.profile}
         robust = None if sampled is None else sampled.robustness()
-        write_report(args.report, lambda stage: simulate_page(
+        page = write_report(args.report, lambda stage: simulate_page(
             stage, load, run, laid, wrap, args.orientation, args.hours_since_wrapping, named,
             tuple(said), levels, robust))
     files = {}
@@ -167,6 +171,7 @@ def run_simulate(args: argparse.Namespace) -> int:
 
         files[Path(args.tension_map)] = plot_tension_map(run, layout, title=load.name)
     write_together(files)
+    say_written([*([page] if page else []), *files])
     return 0 if run.verdict.passed else 1
 
 

@@ -115,8 +115,9 @@ def verdict_table(load: LoadUnit, run: BenchRun, orientation: Orientation | None
     criteria = v.levels[0].limits.criteria() if v.levels else EUMOS_CRITERIA
     limits = ", ".join(f"{c.label.lower()} {c.describe(h)}" for c in criteria)
     lines = [
-        f"{printable(load.name)}: {len(layout.bundles)} bundles, {load.stack.layers} layers "
-        f"({load.stack.pattern}), load height {h:.3f} m, {load.mass_kg:.0f} kg",
+        f"{printable(load.name)}: {len(layout.bundles)} bundles, {load.stack.layers} "
+        f"layer{'s' * (load.stack.layers != 1)} ({load.stack.pattern}), load height {h:.3f} m, "
+        f"{load.mass_kg:.0f} kg",
         f"sequence: {v.sequence} ({sequence_text(v)}); motion along the pallet's "
         f"{orientation_tested(load, orientation)} side ({layout.pallet_size_m[0]:.3f} m)",
         f"limits: {limits}, no damage",

@@ -208,6 +208,15 @@ Profile = PulseProfile | MeasuredProfile
 START_G = 0.2
 
 
+def target_warnings(target_g: float) -> tuple[str, ...]:
+    """A target below EUMOS 40509's first level. It is run, not refused (a lighter check has
+    its uses), but its pass is no pass of the standard: a new user read one as such."""
+    if target_g >= START_G - 1e-9:
+        return ()
+    return (f"a target of {target_g:g} g lies below EUMOS 40509's first level ({START_G:g} g): "
+            "the sequence is that one level, a check short of the standard",)
+
+
 def eumos_levels(target_g: float = 0.5, start_g: float | None = None) -> list[float]:
     """The EUMOS 40509 sequence: start (0.2 or 0.3 g), then +0.1 g up to and including target.
     Without a start, 0.2 g, or the target itself when it is lower."""

@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 from calibration.acceptance import Unexplained
-from calibration.commands import _summary, _validation_summary
+from calibration.commands import _levels_text, _summary, _validation_summary
 from calibration.fit import FitResult
 from calibration.recording import Truth
 from calibration.trajectories import ObjectPath, Trajectories
@@ -717,3 +717,8 @@ def test_a_fit_refused_on_a_take_near_a_threshold_says_it_may_be_one(least_expla
     assert len(lines) == 1
     assert lines[0].startswith("note: takes/0.45g may be a take near a threshold")
     assert lines[0].endswith("(--validate takes/0.45g)") == (noted == "apart")
+
+
+def test_a_take_s_level_is_printed_as_given():
+    """0.425 g was printed as 0.42 g (a new user's third take)."""
+    assert _levels_text((0.2, 0.425, 0.5)) == "0.20, 0.425, 0.50 g"

@@ -152,6 +152,14 @@ def test_one_bad_level_among_several_exits_2_before_running_any(load_file, tmp_p
     assert written(tmp_path) == []
 
 
+def test_a_target_below_the_first_eumos_level_runs_with_a_warning(load_file, capsys):
+    assert run(["simulate", str(load_file()), "--target", "0.1"]) in (0, 1)
+    out, err = capsys.readouterr()
+    assert one_line(err).startswith("wrapbench simulate: warning: a target of 0.1 g lies below "
+                                    "EUMOS 40509's first level (0.2 g)")
+    assert "0.10 g" in out and "0.20 g" not in out
+
+
 def test_eumos_target_beyond_the_bench_exits_2(load_file, capsys):
     assert run(["simulate", str(load_file()), "--eumos", "--target", "2.0"]) == 2
     assert "--target" in one_line(capsys.readouterr().err)
@@ -421,6 +429,7 @@ def test_passing_level_exits_0_and_writes_the_contract_json_and_a_png(load_file,
     out, err = capsys.readouterr()
     assert code == 0, err
     assert "tiny" in out
+    assert out.splitlines()[-1] == f"wrote {out_json}, {out_png}"   # as synth and track say
 
     verdict = json.loads(out_json.read_text())
     assert {"valid", "load_height_m", "levels", "highest_passed_g"} <= set(verdict)

@@ -544,8 +544,10 @@ def test_a_round_whose_passes_all_fail_their_verification_is_followed_by_a_sturd
             "2)") in text
     assert re.search(r"\(round 2 of at most 2\), every tension at the top of its range "
                      r"\(\d+ N\), from the lightest of them\n", text)
-    assert text.strip().endswith("; round 2, 2 samples a candidate, every tension at the top: "
-                                 "the round before found no pass that held its verification)")
+    searched, wrote = text.strip().splitlines()[-2:]
+    assert searched.endswith("; round 2, 2 samples a candidate, every tension at the top: "
+                             "the round before found no pass that held its verification)")
+    assert wrote == f"wrote {report / 'report.html'}, {out}"
     result = json.loads(out.read_text())
     assert result["rounds"] == 2 and result["search_samples"] == 2
     assert 4 < result["candidates"] <= 4 + 8
@@ -735,6 +737,7 @@ def test_recommend_writes_the_contract_json_and_a_wrap_simulate_accepts(load_fil
     text = capsys.readouterr().out
     assert code == 0
     assert "recommended wrapping program" in text and "material used" in text
+    assert text.splitlines()[-1] == f"wrote {out}, {wrap}"
     assert "spiral up" in text and "cycle time" in text
     assert text.index("-- long side along the motion --\n") < text.index(
         "-- short side along the motion --\n")   # each side's verdict under its heading
@@ -761,10 +764,10 @@ def test_recommend_writes_the_contract_json_and_a_wrap_simulate_accepts(load_fil
             f"elastic ") in text
     assert f"; margin {worst['margin']:.2f} in the worst sample, " in text
     assert text.count("\nhighest level passed: 0.50 g\n") == 2   # each side's table
-    # answered in its first round: the last line says nothing of rounds
+    # answered in its first round: the line before what it wrote says nothing of rounds
     assert re.fullmatch(rf"searched {result['candidates']} candidates "
                         rf"\({result['evaluations']} simulations\) in \d+ s "
-                        rf"\(2 workers, process\)", text.strip().splitlines()[-1])
+                        rf"\(2 workers, process\)", text.strip().splitlines()[-2])
     assert main(["simulate", str(load), "--wrap", str(wrap), "--level", "0.5"]) == 0
 
 

@@ -211,6 +211,12 @@ def test_the_table_names_the_side_of_the_pallet_that_faced_the_motion_and_any_te
     assert orientation_tested(unit, None) == "long"
 
 
+def test_the_table_counts_one_layer_as_one():
+    unit = LoadUnit.from_toml("examples/pet_1layer_columnar.toml")
+    first = verdict_table(unit, BenchRun(Verdict(0.474, (level(True),)), (), 20), None)
+    assert ": 16 bundles, 1 layer (columnar), load height" in first.splitlines()[0]
+
+
 def test_the_wrap_s_age_says_what_its_tension_kept():
     """LLDPE keeps 80 % of its laid tension after 24 h (its card's relaxation law); a card
     without a law keeps it all, and says so; 0 h points at the option a lab's test needs."""

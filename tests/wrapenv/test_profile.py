@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from wrapenv.config import InputError
-from wrapenv.profile import G, MeasuredProfile, PulseProfile, eumos_levels
+from wrapenv.profile import G, MeasuredProfile, PulseProfile, eumos_levels, target_warnings
 
 DT = 1e-4
 
@@ -382,3 +382,11 @@ def test_nan_time_is_reported_in_the_time_column(tmp_path, assert_input_error):
 def test_a_target_below_the_usual_start_is_a_sequence_of_one_level():
     assert eumos_levels(0.1) == [0.1]
     assert eumos_levels(0.5) == [0.2, 0.3, 0.4, 0.5]
+
+
+def test_a_target_below_the_standard_s_first_level_is_run_and_warned_of():
+    """Its pass is no pass of EUMOS 40509 (a new user read one as such)."""
+    assert target_warnings(0.1) == ("a target of 0.1 g lies below EUMOS 40509's first level "
+                                    "(0.2 g): the sequence is that one level, a check short of "
+                                    "the standard",)
+    assert target_warnings(0.2) == target_warnings(0.5) == ()
