@@ -174,11 +174,13 @@ class Calibration:
             acceptance.done()
         # how the fit went and how it was checked: for people, the bench does not need them
         top.ignore(*DIAGNOSTICS)
-        top.done()
         if not (pairs or top.has("wrap")):
-            # all defaults: the load's own friction and wrap, which the user meant to replace
+            # all defaults: the load's own friction and wrap, which the user meant to replace;
+            # said before any unknown key, which another file (a truth.json) is full of
             raise InputError(source, "friction",
-                             "no friction pair and no wrap table: the file calibrates nothing")
+                             "no friction pair and no wrap table: the file calibrates nothing "
+                             "(is it a CAL.json, as `wrapbench calibrate --out` writes?)")
+        top.done()
         return cls(pairs, stiffness, tension, *stds, *give, known, unexplained, near)
 
 

@@ -137,10 +137,12 @@ def test_empty_calibration_changes_nothing():
     assert cal.apply(load()) == load()
 
 
-@pytest.mark.parametrize("data", [{}, {"friction": {}}, {"residual_rms_m": 0.001}])
+@pytest.mark.parametrize("data", [{}, {"friction": {}}, {"residual_rms_m": 0.001},
+                                  {"objects": {"L1C1R1": {"t_s": [0.0]}}}])
 def test_a_file_that_calibrates_nothing_is_refused(data, tmp_path, assert_input_error):
     """`{}` used to be read as the load's own friction and wrap: a run the user believed
-    calibrated, said nowhere to be otherwise."""
+    calibrated, said nowhere to be otherwise. Another file given for CAL.json (a recording's
+    truth.json) is told as such, not by its first unknown key."""
     path = write_json(tmp_path, data)
     with pytest.raises(InputError) as info:
         Calibration.from_json(path)
