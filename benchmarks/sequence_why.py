@@ -94,9 +94,10 @@ def _carried_row(trace: Trace) -> tuple[str, str, bool]:
     worst = int(total.argmax())
     c, o = carried[worst], own[worst]
     lengths = float(np.linalg.norm(c) * np.linalg.norm(o))
-    along = float(c @ o) / lengths if lengths > 1e-12 else float("nan")
+    # nothing carried yet (the first level): no direction to compare, printed as "-"
+    along = f"{float(c @ o) / lengths:5.2f}" if lengths > 1e-12 else f"{'-':>5}"
     return (f"{1000 * np.linalg.norm(c):7.1f} {_own_max_mm(trace):6.1f}",
-            f"{1000 * total[worst]:7.1f} {along:5.2f}",
+            f"{1000 * total[worst]:7.1f} {along}",
             not evaluate(trace).passed)
 
 
@@ -110,6 +111,8 @@ def main() -> None:
     print(f"{'load + wrap':42} {'level':>5} {'carried':>7} {'own':>6} {'fresh':>6} "
           f"{'fresh ±2 %':>12} {'after':>6} {'total':>7} {'along':>5}  {'tension':>9} "
           f"{'plastic':>9} {'pull':>7}")
+    print(f"{'':42} {'g':>5} {'mm':>7} {'mm':>6} {'mm':>6} {'mm':>12} {'mm':>6} {'mm':>7} "
+          f"{'cos':>5}  {'of laid':>9} {'‰':>9} {'g':>7}")
     for load_name, wrap_name in CASES:
         load = LoadUnit.from_toml(EXAMPLES / f"{load_name}.toml")
         wrap = (WrapFormat.from_toml(EXAMPLES / f"{wrap_name}.toml", load.load_height_m)
