@@ -205,10 +205,11 @@ def run_recommend(args: argparse.Namespace) -> int:
                    else None)
     settings = _settings(args)
     _check_flags(args)
-    warn("recommend", tuple(dict.fromkeys(w for _, g in settings.targets
-                                          for w in target_warnings(g))), said)
     checkpoint = _check_outputs(args)
     problem = Problem.build(load, settings, calibration)
+    # after every check: a refused command prints its one line alone
+    warn("recommend", tuple(dict.fromkeys(w for _, g in settings.targets
+                                          for w in target_warnings(g))), said)
     if calibration is not None:   # said first: every program below is judged with it
         print(calibration_text(str(args.calibration), calibration, problem.load, wrapped=True),
               flush=True)

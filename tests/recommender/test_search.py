@@ -1073,6 +1073,16 @@ def test_no_round_follows_a_proposal_when_even_the_strongest_program_fails(
     assert "searching from it" not in text
 
 
+def test_recommend_warns_once_of_a_target_below_the_first_eumos_level(load_file, capsys):
+    """Both sides at 0.1 g, one warning (as `simulate` gives it); nothing simulated here: no
+    program is within a 1 s cycle."""
+    assert main(["recommend", str(load_file(base=SMALL)), "--target", "0.1", "--max-cycle-s",
+                 "1", "--budget", "3", "--samples", "1", "--workers", "1"]) == 1
+    assert capsys.readouterr().err.splitlines() == [
+        "wrapbench recommend: warning: a target of 0.1 g lies below EUMOS 40509's first level "
+        "(0.2 g): the sequence is that one level, a check short of the standard"]
+
+
 def test_recommend_warns_of_a_calibration_accepted_under_a_looser_bound(load_file, tmp_path,
                                                                         capsys):
     """As `simulate` does (tests/calibration/test_commands.py), whatever the search answers:
