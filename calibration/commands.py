@@ -28,10 +28,11 @@ from wrapenv.config import (
     check_output,
     printable,
     result_json,
+    shown_path,
     write_together,
 )
 from wrapenv.load import Friction, LoadUnit
-from wrapenv.profile import profile_warnings
+from wrapenv.profile import g_text, profile_warnings
 from wrapenv.wrap import WrapFormat
 
 if TYPE_CHECKING:   # imported where used: the CLI starts without the fitting's modules
@@ -46,12 +47,6 @@ SYNTH_FLAGS = {("arguments", "size"): "--size", ("arguments", "fps"): "--fps",
                ("arguments", "friction_jitter"): "--friction-jitter",
                ("arguments", "levels_before_g"): "--levels-before",
                ("profile", "level_g"): "--level"}
-
-
-def _shown(path: object) -> str:
-    """A path as a message names it: whole (a lab's archive folders run long) and safe to
-    print."""
-    return printable(str(path), MESSAGE_CHARS)
 
 
 def level_g(text: str) -> float:
@@ -144,13 +139,8 @@ def _frame_bar() -> Iterator[Callable[[int, int], None]]:
         yield progress
 
 
-def _level(level_g: float) -> str:
-    """A take's level as given: two decimals, three where it has them (0.425, not 0.42)."""
-    return f"{level_g:.2f}" if abs(level_g - round(level_g, 2)) < 1e-9 else f"{level_g:.3f}"
-
-
 def _levels_text(levels_g: tuple[float, ...]) -> str:
-    return ", ".join(_level(g) for g in levels_g) + " g"
+    return ", ".join(g_text(g) for g in levels_g) + " g"
 
 
 def _after_levels(levels_g: tuple[float, ...]) -> str:
@@ -194,8 +184,8 @@ def run_synth(args: argparse.Namespace) -> int:
     if warning := marker_warning(rec, args.size):
         sys.stderr.write(f"wrapbench synth: warning: {warning}\n")
     frames = round(rec.profile.t_s[-1] * rec.fps) + 1
-    print(f"wrote {_shown(rec.folder)}: {rec.video.name} {args.size[0]}x{args.size[1]}, "
-          f"{frames} frames at {rec.fps:g} fps, {rec.px_per_m:g} px/m, level {_level(args.level)} g"
+    print(f"wrote {shown_path(rec.folder)}: {rec.video.name} {args.size[0]}x{args.size[1]}, "
+          f"{frames} frames at {rec.fps:g} fps, {rec.px_per_m:g} px/m, level {g_text(args.level)} g"
           f"{_after_levels(rec.levels_before_g)}{', wrapped' if wrap else ''}, in "
           f"{time.perf_counter() - t0:.0f} s")
     return 0
@@ -222,7 +212,7 @@ def run_track(args: argparse.Namespace) -> int:
         sys.stderr.write(f"wrapbench track: warning: {warning}\n")
     objects = result.trajectories.objects
     frames = max((len(p.t_s) for p in objects.values()), default=0)
-    print(f"wrote {_shown(out)}: {len(objects)} objects ({', '.join(objects)}), "
+    print(f"wrote {shown_path(out)}: {len(objects)} objects ({', '.join(objects)}), "
           f"{frames} frames in {wall:.1f} s ({frames / wall:.0f} frames/s, tracker {args.tracker})")
     if truth is not None:
         errors = error_vs_truth(result.trajectories, truth.objects)
@@ -317,15 +307,15 @@ def _observations(recordings: list, retrack: bool) -> list:
         if csv.exists() and not retrack:
             tracked = Trajectories.from_csv(csv)
             rec.check_trajectories(tracked, str(csv))
-            print(f"{_shown(rec.folder)}: trajectories from {csv.name}"
+            print(f"{shown_path(rec.folder)}: trajectories from {csv.name}"
                   f"{_replayed_after(rec.levels_before_g)}")
         else:
             result = track(rec)
             for warning in result.warnings:
-                sys.stderr.write(f"wrapbench calibrate: warning: {_shown(rec.folder)}: "
+                sys.stderr.write(f"wrapbench calibrate: warning: {shown_path(rec.folder)}: "
                                  f"{warning}\n")
             tracked = result.trajectories
-            print(f"{_shown(rec.folder)}: tracked {len(tracked.objects)} objects"
+            print(f"{shown_path(rec.folder)}: tracked {len(tracked.objects)} objects"
                   f"{_replayed_after(rec.levels_before_g)}")
         observations.append(observe(rec, tracked))
     return observations
@@ -439,7 +429,7 @@ def run_calibrate(args: argparse.Namespace) -> int:
     except KeyboardInterrupt as exc:
         if checkpoint.exists():
             exc.add_note(f"interrupted, nothing written; the fit's replays are kept in "
-                         f"{_shown(checkpoint)} (--resume continues it)")
+                         f"{shown_path(checkpoint)} (--resume continues it)")
         raise
 
 
@@ -513,7 +503,7 @@ def _fitted_and_written(args: argparse.Namespace, observations: list, held_out: 
     taken = f", {log.reused} replays from the checkpoint" if log.reused else ""
     print(f"{result.simulations} simulations ({_parts(result.simulations_by_part)}{taken}) in "
           f"{wall:.0f} s ({result.method}); wrote "
-          f"{', '.join(_shown(p) for p in paths.values())}")
+          f"{', '.join(shown_path(p) for p in paths.values())}")
     return 0
 
 
@@ -570,7 +560,7 @@ def _refused(result: FitResult, settings: FitSettings, checkpoint: Path, named: 
 def _refusal_hint(kept: Path | None) -> str:
     """How a fit refused on a take a looser bound would accept can be accepted knowingly
     (`kept`: the checkpoint holding its replays, if the engineer named one)."""
-    resume = (f"; {_shown(kept)} keeps this fit's replays: with --resume it is judged "
+    resume = (f"; {shown_path(kept)} keeps this fit's replays: with --resume it is judged "
               "again without simulating them" if kept is not None else "")
     return f" (a larger --max-residual-mm accepts it knowingly, and CAL.json says so{resume})"
 
@@ -606,16 +596,16 @@ def _summary(result: FitResult) -> str:
     if v.source:
         excused = f", {' '.join(v.excused)} excused" if v.excused else ""
         lines.append(f"{'accepted' if result.converged else 'refused'}: the least explained "
-                     f"recording, {_shown(v.source)}, {1e3 * v.rms_m:.2f} mm unexplained by "
+                     f"recording, {shown_path(v.source)}, {1e3 * v.rms_m:.2f} mm unexplained by "
                      f"{v.by}{excused}")
     if result.converged:
-        lines += [f"warning: {_shown(source)} is a take near a threshold: the fitted values' "
+        lines += [f"warning: {shown_path(source)} is a take near a threshold: the fitted values' "
                   "final replays left it unexplained until more were made; a fit can move the "
                   "coefficients that decide such an outcome to where it is the common one and "
                   "claim them resolved: validate this calibration on a level it was not fitted "
                   f"to (--validate){_apart(source, result)}" for source in result.near_threshold]
     elif v.source in result.near_threshold:
-        lines.append(f"note: {_shown(v.source)} may be a take near a threshold (a layer that "
+        lines.append(f"note: {shown_path(v.source)} may be a take near a threshold (a layer that "
                      "slides in some runs and holds in others), which more replays of the right "
                      f"values leave unexplained too{_apart(v.source, result)}")
     return "\n".join(lines)
@@ -631,7 +621,7 @@ def _apart(source: str, result: FitResult) -> str:
     if len(result.fitted) < 2:
         return ""
     text = ("; its rare outcome pulls the coefficients its other bodies see: fit the other "
-            f"takes without it and validate on it (--validate {_shown(source)})")
+            f"takes without it and validate on it (--validate {shown_path(source)})")
     if sole := result.sole_slips.get(source):
         pairs = " and ".join(sole)
         text += (f"; but {pairs} slipped in no other take: fitted without it, {pairs} would only "
@@ -643,7 +633,7 @@ def _apart(source: str, result: FitResult) -> str:
 def _validation_summary(check: Validation) -> str:
     from calibration.validate import REPRODUCED_SHARE
 
-    lines = [f"validation {_shown(check.source)} ({check.replays} replays): slide on its "
+    lines = [f"validation {shown_path(check.source)} ({check.replays} replays): slide on its "
              "support at "
              "the end of the predictable frames, mm; 'uncertain': replayed with the calibrated "
              "values drawn within their standard deviations",

@@ -15,7 +15,7 @@ from pathlib import Path
 from typing import Any
 
 from wrapenv.calibrated import Calibration
-from wrapenv.config import InputError, printable
+from wrapenv.config import InputError, shown_path
 from wrapenv.eumos import EUMOS_LIMITS, Limits
 from wrapenv.load import Layout
 from wrapenv.material import check_hours_since_wrapping
@@ -63,11 +63,13 @@ def warn(command: str, messages: tuple[str, ...], said: list[str] | None = None)
         said.extend(messages)
 
 
-def say_written(paths: list[Path]) -> None:
-    """What a command wrote, one line, as `synth`, `track` and `calibrate` say it (none: no
-    line): a user who asked for a report and a JSON sees where they went."""
-    if paths:
-        print(f"wrote {', '.join(printable(str(path)) for path in paths)}")
+def say_written(*paths: Path | None) -> None:
+    """What a command wrote (None: an output not asked for), one line, as `synth`, `track` and
+    `calibrate` say it (nothing: no line): a user who asked for a report and a JSON sees where
+    they went."""
+    written = [shown_path(path) for path in paths if path is not None]
+    if written:
+        print(f"wrote {', '.join(written)}")
 
 
 def read_calibration(path: Path, command: str, said: list[str] | None = None) -> Calibration:

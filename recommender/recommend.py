@@ -612,7 +612,7 @@ def _write_outputs(args: argparse.Namespace, problem: Problem, best: Evaluation,
     if args.wrap_out:
         files[Path(args.wrap_out)] = best.wrap.to_toml().encode()
     write_together(files)
-    say_written([*([page] if page else []), *files])
+    say_written(page, *files)
 
 
 def _write_report(args: argparse.Namespace, problem: Problem, check: Verification,

@@ -171,7 +171,7 @@ def run_simulate(args: argparse.Namespace) -> int:
 
         files[Path(args.tension_map)] = plot_tension_map(run, layout, title=load.name)
     write_together(files)
-    say_written([*([page] if page else []), *files])
+    say_written(page, *files)
     return 0 if run.verdict.passed else 1
 
 

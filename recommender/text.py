@@ -12,7 +12,7 @@ from wrapenv.config import printable
 from wrapenv.eumos import EUMOS_CRITERIA, NO_DAMAGE, LevelVerdict, Verdict
 from wrapenv.load import Layout, LoadUnit, Orientation
 from wrapenv.material import NO_RELAXATION, Material
-from wrapenv.profile import Profile
+from wrapenv.profile import Profile, g_text
 from wrapenv.program import Pass, Program
 from wrapenv.wrap import WrapFormat
 
@@ -54,12 +54,6 @@ TIGHT_WRAP_HINT = ("; on a wrapped unit most often a wrap squeezing light bundle
 def wrapped(verdict: Verdict) -> bool:
     """Whether the levels were run on a wrapped unit."""
     return any(level.wrap is not None for level in verdict.levels)
-
-
-def g_text(level_g: float) -> str:
-    """A level in g as a table shows it: two decimals, three where two would round it onto
-    another level (0.495 and 0.5 g are not both "0.50")."""
-    return f"{level_g:.2f}" if abs(level_g - round(level_g, 2)) < 1e-9 else f"{level_g:.3f}"
 
 
 def _criterion_name(v: LevelVerdict, key: str) -> str:

@@ -317,6 +317,15 @@ def printable(text: str, limit: int = 200) -> str:
     return safe[:keep // 2] + note + safe[len(safe) - (keep - keep // 2):]
 
 
+#: Longest path a message names whole (a lab's archive folders run long).
+PATH_CHARS = 2000
+
+
+def shown_path(path: object) -> str:
+    """A path as a message names it: whole and safe to print."""
+    return printable(str(path), PATH_CHARS)
+
+
 def result_json(data: dict[str, Any]) -> bytes:
     """A command's JSON result, stamped with the version of the bench that produced it (a
     verdict on file can be traced to the model that gave it). Strict JSON: a NaN or infinity

@@ -208,6 +208,12 @@ Profile = PulseProfile | MeasuredProfile
 START_G = 0.2
 
 
+def g_text(level_g: float) -> str:
+    """A level in g as tables and messages show it: two decimals, three where two would round it
+    onto another level (0.495 and 0.5 g are not both "0.50"; a take at 0.425 g is not 0.42)."""
+    return f"{level_g:.2f}" if abs(level_g - round(level_g, 2)) < 1e-9 else f"{level_g:.3f}"
+
+
 def target_warnings(target_g: float) -> tuple[str, ...]:
     """A target below EUMOS 40509's first level. It is run, not refused (a lighter check has
     its uses), but its pass is no pass of the standard: a new user read one as such."""
