@@ -559,6 +559,25 @@ def _result(observations: Sequence[Observation], bare: Sequence[Observation],
                   if (b := identify.slipped_throughout(name, bare, found.friction, slipped))}
     calibration = _calibration(found, slipped, bounds, throughout, present,
                                tuple(name for name in WRAP_PARAMS if name in dict(settings.known)))
+    advice = (_friction_advice(bare, found, calibration, bounds, throughout, present, slipped)
+              | _wrap_advice(observations, found))
+    verdict = acceptance.worst(observations, replays)
+    replayed = {o.source: len(runs) for o, runs in zip(observations, replays, strict=True)}
+    near = near_threshold(replayed, _final_replays(settings, len(observations)))
+    reason = _failure(rms, verdict, replayed.get(verdict.source, 0), progress.simulations,
+                      found, settings, _unphysical(observations, replays))
+    return FitResult(calibration, rms, progress.simulations, settings.method, progress.curve,
+                     [runs[0] for runs in replays], not reason, spread_rms, replay_rms, reason,
+                     advice, tuple(found.stages), verdict,
+                     tuple(name for name in WRAP_PARAMS if (name, "") in found.stds),
+                     dict(progress.parts), near, sole_slips(bare, near))
+
+
+def _friction_advice(bare: Sequence[Observation], found: _Fitted, calibration: Calibration,
+                     bounds: dict[str, identify.Bound], throughout: dict[str, identify.Bound],
+                     present: tuple[str, ...], slipped: frozenset[str]) -> dict[str, str]:
+    """Per friction pair left unresolved, the test that would resolve it: a level that makes
+    a pair slip that never did, or takes that pin a static or kinetic coefficient."""
     advice = {name: identify.advice_unslipped(name, bounds[name])
               for name in present if name not in slipped}
     advice |= {name: identify.advice_static(name, bare, p.static_std,
@@ -572,27 +591,25 @@ def _result(observations: Sequence[Observation], bare: Sequence[Observation],
         if p.identified and p.kinetic_std > RESOLVED_KINETIC_STD:
             text = identify.advice_kinetic(name, bare, p.kinetic_std)
             advice[name] = f"{advice[name]}; {text}" if name in advice else text
+    return advice
+
+
+def _wrap_advice(observations: Sequence[Observation], found: _Fitted) -> dict[str, str]:
+    """Per wrap scale fitted (stiffness, tension, give), why it is unresolved and what would
+    resolve it; with friction fitted too, why a resolved one still leans on the friction."""
+    fitted = [name for name in found.scales if (name, "") in found.stds]
     paper = any(o.wrap is not None and o.wrap.material.kind == "paper" for o in observations)
     carried = any(o.wrap is not None and o.levels_before_g for o in observations)
-    advice |= {name: identify.advice_scale(name, found.scales[name], found.stds[name, ""], paper,
-                                           carried)
-               for name in found.scales if (name, "") in found.stds
-               and found.stds[name, ""] / (found.scales[name] * math.log(2))
-               > RESOLVED_LOG2_SCALE_STD}
+    advice = {name: identify.advice_scale(name, found.scales[name], found.stds[name, ""], paper,
+                                          carried)
+              for name in fitted
+              if found.stds[name, ""] / (found.scales[name] * math.log(2))
+              > RESOLVED_LOG2_SCALE_STD}
     if any(kind in ("static", "kinetic") for kind, _ in found.stds):   # friction fitted too
         advice |= {name: identify.advice_scale_at_fitted_friction(name, found.scales[name],
                                                                   found.stds[name, ""])
-                   for name in found.scales if (name, "") in found.stds and name not in advice}
-    verdict = acceptance.worst(observations, replays)
-    replayed = {o.source: len(runs) for o, runs in zip(observations, replays, strict=True)}
-    near = near_threshold(replayed, _final_replays(settings, len(observations)))
-    reason = _failure(rms, verdict, replayed.get(verdict.source, 0), progress.simulations,
-                      found, settings, _unphysical(observations, replays))
-    return FitResult(calibration, rms, progress.simulations, settings.method, progress.curve,
-                     [runs[0] for runs in replays], not reason, spread_rms, replay_rms, reason,
-                     advice, tuple(found.stages), verdict,
-                     tuple(name for name in WRAP_PARAMS if (name, "") in found.stds),
-                     dict(progress.parts), near, sole_slips(bare, near))
+                   for name in fitted if name not in advice}
+    return advice
 
 
 def sole_slips(bare: Sequence[Observation], sources: Sequence[str]

@@ -340,16 +340,24 @@ def surrogate(evaluate: Evaluate, p: int, points: int, seed: int,
         stages.append(Stage(mid, scale, n, len(inside), u_hat, std,
                             None if k == 0 and len(sizes) > 1 else em,
                             frame if k > 0 and ORIENTED else None))
-        if ORIENTED:
-            axes = np.linalg.eigh(cov)[1]
-        spread = np.sqrt(np.clip(np.diag(axes.T @ cov @ axes), 0.0, None))
-        extent = np.abs(axes.T @ frame) @ scale     # the box's reach along the new sides
-        half = np.clip(BOX_SIGMAS * spread, SHRINK[0] * extent, SHRINK[1] * extent)
-        half = np.maximum(half, MIN_HALF_WIDTH)
-        centre = axes.T @ u_hat
+        axes, centre, half = _next_box(u_hat, cov, frame, scale)
     if shared and em is not None:
         cov = frame @ (_covariance(em, z_hat, shared) * np.outer(scale, scale)) @ frame.T
     return SurrogateFit(u_hat, _settled(cov, stages), tuple(stages), invalid)
+
+
+def _next_box(u_hat: np.ndarray, cov: np.ndarray, frame: np.ndarray, scale: np.ndarray
+              ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The next stage's box (its sides, centre and half-widths in their frame): centred on the
+    estimate `u_hat`, `BOX_SIGMAS` of its spread wide, but between `SHRINK`'s fractions of the
+    last box's reach (`frame`, half-widths `scale`), so that one stage's over- or
+    under-confident covariance can neither lose the optimum nor stall the search; along the
+    covariance's principal axes when `ORIENTED`."""
+    axes = np.linalg.eigh(cov)[1] if ORIENTED else frame
+    spread = np.sqrt(np.clip(np.diag(axes.T @ cov @ axes), 0.0, None))
+    extent = np.abs(axes.T @ frame) @ scale     # the last box's reach along the new sides
+    half = np.clip(BOX_SIGMAS * spread, SHRINK[0] * extent, SHRINK[1] * extent)
+    return axes, axes.T @ u_hat, np.maximum(half, MIN_HALF_WIDTH)
 
 
 def _settled(cov: np.ndarray, stages: Sequence[Stage]) -> np.ndarray:
