@@ -101,9 +101,11 @@ class Scene:
     imperfections. Frames depend only on the states and the seed."""
 
     def __init__(self, layout: Layout, camera: SideCamera, seed: int, markers: MarkerSpec,
-                 wrap_net: WrapNet | None, wrap_alpha: float | None) -> None:
+                 wrap: tuple[WrapNet, float] | None) -> None:
+        """`wrap`: the web as laid (torn where it tore) and how opaque it is drawn (`web_alpha`),
+        None for an unwrapped unit."""
         self.layout, self.camera, self.seed, self.markers = layout, camera, seed, markers
-        self.wrap_net, self.wrap_alpha = wrap_net, wrap_alpha
+        self.wrap = wrap
         self.scene = scene = BenchScene(layout)
         self.sizes = [b.size_m for b in scene.bodies]
         # antialiasing: the warp samples at half the texture's resolution
@@ -202,10 +204,10 @@ class Scene:
         """Frame i (RGB uint8) as the camera records it."""
         pos, rot, sled_x = s.pos[i], s.rot[i], float(s.sled_x_m[i])
         image, shade, mask = self._bodies(pos, rot, sled_x)
-        if self.wrap_net is not None:
+        if self.wrap is not None:
+            net, alpha = self.wrap
             drawn = np.clip(np.rint(image), 0, 255).astype(np.uint8)
-            drawn = self.renderer.draw_wrap(drawn, pos, rot, self.wrap_net, sled_x,
-                                            self.wrap_alpha)  # type: ignore[arg-type]
+            drawn = self.renderer.draw_wrap(drawn, pos, rot, net, sled_x, alpha)
             image = drawn.astype(np.float32)
         self._draw_markers(image, shade, mask, pos, rot, sled_x)
         return self._camera_effects(image, i, float(s.t_s[i]), float(s.t_s[-1]))

@@ -125,8 +125,8 @@ def synthesize(load: LoadUnit, out_dir: str | Path, *, wrap: WrapFormat | None =
     truth = Truth(params, _tracks(layout, states))
     with _staging(out_dir) as tmp:
         scene = Scene(layout, camera, seed, markers,
-                      torn_net(true_wrap, layout, trace) if true_wrap is not None else None,
-                      None if wrap is None else web_alpha(wrap))
+                      None if true_wrap is None
+                      else (torn_net(true_wrap, layout, trace), web_alpha(true_wrap)))
         # OpenCV split the drawing (warps, blurs of float images) over its threads, and the
         # split changed the rounding: a wrapped take came out 1-2 grey levels apart run to run
         with scene, opencv_threads(0):

@@ -491,12 +491,14 @@ MAX_ROLLOUT_STEPS = 1 << 20
 def _check_sizes(path: Path, data: dict[str, Any]) -> None:
     """The sizes SB3 allocates from on loading: whole numbers, and not absurd (a file asking
     for 10^15 rollout steps would exhaust the memory instead of failing)."""
-    sizes = {key: data.get(key) for key in ("n_steps", "n_envs", "batch_size")}
-    for key, value in sizes.items():
+    sizes: dict[str, int] = {}
+    for key in ("n_steps", "n_envs", "batch_size"):
+        value = data.get(key)
         if isinstance(value, bool) or not isinstance(value, int) or value < 1:
             raise InputError(str(path), f"data.{key}", f"must be a whole number >= 1 (got "
                                                       f"{value!r})")
-    if sizes["n_steps"] * sizes["n_envs"] > MAX_ROLLOUT_STEPS:  # type: ignore[operator]
+        sizes[key] = value
+    if sizes["n_steps"] * sizes["n_envs"] > MAX_ROLLOUT_STEPS:
         raise InputError(str(path), "data.n_steps", f"n_steps x n_envs must be at most "
                                                     f"{MAX_ROLLOUT_STEPS}")
 

@@ -243,10 +243,11 @@ class Verdict:
 def level_margin(level: LevelVerdict, load_height_m: float) -> float:
     """The smallest of 1 - figure/limit over the figure criteria that judged the level: 0 on
     a limit, 0.5 at half of it, < 0 beyond. Damage or an invalid run is -1 at best."""
-    figures = [(c, c.value(level)) for c in level.limits.criteria()]
-    if not level.valid or any(f is None for _, f in figures):
+    criteria = level.limits.criteria()
+    ratios = [f / c.limit_m(load_height_m) for c in criteria if (f := c.value(level)) is not None]
+    if not level.valid or len(ratios) < len(criteria):
         return -1.0
-    margin = 1.0 - max(f / c.limit_m(load_height_m) for c, f in figures)  # type: ignore[operator]
+    margin = 1.0 - max(ratios)
     return min(margin, -1.0) if level.damage else margin
 
 
