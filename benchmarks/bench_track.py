@@ -5,7 +5,7 @@ cache folder; its frame rate is chosen so the test spans about 200 frames. Print
 decode-only fps, track fps (best of `--repeat` runs, whole pipeline: decode, ROI, detection,
 tracking), and the per-object displacement error against truth.json.
 
-    python benchmarks/bench_track.py [--size 1920 1200] [--frames 200] [--cache DIR]
+    python -m benchmarks.bench_track [--size 1920 1200] [--frames 200] [--cache DIR]
 """
 
 from __future__ import annotations

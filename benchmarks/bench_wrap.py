@@ -9,7 +9,7 @@
 2. The same unit wrapped by PyBullet's deformable world (benchmarks/deformable_wrap.py, a tube
    of similar node count), at 240 Hz (the bench's rate) and 500 Hz.
 
-    taskset -c 0 python benchmarks/bench_wrap.py
+    taskset -c 0 python -m benchmarks.bench_wrap
 """
 
 from __future__ import annotations

@@ -15,7 +15,7 @@ unit's history spreads its replays more than a fresh unit's) and in % of the fre
 that is 10 mm or more (the held-out goal's unit). A sequence stops after its
 first failed level, as a lab's does.
 
-    PYTHONPATH=. python benchmarks/carried_takes.py [--replays N] [--case NAME ...]
+    python -m benchmarks.carried_takes [--replays N] [--case NAME ...]
 """
 
 from __future__ import annotations

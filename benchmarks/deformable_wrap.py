@@ -10,7 +10,7 @@ Known limits of that API (bullet3 issues): no rest length or pretension, so the 
 nothing until the load moves into it (4142); parameters are fixed once loaded (2961); anchors to
 moving rigid bodies are unstable (4070, PR 4687); deformables are not covered by save/restore.
 
-    taskset -c 0 python benchmarks/deformable_wrap.py
+    taskset -c 0 python -m benchmarks.deformable_wrap
 
 PyBullet's C code prints a few lines ("argv[0]=", ...) that Python cannot silence.
 """

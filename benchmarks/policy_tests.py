@@ -11,7 +11,7 @@ be read off (each side a unit of its own, as `recommend` tests it), and last thr
 verification itself (`recommender.search.verify`, as `recommend --method ppo` runs it: a
 proposal holds when it passes both nominal sequences and every one of 8 samples):
 
-    python benchmarks/policy_tests.py --policy RUN/policy.zip [--material kraft|lldpe]
+    python -m benchmarks.policy_tests --policy RUN/policy.zip [--material kraft|lldpe]
                                       [--held-out 60] [--target 0.5]
 """
 

@@ -19,7 +19,7 @@
    `--method ppo --policy`, run as a user runs them: exit status, material, highest EUMOS level
    passed, robust pass rate, evaluations and wall time.
 
-    python benchmarks/ppo_vs_cmaes.py --policy RUN/policy.zip [--held-out 12] [--target 0.5]
+    python -m benchmarks.ppo_vs_cmaes --policy RUN/policy.zip [--held-out 12] [--target 0.5]
                                       [--material kraft|lldpe] [--search N]
                                       [--only held-out|ppo|cmaes] [--from-unit K]
 """

@@ -7,7 +7,7 @@ finds for 0.5 g, each run through the EUMOS sequence up to 0.8 g (the road rule 
 `wrapbench simulate LOAD --wrap WRAP --target 0.8` does: web laid, cycle time, highest level
 passed and the margin at 0.5 g. Prints a Markdown table.
 
-    python benchmarks/programs.py [--budget 48] [--workers 2] [--loads LOAD.toml ...]
+    python -m benchmarks.programs [--budget 48] [--workers 2] [--loads LOAD.toml ...]
                                   [--materials kraft lldpe]
 """
 

@@ -7,7 +7,7 @@ sequence stops at the first failure, as `wrapbench simulate --eumos` does. The l
 the highest level passed and each sequence's wall time (disturbed by whatever else runs; the
 ratio of the two, measured side by side, less so).
 
-    PYTHONPATH=. nice -n 10 python benchmarks/sequence.py [--target G]
+    nice -n 10 python -m benchmarks.sequence [--target G]
 """
 
 from __future__ import annotations

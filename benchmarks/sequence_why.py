@@ -21,7 +21,7 @@ For each bundled example (as `benchmarks/sequence.py` runs them) and each level,
 `--gap-mm` sets the gap the layout generator leaves between neighbouring bundles (2 mm,
 assumed: docs/materials.md), for its sensitivity figure.
 
-    PYTHONPATH=. python benchmarks/sequence_why.py [--target G] [--gap-mm MM]
+    python -m benchmarks.sequence_why [--target G] [--gap-mm MM]
 """
 
 from __future__ import annotations

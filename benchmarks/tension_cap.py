@@ -8,7 +8,7 @@ the yield force on each example, both sides along the motion, 16 h after wrappin
 `recommend` judges), through the EUMOS sequence to 0.5 g on the nominal load: the highest level
 passed, the margin at 0.5 g and the web's peak utilisation there. Prints a Markdown table.
 
-    python benchmarks/tension_cap.py [--workers 2]
+    python -m benchmarks.tension_cap [--workers 2]
 """
 
 from __future__ import annotations

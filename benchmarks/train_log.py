@@ -1,7 +1,7 @@
 """What a training run's `log.csv` says: episodes, blown-up runs, and the first against the last
 window of episodes (reward, pass rate, mean material of the stochastic policy's programs).
 
-    python benchmarks/train_log.py RUN/log.csv [--window 256]
+    python -m benchmarks.train_log RUN/log.csv [--window 256]
 """
 
 from __future__ import annotations

@@ -7,7 +7,7 @@ pallet blocked by the stopper: the examples' pallets (static friction 0.45 on th
 otherwise slide from 0.45 g on, and the load would never feel the higher levels.
 Runs go to two processes; prints a Markdown table.
 
-    python benchmarks/wrap_table.py
+    python -m benchmarks.wrap_table
 """
 
 from __future__ import annotations
