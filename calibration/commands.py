@@ -214,6 +214,8 @@ def run_track(args: argparse.Namespace) -> int:
     frames = max((len(p.t_s) for p in objects.values()), default=0)
     print(f"wrote {shown_path(out)}: {len(objects)} objects ({', '.join(objects)}), "
           f"{frames} frames in {wall:.1f} s ({frames / wall:.0f} frames/s, tracker {args.tracker})")
+    if args.debug_video is not None:
+        print(f"wrote {shown_path(args.debug_video)}: the frames with every object as tracked")
     if truth is not None:
         errors = error_vs_truth(result.trajectories, truth.objects)
         print("error against truth.json (displacement):  object  RMS mm  max mm")

@@ -259,7 +259,8 @@ class _Run:
                     debug.draw(bgr, index, drawn, _with_carried(now, markers, index))
                 if progress:
                     progress(index + 1, self.video.stated)
-        return self._result(objects, poses, markers, index + 1)
+            # inside the block: a recording refused by the result's checks leaves no video
+            return self._result(objects, poses, markers, index + 1)
 
     def _step(self, index: int, bgr: np.ndarray, multi: MultiTracker,
               markers: MarkerTracks | None, poses: _Poses) -> dict[str, Pose]:

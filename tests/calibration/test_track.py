@@ -297,15 +297,19 @@ def test_video_whose_sled_parts_from_the_profile_is_refused(
         edit, recording_dir: Path, tmp_path: Path, assert_input_error) -> None:
     """Frames lost inside a video stamp every later frame too early, a rescaled video makes
     every metre 1.25 m: tracked, either wrote paths decimetres to metres off, exit 0. The sled
-    followed on the video against profile.csv's path shows it."""
+    followed on the video against profile.csv's path shows it. A debug video asked for is
+    not left behind: the recording was refused."""
     folder = tmp_path / "edited"
     shutil.copytree(recording_dir, folder)
     rec = Recording.read(folder)
     _rewrite_video(rec.video, edit)
+    debug = tmp_path / "debug"
+    debug.mkdir()
     with pytest.raises(InputError) as err:
-        track(Recording.read(folder))
+        track(Recording.read(folder), debug_video=debug / "debug.mp4")
     assert_input_error(err.value, str(rec.video), "frames")
     assert "departs from profile.csv's path" in str(err.value)
+    assert list(debug.iterdir()) == []
 
 
 def test_unit_leaving_the_view_is_lost_there_with_one_warning(recording_dir: Path,
