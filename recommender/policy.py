@@ -505,11 +505,19 @@ def _check_sizes(path: Path, data: dict[str, Any]) -> None:
 
 def load_policy(policy_path: Path, material: str | None = None) -> PPO:
     """The trained policy, on the CPU, if it was trained for this bench (and `material`)."""
+    return load_policy_and_meta(policy_path, material)[0]
+
+
+def load_policy_and_meta(policy_path: Path, material: str | None = None
+                         ) -> tuple[PPO, dict[str, Any]]:
+    """`load_policy`, and the `POLICY_META` it was checked against, from one read of the file
+    (what is checked is what is loaded)."""
     path = Path(policy_path)
     trusted = _trusted_objects()
     content = _read(path)
-    _check_meta(path, read_meta(path, content), material, trusted)
-    return _load(path, content, trusted)
+    meta = read_meta(path, content)
+    _check_meta(path, meta, material, trusted)
+    return _load(path, content, trusted), meta
 
 
 def _check_resumable(path: Path, content: bytes, meta: dict[str, Any],

@@ -7,9 +7,9 @@ from __future__ import annotations
 import argparse
 import sys
 import time
-from dataclasses import asdict
+from dataclasses import asdict, dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from tqdm import tqdm
@@ -58,6 +58,9 @@ from wrapenv.config import (
     write_together,
 )
 from wrapenv.load import ORIENTATIONS, LoadUnit, Orientation
+
+if TYPE_CHECKING:
+    from stable_baselines3 import PPO
 from wrapenv.profile import target_warnings
 from wrapenv.wrap import Web, WrapFormat
 
@@ -207,6 +210,9 @@ def run_recommend(args: argparse.Namespace) -> int:
     _check_flags(args)
     checkpoint = _check_outputs(args)
     problem = Problem.build(load, settings, calibration)
+    # resumed: its proposal was refused, and the search goes on
+    proposer = (_Proposer.read(args.policy, load, calibration, settings.web.material_key)
+                if args.method == "ppo" and not args.resume else None)
     # after every check: a refused command prints its one line alone
     warn("recommend", tuple(dict.fromkeys(w for _, g in settings.targets
                                           for w in target_warnings(g))), said)
@@ -214,13 +220,39 @@ def run_recommend(args: argparse.Namespace) -> int:
         print(calibration_text(str(args.calibration), calibration, problem.load, wrapped=True),
               flush=True)
     samples = max(VERIFY_SAMPLES, args.samples)
-    if args.method == "ppo" and not args.resume:   # resumed: its proposal was refused
-        return _recommend_by_policy(args, problem, checkpoint, samples, said)
+    if proposer is not None:
+        return _recommend_by_policy(args, proposer, problem, checkpoint, samples, said)
     return _recommend_by_search(args, problem, checkpoint, samples, said)
 
 
-def _recommend_by_policy(args: argparse.Namespace, problem: Problem, checkpoint: Path | None,
-                         samples: int, said: list[str]) -> int:
+@dataclass(frozen=True)
+class _Proposer:
+    """A trained policy and the unit it is to propose for, checked and loaded with the other
+    inputs: a refused policy file prints its one line alone."""
+
+    model: PPO
+    meta: dict[str, Any]
+    load: LoadUnit   # as the load file gives it: the policy applies the calibration itself
+    calibration: Calibration | None
+
+    @classmethod
+    def read(cls, policy_path: Path | None, load: LoadUnit, calibration: Calibration | None,
+             material: str) -> _Proposer:
+        from recommender.policy import load_policy_and_meta
+
+        needed = "a policy.zip from `wrapbench train` is needed with --method ppo"
+        if policy_path is None:
+            raise InputError("arguments", "--policy", needed)
+        if policy_path.is_dir():
+            raise InputError(str(policy_path), "--policy",
+                             f"is a folder, not a policy.zip ({needed})")
+        if not policy_path.is_file():
+            raise InputError(str(policy_path), "--policy", f"no such file ({needed})")
+        return cls(*load_policy_and_meta(policy_path, material), load, calibration)
+
+
+def _recommend_by_policy(args: argparse.Namespace, proposer: _Proposer, problem: Problem,
+                         checkpoint: Path | None, samples: int, said: list[str]) -> int:
     """The policy's proposal, verified as a search's answer is. It is round 1: if it does not
     hold, and --rounds allows, the next round searches from it (`_from_proposal`), once the
     strongest program of the space has held its verification (`_strongest_fails`: on three
@@ -228,7 +260,7 @@ def _recommend_by_policy(args: argparse.Namespace, problem: Problem, checkpoint:
     no pass, the check 37-78 s in all), and the round after that from the strongest program
     (`_search_rounds`); otherwise nothing is written (exit 1)."""
     t0 = time.perf_counter()
-    best, check = _propose_with_policy(args, problem, samples, said)
+    best, check = _propose_with_policy(proposer, problem, samples, args.workers, said)
     refused = _refused_proposal(problem, best, check)
     _print_recommendation(problem, best, check, recommended=not refused,
                           margin_of="nominal")   # no search: the proposal's own runs
@@ -482,29 +514,14 @@ def _verified(problem: Problem, state: SearchState, samples: int,
     return None
 
 
-def _check_policy_file(policy: Path | None) -> None:
-    """--method ppo needs a policy.zip; a path that is none is named for what it is."""
-    needed = "a policy.zip from `wrapbench train` is needed with --method ppo"
-    if policy is None:
-        raise InputError("arguments", "--policy", needed)
-    if policy.is_dir():
-        raise InputError(str(policy), "--policy", f"is a folder, not a policy.zip ({needed})")
-    if not policy.is_file():
-        raise InputError(str(policy), "--policy", f"no such file ({needed})")
-
-
-def _propose_with_policy(args: argparse.Namespace, problem: Problem, samples: int,
+def _propose_with_policy(proposer: _Proposer, problem: Problem, samples: int, workers: int,
                          said: list[str]) -> tuple[Evaluation, Verification]:
     """A trained policy's program for this unit, answered at once, then verified."""
-    from recommender.policy import load_policy, propose, read_meta
+    from recommender.policy import propose
     from recommender.search import verify
     from wrapenv.envs.random_units import base_friction, outside
 
-    _check_policy_file(args.policy)
-    calibration = None if args.calibration is None else Calibration.from_json(args.calibration)
-    meta = read_meta(args.policy)
-    # refused (another env version, material or observation) before any warning about it
-    model = load_policy(args.policy, problem.settings.web.material_key)
+    meta, load, calibration = proposer.meta, proposer.load, proposer.calibration
     trained_g, target_g = meta.get("target_g"), problem.settings.target_g
     if isinstance(trained_g, int | float) and abs(trained_g - target_g) > 1e-9:
         warn("recommend", (f"the policy was trained for {trained_g:g} g and is asked for "
@@ -515,7 +532,6 @@ def _propose_with_policy(args: argparse.Namespace, problem: Problem, samples: in
                            "is given" if calibration else "with a calibration, and none is given")
                            + ": it observes this unit's uncertainty unlike in training; its "
                            "proposal is verified as given",), said)
-    load = LoadUnit.from_toml(args.load)
     # the unit as the policy observes it (calibration applied), against the units it was
     # trained on: about the calibration's friction only if it was trained with one
     observed = calibration.apply(load) if calibration is not None else load
@@ -525,11 +541,11 @@ def _propose_with_policy(args: argparse.Namespace, problem: Problem, samples: in
         warn("recommend", ("this unit lies outside the random units the policy was trained on ("
                            + "; ".join(unseen) + "): its proposal is an extrapolation, verified "
                            "as given",), said)
-    wrap = propose(model, load, problem.settings.web.material_key,
+    wrap = propose(proposer.model, load, problem.settings.web.material_key,
                    problem.settings.target_g, calibration)
     if problem.settings.ordered_tensions:   # the proposal as the search would lay its vector
         wrap = problem.wrap(np.asarray(problem.vector(wrap)))
-    check = verify(problem, wrap, samples, workers=args.workers)
+    check = verify(problem, wrap, samples, workers=workers)
     mass = wrap.material_used_on(problem.layout).mass_kg
     margin = min(run.verdict.margin for run in check.runs.values())
     best = Evaluation((), wrap, mass, wrap.cycle_time_s, (margin,), (check.passed,), 0.0)

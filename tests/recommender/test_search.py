@@ -1095,6 +1095,23 @@ def test_recommend_warns_of_a_calibration_accepted_under_a_looser_bound(load_fil
     assert capsys.readouterr().err.splitlines() == [f"wrapbench recommend: {LOOSE_WARNING}"]
 
 
+@pytest.mark.parametrize("policy", [None, "missing.zip", "folder"])
+def test_a_policy_file_is_refused_before_the_calibration_is_said(policy, load_file, tmp_path,
+                                                                 capsys):
+    """Checked with the other inputs: a refused --policy prints its one line alone, not
+    after "calibrated by ..." (it was checked only when the proposal was asked for)."""
+    load = load_file(base=SMALL)
+    cal = tmp_path / "cal.json"
+    cal.write_text(json.dumps({"friction": {"pallet_bundle": {
+        "static": 0.5, "kinetic": 0.4, "static_std": 0.02, "kinetic_std": 0.02}}}))
+    (tmp_path / "folder").mkdir()
+    given = [] if policy is None else ["--policy", str(tmp_path / policy)]
+    assert main(["recommend", str(load), "--method", "ppo", *given,
+                 "--calibration", str(cal)]) == 2
+    out, err = capsys.readouterr()
+    assert out == "" and len(err.strip().splitlines()) == 1 and "--policy" in err
+
+
 def test_a_policy_used_with_a_calibration_it_was_not_trained_on_is_warned_about(
         load_file, tmp_path, capsys):
     """And the unit is judged as the policy observes it, calibrated, against the units it was
