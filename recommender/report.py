@@ -1,7 +1,7 @@
 """Reports for people: displacement against time with the EUMOS limits drawn, the search's
-material against margin, the wrap's tension map, and a video of a simulated test. Each writes
-its file and returns what the one-page report (recommender/html_report.py) inlines: the PNG, or
-the video's still."""
+material against margin, the wrap's tension map, and a video of a simulated test. The plots
+return their PNG, for the caller to write and the one-page report (recommender/html_report.py)
+to inline; the video is written, and its still returned."""
 
 from __future__ import annotations
 
@@ -18,9 +18,10 @@ from matplotlib.cm import ScalarMappable
 from matplotlib.colors import Colormap, Normalize
 from matplotlib.figure import Figure
 
+from recommender.text import level_result
 from wrapenv.bench import BenchRun
 from wrapenv.config import printable
-from wrapenv.eumos import ELASTIC, PERMANENT, LevelVerdict
+from wrapenv.eumos import ELASTIC, PERMANENT, LevelVerdict, Verdict
 from wrapenv.load import Layout
 from wrapenv.render import Renderer, fitting_camera, torn_net
 from wrapenv.trace import Trace
@@ -44,8 +45,8 @@ def plot_displacements(run: BenchRun, title: str = "") -> bytes:
     n = len(run.traces)
     fig = Figure(figsize=(9, 2.8 * n + 0.6), layout="constrained")
     axes = fig.subplots(n, 1, squeeze=False, sharex=True)
-    for ax, trace, verdict in zip(axes[:, 0], run.traces, run.verdict.levels, strict=True):
-        plot_level(ax, trace, verdict, run.verdict.load_height_m)
+    for ax, trace, level in zip(axes[:, 0], run.traces, run.verdict.levels, strict=True):
+        plot_level(ax, trace, level, run.verdict)
     axes[-1, 0].set_xlabel("time from pulse start [s]")
     if title:
         # a load's name is the user's: bounded, and never read as mathtext ("$" would be)
@@ -58,12 +59,14 @@ def plot_displacements(run: BenchRun, title: str = "") -> bytes:
 MOVED_BEFORE_M = 1e-4
 
 
-def plot_level(ax: Axes, trace: Trace, verdict: LevelVerdict, height_m: float) -> None:
-    """A level's panel: a unit has dozens of bundles, too many to tell apart by colour, so
-    the legend names the layers and the one bundle whose displacement peaked highest (the
-    elastic figure's; the permanent one may be another's). A later level of a cumulative
-    sequence draws no permanent limit over its own displacements: its title gives the
-    permanent displacement since the unit was put on the sled, and that limit."""
+def plot_level(ax: Axes, trace: Trace, level: LevelVerdict, verdict: Verdict) -> None:
+    """A level's panel (`level`, one of `verdict`'s, titled with the word the text and JSON
+    give it): a unit has dozens of bundles, too many to tell apart by colour, so the legend
+    names the layers and the one bundle whose displacement peaked highest (the elastic
+    figure's; the permanent one may be another's). A later level of a cumulative sequence
+    draws no permanent limit over its own displacements: its title gives the permanent
+    displacement since the unit was put on the sled, and that limit."""
+    height_m = verdict.load_height_m
     disp_mm = trace.bundle_displacement_m() * 1000
     layers = trace.layers if trace.layers is not None else np.ones(len(trace.names), int)
     for layer in np.unique(layers):
@@ -82,12 +85,11 @@ def plot_level(ax: Axes, trace: Trace, verdict: LevelVerdict, height_m: float) -
             continue
         ax.axhline(c.limit_m(height_m) * 1000, color=line, ls="--",
                    label=f"{c.label.split()[0].lower()} limit ({100 * c.limit:g} % of height)")
-    result = "PASS" if verdict.passed else ("INVALID" if not verdict.valid else "FAIL")
-    total_m = verdict.permanent_total_max_m
+    total_m = level.permanent_total_max_m
     limit = f" (limit {1000 * PERMANENT.limit_m(height_m):.1f} mm)" if later else ""
     total = (f", permanent since put on the sled {1000 * total_m:.1f} mm{limit}"
              if trace.origin_m is not None and total_m is not None else "")
-    ax.set_title(f"{verdict.level_g:.2f} g: {result}{total}", fontsize=10)
+    ax.set_title(f"{level.level_g:.2f} g: {level_result(verdict, level)}{total}", fontsize=10)
     ax.set_ylabel("displacement [mm]")
     ax.set_ylim(0, max(ELASTIC.limit_m(height_m) * 1000 * 1.3, float(disp_mm.max()) * 1.05))
     ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))

@@ -15,7 +15,7 @@ import pytest
 from matplotlib.figure import Figure
 
 from recommender.report import plot_level
-from wrapenv.eumos import evaluate
+from wrapenv.eumos import Verdict, evaluate
 from wrapenv.trace import Trace
 
 
@@ -38,7 +38,8 @@ def legend_of(trace: Trace) -> list[str]:
 
 def panel(trace: Trace) -> Any:
     ax = Figure().subplots()
-    plot_level(ax, trace, evaluate(trace), trace.load_height_m)
+    level = evaluate(trace)
+    plot_level(ax, trace, level, Verdict(trace.load_height_m, (level,)))
     assert ax.get_legend() is not None
     return ax
 
@@ -78,6 +79,17 @@ def test_a_later_level_of_a_sequence_gives_the_permanent_limit_in_its_title_not_
     first = replace(level, origin_m=level.bundle_pos_m[0])
     assert "permanent limit (5 % of height)" in legend_of(first)
     assert "(limit" not in panel(first).get_title()
+
+
+def test_a_level_met_in_a_run_that_later_blew_up_is_titled_as_the_text_reports_it():
+    """VOID, as `simulate` prints it and its JSON says it (not passed): no level of a run that
+    became unphysical is a pass (the panel said PASS)."""
+    trace = three_bundles([0.004, 0.010, 0.010])
+    met = evaluate(trace)
+    blown = replace(met, level_g=0.4, passed=False, valid=False, invalid_reason="blew up")
+    ax = Figure().subplots()
+    plot_level(ax, trace, met, Verdict(trace.load_height_m, (met, blown)))
+    assert met.passed and ax.get_title() == "0.30 g: VOID"
 
 
 def test_importing_the_reports_leaves_the_callers_matplotlib_backend_alone():
