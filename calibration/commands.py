@@ -32,6 +32,7 @@ from wrapenv.config import (
     write_together,
 )
 from wrapenv.load import Friction, LoadUnit
+from wrapenv.pool import most_workers
 from wrapenv.profile import g_text, profile_warnings
 from wrapenv.wrap import WrapFormat
 
@@ -351,8 +352,11 @@ def known_scales(entries: list[str]) -> tuple[tuple[str, float], ...]:
 def _check_calibrate_args(args: argparse.Namespace) -> None:
     if args.budget is not None and args.budget < 10:
         raise InputError("arguments", "--budget", f"must be >= 10 (got {args.budget})")
-    if args.workers < 1:
-        raise InputError("arguments", "--workers", f"must be >= 1 (got {args.workers})")
+    most = most_workers()
+    if not 1 <= args.workers <= most:
+        raise InputError("arguments", "--workers", f"must be from 1 to {most} (got "
+                                                   f"{args.workers}): a simulation keeps a core "
+                                                   "busy")
     if not (math.isfinite(args.max_residual_mm) and args.max_residual_mm > 0):
         raise InputError("arguments", "--max-residual-mm",
                          f"must be > 0 (got {args.max_residual_mm})")

@@ -8,7 +8,6 @@ and maps the domain's errors (which name domain fields) onto the flags a user ty
 from __future__ import annotations
 
 import argparse
-import os
 import sys
 from dataclasses import asdict
 from pathlib import Path
@@ -22,16 +21,9 @@ from wrapenv.material import check_hours_since_wrapping
 from wrapenv.profile import PulseProfile
 from wrapenv.wrap import Web, WrapFormat
 
-#: More worker processes than this many per core only queue for the same cores.
-MAX_WORKERS_PER_CORE = 4
 #: Flags of the domain's fields, for messages that name what the user typed.
 FLAGS = {"target_g": "--target", "start_g": "--start", "level_g": "--level",
          "material": "--material", "hours_since_wrapping": "--hours-since-wrapping"}
-
-
-def most_workers() -> int:
-    """The most worker processes a command takes here: `MAX_WORKERS_PER_CORE` a core."""
-    return MAX_WORKERS_PER_CORE * (os.cpu_count() or 1)
 
 
 def as_flag(exc: InputError) -> InputError:

@@ -20,7 +20,6 @@ from recommender.commands import (
     check_hours,
     check_target,
     criteria_limits,
-    most_workers,
     named_web,
     read_calibration,
     say_written,
@@ -58,6 +57,7 @@ from wrapenv.config import (
     write_together,
 )
 from wrapenv.load import ORIENTATIONS, LoadUnit, Orientation
+from wrapenv.pool import most_workers
 
 if TYPE_CHECKING:
     from stable_baselines3 import PPO

@@ -18,7 +18,6 @@ from recommender.commands import (
     as_flag,
     check_hours,
     criteria_limits,
-    most_workers,
     read_calibration,
     say_written,
     warn,
@@ -47,6 +46,7 @@ from wrapenv.calibrated import Calibration
 from wrapenv.config import InputError, check_distinct, check_output, result_json, write_together
 from wrapenv.eumos import LevelVerdict, Limits
 from wrapenv.load import Layout, LoadUnit, Orientation
+from wrapenv.pool import most_workers
 from wrapenv.profile import MeasuredProfile, Profile, PulseProfile, eumos_levels, target_warnings
 from wrapenv.uncertainty import PassProbability, Uncertainty
 from wrapenv.wrap import WrapFormat

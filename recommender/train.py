@@ -12,9 +12,10 @@ import math
 from pathlib import Path
 
 from recommender import policy
-from recommender.commands import check_target, most_workers, named_web, read_calibration
+from recommender.commands import check_target, named_web, read_calibration
 from wrapenv.config import InputError, check_output
 from wrapenv.envs.wrapbench import MAX_TESTS_PER_EPISODE
+from wrapenv.pool import most_workers
 
 
 def _check_train_numbers(args: argparse.Namespace) -> None:

@@ -14,6 +14,14 @@ from concurrent.futures import InvalidStateError, ProcessPoolExecutor
 from multiprocessing.process import BaseProcess
 from types import TracebackType
 
+#: More worker processes than this many per core only queue for the same cores.
+MAX_WORKERS_PER_CORE = 4
+
+
+def most_workers() -> int:
+    """The most worker processes a command takes here: `MAX_WORKERS_PER_CORE` a core."""
+    return MAX_WORKERS_PER_CORE * (os.cpu_count() or 1)
+
 
 def _worker_signals(parent_pid: int) -> None:
     """A worker's signals: it leaves interrupts to its parent (a Ctrl-C reaches the whole

@@ -25,6 +25,7 @@ from recommender.cli import main
 from tests.calibration.conftest import SLIDE_BUDGET
 from wrapenv.calibrated import Calibration
 from wrapenv.load import LoadUnit
+from wrapenv.pool import most_workers
 
 
 @pytest.fixture
@@ -400,6 +401,9 @@ def test_calibrate_refuses_trajectories_the_recording_cannot_have(edit, needles,
 
 @pytest.mark.parametrize("args, needle", [(["--budget", "5"], "--budget"),
                                           (["--workers", "0"], "--workers"),
+                                          # as simulate, recommend and train: a process each
+                                          (["--workers", str(most_workers() + 1)],
+                                           f"must be from 1 to {most_workers()}"),
                                           (["--max-residual-mm", "nan"], "--max-residual-mm"),
                                           (["--known", "friction=1"], "--known"),
                                           (["--known", "tension"], "give (got 'tension')"),

@@ -26,7 +26,6 @@ from stable_baselines3.common.env_util import make_vec_env
 
 import recommender.policy
 from recommender.cli import main
-from recommender.commands import most_workers
 from recommender.episodes import PooledVecEnv
 from recommender.policy import (
     CHECKPOINT_DIR,
@@ -60,6 +59,7 @@ from wrapenv.design import MAX_REINFORCEMENT_WRAPS, MAX_WRAPS, N_PARAMS, NAMES, 
 from wrapenv.envs import OBS_NAMES, WrapBenchRandomEnv
 from wrapenv.envs.wrapbench import MAX_TESTS_PER_EPISODE
 from wrapenv.load import LoadUnit
+from wrapenv.pool import most_workers
 from wrapenv.uncertainty import TRANSPORT_HOURS
 from wrapenv.wrap import WrapFormat
 

@@ -25,7 +25,6 @@ from recommender import recommend
 from recommender import search as search_module
 from recommender.checkpoint import CHECKPOINT_FORMAT, FIRST_ROUND, Round, read_round
 from recommender.cli import EXAMPLE_LOAD, build_parser, main
-from recommender.commands import most_workers
 from recommender.search import (
     DEFAULT,
     DOMINATED,
@@ -50,6 +49,7 @@ from wrapenv.config import InputError
 from wrapenv.eumos import LAYER_SHIFT, LevelVerdict, Limits, Verdict
 from wrapenv.load import LoadUnit
 from wrapenv.material import MATERIALS
+from wrapenv.pool import most_workers
 from wrapenv.uncertainty import PassProbability
 from wrapenv.wrap import Web, WrapFormat
 
