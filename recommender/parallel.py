@@ -34,6 +34,7 @@ class RayExecutor(Executor):
                              "Ray is not installed (pip install .[ray])") from None
         self._ray = ray
         self._remote: dict[Callable, Any] = {}
+        self._pending: dict[Future, Any] = {}   # a call's future -> its Ray object ref
         self._owns_instance = not ray.is_initialized() and address is None
         if not ray.is_initialized():
             options: dict[str, Any] = {"address": address, "include_dashboard": False,
@@ -52,9 +53,20 @@ class RayExecutor(Executor):
     def submit(self, fn: Callable, /, *args: Any, **kwargs: Any) -> Future:
         if fn not in self._remote:
             self._remote[fn] = self._ray.remote(fn)
-        return self._remote[fn].remote(*args, **kwargs).future()
+        ref = self._remote[fn].remote(*args, **kwargs)
+        future = ref.future()
+        self._pending[future] = ref
+        future.add_done_callback(lambda done: self._pending.pop(done, None))
+        return future
 
     def shutdown(self, wait: bool = True, *, cancel_futures: bool = False) -> None:
+        """Stops the Ray instance this executor started; on a cluster it joined, which runs on,
+        `cancel_futures` cancels the calls not yet done (a search stopped early would leave
+        them simulating for nobody)."""
+        if cancel_futures and self._ray.is_initialized():
+            for ref in list(self._pending.values()):
+                self._ray.cancel(ref)
+        self._pending.clear()
         if self._owns_instance and self._ray.is_initialized():
             self._ray.shutdown()
         self._owns_instance = False
@@ -63,7 +75,8 @@ class RayExecutor(Executor):
 def stop(pool: Executor) -> None:
     """Stop `pool`'s simulations once their results are no longer wanted: worker processes
     are killed (`ProcessPoolExecutor` hands them up to twice their number of calls ahead,
-    which waiting would run); any other executor is shut down, its queued calls cancelled."""
+    which waiting would run); any other executor is shut down, its calls not yet done
+    cancelled."""
     if isinstance(pool, ProcessPool):
         pool.terminate()
     else:

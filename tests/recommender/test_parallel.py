@@ -5,11 +5,12 @@ from __future__ import annotations
 
 import builtins
 import dataclasses
+import time
 
 import pytest
 
 from recommender.cli import main
-from recommender.parallel import RayExecutor, executor
+from recommender.parallel import RAY_OBJECT_STORE_BYTES, RayExecutor, executor, stop
 from recommender.search import Problem, RobustSearch, SearchSettings
 from wrapenv.config import InputError
 from wrapenv.load import LoadUnit
@@ -49,6 +50,29 @@ def test_a_ray_instance_started_by_the_search_is_stopped_after_it():
         assert pool.submit(eumos_levels, 0.4).result() == [0.2, 0.3, 0.4]
         assert ray.is_initialized()
     assert not ray.is_initialized()
+
+
+def test_calls_left_on_a_joined_ray_cluster_are_cancelled_when_the_search_stops():
+    """A cluster joined with --ray-address runs on after the search: a search stopped early
+    (`search.holding`) cancels the calls it no longer wants, which simulated for nobody."""
+    ray = pytest.importorskip("ray")
+    ray.init(num_cpus=1, include_dashboard=False, log_to_driver=False, logging_level="ERROR",
+             object_store_memory=RAY_OBJECT_STORE_BYTES)   # the cluster, running here
+
+    def nap(seconds: float) -> float:
+        time.sleep(seconds)
+        return seconds
+
+    try:
+        pool = RayExecutor(1, "auto")
+        futures = [pool.submit(nap, 120.0) for _ in range(3)]   # one runs, two wait
+        stop(pool)
+        assert ray.is_initialized()
+        for future in futures:
+            with pytest.raises(ray.exceptions.TaskCancelledError):
+                future.result(timeout=60)
+    finally:
+        ray.shutdown()
 
 
 def test_unknown_backend_is_an_input_error():
