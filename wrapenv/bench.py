@@ -10,6 +10,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from wrapenv.bullet import BulletWorld, rotation_matrices
+from wrapenv.config import InputError, is_finite_number
 from wrapenv.eumos import (
     ELASTIC,
     EUMOS_LIMITS,
@@ -106,6 +107,23 @@ class SimSettings:
     #: (benchmarks/bench_screening.py, bench_reflection.py); the closed-form tests pass either way.
     rigid_boxes: bool = False
 
+    def __post_init__(self) -> None:
+        """Settings a run can be made with; a negative step or NaN wait ran on silently, and
+        no run of it means anything."""
+        for name in ("timestep_s", "settle_s", "rest_speed_mps", "rest_hold_s",
+                     "max_rest_wait_s"):
+            value = getattr(self, name)
+            if not (is_finite_number(value) and value > 0):
+                raise InputError("settings", name, f"must be a number > 0 (got {value!r})")
+        for name in ("solver_iterations", "wrapped_solver_iterations",
+                     "max_wrapped_solver_iterations"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+                raise InputError("settings", name, f"must be a whole number >= 1 (got {value!r})")
+        if not (is_finite_number(self.wrapped_contact_erp) and 0 < self.wrapped_contact_erp <= 1):
+            raise InputError("settings", "wrapped_contact_erp",
+                             f"must be in (0, 1] (got {self.wrapped_contact_erp!r})")
+
     @classmethod
     def screening(cls) -> SimSettings:
         """A cheaper fidelity to screen candidates with in a search, confirming the best with
@@ -132,7 +150,8 @@ class SimSettings:
 @dataclass(frozen=True)
 class Push:
     """A constant horizontal force on one bundle while the sled runs its profile: the lateral
-    push with which a wrap's hold on a layer is measured (tests, containment checks)."""
+    push with which a wrap's hold on a layer is measured (tests/wrapenv/test_wrap_physics.py:
+    pretension squeezes a layer so that it resists a larger push)."""
 
     bundle: str
     force_n: tuple[float, float]

@@ -179,7 +179,7 @@ class Calibration:
             # said before any unknown key, which another file (a truth.json) is full of
             raise InputError(source, "friction",
                              "no friction pair and no wrap table: the file calibrates nothing "
-                             "(is it a CAL.json, as `wrapbench calibrate --out` writes?)")
+                             "(is it a CAL.json, as a calibration writes?)")
         top.done()
         return cls(pairs, stiffness, tension, *stds, *give, known, unexplained, near)
 

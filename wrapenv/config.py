@@ -82,7 +82,8 @@ def read_json(path: str | Path) -> dict[str, Any]:
     twice in one object is an error (JSON allows it and keeps the last: a silent typo)."""
     path = Path(path)
     try:
-        data = json.loads(path.read_text(), object_pairs_hook=_unique_keys)
+        # as TOML and CSV are read: UTF-8, a byte-order mark (Windows' editors) skipped
+        data = json.loads(path.read_bytes().decode("utf-8-sig"), object_pairs_hook=_unique_keys)
     except OSError as exc:
         raise InputError(str(path), "", f"cannot read file ({exc.strerror or exc})") from None
     except _DuplicateKey as exc:

@@ -251,10 +251,9 @@ def level_margin(level: LevelVerdict, load_height_m: float) -> float:
     return min(margin, -1.0) if level.damage else margin
 
 
-def evaluate(trace: Trace, extra_damage: tuple[str, ...] = (),
-             limits: Limits = EUMOS_LIMITS) -> LevelVerdict:
-    """Judge one level from its trace against `limits`. `extra_damage` adds damage found
-    elsewhere (torn wrap)."""
+def evaluate(trace: Trace, limits: Limits = EUMOS_LIMITS) -> LevelVerdict:
+    """Judge one level from its trace against `limits`; damage is the bodies' (`_damage`) and
+    the wrap's, torn or opened, as the trace records it."""
     h = trace.load_height_m
     disp = trace.bundle_displacement_m()
     permanent, elastic = disp[-1], disp.max(axis=0)
@@ -262,7 +261,7 @@ def evaluate(trace: Trace, extra_damage: tuple[str, ...] = (),
     low = trace.bottom_z_m < LOW_ZONE_HEIGHT_M
     low20 = float(total[low].max()) if np.any(low) else 0.0
     shift = trace.layer_shift_m()
-    damage = _damage(trace) + tuple(extra_damage)
+    damage = _damage(trace)
     if trace.wrap is not None and trace.wrap.torn:
         damage += (WRAP_TORN,)
     if trace.wrap is not None and trace.wrap.opened:

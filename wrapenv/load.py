@@ -57,8 +57,9 @@ class Pallet:
 PET_CORNER_STIFFNESS_N_PER_M2 = 6.0e5
 #: Its edge is the corner bottle's side: half of a 1.5 L bottle's ~90 mm diameter [D] (B2).
 PET_EDGE_RADIUS_M = 0.045
-#: Give accepted, N/m per m of edge: softer is a pillow, stiffer a steel post, and beyond it
-#: the wrap's explicit coupling to the bench would not be stable at 240 Hz.
+#: Give a load file accepts, N/m per m of edge: softer is a pillow, stiffer a steel post. A
+#: calibration may scale it beyond (CAL.json's give_scale); a run that does not stay physical
+#: is invalid, never a pass.
 CORNER_STIFFNESS_RANGE_N_PER_M2 = (1.0e4, 5.0e6)
 
 
@@ -289,9 +290,9 @@ class LoadUnit:
         return unit
 
 
-def _sized(t: Table, kind: type, presets: dict, done: bool = True) -> Any:
-    """A pallet or bundle box: a preset's values, or those given, keys overriding the preset.
-    `done` False leaves the table open for further keys (the bundle's give)."""
+def _sized(t: Table, kind: type, presets: dict) -> Any:
+    """A pallet or bundle box: a preset's values, or those given, keys overriding the preset;
+    the table is left open for the keys that follow (the pallet's rating, the bundle's give)."""
     base = None
     if t.has("preset"):
         key = t.choice("preset", presets)
@@ -300,14 +301,12 @@ def _sized(t: Table, kind: type, presets: dict, done: bool = True) -> Any:
     for key in ("length_m", "width_m", "height_m", "mass_kg"):
         default = getattr(base, key) if base is not None else None
         values[key] = t.number(key, default, positive=True, maximum=BOX_LIMITS[key])
-    if done:
-        t.done()
     return kind(**values) if base is None else replace(base, **values)
 
 
 def _pallet(t: Table) -> Pallet:
     """The pallet's box, then what it carries: a preset's rating, or the Euro pallet's."""
-    box: Pallet = _sized(t, Pallet, PALLET_PRESETS, done=False)
+    box: Pallet = _sized(t, Pallet, PALLET_PRESETS)
     safe_load = t.number("safe_load_kg", box.safe_load_kg, positive=True,
                          maximum=MAX_SAFE_LOAD_KG)
     t.done()
@@ -317,7 +316,7 @@ def _pallet(t: Table) -> Pallet:
 def _bundle(t: Table) -> Bundle:
     """The bundle's box, then its give: optional keys, a preset's values or the documented
     defaults (a shrink-wrapped PET bundle's), and an edge no rounder than the bundle allows."""
-    box: Bundle = _sized(t, Bundle, BUNDLE_PRESETS, done=False)
+    box: Bundle = _sized(t, Bundle, BUNDLE_PRESETS)
     low, high = CORNER_STIFFNESS_RANGE_N_PER_M2
     stiffness = t.number("corner_stiffness_n_per_m2", box.corner_stiffness_n_per_m2,
                          minimum=low, maximum=high)

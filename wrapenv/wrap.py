@@ -461,8 +461,9 @@ def _material(top: Table) -> tuple[str, Material]:
     return key, MATERIALS[key]
 
 
-#: Most layers a [[band]] gives [A]: what a program of the most wraps lays at one height
-#: (bottom and reinforcement wraps of `MAX_WRAPS_AT_ONE_HEIGHT` each, a spiral's four), doubled.
+#: Most layers a [[band]] gives [A]: above what a program of the most wraps lays at one height
+#: (bottom and reinforcement wraps of `MAX_WRAPS_AT_ONE_HEIGHT` each, 40, and a spiral of
+#: `MAX_PROGRAM_OVERLAP`'s ten layers), a round figure with room for a hand-made band.
 MAX_BAND_LAYERS = 100
 
 

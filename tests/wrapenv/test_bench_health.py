@@ -19,6 +19,7 @@ from recommender.cli import main
 from tests.wrapenv.conftest import kraft_example
 from wrapenv import bench, bullet
 from wrapenv.bench import BenchUnit, SimSettings, _Run, run_level, run_levels
+from wrapenv.config import InputError
 from wrapenv.eumos import evaluate
 from wrapenv.load import FrictionPair, LoadUnit
 from wrapenv.profile import G, PulseProfile
@@ -29,6 +30,15 @@ SMALL = {
     "bundle": {"preset": "PET6x1.5L"},
     "stack": {"layers": 2, "pattern": "explicit", "positions": [[0.0, 0.0], [0.3, 0.0]]},
 }
+
+
+@pytest.mark.parametrize("field, value", [
+    ("timestep_s", -1 / 240), ("timestep_s", math.nan), ("settle_s", 0.0),
+    ("max_rest_wait_s", math.inf), ("solver_iterations", 0), ("solver_iterations", 2.5),
+    ("max_wrapped_solver_iterations", True), ("wrapped_contact_erp", 1.5)])
+def test_settings_no_run_can_be_made_with_are_refused_naming_the_field(field, value):
+    with pytest.raises(InputError, match=f"settings: {field}: must be"):
+        SimSettings(**{field: value})
 
 
 def test_same_inputs_give_identical_json(tmp_path):

@@ -155,6 +155,18 @@ def test_a_toml_file_with_a_byte_order_mark_is_read_as_without_one(tmp_path):
         read_toml(latin)
 
 
+def test_a_json_file_is_read_as_toml_is_utf8_with_or_without_a_byte_order_mark(tmp_path):
+    """A CAL.json saved by a Windows editor starts with a BOM ("Unexpected UTF-8 BOM" before);
+    Latin-1 is still malformed."""
+    marked = tmp_path / "bom.json"
+    marked.write_bytes(b'\xef\xbb\xbf{"wrap": {"give_scale": 1.5}}')
+    assert read_json(marked) == {"wrap": {"give_scale": 1.5}}
+    latin = tmp_path / "latin.json"
+    latin.write_bytes(b'{"name": "\xe9"}')
+    with pytest.raises(InputError, match=str(latin)):
+        read_json(latin)
+
+
 def test_a_json_key_given_twice_is_an_error_naming_it(tmp_path, assert_input_error):
     path = tmp_path / "CAL.json"
     path.write_text('{"wrap": {"stiffness_scale": 1.0, "stiffness_scale": 2.0}}')

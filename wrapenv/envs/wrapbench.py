@@ -65,7 +65,7 @@ class WrapBenchEnv(gym.Env):
     | 1     | top wraps (web 5 cm above the load, folded)     | 1 ... 6                           |
     | 2     | reinforcement wraps (0: none)                   | 0 ... 4                           |
     | 3     | spiral up overlap                               | 0 ... 0.75 (1 to 4 layers)        |
-    | 4     | reinforcement's lower edge                      | 0 ... load top - web width        |
+    | 4     | reinforcement's lower edge                      | bottom wraps' ... load top - web  |
     | 5-8   | tension: bottom, spiral, top, reinforcement     | 5 % ... 50 % of one layer's yield |
 
     Values outside [-1, 1] are clipped (5.0 acts as 1.0); a NaN (or infinite) value raises
@@ -119,9 +119,10 @@ class WrapBenchEnv(gym.Env):
     A simulation that blew up (`info["valid"] is False`) is rewarded as a failure with m = -1.
     The two terms are returned in `info["reward_terms"]` (keys "verdict" and "material").
     With `tests_per_episode` K > 1 the program is put through K tests, each with its own drawn
-    side and sample, and `m` and the pass are the worst test's (a failure before a pass, then
-    the smallest margin): the episode is judged as `recommend` verifies, every sample must hold,
-    so a program failing one sample in eight costs about K eighths of a failure, not one.
+    side and sample, and `m` and the pass are the worst test's (a failure before a pass, a
+    blown-up run before a failure, then the smallest margin): the episode is judged as a
+    recommendation is verified, every sample must hold, so a program failing one sample in
+    eight costs about K eighths of a failure, not one.
 
     ## Starting State
     The load unit stacked on the still sled, unwrapped. At the defaults `WrapBenchEnv` has no
@@ -132,7 +133,7 @@ class WrapBenchEnv(gym.Env):
     load's give, relaxation), both from `self.np_random` (a side and a sample for each of the
     `tests_per_episode` tests, test by test). Neither is observed: the observation
     is the unit as its file gives it, so a policy trained so learns one program that holds on
-    either side and whatever the sample, which is how `recommend --method ppo` verifies it.
+    either side and whatever the sample, which is how its proposal is verified.
 
     ## Episode End
     After one step: `terminated=True`, `truncated=False`. Stepping again without a reset tests
@@ -231,7 +232,6 @@ class WrapBenchEnv(gym.Env):
         settings: SimSettings | None = None,
     ) -> None:
         super().__init__()
-        self.metadata = {"render_modes": ["rgb_array"], "render_fps": 20}
         self.render_mode = _one_of("render_mode", render_mode, (None, "rgb_array"))
         self.material = _one_of("material", material, tuple(MATERIALS))
         self.target_g = _level("target_g", target_g)
@@ -264,7 +264,7 @@ class WrapBenchEnv(gym.Env):
                                                 else None)
         self._tests: list[tuple[Orientation | None, Sample | None]] = [(self._fixed_side, None)]
         self._side, self._sample = self._tests[0]
-        self._drawn = not (self.orientation == "random" or self.uncertain)
+        self._drawn = False   # until reset: Gymnasium's order, whichever the mode
         self.unit: LoadUnit | None = None  # the unit as simulated (calibration applied)
         self.layout: Layout | None = None
         self.program_space: ProgramSpace | None = None
@@ -352,8 +352,8 @@ class WrapBenchEnv(gym.Env):
     def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
         wrap = self.decode(action)
         if not self._drawn:
-            raise ResetNeeded("call reset() before step(): the side tested or the sample is "
-                              "drawn at reset")
+            raise ResetNeeded("call reset() before step(): an episode starts there, where "
+                              "the side tested and the sample are drawn")
         assert self.layout is not None
         runs = [self._run(wrap, side, sample) for side, sample in self._tests]
         judged = min(range(len(runs)), key=lambda i: _severity(runs[i][0].verdict))

@@ -574,10 +574,11 @@ def test_the_first_of_several_tests_is_the_one_test_of_the_same_seed(tiny):
     assert infos[0] == infos[1]
 
 
-@pytest.mark.parametrize("kwargs", [{"orientation": "random"}, {"uncertain": True}])
-def test_a_drawn_test_needs_a_reset_before_the_first_step(tiny, kwargs):
+@pytest.mark.parametrize("kwargs", [{}, {"orientation": "random"}, {"uncertain": True}])
+def test_an_episode_needs_a_reset_before_the_first_step(tiny, kwargs):
+    """Gymnasium's order, in every mode (the fixed unit's env stepped without one)."""
     env = make(tiny, **kwargs)
-    with pytest.raises(gym.error.ResetNeeded, match="drawn at reset"):
+    with pytest.raises(gym.error.ResetNeeded, match="call reset"):
         env.step(DEFAULT)
     env.close()
 
