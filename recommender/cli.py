@@ -1,7 +1,9 @@
 """`wrapbench`: the command line of the virtual bench.
 
-Exit status (CONTRACTS.md): 0 success; 1 the run completed but the load failed the asked test;
-2 bad input or usage, with one line on stderr naming the file and the field.
+Exit status (CONTRACTS.md): 0 success; 1 the run completed without the answer asked for (the
+load failed the asked test, no passing program was found, a simulation became unphysical, a
+fit was refused or its validation not predicted); 2 bad input or usage, with one line on stderr
+naming the file and the field; 130 or 143 interrupted (SIGINT, SIGTERM), nothing written.
 """
 
 from __future__ import annotations

@@ -23,7 +23,10 @@ from wrapenv.wrap import Web, WrapFormat
 
 #: Flags of the domain's fields, for messages that name what the user typed.
 FLAGS = {"target_g": "--target", "start_g": "--start", "level_g": "--level",
-         "material": "--material", "hours_since_wrapping": "--hours-since-wrapping"}
+         "material": "--material", "hours_since_wrapping": "--hours-since-wrapping",
+         "timesteps": "--timesteps", "workers": "--envs", "max_minutes": "--minutes",
+         "material_weight": "--material-weight", "log_std_init": "--log-std-init",
+         "tests_per_episode": "--tests-per-episode"}
 
 
 def as_flag(exc: InputError) -> InputError:

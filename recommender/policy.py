@@ -35,7 +35,7 @@ import zipfile
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import IO, Any
+from typing import IO, Any, NoReturn
 
 import numpy as np
 import torch
@@ -100,8 +100,8 @@ LOG_STD_INIT_RANGE = (-5.0, 1.0)
 
 @dataclass(frozen=True)
 class TrainSettings:
-    """PPO training run. Each episode is one random unit at the target level, 0.4-10 s of CPU
-    (1-3 layers); throughput of the training envs: benchmarks/bench_train.py."""
+    """PPO training run. Each episode is one random unit at the target level, 0.14-1.2 s of CPU
+    (1-3 layers; docs/speed.md); throughput of the training envs: benchmarks/bench_train.py."""
 
     timesteps: int = 2048
     #: Envs of the vector env, each stepped once per vector step: with `n_steps` 1, a rollout
@@ -163,35 +163,35 @@ class TrainSettings:
 
     def check(self) -> None:
         """Reject settings SB3 would fail on late (or silently misuse), before any process
-        is started."""
+        is started: an `InputError` naming the field (`train` names its flag)."""
         for name in ("timesteps", "n_envs", "workers", "checkpoint_every", "n_steps",
                      "batch_size", "tests_per_episode"):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, int) or value < 1:
-                raise ValueError(f"TrainSettings.{name} must be an integer >= 1 (got {value!r})")
+                _refuse(name, f"must be a whole number >= 1 (got {value!r})")
         if not (math.isfinite(self.learning_rate) and self.learning_rate > 0):
-            raise ValueError(f"TrainSettings.learning_rate must be > 0 "
-                             f"(got {self.learning_rate!r})")
+            _refuse("learning_rate", f"must be > 0 (got {self.learning_rate!r})")
         if self.test not in TESTS:
-            raise ValueError(f"TrainSettings.test must be one of {', '.join(TESTS)} "
-                             f"(got {self.test!r})")
+            _refuse("test", f"must be one of {', '.join(TESTS)} (got {self.test!r})")
         if not 1 <= self.tests_per_episode <= MAX_TESTS_PER_EPISODE:
-            raise ValueError(f"TrainSettings.tests_per_episode must be from 1 to "
-                             f"{MAX_TESTS_PER_EPISODE} (got {self.tests_per_episode!r})")
+            _refuse("tests_per_episode", f"must be from 1 to {MAX_TESTS_PER_EPISODE} "
+                                         f"(got {self.tests_per_episode!r})")
         if self.tests_per_episode > 1 and self.test != "verified":
-            raise ValueError("TrainSettings.tests_per_episode above 1 needs the test "
-                             "'verified': the nominal test draws no side or sample")
+            _refuse("tests_per_episode", "above 1 needs the test 'verified': the nominal test "
+                                         "draws no side or sample")
         if self.max_minutes is not None and not (math.isfinite(self.max_minutes)
                                                  and self.max_minutes >= 0):
-            raise ValueError(f"TrainSettings.max_minutes must be >= 0 or None "
-                             f"(got {self.max_minutes!r})")
+            _refuse("max_minutes", f"must be >= 0 or None (got {self.max_minutes!r})")
         low, high = LOG_STD_INIT_RANGE
         if not low <= self.log_std_init <= high:   # NaN fails too
-            raise ValueError(f"TrainSettings.log_std_init must be between {low:g} and "
-                             f"{high:g} (got {self.log_std_init!r})")
+            _refuse("log_std_init", f"must be between {low:g} and {high:g} "
+                                    f"(got {self.log_std_init!r})")
         if not (math.isfinite(self.material_weight) and self.material_weight >= 0):
-            raise ValueError(f"TrainSettings.material_weight must be >= 0 "
-                             f"(got {self.material_weight!r})")
+            _refuse("material_weight", f"must be >= 0 (got {self.material_weight!r})")
+
+
+def _refuse(field: str, message: str) -> NoReturn:
+    raise InputError("settings", field, message)
 
 
 class EpisodeLog(BaseCallback):

@@ -1,10 +1,11 @@
 """What a robust search searches: its settings, and the problem the workers simulate.
 
 `Problem` holds the load, its layout, the program space, the uncertainty and the objective
-(minimised): the kg of web laid relative to the machine's default program, plus a penalty that
-grows with the shortfall of the worst sample's margin below the wanted margin, plus an optional
-price on cycle time; a program slower than the cycle-time limit is rejected without a
-simulation. Picklable and free of Bullet state, so it travels to worker processes.
+(minimised, `Problem.objective`): the kg of web laid relative to the machine's default program,
+plus a penalty that grows with the shortfall of the worst sample's margin below the wanted
+margin, the heaviest program's web for a failure, an optional price on cycle time and a small
+one on tension; a program slower than the cycle-time limit is rejected without a simulation.
+Picklable and free of Bullet state, so it travels to worker processes.
 """
 
 from __future__ import annotations

@@ -8,40 +8,36 @@ from __future__ import annotations
 
 import argparse
 import contextlib
-import math
 from pathlib import Path
 
 from recommender import policy
-from recommender.commands import check_target, named_web, read_calibration
+from recommender.commands import as_flag, check_target, named_web, read_calibration
+from wrapenv.calibrated import Calibration
 from wrapenv.config import InputError, check_output
-from wrapenv.envs.wrapbench import MAX_TESTS_PER_EPISODE
 from wrapenv.pool import most_workers
 
 
-def _check_train_numbers(args: argparse.Namespace) -> None:
-    """`train`'s numeric flags, each refused by name before a folder is made."""
-    for flag, value in (("--timesteps", args.timesteps), ("--envs", args.envs)):
-        if value < 1:
-            raise InputError("arguments", flag, f"must be >= 1 (got {value})")
+def _checked_settings(args: argparse.Namespace, calibration: Calibration | None
+                      ) -> policy.TrainSettings:
+    """The run's settings, checked where the library checks them (`TrainSettings.check`), each
+    refusal naming its flag, before a folder is made; and what only the command bounds: the
+    machine's cores, and a time limit that lets a run start."""
     most = most_workers()
     if args.envs > most:
         raise InputError("arguments", "--envs", f"must be <= {most} (got {args.envs}): each "
                                                 "is a process simulating on a core")
-    if args.minutes is not None and not (math.isfinite(args.minutes) and args.minutes > 0):
+    if args.minutes is not None and not args.minutes > 0:   # NaN too
         raise InputError("arguments", "--minutes", f"must be > 0 (got {args.minutes})")
-    if not args.material_weight >= 0:
-        raise InputError("arguments", "--material-weight",
-                         f"must be >= 0 (got {args.material_weight})")
-    if not 1 <= args.tests_per_episode <= MAX_TESTS_PER_EPISODE:
-        raise InputError("arguments", "--tests-per-episode", f"must be from 1 to "
-                         f"{MAX_TESTS_PER_EPISODE} (got {args.tests_per_episode})")
-    if args.tests_per_episode > 1 and args.test != "verified":
-        raise InputError("arguments", "--tests-per-episode", "above 1 needs --test verified: "
-                                                             "the nominal test draws nothing")
-    low, high = policy.LOG_STD_INIT_RANGE
-    if not low <= args.log_std_init <= high:
-        raise InputError("arguments", "--log-std-init", f"must be between {low:g} and {high:g} "
-                                                        f"(got {args.log_std_init:g})")
+    settings = policy.TrainSettings(
+        timesteps=args.timesteps, workers=args.envs, material=args.material,
+        target_g=args.target, seed=args.seed, max_minutes=args.minutes, calibration=calibration,
+        test=args.test, material_weight=args.material_weight, log_std_init=args.log_std_init,
+        tests_per_episode=args.tests_per_episode)
+    try:
+        settings.check()
+    except InputError as exc:
+        raise as_flag(exc) from None
+    return settings
 
 
 def _run_folder(out: Path, resume: bool, timesteps: int) -> bool:
@@ -55,7 +51,7 @@ def _run_folder(out: Path, resume: bool, timesteps: int) -> bool:
     except OSError as exc:
         raise InputError(str(out), "--out", f"cannot be created ({exc.strerror})") from None
     try:
-        check_output(out / "policy.zip", "--out")
+        check_output(out / policy.POLICY_FILE, "--out")
         _check_run_folder(out, resume, timesteps)
     except InputError:
         if made:
@@ -65,16 +61,11 @@ def _run_folder(out: Path, resume: bool, timesteps: int) -> bool:
 
 
 def run_train(args: argparse.Namespace) -> int:
-    _check_train_numbers(args)
     named_web(args.material)
     check_target(args.target)
     calibration = (None if args.calibration is None
                    else read_calibration(args.calibration, "train"))
-    settings = policy.TrainSettings(
-        timesteps=args.timesteps, workers=args.envs, material=args.material,
-        target_g=args.target, seed=args.seed, max_minutes=args.minutes, calibration=calibration,
-        test=args.test, material_weight=args.material_weight, log_std_init=args.log_std_init,
-        tests_per_episode=args.tests_per_episode)
+    settings = _checked_settings(args, calibration)
     made = _run_folder(args.out, args.resume, settings.rollout_timesteps)
     if settings.rollout_timesteps != settings.timesteps:
         print(f"training {settings.rollout_timesteps} timesteps: PPO collects whole rollouts of "
@@ -91,7 +82,7 @@ def run_train(args: argparse.Namespace) -> int:
             exc.add_note("interrupted before the first checkpoint: nothing written (the same "
                          "command starts the run again)")
         raise
-    print(f"policy written to {path} (log: {args.out / 'log.csv'})")
+    print(f"policy written to {path} (log: {args.out / policy.LOG_FILE})")
     return 0
 
 
@@ -110,16 +101,16 @@ def _check_run_folder(out: Path, resume: bool, timesteps: int) -> None:
     its log, no policy.zip), or a finished one to train on past its last checkpoint."""
     if resume:
         kept = policy.last_checkpoint(out)
-        if kept is None or not (out / "log.csv").is_file():
+        if kept is None or not (out / policy.LOG_FILE).is_file():
             raise InputError(str(out), "--resume", "holds no run to resume (checkpoints/ and "
                                                    "log.csv)")
-        if (out / "policy.zip").exists() and kept[1] >= timesteps:
+        if (out / policy.POLICY_FILE).exists() and kept[1] >= timesteps:
             raise InputError(str(out), "--resume", f"the run finished, its last checkpoint at "
                              f"{kept[1]} timesteps: give --timesteps above {kept[1]} to train "
                              f"it on, or train a new one into another folder")
         return
     # a run that failed before its first checkpoint leaves an empty checkpoints/: no run
-    earlier = [name for name in ("policy.zip", "log.csv") if (out / name).exists()]
+    earlier = [name for name in (policy.POLICY_FILE, policy.LOG_FILE) if (out / name).exists()]
     if any((out / policy.CHECKPOINT_DIR).glob("*")):
         earlier.append(policy.CHECKPOINT_DIR)
     if earlier:
