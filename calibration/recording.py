@@ -25,9 +25,9 @@ import numpy as np
 from calibration.camera_setup import SETUP, MarkerSpec, Setup, check_markers, exact
 from calibration.trajectories import Trajectories
 from calibration.vision.video import open_video
-from wrapenv.config import InputError, read_csv, read_json, read_toml, write_atomic
+from wrapenv.config import InputError, read_json, read_toml, write_atomic
 from wrapenv.load import LoadUnit
-from wrapenv.profile import MAX_PROFILE_S
+from wrapenv.profile import read_profile_csv
 from wrapenv.render import SideCamera
 from wrapenv.wrap import WrapFormat
 
@@ -64,15 +64,8 @@ class SledProfile:
 
     @classmethod
     def read(cls, path: str | Path) -> SledProfile:
-        columns = _read_csv(Path(path))
+        columns = read_profile_csv(path, optional=PROFILE_COLUMNS[2:])
         t, a = columns["t_s"], columns["accel_mps2"]
-        if len(t) < 2:
-            raise InputError(str(path), "t_s", "needs at least two samples")
-        if np.any(np.diff(t) <= 0):
-            raise InputError(str(path), "t_s", "must increase strictly")
-        if t[-1] - t[0] > MAX_PROFILE_S:
-            raise InputError(str(path), "t_s", f"spans {t[-1] - t[0]:g} s, more than the "
-                             f"{MAX_PROFILE_S:g} s a bench test lasts (in milliseconds?)")
         vel = columns["vel_mps"] if "vel_mps" in columns else _integral(t, a)
         pos = columns["pos_m"] if "pos_m" in columns else _integral(t, vel)
         return cls(t, a, vel, pos)
@@ -88,27 +81,6 @@ def _integral(t_s: np.ndarray, y: np.ndarray) -> np.ndarray:
     """The running integral of y over t (trapezoids), 0 at the first sample: the measured
     columns a profile lacks are integrated from the highest derivative it gives."""
     return np.concatenate([[0.0], np.cumsum(np.diff(t_s) * (y[1:] + y[:-1]) / 2)])
-
-
-def _read_csv(path: Path) -> dict[str, np.ndarray]:
-    """The profile's known columns as arrays; t_s and accel_mps2 required, all finite."""
-    src = str(path)
-    header, rows = read_csv(path)
-    for col in PROFILE_COLUMNS[:2]:
-        if col not in header:
-            raise InputError(src, col, "missing column (header must name t_s,accel_mps2)")
-    present = [c for c in PROFILE_COLUMNS if c in header]
-    values = []
-    for line, row in rows:
-        try:
-            values.append([float(row[header.index(c)]) for c in present])
-        except (ValueError, IndexError):
-            raise InputError(src, f"line {line}", f"not a number row: {row!r}") from None
-    table = np.array(values, float).reshape(-1, len(present))
-    for j, col in enumerate(present):
-        if not np.all(np.isfinite(table[:, j])):
-            raise InputError(src, col, "contains NaN or infinite values")
-    return {c: table[:, j] for j, c in enumerate(present)}
 
 
 @dataclass(frozen=True, eq=False)

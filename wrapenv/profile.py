@@ -170,29 +170,8 @@ class MeasuredProfile:
     @classmethod
     def from_csv(cls, path: str | Path) -> MeasuredProfile:
         src = str(path)
-        header, rows = read_csv(path)
-        for col in ("t_s", "accel_mps2"):
-            if col not in header:
-                raise InputError(src, col, "missing column (header must name t_s,accel_mps2)")
-        it, ia = header.index("t_s"), header.index("accel_mps2")
-        t, a = [], []
-        for line, row in rows:
-            try:
-                t.append(float(row[it]))
-                a.append(float(row[ia]))
-            except (ValueError, IndexError):
-                raise InputError(src, f"line {line}", f"not a number row: {row!r}") from None
-        t_arr, a_arr = np.array(t), np.array(a)
-        if len(t_arr) < 2:
-            raise InputError(src, "t_s", "needs at least two samples")
-        for name, values in (("t_s", t_arr), ("accel_mps2", a_arr)):
-            if not np.all(np.isfinite(values)):
-                raise InputError(src, name, "contains NaN or infinite values")
-        if np.any(np.diff(t_arr) <= 0):
-            raise InputError(src, "t_s", "must increase strictly")
-        if t_arr[-1] - t_arr[0] > MAX_PROFILE_S:
-            raise InputError(src, "t_s", f"spans {t_arr[-1] - t_arr[0]:g} s, longer than the"
-                             f" {MAX_PROFILE_S:g} s a sled run lasts (times in milliseconds?)")
+        columns = read_profile_csv(path)
+        t_arr, a_arr = columns["t_s"], columns["accel_mps2"]
         if np.max(np.abs(a_arr)) > BENCH_MAX_ACCEL_MPS2 * 2:
             raise InputError(src, "accel_mps2",
                              f"peak {np.max(np.abs(a_arr)):.1f} m/s² is beyond any bench")
@@ -202,6 +181,40 @@ class MeasuredProfile:
 
 
 Profile = PulseProfile | MeasuredProfile
+
+
+def read_profile_csv(path: str | Path, optional: tuple[str, ...] = ()
+                     ) -> dict[str, np.ndarray]:
+    """A sled profile file's columns: t_s and accel_mps2, and those of `optional` it has; every
+    value finite, at least two samples, time increasing strictly over no more than a sled run
+    lasts. What is read as a test's profile (`MeasuredProfile`) and what a recording's sled
+    did (calibration's `SledProfile`) are checked alike."""
+    src = str(path)
+    header, rows = read_csv(path)
+    for col in ("t_s", "accel_mps2"):
+        if col not in header:
+            raise InputError(src, col, "missing column (header must name t_s,accel_mps2)")
+    present = ["t_s", "accel_mps2", *(c for c in optional if c in header)]
+    values = []
+    for line, row in rows:
+        try:
+            values.append([float(row[header.index(c)]) for c in present])
+        except (ValueError, IndexError):
+            raise InputError(src, f"line {line}", f"not a number row: {row!r}") from None
+    table = np.array(values, float).reshape(-1, len(present))
+    columns = {c: table[:, j] for j, c in enumerate(present)}
+    t = columns["t_s"]
+    if len(t) < 2:
+        raise InputError(src, "t_s", "needs at least two samples")
+    for col, column in columns.items():
+        if not np.all(np.isfinite(column)):
+            raise InputError(src, col, "contains NaN or infinite values")
+    if np.any(np.diff(t) <= 0):
+        raise InputError(src, "t_s", "must increase strictly")
+    if t[-1] - t[0] > MAX_PROFILE_S:
+        raise InputError(src, "t_s", f"spans {t[-1] - t[0]:g} s, longer than the "
+                         f"{MAX_PROFILE_S:g} s a sled run lasts (times in milliseconds?)")
+    return columns
 
 
 #: Where a bench lab starts the sequence (0.2 or 0.3 g, paper section 2).

@@ -384,7 +384,7 @@ def test_a_profile_spans_at_most_120_s_from_its_first_sample_to_its_last(
     if not refused:
         assert SledProfile.read(path).t_s[-1] == t_s[-1]
         return
-    with pytest.raises(InputError, match=r"spans 121 s, more than the 120 s") as err:
+    with pytest.raises(InputError, match=r"spans 121 s, longer than the 120 s") as err:
         SledProfile.read(path)
     assert_input_error(err.value, str(path), "t_s")
 
