@@ -29,7 +29,7 @@ import numpy as np
 from calibration import acceptance, identify
 from calibration.checkpoint import ReplayLog
 from calibration.descent import UNIFORM_STD, descend, least_points
-from calibration.objective import Model, Objective, Param, Progress
+from calibration.objective import Model, Objective, Param, Progress, loss
 from calibration.replay import Observation, replay, resettled, residuals
 from calibration.surrogate import (
     MAX_STAGES,
@@ -470,8 +470,7 @@ def _run_stage(objective: Objective, settings: FitSettings, limit: int, progress
 
         def evaluate(us: Sequence[np.ndarray]) -> list[np.ndarray | None]:
             rs = objective.residuals(us)
-            progress.record(us, [1.0 if r is None else float(np.mean(r**2)) for r in rs],
-                            len(us) * spp)
+            progress.record(us, [loss(r) for r in rs], len(us) * spp)
             return rs
 
         by_pair = objective.pair_features()

@@ -25,6 +25,12 @@ from wrapenv.load import PAIRS, Friction, FrictionPair
 INVALID_LOSS = 1.0
 
 
+def loss(r: np.ndarray | None) -> float:
+    """A candidate's loss from its residual vector `r`: the mean square, `INVALID_LOSS` if
+    its simulation became unphysical (None)."""
+    return INVALID_LOSS if r is None else float(np.mean(r**2))
+
+
 @dataclass(frozen=True)
 class Param:
     """One coordinate of the fit's unit box: a pair's static or kinetic coefficient or their
@@ -176,7 +182,7 @@ class Objective:
         return result
 
     def losses(self, us: Sequence[np.ndarray]) -> list[float]:
-        return [INVALID_LOSS if r is None else float(np.mean(r**2)) for r in self.residuals(us)]
+        return [loss(r) for r in self.residuals(us)]
 
     @property
     def sims_per_point(self) -> int:
