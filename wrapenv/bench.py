@@ -110,11 +110,11 @@ class SimSettings:
     def __post_init__(self) -> None:
         """Settings a run can be made with; a negative step or NaN wait ran on silently, and
         no run of it means anything."""
-        for name in ("timestep_s", "settle_s", "rest_speed_mps", "rest_hold_s",
-                     "max_rest_wait_s"):
-            value = getattr(self, name)
-            if not (is_finite_number(value) and value > 0):
-                raise InputError("settings", name, f"must be a number > 0 (got {value!r})")
+        positive = ("timestep_s", "rest_speed_mps", "rest_hold_s")
+        for name in (*positive, "settle_s", "max_rest_wait_s"):   # a replay waits no rest
+            value, bound = getattr(self, name), "> 0" if name in positive else ">= 0"
+            if not (is_finite_number(value) and (value > 0 if name in positive else value >= 0)):
+                raise InputError("settings", name, f"must be a number {bound} (got {value!r})")
         for name in ("solver_iterations", "wrapped_solver_iterations",
                      "max_wrapped_solver_iterations"):
             value = getattr(self, name)

@@ -34,6 +34,11 @@ class InputError(ValueError):
         where = f"{source}: {field}" if field else source
         super().__init__(f"{where}: {message}")
 
+    def __reduce__(self) -> tuple[type[InputError], tuple[str, str, str]]:
+        """Pickled by its three parts: one raised in a worker process reaches the command as
+        itself (by `args` alone it failed to unpickle, a TypeError in its place)."""
+        return type(self), (self.source, self.field, self.message)
+
 
 def read_toml(path: str | Path) -> dict[str, Any]:
     """Parse a TOML file, turning I/O and syntax errors into `InputError`. A byte-order mark

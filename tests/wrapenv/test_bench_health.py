@@ -33,7 +33,7 @@ SMALL = {
 
 
 @pytest.mark.parametrize("field, value", [
-    ("timestep_s", -1 / 240), ("timestep_s", math.nan), ("settle_s", 0.0),
+    ("timestep_s", -1 / 240), ("timestep_s", math.nan), ("settle_s", -0.1),
     ("max_rest_wait_s", math.inf), ("solver_iterations", 0), ("solver_iterations", 2.5),
     ("max_wrapped_solver_iterations", True), ("wrapped_contact_erp", 1.5)])
 def test_settings_no_run_can_be_made_with_are_refused_naming_the_field(field, value):

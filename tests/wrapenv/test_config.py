@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import math
 import os
+import pickle
 from pathlib import Path
 
 import numpy as np
@@ -165,6 +166,15 @@ def test_a_json_file_is_read_as_toml_is_utf8_with_or_without_a_byte_order_mark(t
     latin.write_bytes(b'{"name": "\xe9"}')
     with pytest.raises(InputError, match=str(latin)):
         read_json(latin)
+
+
+def test_an_input_error_raised_in_a_worker_process_reaches_the_command_as_itself():
+    """Pickled and unpickled as a process pool returns it: the same file, field and line (it
+    failed to unpickle, and the command saw a TypeError instead)."""
+    error = pickle.loads(pickle.dumps(InputError("load.toml", "stack.layers", "must be >= 1")))
+    assert isinstance(error, InputError)
+    assert (error.source, error.field, str(error)) == (
+        "load.toml", "stack.layers", "load.toml: stack.layers: must be >= 1")
 
 
 def test_a_json_key_given_twice_is_an_error_naming_it(tmp_path, assert_input_error):
