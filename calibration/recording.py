@@ -210,10 +210,16 @@ def _check_covers(profile: SledProfile, last_frame_s: float, src: str) -> None:
                          f" frame at {last_frame_s:g} s")
 
 
+def image_angle_rad(rot: np.ndarray) -> np.ndarray:
+    """Rotation matrices' angle about the camera axis, counter-clockwise in the image (x right,
+    z up): the angle of a track and of truth.json (CONTRACTS.md)."""
+    return np.arctan2(rot[..., 2, 0], rot[..., 0, 0])
+
+
 @dataclass(frozen=True, eq=False)
 class ObjectTrack:
     """One object's centre as the camera sees it: world x, z (m) and the angle about the camera
-    axis, counter-clockwise in the image (x right, z up): atan2(R[2,0], R[0,0])."""
+    axis (`image_angle_rad`)."""
 
     t_s: np.ndarray
     x_m: np.ndarray

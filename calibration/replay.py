@@ -21,7 +21,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from calibration import features
-from calibration.recording import Recording
+from calibration.recording import Recording, image_angle_rad
 from calibration.trajectories import ObjectPath, Trajectories
 from wrapenv.bench import BenchUnit, SimSettings, run_level
 from wrapenv.config import InputError
@@ -176,7 +176,7 @@ def replay(obs: Observation, friction: Friction, scales: Mapping[str, float] | N
         j = index.get(name)
         pos = trace.pallet_pos_m if j is None else trace.bundle_pos_m[:, j]
         rot = trace.pallet_rot if j is None else trace.bundle_rot[:, j]
-        angle = np.unwrap(np.arctan2(rot[:, 2, 0], rot[:, 0, 0]))
+        angle = np.unwrap(image_angle_rad(rot))
         tau = np.clip(t - obs.profile.t_s[0], 0.0, trace.t_s[-1])
         xza = np.stack([np.interp(tau, trace.t_s, v) for v in (pos[:, 0], pos[:, 2], angle)],
                        axis=1)

@@ -21,8 +21,9 @@ from wrapenv.config import printable
 BODY_COLOURS = [colormaps["tab20"](i) for i in (*range(0, 20, 2), *range(1, 20, 2))]
 
 
-def _png(fig: Figure) -> bytes:
-    """Figures are made without pyplot: importing this module leaves matplotlib's backend be."""
+def png(fig: Figure) -> bytes:
+    """A figure as PNG (the caller writes it, with the run's other outputs). Figures are made
+    without pyplot, so importing a report module leaves the caller's matplotlib backend alone."""
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=110)
     return buf.getvalue()
@@ -42,7 +43,7 @@ def loss_png(curve: Sequence[tuple[int, float]], title: str = "") -> bytes:
     ax.set_ylabel("residual RMS, best so far [mm]")
     ax.set_title(title, fontsize=10)
     ax.grid(alpha=0.3)
-    return _png(fig)
+    return png(fig)
 
 
 def overlay_png(observations: Sequence[Observation],
@@ -68,4 +69,4 @@ def overlay_png(observations: Sequence[Observation],
         ax.set_ylabel("slip on its support [mm]")
         ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))
     axes[-1, 0].set_xlabel("time [s]")
-    return _png(fig)
+    return png(fig)

@@ -39,6 +39,7 @@ from calibration.recording import (
     Recording,
     SledProfile,
     Truth,
+    image_angle_rad,
     write_profile,
     write_truth,
 )
@@ -291,11 +292,6 @@ def _states(trace: Trace, profile: SledProfile, n_pre: int, fps: float) -> State
     return States(t, p, u @ vt, profile.position_m(t))
 
 
-def _angle(rot: np.ndarray) -> np.ndarray:
-    """Rotation about the camera axis, counter-clockwise in the image (CONTRACTS truth)."""
-    return np.arctan2(rot[..., 2, 0], rot[..., 0, 0])
-
-
 def _tracks(layout: Layout, s: States) -> dict[str, ObjectTrack]:
     """sled, pallet and the bundles facing the camera (row 1), absolute world coordinates."""
     n = len(s.t_s)
@@ -306,7 +302,7 @@ def _tracks(layout: Layout, s: States) -> dict[str, ObjectTrack]:
     for name in [PALLET_NAME] + [b.name for b in layout.bundles if b.name.endswith("R1")]:
         j = scene.state_index(name)
         tracks[name] = ObjectTrack(s.t_s, s.sled_x_m + s.pos[:, j, 0], s.pos[:, j, 2].copy(),
-                                   _angle(s.rot[:, j]))
+                                   image_angle_rad(s.rot[:, j]))
     return tracks
 
 

@@ -87,7 +87,7 @@ def wrap_json(simulated: WrapFormat, laid: WrapFormat, layout: Layout,
                        **({"program": laid.to_json()["program"]}
                           if laid.program is not None else {})},
             "material_used": asdict(laid.material_used_on(layout)),
-            "cycle_time_s": round(cycle, 3), "pallets_per_hour": round(3600 / cycle, 2)}
+            "cycle_time_s": round(cycle, 3), "pallets_per_hour": round(laid.pallets_per_hour, 2)}
 
 
 #: The least limit on the shift between layers the flag takes: 0.1 % of a 0.8 m unit is 0.8 mm,

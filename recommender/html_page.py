@@ -200,7 +200,8 @@ def _wrap_section(wrap: WrapFormat | None, layout: Layout, hours: float) -> str:
              ("Web laid", f"{used.area_m2:.2f} m² ({used.mass_kg:.3f} kg), "
                           f"{used.web_length_m:.1f} m laid, {used.roll_length_m:.1f} m from the "
                           f"roll, {used.revolutions:.1f} revolutions"),
-             ("Cycle time", f"{cycle:.0f} s per pallet, {3600 / cycle:.0f} pallets/h"),
+             ("Cycle time", f"{cycle:.0f} s per pallet, "
+                            f"{wrap.pallets_per_hour:.0f} pallets/h"),
              ("Tested", f"{hours:g} h after wrapping" + (
                  " (the tension relaxed by the material's law)" if hours > 0 else ""))]
     steps = [(str(i), *map(_t, step_cells(p, wrap, layout.load_height_m)))

@@ -5,7 +5,6 @@ to inline; the video is written, and its still returned."""
 
 from __future__ import annotations
 
-import io
 from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -18,6 +17,7 @@ from matplotlib.cm import ScalarMappable
 from matplotlib.colors import Colormap, Normalize
 from matplotlib.figure import Figure
 
+from calibration.report import png
 from recommender.text import level_result
 from wrapenv.bench import BenchRun
 from wrapenv.config import printable
@@ -51,7 +51,7 @@ def plot_displacements(run: BenchRun, title: str = "") -> bytes:
     if title:
         # a load's name is the user's: bounded, and never read as mathtext ("$" would be)
         fig.suptitle(printable(title, 120), fontsize=11, parse_math=False)
-    return _png(fig)
+    return png(fig)
 
 
 #: A level whose bundles began further than this from where the unit was put on the sled is
@@ -123,15 +123,7 @@ def plot_search(history: Sequence[Evaluation], best: Evaluation | None,
         if skipped else ""), fontsize=10)
     ax.legend(fontsize=7)
     fig.tight_layout()
-    return _png(fig)
-
-
-def _png(fig: Figure) -> bytes:
-    """A figure as PNG (the caller writes it, with the run's other outputs). Figures are made
-    without pyplot, so importing this module leaves the caller's matplotlib backend alone."""
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=110)
-    return buf.getvalue()
+    return png(fig)
 
 
 #: Codec and container by file suffix: MPEG-4 part 2 in MP4 for players (OpenCV's wheels write
@@ -166,7 +158,7 @@ def plot_tension_map(run: BenchRun, layout: Layout, title: str = "") -> bytes:
                  label="peak force / what the place bears", fraction=0.04)
     if title:
         fig.suptitle(printable(title, 120), fontsize=11, parse_math=False)
-    return _png(fig)
+    return png(fig)
 
 
 def _map_places(ax: Axes, report: WrapReport, cmap: Colormap, norm: Normalize) -> None:

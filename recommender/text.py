@@ -184,7 +184,8 @@ def program_text(wrap: WrapFormat, layout: Layout) -> str:
                  f"{used.web_length_m:.1f} m laid{roll}, {used.revolutions:.1f} revolutions")
     m = wrap.machine
     cycle = wrap.cycle_time_s
-    lines.append(f"cycle time: {cycle:.0f} s, {3600 / cycle:.0f} pallets/h ({wrap.rpm:g} rpm, "
+    lines.append(f"cycle time: {cycle:.0f} s, {wrap.pallets_per_hour:.0f} pallets/h "
+                 f"({wrap.rpm:g} rpm, "
                  f"{m.ramp_s:g} s to start and to stop, carriage up to "
                  f"{m.carriage_speed_mps:g} m/s, {m.handling_s:.0f} s to change pallets)")
     return "\n".join(lines)

@@ -385,6 +385,11 @@ class WrapFormat:
         home = self.program.bottom_from_m if self.program is not None else 0.0
         return cycle_time_s(self.passes, home, self.rpm, self.machine)
 
+    @property
+    def pallets_per_hour(self) -> float:
+        """The machine's throughput on this program, one pallet a cycle."""
+        return 3600.0 / self.cycle_time_s
+
 
 def _placement_warnings(program: Program, web_width_m: float, layout: Layout
                         ) -> tuple[str, ...]:
