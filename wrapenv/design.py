@@ -41,7 +41,7 @@ import numpy as np
 
 from wrapenv.load import Layout
 from wrapenv.material import Material
-from wrapenv.program import Program, Reinforcement
+from wrapenv.program import TOP_OVERHANG_M, Program, Reinforcement, top_from_m
 from wrapenv.wrap import Web, WrapFormat
 
 MAX_WRAPS = 6
@@ -55,9 +55,6 @@ MAX_OVERLAP = 0.75
 #: (docs/materials.md [30]); on a EUR pallet its deck, 22 mm boards on 22 mm cross boards
 #: ([40]), above the fork entries (the top 44 mm of its 144).
 ONTO_PALLET_M = 0.044
-#: The top wraps' web reaches this far above the load and folds over its edge [A]: enough to
-#: tie the top layer's corners without laying web into the air.
-TOP_OVERHANG_M = 0.05
 #: A program is given as an operator types it into a machine's panel: tensions in whole
 #: newtons, overlaps in whole percent, carriage heights in millimetres (decimal places kept).
 TENSION_DECIMALS, OVERLAP_DECIMALS, HEIGHT_DECIMALS = 0, 2, 3
@@ -91,9 +88,8 @@ class ProgramSpace:
         are parked at one height and the carriage never travels down."""
         w = Web.named(web) if isinstance(web, str) else web
         h = layout.load_height_m
-        top_from_m = max(0.0, h + TOP_OVERHANG_M - w.width_m)
         onto_pallet_m = max(0.0, layout.pallet_size_m[2] - ONTO_PALLET_M)
-        return cls(w, h, round(min(onto_pallet_m, top_from_m), HEIGHT_DECIMALS))
+        return cls(w, h, round(min(onto_pallet_m, top_from_m(h, w.width_m)), HEIGHT_DECIMALS))
 
     @property
     def material(self) -> Material:

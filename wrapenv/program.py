@@ -101,6 +101,18 @@ class Machine:
         return self.carriage_speed_mps * 60.0 / rpm
 
 
+#: The top wraps' web reaches this far above the load and folds over its edge [A]: enough to
+#: tie the top layer's corners without laying web into the air (a program's default).
+TOP_OVERHANG_M = 0.05
+
+
+def top_from_m(load_height_m: float, web_width_m: float,
+               overhang_m: float = TOP_OVERHANG_M) -> float:
+    """Where top wraps are laid (the web's lower edge): its upper edge `overhang_m` above the
+    load, or the pallet's deck if the web is wider than that."""
+    return max(0.0, load_height_m + overhang_m - web_width_m)
+
+
 @dataclass(frozen=True, kw_only=True)
 class Program:
     """A wrapping program as an operator enters it (CONTRACTS.md, WRAP.toml's [program]), in
@@ -112,7 +124,7 @@ class Program:
     up_overlap: float
     middle_tension_n: float
     top_wraps: int
-    top_overhang_m: float = 0.05
+    top_overhang_m: float = TOP_OVERHANG_M
     top_tension_n: float
     down_overlap: float | None = None
     rpm: float | None = None
@@ -125,7 +137,7 @@ class Program:
     def top_from_m(self, web_width_m: float, load_height_m: float) -> float:
         """Where the top wraps are laid (the web's lower edge): its upper edge
         `top_overhang_m` above the load."""
-        return max(0.0, load_height_m + self.top_overhang_m - web_width_m)
+        return top_from_m(load_height_m, web_width_m, self.top_overhang_m)
 
     def passes(self, web_width_m: float, load_height_m: float) -> tuple[Pass, ...]:
         """What the carriage does, in the order the machine runs the program."""

@@ -11,7 +11,7 @@ from typing import Any
 
 from wrapenv.config import InputError, Table, fraction_hint
 from wrapenv.material import MAX_PRESTRETCH, Material, check_tension
-from wrapenv.program import Machine, Program, Reinforcement
+from wrapenv.program import TOP_OVERHANG_M, Machine, Program, Reinforcement
 
 #: Rotation accepted: rotary-arm and ring wrappers reach a few tens of rpm; a turntable turns a
 #: fragile load a few times a minute. Below 1 a figure is per second (0.2 for 12 rpm), and the
@@ -129,7 +129,7 @@ def _rpm(t: Table, default: float | None = None) -> float:
 
 
 def _overhang(t: Table, web_width_m: float) -> float:
-    value = t.number("top_overhang_m", 0.05, minimum=0.0)
+    value = t.number("top_overhang_m", TOP_OVERHANG_M, minimum=0.0)
     if value >= web_width_m:
         raise t.error("top_overhang_m", f"must be below the web width ({web_width_m} m): the top "
                       f"wraps would lay nothing on the load (got {value})")
