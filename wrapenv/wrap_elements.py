@@ -45,7 +45,7 @@ class Elements:
     """Elastoplastic, tension-only elements with linear hardening; arrays over elements."""
 
     k_elastic_n_per_m: np.ndarray  # per metre of elongation
-    plastic_modulus: np.ndarray    # hardening modulus H (N/m), so the post-yield tangent is k_h
+    plastic_modulus_n_per_m: np.ndarray    # hardening modulus H: the post-yield tangent is k_h
     yield_force_n: np.ndarray
     break_force_n: np.ndarray
     pretension_n: np.ndarray
@@ -70,10 +70,10 @@ class Elements:
         """Tension for the current lengths (return mapping of 1D plasticity), then tearing
         where tension times the `edge` factor reaches the breaking force."""
         trial = self.k_elastic_n_per_m * (length - self.rest_m - self.plastic_m)
-        hardening = self.plastic_modulus * self.plastic_m
+        hardening = self.plastic_modulus_n_per_m * self.plastic_m
         over = trial - (self.yield_force_n + hardening)
         if over.max(initial=0.0) > 0:  # some element yields (most steps none does)
-            flow = np.maximum(over, 0.0) / (self.k_elastic_n_per_m + self.plastic_modulus)
+            flow = np.maximum(over, 0.0) / (self.k_elastic_n_per_m + self.plastic_modulus_n_per_m)
             self.plastic_m += flow
             trial = trial - self.k_elastic_n_per_m * flow
         elastic = np.where(self.torn | self.opened, 0.0, np.maximum(trial, 0.0))
@@ -108,10 +108,10 @@ def element_set(k_web_n_per_m: np.ndarray, material_strength: tuple[float, float
     yield_per_m, break_per_m, hardening = material_strength
     k_e = series(k_web_n_per_m, give_n_per_m)
     k_h = series(np.maximum(k_web_n_per_m * hardening, 1e-9), give_n_per_m)
-    plastic_modulus = k_e * k_h / np.maximum(k_e - k_h, 1e-9)
+    plastic_modulus_n_per_m = k_e * k_h / np.maximum(k_e - k_h, 1e-9)
     return Elements(
         k_elastic_n_per_m=k_e,
-        plastic_modulus=plastic_modulus,
+        plastic_modulus_n_per_m=plastic_modulus_n_per_m,
         yield_force_n=yield_per_m * web_m,
         break_force_n=np.maximum(break_per_m * web_m, 1e-9),
         pretension_n=pretension_n,

@@ -64,8 +64,8 @@ class Panels:
     """Corner verticals and face diagonals between consecutive rings, as arrays over panels."""
 
     nodes: np.ndarray        # (E, 2) node pairs (lower ring's node first)
-    k_web: np.ndarray        # web stiffness of all the layers, N/m
-    web_metres: np.ndarray   # metres of web, for strength: layers x width the panel stands for
+    k_web_n_per_m: np.ndarray        # web stiffness of all the layers, N/m
+    web_m: np.ndarray   # metres of web, for strength: layers x width the panel stands for
     layers: np.ndarray       # web layers between the two rings
     rings: np.ndarray        # (E, 2) indices of the lower and upper ring
     rise: np.ndarray         # vertical part of the panel's direction at rest (1: vertical)
@@ -238,8 +238,8 @@ def panel_specs(wrap: WrapFormat, rings: list[Ring], corners: list[list[int]],
                              (outline[c], outline[c + 1])))
     cols = list(zip(*rows, strict=True)) if rows else [()] * 9
     return Panels(
-        nodes=np.array(cols[0], int).reshape(-1, 2), k_web=np.array(cols[1], float),
-        web_metres=np.array(cols[2], float), layers=np.array(cols[3], float),
+        nodes=np.array(cols[0], int).reshape(-1, 2), k_web_n_per_m=np.array(cols[1], float),
+        web_m=np.array(cols[2], float), layers=np.array(cols[3], float),
         rings=np.array(cols[4], int).reshape(-1, 2), rise=np.array(cols[5], float),
         height_m=np.array(cols[6], float), where=list(cols[7]),
         s_m=np.array(cols[8], float).reshape(-1, 2),
@@ -261,7 +261,7 @@ def seam_rings(wrap: WrapFormat, rings: list[Ring]) -> list[int]:
     return [min(range(len(rings)), key=lambda i: abs(rings[i].z_m - middle))]
 
 
-def ring_give(ring: Ring, corner_stiffness: np.ndarray) -> float:
+def ring_give(ring: Ring, corner_stiffness_n_per_m2: np.ndarray) -> float:
     """A ring's load-side stiffness (tension per metre of perimeter): each edge it turns round
     by an angle a dents under 2 T sin(a/2), which shortens the perimeter by 2 sin(a/2) times
     the dent, so the edges add 4 sin²(a/2) / k_edge of compliance each."""
@@ -269,7 +269,7 @@ def ring_give(ring: Ring, corner_stiffness: np.ndarray) -> float:
     into, out = xy - np.roll(xy, 1, axis=0), np.roll(xy, -1, axis=0) - xy
     turn = np.arctan2(into[:, 0] * out[:, 1] - into[:, 1] * out[:, 0],
                       np.einsum("ij,ij->i", into, out))
-    k_edge = corner_stiffness[[body for body, _ in ring.slots]] * ring.height_m
+    k_edge = corner_stiffness_n_per_m2[[body for body, _ in ring.slots]] * ring.height_m
     compliance = float(np.sum(4 * np.sin(turn / 2) ** 2 / k_edge))
     return 1.0 / compliance if compliance > 0 else math.inf
 

@@ -79,7 +79,7 @@ class WrapNet:
         self.n_bodies = 1 + len(layout.bundles)
         mass = np.array([layout.pallet_mass_kg] + [b.mass_kg for b in layout.bundles])
         #: Per body: how stiff its vertical edges are under the wrap, and how round.
-        self.corner_stiffness = np.array([PALLET_CORNER_STIFFNESS_N_PER_M2]
+        self.corner_stiffness_n_per_m2 = np.array([PALLET_CORNER_STIFFNESS_N_PER_M2]
                                          + [b.corner_stiffness_n_per_m2 for b in layout.bundles])
         radius = np.array([PALLET_EDGE_RADIUS_M] + [b.edge_radius_m for b in layout.bundles])
         self._node_body: list[int] = []
@@ -110,8 +110,8 @@ class WrapNet:
         #: when the ring's tension peaked.
         self.ring_edge = np.ones(self._slots.shape)
         self.rings = self._ring_elements(mass)
-        self.outline_s = corner_positions_m(layout)
-        self.panel_spec = panel_specs(wrap, rings, corners, self.node_body, self.outline_s)
+        self.outline_s_m = corner_positions_m(layout)
+        self.panel_spec = panel_specs(wrap, rings, corners, self.node_body, self.outline_s_m)
         self.panels = self._panel_elements(mass)
         self._incidences()
         self._seam_setup()
@@ -141,7 +141,7 @@ class WrapNet:
             pretension_n=np.array([r.tension_n for r in rings]),
             mass_kg=np.array([mass[[b for b, _ in r.slots]].mean() for r in rings]),
             height_m=self.ring_heights, length_m=perimeter,
-            give_n_per_m=np.array([ring_give(r, self.corner_stiffness) for r in rings]),
+            give_n_per_m=np.array([ring_give(r, self.corner_stiffness_n_per_m2) for r in rings]),
             damping_ratio=m.damping_ratio,
         )
 
@@ -152,24 +152,24 @@ class WrapNet:
         spec, m = self.panel_spec, self.wrap.material
         a, b = spec.nodes.T
         share = np.array([r.height_m for r in self.ring_specs])
-        k_end = [self.corner_stiffness[self.node_body[n]] * share[spec.rings[:, j]]
+        k_end = [self.corner_stiffness_n_per_m2[self.node_body[n]] * share[spec.rings[:, j]]
                  for j, n in enumerate((a, b))]
         give = series(*k_end) if len(a) else np.zeros(0)
         ma, mb = mass[self.node_body[a]], mass[self.node_body[b]]
         panels = element_set(
-            k_web_n_per_m=spec.k_web,
+            k_web_n_per_m=spec.k_web_n_per_m,
             material_strength=(m.yield_force_n_per_m, m.break_force_n_per_m, m.hardening_ratio),
-            web_m=spec.web_metres, pretension_n=np.zeros_like(spec.k_web),
+            web_m=spec.web_m, pretension_n=np.zeros_like(spec.k_web_n_per_m),
             mass_kg=ma * mb / (ma + mb), height_m=spec.height_m,
-            length_m=np.ones_like(spec.k_web), give_n_per_m=give,
+            length_m=np.ones_like(spec.k_web_n_per_m), give_n_per_m=give,
             damping_ratio=m.damping_ratio)
         n = spec.layers
         #: Panels whose outer layers slide on the one beneath (paper, more than one layer).
         self.sliding = np.flatnonzero((n > 1.0 + 1e-9) & (not m.clings))
         k = self.sliding
-        slipped = series(spec.k_web[k] / n[k], give[k])   # only the layer against the load
+        slipped = series(spec.k_web_n_per_m[k] / n[k], give[k])   # only the layer against the load
         self._stuck = (panels.yield_force_n[k].copy(), panels.break_force_n[k].copy(),
-                       panels.plastic_modulus[k].copy(),
+                       panels.plastic_modulus_n_per_m[k].copy(),
                        panels.k_elastic_n_per_m[k] * slipped
                        / np.maximum(panels.k_elastic_n_per_m[k] - slipped, 1e-9))
         return panels
@@ -388,7 +388,7 @@ class WrapNet:
         p = self.panels
         p.yield_force_n[k] = np.minimum(stuck_yield, grip / outer)
         p.break_force_n[k] = np.minimum(stuck_break / n + grip, stuck_break)
-        p.plastic_modulus[k] = np.where(slips, slip_h, stuck_h)
+        p.plastic_modulus_n_per_m[k] = np.where(slips, slip_h, stuck_h)
 
     def report(self) -> WrapReport:
         r, inner = self.rings, self.panels

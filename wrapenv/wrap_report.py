@@ -107,7 +107,7 @@ def places_of(net: WrapNet) -> tuple[Place, ...]:
 def _ring_places(net: WrapNet) -> list[Place]:
     """A ring carries one tension; where its web turned round an edge at its peak, that place
     bore less (the bending there), so a ring's corners are usually its most loaded places."""
-    r, s = net.rings, net.outline_s
+    r, s = net.rings, net.outline_s_m
     out = []
     for i, spec in enumerate(net.ring_specs):
         force, bears = float(r.peak_force_n[i]), float(r.break_force_n[i])
@@ -153,5 +153,5 @@ def _seam_places(net: WrapNet) -> list[Place]:
         return []
     z = net.ring_heights[net.seam]
     return [Place("seam", "seam", float(z.mean()), net.seam_peak, net.seam_peak_force,
-                  _timed(net.seam_peak_t), 0.0, net.outline_s[-1], float(z.min()),
+                  _timed(net.seam_peak_t), 0.0, net.outline_s_m[-1], float(z.min()),
                   float(z.max()), opened=bool(net.rings.opened[net.seam].any()))]

@@ -117,8 +117,8 @@ def test_a_corner_vertical_is_the_web_of_half_the_two_faces_beside_it_stretched_
     wrap, rings = _column()
     panels = _panels(wrap, rings)
     joint = [e for e in range(len(panels.where)) if tuple(panels.rings[e]) == (2, 3)][:4]
-    assert panels.k_web[joint] == pytest.approx([4e5 * 0.6 * 2 * 0.235 / 0.165] * 4)
-    assert panels.web_metres[joint] == pytest.approx([0.6 * 2 * 0.235] * 4)
+    assert panels.k_web_n_per_m[joint] == pytest.approx([4e5 * 0.6 * 2 * 0.235 / 0.165] * 4)
+    assert panels.web_m[joint] == pytest.approx([0.6 * 2 * 0.235] * 4)
     assert panels.rise[joint] == pytest.approx([1.0] * 4)
     assert panels.height_m[joint] == pytest.approx([0.474] * 4)
     assert panels.s_m[joint] == pytest.approx(np.array([[0.0, 0.0], [0.28, 0.28], [0.47, 0.47],
@@ -133,7 +133,7 @@ def test_a_corner_vertical_from_the_pallet_runs_slanted_to_the_bundle_s_corner()
     panels = _panels(wrap, rings)
     across = np.hypot(0.46, 0.305)
     length = np.hypot(across, 0.1545)
-    assert panels.k_web[0] == pytest.approx(4e5 * 0.6 * 2 * 0.6175 / length)
+    assert panels.k_web_n_per_m[0] == pytest.approx(4e5 * 0.6 * 2 * 0.6175 / length)
     assert panels.rise[0] == pytest.approx(0.1545 / length)
 
 
@@ -147,8 +147,9 @@ def test_a_face_diagonal_is_the_face_s_web_in_shear():
     face = [e for e in range(len(panels.where)) if tuple(panels.rings[e]) == (2, 3)
             and panels.where[e] == "face -y"]
     cos = 0.28 / np.hypot(0.28, 0.165)
-    assert panels.k_web[face] == pytest.approx([0.25 * 4e5 * 2 * 0.28 / (0.165 * cos**2)] * 2)
-    assert panels.web_metres[face] == pytest.approx([2 * 0.28 / (2 * cos)] * 2)
+    assert panels.k_web_n_per_m[face] == pytest.approx(
+        [0.25 * 4e5 * 2 * 0.28 / (0.165 * cos**2)] * 2)
+    assert panels.web_m[face] == pytest.approx([2 * 0.28 / (2 * cos)] * 2)
     assert panels.rise[face] == pytest.approx([0.165 / np.hypot(0.28, 0.165)] * 2)
     assert panels.s_m[face] == pytest.approx(np.array([[0.0, 0.28]] * 2))
 

@@ -259,7 +259,7 @@ def test_a_panel_has_the_give_of_both_its_ends():
     net = WrapNet(wrap_format("kraft", [(0.0, 0.474, 1, 250.0)]), layout)
     e = net.panel_spec.where.index("corner -x-y")
     ends = 1 / (1 / (PALLET_CORNER_STIFFNESS_N_PER_M2 * 0.144) + 1 / (6.0e5 * 0.165))
-    web = net.panel_spec.k_web[e]
+    web = net.panel_spec.k_web_n_per_m[e]
     assert net.panels.k_elastic_n_per_m[e] == pytest.approx(1 / (1 / web + 1 / ends), rel=1e-6)
 
 
@@ -277,8 +277,9 @@ def test_the_card_s_shear_ratio_stiffens_the_face_diagonals_and_its_damping_rati
     faces = [i for i, w in enumerate(where) if w.startswith("face")]
     corners = [i for i, w in enumerate(where) if w.startswith("corner")]
     assert faces and corners
-    assert other.panel_spec.k_web[faces] == pytest.approx(2 * base.panel_spec.k_web[faces])
-    assert other.panel_spec.k_web[corners] == pytest.approx(base.panel_spec.k_web[corners])
+    k_other, k_base = other.panel_spec.k_web_n_per_m, base.panel_spec.k_web_n_per_m
+    assert k_other[faces] == pytest.approx(2 * k_base[faces])
+    assert k_other[corners] == pytest.approx(k_base[corners])
     assert other.rings.k_elastic_n_per_m == pytest.approx(base.rings.k_elastic_n_per_m)
     assert other.rings.damping_n_s_per_m == pytest.approx(2 * base.rings.damping_n_s_per_m)
     stiffer = other.panels.k_elastic_n_per_m / base.panels.k_elastic_n_per_m
@@ -296,7 +297,7 @@ def test_a_softer_product_makes_every_element_on_it_softer_and_none_stiffer_than
         k = [getattr(n, elements).k_elastic_n_per_m[on_bundles] for n in nets]
         assert np.all(k[0] < k[1]) and np.all(k[1] < k[2]), elements
     assert len({float(n.rings.k_elastic_n_per_m[0]) for n in nets}) == 1
-    assert np.all(nets[2].panels.k_elastic_n_per_m < nets[2].panel_spec.k_web)
+    assert np.all(nets[2].panels.k_elastic_n_per_m < nets[2].panel_spec.k_web_n_per_m)
 
 
 # -- paper's layers slide, film's cling ------------------------------------------------------
@@ -326,19 +327,19 @@ def test_paper_layers_outside_the_first_bear_only_what_friction_passes_them():
     run = np.array([0.6 - 0.14, 0.4 - 0.095, 0.2265 - 0.072])   # pallet corner to bundle's
     rise = run[2] / np.linalg.norm(run)
     grip = 0.4 * math.sqrt(2) * 216.0 * (2 / 3) / 3 / rise
-    all_layers = KRAFT.break_force_n_per_m * net.panel_spec.web_metres[e]
+    all_layers = KRAFT.break_force_n_per_m * net.panel_spec.web_m[e]
     assert net.panels.break_force_n[e] == pytest.approx(all_layers / 3 + grip, rel=1e-3)
     assert net.panels.break_force_n[e] < all_layers
     # the layers act together until the outer two's share, 2/3 of the panel's force, reaches
     # the grip: it yields at 3/2 of it (below the web's own yield here); past that only the
     # inner layer stretches, a third of the web behind the give of the panel's ends
-    all_yield = KRAFT.yield_force_n_per_m * net.panel_spec.web_metres[e]
+    all_yield = KRAFT.yield_force_n_per_m * net.panel_spec.web_m[e]
     assert 1.5 * grip < all_yield
     assert net.panels.yield_force_n[e] == pytest.approx(1.5 * grip, rel=1e-3)
-    k_el, k_web = net.panels.k_elastic_n_per_m[e], net.panel_spec.k_web[e]
-    give = 1 / (1 / k_el - 1 / k_web)
-    h = net.panels.plastic_modulus[e]
-    assert k_el * h / (k_el + h) == pytest.approx(1 / (3 / k_web + 1 / give), rel=1e-6)
+    k_el, k_web_n_per_m = net.panels.k_elastic_n_per_m[e], net.panel_spec.k_web_n_per_m[e]
+    give = 1 / (1 / k_el - 1 / k_web_n_per_m)
+    h = net.panels.plastic_modulus_n_per_m[e]
+    assert k_el * h / (k_el + h) == pytest.approx(1 / (3 / k_web_n_per_m + 1 / give), rel=1e-6)
 
 
 def test_paper_layers_that_grip_harder_than_they_yield_act_together_until_the_web_yields():
@@ -362,12 +363,12 @@ def test_paper_layers_that_grip_harder_than_they_yield_act_together_until_the_we
         frozen_at_rest(nets[key], layout)
     e = nets["tacky"].panel_spec.where.index("corner -x-y")
     tacky, film = nets["tacky"].panels, nets["film"].panels
-    all_yield = 0.008 * 4e5 * nets["tacky"].panel_spec.web_metres[e]
+    all_yield = 0.008 * 4e5 * nets["tacky"].panel_spec.web_m[e]
     assert tacky.yield_force_n[e] == pytest.approx(all_yield) == film.yield_force_n[e]
-    assert tacky.plastic_modulus[e] == pytest.approx(film.plastic_modulus[e])
+    assert tacky.plastic_modulus_n_per_m[e] == pytest.approx(film.plastic_modulus_n_per_m[e])
     assert tacky.break_force_n[e] == pytest.approx(film.break_force_n[e] / 3 + 2 / 3 * all_yield)
     assert nets["light"].panels.yield_force_n[e] < 0.5 * all_yield
-    assert nets["light"].panels.plastic_modulus[e] > film.plastic_modulus[e]
+    assert nets["light"].panels.plastic_modulus_n_per_m[e] > film.plastic_modulus_n_per_m[e]
 
 
 def test_film_layers_cling_and_share_every_panel():
@@ -377,7 +378,7 @@ def test_film_layers_cling_and_share_every_panel():
     film = MATERIALS["lldpe"]
     assert len(net.sliding) == 0
     assert net.panels.break_force_n == pytest.approx(film.break_force_n_per_m
-                                                   * net.panel_spec.web_metres)
+                                                   * net.panel_spec.web_m)
 
 
 # -- the seam ---------------------------------------------------------------------------
