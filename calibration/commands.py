@@ -12,11 +12,11 @@ import math
 import os
 import sys
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import replace
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from tqdm import tqdm
 
@@ -486,15 +486,9 @@ def _fitted_and_written(args: argparse.Namespace, observations: list, held_out: 
         sys.stderr.write(f"wrapbench calibrate: --validate: {printable(str(exc), MESSAGE_CHARS)}; "
                          "nothing written\n")
         return 1
-    out = result.calibration.to_dict() | {
-        "residual_rms_m": result.residual_rms_m, "spread_rms_m": result.spread_rms_m,
-        "replay_rms_m": result.replay_rms_m, "simulations": result.simulations,
-        "simulations_by_part": result.simulations_by_part, "method": result.method,
-        "advice": result.advice, "acceptance": _acceptance(result, settings),
-        "validation": [c.to_dict() for c in checks]}
     paths = _outputs(args.out)
     write_together({
-        paths["json"]: result_json(out),
+        paths["json"]: result_json(_cal_json(result, settings, checks)),
         paths["loss"]: loss_png(result.curve, f"{result.method}: {result.simulations} "
                                 "simulations"),
         paths["overlay"]: overlay_png(observations, result.fitted)})
@@ -511,6 +505,18 @@ def _fitted_and_written(args: argparse.Namespace, observations: list, held_out: 
           f"{wall:.0f} s ({result.method}); wrote "
           f"{', '.join(shown_path(p) for p in paths.values())}")
     return 0
+
+
+def _cal_json(result: FitResult, settings: FitSettings, checks: Sequence[Validation]
+              ) -> dict[str, Any]:
+    """CAL.json: the calibration as the bench reads it, then how it was found, how far to
+    trust it and what it predicted of the takes it was not fitted on."""
+    return result.calibration.to_dict() | {
+        "residual_rms_m": result.residual_rms_m, "spread_rms_m": result.spread_rms_m,
+        "replay_rms_m": result.replay_rms_m, "simulations": result.simulations,
+        "simulations_by_part": result.simulations_by_part, "method": result.method,
+        "advice": result.advice, "acceptance": _acceptance(result, settings),
+        "validation": [c.to_dict() for c in checks]}
 
 
 def _acceptance(result: FitResult, settings: FitSettings) -> dict:
