@@ -23,7 +23,7 @@ import cv2
 import numpy as np
 
 from calibration.camera_setup import SETUP, MarkerSpec, Setup, check_markers, exact
-from calibration.trajectories import Trajectories
+from calibration.trajectories import ObjectPath, Trajectories
 from calibration.vision.video import open_video
 from wrapenv.config import InputError, read_json, read_toml, write_atomic
 from wrapenv.load import LoadUnit
@@ -217,25 +217,11 @@ def image_angle_rad(rot: np.ndarray) -> np.ndarray:
 
 
 @dataclass(frozen=True, eq=False)
-class ObjectTrack:
-    """One object's centre as the camera sees it: world x, z (m) and the angle about the camera
-    axis (`image_angle_rad`)."""
-
-    t_s: np.ndarray
-    x_m: np.ndarray
-    z_m: np.ndarray
-    angle_rad: np.ndarray
-
-    def to_dict(self) -> dict[str, list[float]]:
-        return {k: [float(v) for v in getattr(self, k)] for k in TRACK_KEYS}
-
-
-@dataclass(frozen=True, eq=False)
 class Truth:
     """What a synthetic recording really shows: true parameters and object tracks."""
 
     params: dict
-    objects: dict[str, ObjectTrack]
+    objects: dict[str, ObjectPath]   # world x, z and `image_angle_rad`, every frame
 
     @classmethod
     def read(cls, folder: str | Path) -> Truth:
@@ -253,11 +239,12 @@ class Truth:
 
     def to_json(self) -> bytes:
         data = {"params": self.params,
-                "objects": {name: track.to_dict() for name, track in self.objects.items()}}
+                "objects": {name: {k: [float(v) for v in getattr(track, k)] for k in TRACK_KEYS}
+                            for name, track in self.objects.items()}}
         return json.dumps(data, allow_nan=False).encode()
 
 
-def _track(item: Any, src: str, where: str) -> ObjectTrack:
+def _track(item: Any, src: str, where: str) -> ObjectPath:
     """One object's track: equally long arrays of finite numbers, at least one sample, times
     strictly increasing (the error against truth interpolates in them)."""
     if not isinstance(item, dict):
@@ -281,7 +268,7 @@ def _track(item: Any, src: str, where: str) -> ObjectTrack:
         raise InputError(src, f"{where}.t_s", "needs at least one sample")
     if np.any(np.diff(t_s) <= 0):
         raise InputError(src, f"{where}.t_s", "must increase strictly")
-    return ObjectTrack(*arrays)
+    return ObjectPath(*arrays)
 
 
 def write_profile(folder: str | Path, profile: SledProfile) -> None:

@@ -35,7 +35,6 @@ from calibration.filming import Scene, States, drawn_size_m, png, web_alpha, wri
 from calibration.recording import (
     LOAD,
     WRAP,
-    ObjectTrack,
     Recording,
     SledProfile,
     Truth,
@@ -43,6 +42,7 @@ from calibration.recording import (
     write_profile,
     write_truth,
 )
+from calibration.trajectories import ObjectPath
 from wrapenv.bench import BenchUnit, SimSettings
 from wrapenv.config import InputError, check_output_folder, write_atomic
 from wrapenv.load import PAIRS, Friction, FrictionPair, Layout, LoadUnit
@@ -292,16 +292,16 @@ def _states(trace: Trace, profile: SledProfile, n_pre: int, fps: float) -> State
     return States(t, p, u @ vt, profile.position_m(t))
 
 
-def _tracks(layout: Layout, s: States) -> dict[str, ObjectTrack]:
+def _tracks(layout: Layout, s: States) -> dict[str, ObjectPath]:
     """sled, pallet and the bundles facing the camera (row 1), absolute world coordinates."""
     n = len(s.t_s)
     scene = BenchScene(layout)
     sled = scene.body(SLED)
-    tracks = {SLED: ObjectTrack(s.t_s, s.sled_x_m.copy(), np.full(n, sled.centre_m[2]),
+    tracks = {SLED: ObjectPath(s.t_s, s.sled_x_m.copy(), np.full(n, sled.centre_m[2]),
                                 np.zeros(n))}
     for name in [PALLET_NAME] + [b.name for b in layout.bundles if b.name.endswith("R1")]:
         j = scene.state_index(name)
-        tracks[name] = ObjectTrack(s.t_s, s.sled_x_m + s.pos[:, j, 0], s.pos[:, j, 2].copy(),
+        tracks[name] = ObjectPath(s.t_s, s.sled_x_m + s.pos[:, j, 0], s.pos[:, j, 2].copy(),
                                    image_angle_rad(s.rot[:, j]))
     return tracks
 

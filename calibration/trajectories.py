@@ -12,7 +12,6 @@ import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Protocol
 
 import numpy as np
 
@@ -28,25 +27,15 @@ MAX_POSITION_M = 100.0
 MAX_ANGLE_RAD = 4 * math.pi
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class ObjectPath:
-    """One object's centre and rotation per frame it was seen in (times strictly increasing)."""
+    """One object's centre (world x, z) and rotation about the camera axis per frame it was
+    seen in, times strictly increasing: as tracked, and as truth.json gives it."""
 
     t_s: np.ndarray
     x_m: np.ndarray
     z_m: np.ndarray
     angle_rad: np.ndarray
-
-
-class PathLike(Protocol):
-    """Per-frame arrays like `ObjectPath`'s (e.g. `calibration.recording.ObjectTrack`)."""
-
-    @property
-    def t_s(self) -> np.ndarray: ...
-    @property
-    def x_m(self) -> np.ndarray: ...
-    @property
-    def z_m(self) -> np.ndarray: ...
 
 
 @dataclass(frozen=True)
@@ -128,7 +117,8 @@ class PathError:
     frames: int
 
 
-def error_vs_truth(tracked: Trajectories, truth: Mapping[str, PathLike]) -> dict[str, PathError]:
+def error_vs_truth(tracked: Trajectories, truth: Mapping[str, ObjectPath]
+                   ) -> dict[str, PathError]:
     """Per object in both: RMS and max of |displacement error| (x, z), truth interpolated to the
     tracked times (tracked frames outside the truth's time span are ignored)."""
     errors = {}
