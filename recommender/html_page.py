@@ -20,6 +20,7 @@ from recommender.search import Trial
 from recommender.text import (
     TIGHT_WRAP_HINT,
     level_result,
+    machine_text,
     mm_text,
     sample_figures,
     sequence_text,
@@ -29,7 +30,7 @@ from recommender.text import (
 from wrapenv import __version__
 from wrapenv.bench import BenchRun, SimSettings
 from wrapenv.config import printable
-from wrapenv.eumos import EUMOS_CRITERIA, NO_DAMAGE, Criterion, LevelVerdict, Verdict
+from wrapenv.eumos import NO_DAMAGE, Criterion, LevelVerdict, Verdict
 from wrapenv.load import (
     PAIRS,
     PET_CORNER_STIFFNESS_N_PER_M2,
@@ -189,14 +190,12 @@ def _program_rows(wrap: WrapFormat) -> list[tuple[str, str]]:
 def _wrap_section(wrap: WrapFormat | None, layout: Layout, hours: float) -> str:
     if wrap is None:
         return "<section><h2>Wrap</h2><p>None: the unit was tested unwrapped.</p></section>\n"
-    used, m, cycle = wrap.material_used_on(layout), wrap.machine, wrap.cycle_time_s
+    used, cycle = wrap.material_used_on(layout), wrap.cycle_time_s
     what = ("The program as WRAP.toml's [program] holds it" if wrap.program is not None
             else "The bands")
     facts = [("Material", f"{_t(wrap.material.name)} ({_t(wrap.material_key)}), web "
                           f"{wrap.web_width_m:.2f} m"),
-             ("Machine", f"{wrap.rpm:g} rpm, {m.ramp_s:g} s to start and to stop, carriage "
-                         f"up to {m.carriage_speed_mps:.2f} m/s, {m.handling_s:.0f} s to change "
-                         "pallets"),
+             ("Machine", machine_text(wrap)),
              ("Web laid", f"{used.area_m2:.2f} m² ({used.mass_kg:.3f} kg), "
                           f"{used.web_length_m:.1f} m laid, {used.roll_length_m:.1f} m from the "
                           f"roll, {used.revolutions:.1f} revolutions"),
@@ -210,11 +209,6 @@ def _wrap_section(wrap: WrapFormat | None, layout: Layout, hours: float) -> str:
             + _facts(_program_rows(wrap)) + "<h3>What the machine does, step by step</h3>"
             + _table(["Step", "Zone", "Wraps", "Overlap", "Carriage (web's lower edge)",
                       "Tension N"], steps, "num") + "</section>\n")
-
-
-def _criteria(v: Verdict) -> tuple[Criterion, ...]:
-    """The figure criteria that judged the run, in the order the table shows them."""
-    return v.levels[0].limits.criteria() if v.levels else EUMOS_CRITERIA
 
 
 def _check(ok: bool) -> str:
@@ -263,7 +257,7 @@ def _highest(t: OrientationRun) -> str:
 
 def _levels_section(t: OrientationRun) -> str:
     v = t.run.verdict
-    h, criteria = v.load_height_m, _criteria(v)
+    h, criteria = v.load_height_m, v.criteria()
     head = (["Level"] + [f"{_t(c.label)}<br><small>limit {_t(c.describe(h, '≤'))}</small>"
                          for c in criteria]
             + ["Damage<br><small>limit none</small>", "Pallet slip", "Wrap (peak force)",

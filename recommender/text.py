@@ -9,7 +9,7 @@ from typing import Any
 from wrapenv.bench import BenchRun, SimSettings
 from wrapenv.calibrated import Calibration
 from wrapenv.config import printable
-from wrapenv.eumos import EUMOS_CRITERIA, NO_DAMAGE, LevelVerdict, Verdict
+from wrapenv.eumos import NO_DAMAGE, LevelVerdict, Verdict
 from wrapenv.load import Layout, LoadUnit, Orientation
 from wrapenv.material import NO_RELAXATION, Material
 from wrapenv.profile import Profile, g_text
@@ -106,7 +106,7 @@ def verdict_table(load: LoadUnit, run: BenchRun, orientation: Orientation | None
     layout = load.layout(orientation)
     v = run.verdict
     h = v.load_height_m
-    criteria = v.levels[0].limits.criteria() if v.levels else EUMOS_CRITERIA
+    criteria = v.criteria()
     limits = ", ".join(f"{c.label.lower()} {c.describe(h)}" for c in criteria)
     lines = [
         f"{printable(load.name)}: {len(layout.bundles)} bundles, {load.stack.layers} "
@@ -182,13 +182,16 @@ def program_text(wrap: WrapFormat, layout: Layout) -> str:
             if abs(used.roll_length_m - used.web_length_m) > 1e-9 else "")
     lines.append(f"material used: {used.area_m2:.2f} m² of web ({used.mass_kg:.3f} kg), "
                  f"{used.web_length_m:.1f} m laid{roll}, {used.revolutions:.1f} revolutions")
-    m = wrap.machine
-    cycle = wrap.cycle_time_s
-    lines.append(f"cycle time: {cycle:.0f} s, {wrap.pallets_per_hour:.0f} pallets/h "
-                 f"({wrap.rpm:g} rpm, "
-                 f"{m.ramp_s:g} s to start and to stop, carriage up to "
-                 f"{m.carriage_speed_mps:g} m/s, {m.handling_s:.0f} s to change pallets)")
+    lines.append(f"cycle time: {wrap.cycle_time_s:.0f} s, {wrap.pallets_per_hour:.0f} pallets/h "
+                 f"({machine_text(wrap)})")
     return "\n".join(lines)
+
+
+def machine_text(wrap: WrapFormat) -> str:
+    """The machine a program's cycle time is for, as the text and the page give it."""
+    m = wrap.machine
+    return (f"{wrap.rpm:g} rpm, {m.ramp_s:g} s to start and to stop, carriage up to "
+            f"{m.carriage_speed_mps:g} m/s, {m.handling_s:.0f} s to change pallets")
 
 
 def conditions_text(profiles: Sequence[Profile], run: BenchRun) -> str:

@@ -218,6 +218,11 @@ class Verdict:
         """How far inside the criteria the worst level stayed (see `level_margin`)."""
         return min((level_margin(v, self.load_height_m) for v in self.levels), default=-1.0)
 
+    def criteria(self) -> tuple[Criterion, ...]:
+        """The figure criteria that judged the run (every level is judged by the same), in
+        the order tables show them; EUMOS 40509's for a run of no level."""
+        return self.levels[0].limits.criteria() if self.levels else EUMOS_CRITERIA
+
     def reported_passed(self, level: LevelVerdict) -> bool:
         """Whether `level` is reported as passed: no level of a run that became unphysical is
         (CONTRACTS.md), though one before the blow-up met its criteria."""

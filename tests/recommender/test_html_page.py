@@ -160,7 +160,7 @@ def test_sections_name_the_load_the_program_as_entered_the_web_and_the_cycle():
     assert facts["Pallet"] == "1.200 × 0.800 × 0.144 m, 25.0 kg"
     assert facts["Stack"] == "2 layers, columnar, 16 bundles on the first, 32 in all"
     assert facts["bottom_wraps"] == "3" and facts["up_overlap"] == "0.5"
-    assert facts["Machine"].startswith("12 rpm, 3 s to start and to stop, carriage up to 0.10 m/s")
+    assert facts["Machine"].startswith("12 rpm, 3 s to start and to stop, carriage up to 0.1 m/s")
     assert re.fullmatch(r"[\d.]+ m² \([\d.]+ kg\), [\d.]+ m laid, .* revolutions",
                         facts["Web laid"])
     assert re.fullmatch(r"\d+ s per pallet, \d+ pallets/h", facts["Cycle time"])
