@@ -39,7 +39,7 @@ class States:
     (`wrapenv.scene`: pallet, then bundles); and the sled's x."""
 
     t_s: np.ndarray        # (F,)
-    pos: np.ndarray        # (F, moving bodies, 3): the state arrays (`wrapenv.scene`)
+    pos_m: np.ndarray      # (F, moving bodies, 3): the state arrays (`wrapenv.scene`)
     rot: np.ndarray        # (F, moving bodies, 3, 3)
     sled_x_m: np.ndarray   # (F,)
 
@@ -202,7 +202,7 @@ class Scene:
 
     def frame(self, s: States, i: int) -> np.ndarray:
         """Frame i (RGB uint8) as the camera records it."""
-        pos, rot, sled_x = s.pos[i], s.rot[i], float(s.sled_x_m[i])
+        pos, rot, sled_x = s.pos_m[i], s.rot[i], float(s.sled_x_m[i])
         image, shade, mask = self._bodies(pos, rot, sled_x)
         if self.wrap is not None:
             net, alpha = self.wrap
@@ -224,9 +224,9 @@ class Scene:
         unwrapped and without noise: what a template matcher looks for."""
         names = [b.name for b in self.layout.bundles]
         b = self.layout.bundles[names.index("L1C1R1") if "L1C1R1" in names else 0]
-        image, _, _ = self._bodies(s.pos[0], s.rot[0], float(s.sled_x_m[0]))
+        image, _, _ = self._bodies(s.pos_m[0], s.rot[0], float(s.sled_x_m[0]))
         image = cv2.GaussianBlur(image, (0, 0), BLUR_SIGMA_PX)
-        centre = s.pos[0, self.scene.state_index(b.name)]
+        centre = s.pos_m[0, self.scene.state_index(b.name)]
         half = np.array([[-1, 0, 1], [1, 0, -1]]) * np.array(b.size_m) / 2
         (ua, va), (ub, vb) = self.camera.project(centre + half, float(s.sled_x_m[0]))
         crop = image[math.ceil(va) + 1:math.floor(vb), math.ceil(ua) + 1:math.floor(ub)]

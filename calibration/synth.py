@@ -301,7 +301,7 @@ def _tracks(layout: Layout, s: States) -> dict[str, ObjectPath]:
                                 np.zeros(n))}
     for name in [PALLET_NAME] + [b.name for b in layout.bundles if b.name.endswith("R1")]:
         j = scene.state_index(name)
-        tracks[name] = ObjectPath(s.t_s, s.sled_x_m + s.pos[:, j, 0], s.pos[:, j, 2].copy(),
+        tracks[name] = ObjectPath(s.t_s, s.sled_x_m + s.pos_m[:, j, 0], s.pos_m[:, j, 2].copy(),
                                    image_angle_rad(s.rot[:, j]))
     return tracks
 
@@ -338,7 +338,7 @@ def _fit_camera(layout: Layout, s: States, markers: MarkerSpec, size: tuple[int,
     scene = BenchScene(layout)
     half = np.array([scene.bodies[w].size_m for w in scene.moving.tolist()]) / 2
     signs = np.array([[i, j, k] for i in (-1, 1) for j in (-1, 1) for k in (-1, 1)], float)
-    corners = np.einsum("fbij,bcj->fbci", s.rot, half[:, None] * signs[None]) + s.pos[:, :, None]
+    corners = np.einsum("fbij,bcj->fbci", s.rot, half[:, None] * signs[None]) + s.pos_m[:, :, None]
     xs = [(corners[..., 0] + s.sled_x_m[:, None, None]).ravel()]
     sled = scene.body(SLED)
     zs = [corners[..., 2].ravel(), [sled.centre_m[2] - sled.size_m[2] / 2]]
