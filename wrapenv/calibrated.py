@@ -136,24 +136,7 @@ class Calibration:
     def from_dict(cls, data: dict, source: str = "calibration") -> Calibration:
         top = Table(data, source)
         fr = top.table("friction")
-        pairs = {}
-        for name in PAIRS:
-            if not fr.has(name):
-                continue
-            t = fr.table(name)
-            most = MAX_FRICTION_COEFFICIENT
-            pair = CalibratedPair(
-                static=t.number("static", positive=True, maximum=most),
-                kinetic=t.number("kinetic", positive=True, maximum=most),
-                static_std=t.number("static_std", 0.0, minimum=0.0, maximum=most),
-                kinetic_std=t.number("kinetic_std", 0.0, minimum=0.0, maximum=most),
-                identified=t.boolean("identified", True),
-            )
-            t.done()
-            if pair.kinetic > pair.static:
-                raise InputError(source, t.field("kinetic"),
-                                 f"kinetic friction {pair.kinetic} exceeds static {pair.static}")
-            pairs[name] = pair
+        pairs = {name: _pair(fr.table(name), source) for name in PAIRS if fr.has(name)}
         fr.done()
         wrap = top.table("wrap")
         low, high = SCALE_RANGE
@@ -182,6 +165,24 @@ class Calibration:
                              "(is it a CAL.json, as a calibration writes?)")
         top.done()
         return cls(pairs, stiffness, tension, *stds, *give, known, unexplained, near)
+
+
+def _pair(t: Table, source: str) -> CalibratedPair:
+    """One calibrated contact pair: coefficients and their standard deviations, kinetic at
+    most static."""
+    most = MAX_FRICTION_COEFFICIENT
+    pair = CalibratedPair(
+        static=t.number("static", positive=True, maximum=most),
+        kinetic=t.number("kinetic", positive=True, maximum=most),
+        static_std=t.number("static_std", 0.0, minimum=0.0, maximum=most),
+        kinetic_std=t.number("kinetic_std", 0.0, minimum=0.0, maximum=most),
+        identified=t.boolean("identified", True),
+    )
+    t.done()
+    if pair.kinetic > pair.static:
+        raise InputError(source, t.field("kinetic"),
+                         f"kinetic friction {pair.kinetic} exceeds static {pair.static}")
+    return pair
 
 
 #: Drawn coefficients are kept above these (a draw far in a tail is not a friction pair).
