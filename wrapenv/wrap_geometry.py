@@ -15,10 +15,12 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
 from wrapenv.load import BundlePlacement, Layout
+from wrapenv.material import Material
 from wrapenv.rowwise import norms
 from wrapenv.scene import bundle_row
 from wrapenv.wrap import WrapFormat
@@ -64,8 +66,8 @@ class Panels:
     """Corner verticals and face diagonals between consecutive rings, as arrays over panels."""
 
     nodes: np.ndarray        # (E, 2) node pairs (lower ring's node first)
-    k_web_n_per_m: np.ndarray        # web stiffness of all the layers, N/m
-    web_m: np.ndarray   # metres of web, for strength: layers x width the panel stands for
+    k_web_n_per_m: np.ndarray   # web stiffness of all the layers
+    web_m: np.ndarray        # metres of web, for strength: layers x width the panel stands for
     layers: np.ndarray       # web layers between the two rings
     rings: np.ndarray        # (E, 2) indices of the lower and upper ring
     rise: np.ndarray         # vertical part of the panel's direction at rest (1: vertical)
@@ -196,6 +198,71 @@ def _slot_places(xy: np.ndarray, corners: list[int], outline: tuple[float, float
     return places, s
 
 
+class _Panel(NamedTuple):
+    """One row of `Panels`."""
+
+    nodes: tuple[int, int]
+    k_web_n_per_m: float
+    web_m: float
+    layers: float
+    rings: tuple[int, int]
+    rise: float
+    height_m: float
+    where: str
+    s_m: tuple[float, float]
+
+
+class _Between:
+    """Two consecutive rings (`i` and the one above) and what their panels share: the web's
+    layers, the height, the corners at rest and the faces' widths."""
+
+    def __init__(self, i: int, lo: Ring, hi: Ring, layers: float, corners: list[list[int]],
+                 node_body: np.ndarray) -> None:
+        self.i, self.n, self.h = i, layers, hi.z_m - lo.z_m
+        self.z = (lo.z_m + hi.z_m) / 2
+        self.corners_lo, self.corners_hi = corners[i], corners[i + 1]
+        self.node_body = node_body
+        self.c_lo = [np.array(lo.rest_xy[j]) for j in lo.corner_slots]
+        self.c_hi = [np.array(hi.rest_xy[j]) for j in hi.corner_slots]
+        self.faces = [float(np.linalg.norm(self.c_lo[(c + 1) % 4] - self.c_lo[c])
+                            + np.linalg.norm(self.c_hi[(c + 1) % 4] - self.c_hi[c])) / 2
+                      for c in range(4)]
+
+
+def _verticals(r: _Between, m: Material, outline: tuple[float, ...]) -> list[_Panel]:
+    """The corner verticals between different bodies: the web stretched across its width
+    (its cross direction, `cd_ratio`) over the half faces either side of the corner."""
+    rows = []
+    for c in range(4):
+        a, b = r.corners_lo[c], r.corners_hi[c]
+        if r.node_body[a] != r.node_body[b]:
+            trib = (r.faces[c - 1] + r.faces[c]) / 2
+            length = math.hypot(float(np.linalg.norm(r.c_hi[c] - r.c_lo[c])), r.h)
+            rows.append(_Panel((a, b), m.stiffness_n_per_m * m.cd_ratio * r.n * trib / length,
+                               m.cd_ratio * r.n * trib, r.n, (r.i, r.i + 1), r.h / length,
+                               r.z, CORNER_NAMES[c], (outline[c], outline[c])))
+    return rows
+
+
+def _diagonals(r: _Between, m: Material, outline: tuple[float, ...]) -> list[_Panel]:
+    """The face diagonals between different bodies, both ways across each face: the web's
+    shear."""
+    rows = []
+    for c in range(4):
+        d = (c + 1) % 4
+        for a_c, b_c in ((c, d), (d, c)):
+            a, b = r.corners_lo[a_c], r.corners_hi[b_c]
+            if r.node_body[a] == r.node_body[b]:
+                continue
+            run = float(np.linalg.norm(r.c_hi[b_c] - r.c_lo[a_c]))
+            cos = run / math.hypot(run, r.h)
+            rows.append(_Panel((a, b), m.shear_ratio * m.stiffness_n_per_m * r.n * r.faces[c]
+                               / (r.h * cos**2), r.n * r.faces[c] / (2 * cos), r.n,
+                               (r.i, r.i + 1), r.h / math.hypot(run, r.h), r.z, FACE_NAMES[c],
+                               (outline[c], outline[c + 1])))
+    return rows
+
+
 def panel_specs(wrap: WrapFormat, rings: list[Ring], corners: list[list[int]],
                 node_body: np.ndarray, outline: tuple[float, ...]) -> Panels:
     """Corner verticals and face diagonals between consecutive rings on different bodies.
@@ -203,40 +270,14 @@ def panel_specs(wrap: WrapFormat, rings: list[Ring], corners: list[list[int]],
     `corners[i]` are ring i's node ids at the outline's corners; `outline` the corner
     positions round the perimeter (`corner_positions_m`).
     """
-    m = wrap.material
-    rows: list[tuple] = []
+    rows: list[_Panel] = []
     for i in range(len(rings) - 1):
         lo, hi = rings[i], rings[i + 1]
-        if not wrap.covers(lo.z_m, hi.z_m):
-            continue
-        n = wrap.layers_over(lo.z_m, hi.z_m)
-        h = hi.z_m - lo.z_m
-        c_lo = [np.array(lo.rest_xy[j]) for j in lo.corner_slots]
-        c_hi = [np.array(hi.rest_xy[j]) for j in hi.corner_slots]
-        faces = [(np.linalg.norm(c_lo[(c + 1) % 4] - c_lo[c])
-                  + np.linalg.norm(c_hi[(c + 1) % 4] - c_hi[c])) / 2 for c in range(4)]
-        z = (lo.z_m + hi.z_m) / 2
-        for c in range(4):
-            a, b = corners[i][c], corners[i + 1][c]
-            if node_body[a] != node_body[b]:
-                trib = (faces[c - 1] + faces[c]) / 2
-                length = math.hypot(float(np.linalg.norm(c_hi[c] - c_lo[c])), h)
-                rows.append(((a, b), m.stiffness_n_per_m * m.cd_ratio * n * trib / length,
-                             m.cd_ratio * n * trib, n, (i, i + 1), h / length, z,
-                             CORNER_NAMES[c], (outline[c], outline[c])))
-        for c in range(4):
-            d = (c + 1) % 4
-            for a_c, b_c in ((c, d), (d, c)):
-                a, b = corners[i][a_c], corners[i + 1][b_c]
-                if node_body[a] == node_body[b]:
-                    continue
-                run = float(np.linalg.norm(c_hi[b_c] - c_lo[a_c]))
-                cos = run / math.hypot(run, h)
-                rows.append(((a, b), m.shear_ratio * m.stiffness_n_per_m * n * faces[c]
-                             / (h * cos**2), n * faces[c] / (2 * cos), n, (i, i + 1),
-                             h / math.hypot(run, h), z, FACE_NAMES[c],
-                             (outline[c], outline[c + 1])))
-    cols = list(zip(*rows, strict=True)) if rows else [()] * 9
+        if wrap.covers(lo.z_m, hi.z_m):
+            between = _Between(i, lo, hi, wrap.layers_over(lo.z_m, hi.z_m), corners, node_body)
+            rows += _verticals(between, wrap.material, outline)
+            rows += _diagonals(between, wrap.material, outline)
+    cols = list(zip(*rows, strict=True)) if rows else [()] * len(_Panel._fields)
     return Panels(
         nodes=np.array(cols[0], int).reshape(-1, 2), k_web_n_per_m=np.array(cols[1], float),
         web_m=np.array(cols[2], float), layers=np.array(cols[3], float),
