@@ -62,10 +62,12 @@ class RayExecutor(Executor):
     def shutdown(self, wait: bool = True, *, cancel_futures: bool = False) -> None:
         """Stops the Ray instance this executor started; on a cluster it joined, which runs on,
         `cancel_futures` cancels the calls not yet done (a search stopped early would leave
-        them simulating for nobody)."""
+        them simulating for nobody). A running call's worker is killed (`force`): Ray's
+        interrupt may leave a call running (ray-project/ray#32954), as the test's sleeping call
+        was once, in a fresh clone's test run (2026-12-04)."""
         if cancel_futures and self._ray.is_initialized():
             for ref in list(self._pending.values()):
-                self._ray.cancel(ref)
+                self._ray.cancel(ref, force=True)
         self._pending.clear()
         if self._owns_instance and self._ray.is_initialized():
             self._ray.shutdown()

@@ -58,11 +58,11 @@ from wrapenv.config import (
 )
 from wrapenv.load import ORIENTATIONS, LoadUnit, Orientation
 from wrapenv.pool import most_workers
+from wrapenv.profile import target_warnings
+from wrapenv.wrap import Web, WrapFormat
 
 if TYPE_CHECKING:
     from stable_baselines3 import PPO
-from wrapenv.profile import target_warnings
-from wrapenv.wrap import Web, WrapFormat
 
 #: Robust passes tried, lightest first, until one passes the whole EUMOS sequence.
 VERIFY_CANDIDATES = 3

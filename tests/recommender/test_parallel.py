@@ -65,6 +65,9 @@ def test_calls_left_on_a_joined_ray_cluster_are_cancelled_when_the_search_stops(
 
     try:
         pool = RayExecutor(1, "auto")
+        # a search stops a pool that has run calls: its worker is up (a call sent to a worker
+        # still starting can miss its cancel, ray-project/ray#24359)
+        assert pool.submit(nap, 0.0).result(timeout=120) == 0.0
         futures = [pool.submit(nap, 120.0) for _ in range(3)]   # one runs, two wait
         stop(pool)
         assert ray.is_initialized()
