@@ -52,7 +52,7 @@ import wrapenv  # noqa: F401  (registers the env ids used by gym.make)
 from recommender.episodes import PooledVecEnv
 from wrapenv.bench import SimSettings
 from wrapenv.calibrated import Calibration
-from wrapenv.config import InputError, is_finite_number, write_atomic
+from wrapenv.config import InputError, is_finite_number, is_whole_number, write_atomic
 from wrapenv.design import N_PARAMS, NAMES
 from wrapenv.envs import WrapBenchEnv, WrapBenchRandomEnv
 from wrapenv.envs.observation import OBS_NAMES, material_features
@@ -166,8 +166,7 @@ class TrainSettings:
         is started: an `InputError` naming the field (`train` names its flag)."""
         for name in ("timesteps", "n_envs", "workers", "checkpoint_every", "n_steps",
                      "batch_size", "tests_per_episode"):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+            if not (is_whole_number(value := getattr(self, name)) and value >= 1):
                 _refuse(name, f"must be a whole number >= 1 (got {value!r})")
         if not (math.isfinite(self.learning_rate) and self.learning_rate > 0):
             _refuse("learning_rate", f"must be > 0 (got {self.learning_rate!r})")
@@ -494,7 +493,7 @@ def _check_sizes(path: Path, data: dict[str, Any]) -> None:
     sizes: dict[str, int] = {}
     for key in ("n_steps", "n_envs", "batch_size"):
         value = data.get(key)
-        if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+        if not (is_whole_number(value) and value >= 1):
             raise InputError(str(path), f"data.{key}", f"must be a whole number >= 1 (got "
                                                       f"{value!r})")
         sizes[key] = value

@@ -10,7 +10,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from wrapenv.bullet import BulletWorld, rotation_matrices
-from wrapenv.config import InputError, is_finite_number
+from wrapenv.config import InputError, is_finite_number, is_whole_number
 from wrapenv.eumos import (
     ELASTIC,
     EUMOS_LIMITS,
@@ -110,15 +110,15 @@ class SimSettings:
     def __post_init__(self) -> None:
         """Settings a run can be made with; a negative step or NaN wait ran on silently, and
         no run of it means anything."""
-        positive = ("timestep_s", "rest_speed_mps", "rest_hold_s")
-        for name in (*positive, "settle_s", "max_rest_wait_s"):   # a replay waits no rest
-            value, bound = getattr(self, name), "> 0" if name in positive else ">= 0"
-            if not (is_finite_number(value) and (value > 0 if name in positive else value >= 0)):
-                raise InputError("settings", name, f"must be a number {bound} (got {value!r})")
+        for name in ("timestep_s", "rest_speed_mps", "rest_hold_s"):
+            if not (is_finite_number(value := getattr(self, name)) and value > 0):
+                raise InputError("settings", name, f"must be a number > 0 (got {value!r})")
+        for name in ("settle_s", "max_rest_wait_s"):   # 0: a replay waits for no rest
+            if not (is_finite_number(value := getattr(self, name)) and value >= 0):
+                raise InputError("settings", name, f"must be a number >= 0 (got {value!r})")
         for name in ("solver_iterations", "wrapped_solver_iterations",
                      "max_wrapped_solver_iterations"):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+            if not (is_whole_number(value := getattr(self, name)) and value >= 1):
                 raise InputError("settings", name, f"must be a whole number >= 1 (got {value!r})")
         if not (is_finite_number(self.wrapped_contact_erp) and 0 < self.wrapped_contact_erp <= 1):
             raise InputError("settings", "wrapped_contact_erp",

@@ -16,7 +16,7 @@ import tempfile
 import tomllib
 from collections.abc import Iterable
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeGuard
 
 from wrapenv import __version__
 
@@ -178,7 +178,7 @@ class Table:
         value = self._get(key, _REQUIRED if default is None else default)
         if isinstance(value, float) and value.is_integer():
             value = int(value)
-        if isinstance(value, bool) or not isinstance(value, int):
+        if not is_whole_number(value):
             raise self.error(key, f"must be a whole number (got {value!r})")
         if minimum is not None and value < minimum:
             raise self.error(key, f"must be >= {minimum} (got {value})")
@@ -369,6 +369,11 @@ def is_real_number(value: Any) -> bool:
     """A real number, Python's or NumPy's (an RL config's sampled np.float32), not a bool,
     though Python counts one as a number."""
     return isinstance(value, numbers.Real) and not isinstance(value, bool)
+
+
+def is_whole_number(value: Any) -> TypeGuard[int]:
+    """A Python int, not a bool (a flag passed where a count belongs)."""
+    return isinstance(value, int) and not isinstance(value, bool)
 
 
 def is_finite_number(value: Any) -> bool:

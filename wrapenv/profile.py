@@ -195,10 +195,11 @@ def read_profile_csv(path: str | Path, optional: tuple[str, ...] = ()
         if col not in header:
             raise InputError(src, col, "missing column (header must name t_s,accel_mps2)")
     present = ["t_s", "accel_mps2", *(c for c in optional if c in header)]
+    at = [header.index(c) for c in present]
     values = []
     for line, row in rows:
         try:
-            values.append([float(row[header.index(c)]) for c in present])
+            values.append([float(row[i]) for i in at])
         except (ValueError, IndexError):
             raise InputError(src, f"line {line}", f"not a number row: {row!r}") from None
     table = np.array(values, float).reshape(-1, len(present))
