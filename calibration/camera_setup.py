@@ -139,10 +139,13 @@ def _pair(t: Table, key: str) -> tuple[float, float]:
 #: The largest marker side a setup may give: one printed for a sled's edge is a few centimetres
 #: to a few decimetres; a larger figure is a unit slip.
 MAX_MARKER_SIZE_M = 1.0
+#: The dictionary a `[markers]` table that names none means: CONTRACTS.md's example, and the one
+#: `synth` draws.
+DEFAULT_DICTIONARY = "DICT_4X4_50"
 
 
 def _marker_spec(t: Table) -> MarkerSpec:
-    dictionary = t.string("dictionary")
+    dictionary = t.string("dictionary", default=DEFAULT_DICTIONARY)
     names = aruco_dictionaries()
     if dictionary not in names:
         raise t.error("dictionary", f"unknown ArUco dictionary {dictionary!r} (e.g. DICT_4X4_50)")

@@ -26,6 +26,7 @@ import numpy as np
 
 from calibration import opencv_threads, textures
 from calibration.camera_setup import (
+    DEFAULT_DICTIONARY,
     MarkerPlacement,
     MarkerSpec,
     check_levels_before,
@@ -52,7 +53,6 @@ from wrapenv.scene import PALLET_NAME, SLED, SLED_DECK_M, STOPPER, BenchScene
 from wrapenv.trace import Trace
 from wrapenv.wrap import WrapFormat
 
-MARKER_DICTIONARY = "DICT_4X4_50"
 #: The least side (px) at which ArUco finds synth's markers in most frames: on the 2-layer
 #: example in Kraft at 0.5 g, 15 px markers were found in 95-97 % of frames, 12 px in 69 %,
 #: 7.5-11 px in a ninth to a third (benchmarks/marker_size.py). Below it `synth` warns: `track`
@@ -327,8 +327,8 @@ def _markers(layout: Layout, wrapped: bool, size_m: float) -> MarkerSpec:
                 placements.append(MarkerPlacement(len(placements), b.name, offset))
     if len(placements) > 50:
         raise InputError("load", "stack", f"needs {len(placements)} markers,"
-                         f" {MARKER_DICTIONARY} has 50")
-    return MarkerSpec(MARKER_DICTIONARY, size_m, tuple(placements))
+                         f" {DEFAULT_DICTIONARY} has 50")
+    return MarkerSpec(DEFAULT_DICTIONARY, size_m, tuple(placements))
 
 
 def _fit_camera(layout: Layout, s: States, markers: MarkerSpec, size: tuple[int, int]

@@ -1,5 +1,5 @@
 """setup.toml (calibration/camera_setup.py): what synth writes reads back the same, and the
-marker size may be left out."""
+marker size and dictionary may be left out."""
 
 from __future__ import annotations
 
@@ -38,6 +38,13 @@ def test_marker_size_may_be_left_out():
     data = tomllib.loads(setup_toml(25.0, 412.0, (960.5, 1001.0), spec))
     assert "size_m" not in data["markers"]
     assert Setup.parse(data, "setup.toml").markers == spec
+
+
+def test_a_markers_table_that_names_no_dictionary_means_dict_4x4_50():
+    data = tomllib.loads(setup_toml(25.0, 412.0, (960.5, 1001.0), SPEC))
+    del data["markers"]["dictionary"]
+    assert Setup.parse(data, "setup.toml").markers == MarkerSpec("DICT_4X4_50", SPEC.size_m,
+                                                                 SPEC.placements)
 
 
 def test_a_marker_id_beyond_its_dictionary_is_named_with_the_dictionary_s_range():
