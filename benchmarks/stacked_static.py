@@ -1,0 +1,77 @@
+"""Does a bundle standing on a bundle hold below its static friction?
+
+Statics: a bundle accelerated at a stays put on what it stands on while a < mu_s g, whatever
+mu_k. The closed-form tests (tests/wrapenv/test_bench_mechanics.py) check that for a bundle on
+the pallet; this checks it one contact higher, on a column of two PET bundles (the preset) on an
+EUR pallet against its stop bar, every other pair gripping (1.0), at levels 7-12 % below the
+bundle-bundle static coefficient and above the kinetic one, so a contact wrongly flipped to
+sliding shows as a slide of centimetres. Prints a Markdown table: the top bundle's permanent
+slip on the bottom one (mm) and the number of times its contact changed state, per body model
+and solver iteration count.
+
+    python -m benchmarks.stacked_static
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from wrapenv.bench import SimSettings, run_level
+from wrapenv.friction import StickSlip
+from wrapenv.load import LoadUnit
+from wrapenv.profile import PulseProfile
+
+GRIP = {"static": 1.0, "kinetic": 1.0}
+#: (level g, bundle-bundle static, kinetic): the level between the two coefficients, the
+#: column's tipping level (0.28 / 0.66 m: 0.42 g) well above it; then the same at 0.4 g, where
+#: the column rocks and statics alone does not decide; and a level far below static, a control.
+CASES = ((0.25, 0.28, 0.22), (0.3, 0.32, 0.28), (0.4, 0.45, 0.35), (0.3, 0.45, 0.35))
+ITERATIONS = (20, 50, 100)
+
+
+def column(static: float, kinetic: float) -> LoadUnit:
+    return LoadUnit.from_dict({
+        "pallet": {"preset": "EUR"}, "bundle": {"preset": "PET6x1.5L"},
+        "stack": {"layers": 2, "pattern": "explicit", "positions": [[0.3, 0.0]]},
+        "friction": {"sled_pallet": GRIP, "pallet_bundle": GRIP,
+                     "bundle_bundle": {"static": static, "kinetic": kinetic}},
+        "fixture": {"pallet_stopper": True}})
+
+
+class _Counting(StickSlip):
+    """StickSlip that counts the contact changes of every instance."""
+
+    changes = 0
+
+    def update(self, pos: np.ndarray, rot: np.ndarray, vel: np.ndarray,
+               omega: np.ndarray) -> list[int]:
+        changed = super().update(pos, rot, vel, omega)
+        _Counting.changes += bool(changed)
+        return changed
+
+
+def slip_mm(level_g: float, static: float, kinetic: float, settings: SimSettings) -> float:
+    trace = run_level(column(static, kinetic).layout(), PulseProfile(level_g), settings)
+    rel = trace.bundle_pos_m[:, 1, 0] - trace.bundle_pos_m[:, 0, 0]
+    return float(1e3 * (rel[-1] - rel[0]))
+
+
+def main() -> None:
+    import wrapenv.bench
+
+    print("| level | bundle-bundle static / kinetic | boxes | iterations | top bundle's slip | "
+          "contact changes |")
+    print("|---|---|---|---|---|---|")
+    wrapenv.bench.StickSlip = _Counting  # type: ignore[misc]
+    for level_g, static, kinetic in CASES:
+        for rigid in (False, True):
+            for iterations in ITERATIONS:
+                _Counting.changes = 0
+                settings = SimSettings(solver_iterations=iterations, rigid_boxes=rigid)
+                mm = slip_mm(level_g, static, kinetic, settings)
+                print(f"| {level_g} g | {static} / {kinetic} | {'rigid' if rigid else 'reduced'} "
+                      f"| {iterations} | {mm:+.2f} mm | {_Counting.changes} |")
+
+
+if __name__ == "__main__":
+    main()
