@@ -8,8 +8,10 @@ the repository on pytest's path).
 from __future__ import annotations
 
 import copy
+import gc
 import json
 import math
+import os
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -32,6 +34,14 @@ BASE_LOAD: dict[str, Any] = {
 
 class Raw(str):
     """TOML text written as is (for values Python cannot express, or broken syntax)."""
+
+
+def rss_kb() -> int:
+    """This process's resident memory now (KiB; not ru_maxrss, its peak, which an earlier
+    test's high-water mark would hide a leak under)."""
+    gc.collect()
+    with open("/proc/self/statm") as fh:
+        return int(fh.read().split()[1]) * os.sysconf("SC_PAGE_SIZE") // 1024
 
 
 def toml_value(value: Any) -> str:

@@ -81,6 +81,7 @@ class _SlowEnv(gym.Env):
         return np.zeros(1, np.float32), 0.0, True, False, {}
 
 
+@pytest.mark.timeout(120)  # a close that waited for the hour-long step fails here
 def test_closing_within_a_step_stops_the_workers_without_waiting_for_it(tmp_path):
     """An interrupt (Ctrl-C, SIGTERM) can come while the workers simulate: closing then ends
     them instead of waiting for their episodes."""
@@ -94,9 +95,7 @@ def test_closing_within_a_step_stops_the_workers_without_waiting_for_it(tmp_path
         assert time.monotonic() < deadline, "the workers never started their steps"
         time.sleep(0.05)
     workers = [int(p.name) for p in tmp_path.iterdir()]
-    closed_at = time.monotonic()
     vec.close()        # in the main thread, as the training's clean-up runs it
-    assert time.monotonic() - closed_at < STEP_S / 2, "close waited for the step under way"
     for pid in workers:
         with pytest.raises(ProcessLookupError):
             os.kill(pid, 0)

@@ -19,6 +19,7 @@ import time
 import zipfile
 from dataclasses import replace
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -699,6 +700,15 @@ def test_held_out_loads_are_reproducible_random_units_unseen_in_training():
     trained_on = [env.reset(seed=0)[1]["load"]] + [env.reset()[1]["load"] for _ in range(3)]
     env.close()
     assert not {u.name for u in loads} & set(trained_on)
+
+
+def test_pass_rate_is_the_share_of_trials_passed_an_invalid_one_failing(monkeypatch):
+    trials = [SimpleNamespace(passed=True, valid=True), SimpleNamespace(passed=False, valid=True),
+              SimpleNamespace(passed=False, valid=False)]
+    monkeypatch.setattr(recommender.policy, "evaluate", lambda *args: trials)
+    assert pass_rate(None, [], "kraft", 0.3, seed=0) == pytest.approx(1 / 3)
+    monkeypatch.setattr(recommender.policy, "evaluate", lambda *args: [])
+    assert math.isnan(pass_rate(None, [], "kraft", 0.3, seed=0))
 
 
 def test_pass_rate_counts_passes_of_random_or_policy_actions(trained):

@@ -16,6 +16,7 @@ import numpy as np
 import pytest
 
 from recommender.cli import main
+from tests.conftest import rss_kb
 from tests.wrapenv.conftest import kraft_example
 from wrapenv import bench, bullet
 from wrapenv.bench import BenchUnit, SimSettings, _Run, run_level, run_levels
@@ -92,11 +93,6 @@ def test_processors_that_round_differently_run_the_same_level_identically():
     assert digests[0] == digests[1]
 
 
-def _rss_kb() -> int:
-    with open("/proc/self/statm") as fh:
-        return int(fh.read().split()[1]) * 4
-
-
 def test_many_runs_close_their_worlds_and_do_not_grow_memory(monkeypatch):
     # A world's finaliser would disconnect a forgotten client too: count the worlds that reach
     # it still connected, so that only an explicit close passes.
@@ -109,10 +105,10 @@ def test_many_runs_close_their_worlds_and_do_not_grow_memory(monkeypatch):
     layout = LoadUnit.from_dict(SMALL).layout()
     for _ in range(5):  # warm-up: allocator pools, imports
         run_level(layout, PulseProfile(0.2))
-    before = _rss_kb()
+    before = rss_kb()
     for _ in range(40):
         run_level(layout, PulseProfile(0.2))
-    grown_mb = (_rss_kb() - before) / 1024
+    grown_mb = (rss_kb() - before) / 1024
     gc.collect()
     assert len(opened) == 45 and left_open == []
     assert grown_mb < 20, f"resident memory grew {grown_mb:.1f} MB over 40 runs"

@@ -8,7 +8,6 @@ costs about 0.3-0.5 s.
 from __future__ import annotations
 
 import importlib
-import resource
 import warnings
 from dataclasses import replace
 from pathlib import Path
@@ -20,6 +19,7 @@ from gymnasium.utils.env_checker import check_env as gym_check_env
 from stable_baselines3.common.env_checker import check_env as sb3_check_env
 
 import wrapenv
+from tests.conftest import rss_kb
 from wrapenv.bench import SimSettings, run_levels
 from wrapenv.calibrated import CalibratedPair, Calibration
 from wrapenv.config import InputError
@@ -457,13 +457,13 @@ def test_many_steps_do_not_grow_memory(tiny):
     env.reset(seed=0)
     env.step(np.zeros(N_PARAMS, np.float32))
     env.render()
-    before = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    before = rss_kb()
     for i in range(30):
         env.reset(seed=i)
         env.step(rng.uniform(-1, 1, N_PARAMS).astype(np.float32))
         if i % 10 == 0:
             env.render()
-    grown_mb = (resource.getrusage(resource.RUSAGE_SELF).ru_maxrss - before) / 1024
+    grown_mb = (rss_kb() - before) / 1024
     env.close()
     assert grown_mb < 50
 
