@@ -36,6 +36,7 @@ def test_a_writer_refusing_the_quality_is_released(tmp_path: Path,
                                                    monkeypatch: pytest.MonkeyPatch) -> None:
     """The writer is let go before the error: it used to keep the file and its encoder."""
     monkeypatch.setattr(filming.cv2, "VideoWriter", _WriterWithoutQuality)
+    monkeypatch.setattr(_WriterWithoutQuality, "released", [])  # this run's releases only
     with pytest.raises(RuntimeError, match="quality"):
         filming.write_video(tmp_path / "video.avi", [np.zeros((8, 8, 3), np.uint8)], 10.0,
                             (8, 8))
