@@ -7,7 +7,8 @@ EUR pallet against its stop bar, every other pair gripping (1.0), at levels 7-12
 bundle-bundle static coefficient and above the kinetic one, so a contact wrongly flipped to
 sliding shows as a slide of centimetres. Prints a Markdown table: the top bundle's permanent
 slip on the bottom one (mm) and the number of times its contact changed state, per body model
-and solver iteration count.
+and solver iteration count. Then what the iterations change on the paper's unwrapped examples:
+each level of the EUMOS sequence to its first failure, at 20 and at 50 iterations.
 
     python -m benchmarks.stacked_static
 """
@@ -16,7 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from wrapenv.bench import SimSettings, run_level
+from wrapenv.bench import SimSettings, run_level, run_levels
 from wrapenv.friction import StickSlip
 from wrapenv.load import LoadUnit
 from wrapenv.profile import PulseProfile
@@ -27,6 +28,8 @@ GRIP = {"static": 1.0, "kinetic": 1.0}
 #: the column rocks and statics alone does not decide; and a level far below static, a control.
 CASES = ((0.25, 0.28, 0.22), (0.3, 0.32, 0.28), (0.4, 0.45, 0.35), (0.3, 0.45, 0.35))
 ITERATIONS = (20, 50, 100)
+EXAMPLES = ("examples/pet_2layer_columnar.toml", "examples/pet_3layer_columnar.toml")
+EXAMPLE_LEVELS_G = (0.2, 0.3, 0.4, 0.5)
 
 
 def column(static: float, kinetic: float) -> LoadUnit:
@@ -56,6 +59,10 @@ def slip_mm(level_g: float, static: float, kinetic: float, settings: SimSettings
     return float(1e3 * (rel[-1] - rel[0]))
 
 
+def _mm(metres: float | None) -> str:
+    return "-" if metres is None else f"{1e3 * metres:.1f} mm"
+
+
 def main() -> None:
     import wrapenv.bench
 
@@ -71,6 +78,16 @@ def main() -> None:
                 mm = slip_mm(level_g, static, kinetic, settings)
                 print(f"| {level_g} g | {static} / {kinetic} | {'rigid' if rigid else 'reduced'} "
                       f"| {iterations} | {mm:+.2f} mm | {_Counting.changes} |")
+    print()
+    print("| example | iterations | level | result | elastic max | permanent (level) |")
+    print("|---|---|---|---|---|---|")
+    for path in EXAMPLES:
+        for iterations in (20, 50):
+            run = run_levels(LoadUnit.from_toml(path), EXAMPLE_LEVELS_G,
+                             SimSettings(solver_iterations=iterations), stop_at_failure=True)
+            for v in run.verdict.levels:
+                print(f"| {path} | {iterations} | {v.level_g} g | {'PASS' if v.passed else 'FAIL'} "
+                      f"| {_mm(v.elastic_max_m)} | {_mm(v.permanent_max_m)} |")
 
 
 if __name__ == "__main__":
