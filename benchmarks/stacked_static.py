@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
+import wrapenv.bench
 from wrapenv.bench import SimSettings, run_level, run_levels
 from wrapenv.friction import StickSlip
 from wrapenv.load import LoadUnit
@@ -63,22 +64,26 @@ def _mm(metres: float | None) -> str:
     return "-" if metres is None else f"{1e3 * metres:.1f} mm"
 
 
-def main() -> None:
-    import wrapenv.bench
-
+def _slip_table() -> None:
     print("| level | bundle-bundle static / kinetic | boxes | iterations | top bundle's slip | "
           "contact changes |")
     print("|---|---|---|---|---|---|")
     wrapenv.bench.StickSlip = _Counting  # type: ignore[misc]
-    for level_g, static, kinetic in CASES:
-        for rigid in (False, True):
-            for iterations in ITERATIONS:
-                _Counting.changes = 0
-                settings = SimSettings(solver_iterations=iterations, rigid_boxes=rigid)
-                mm = slip_mm(level_g, static, kinetic, settings)
-                print(f"| {level_g} g | {static} / {kinetic} | {'rigid' if rigid else 'reduced'} "
-                      f"| {iterations} | {mm:+.2f} mm | {_Counting.changes} |")
-    print()
+    try:
+        for level_g, static, kinetic in CASES:
+            for rigid in (False, True):
+                for iterations in ITERATIONS:
+                    _Counting.changes = 0
+                    settings = SimSettings(solver_iterations=iterations, rigid_boxes=rigid)
+                    mm = slip_mm(level_g, static, kinetic, settings)
+                    print(f"| {level_g} g | {static} / {kinetic} "
+                          f"| {'rigid' if rigid else 'reduced'} | {iterations} | {mm:+.2f} mm "
+                          f"| {_Counting.changes} |")
+    finally:
+        wrapenv.bench.StickSlip = StickSlip  # type: ignore[misc]
+
+
+def _examples_table() -> None:
     print("| example | iterations | level | result | elastic max | permanent (level) |")
     print("|---|---|---|---|---|---|")
     for path in EXAMPLES:
@@ -88,6 +93,12 @@ def main() -> None:
             for v in run.verdict.levels:
                 print(f"| {path} | {iterations} | {v.level_g} g | {'PASS' if v.passed else 'FAIL'} "
                       f"| {_mm(v.elastic_max_m)} | {_mm(v.permanent_max_m)} |")
+
+
+def main() -> None:
+    _slip_table()
+    print()
+    _examples_table()
 
 
 if __name__ == "__main__":

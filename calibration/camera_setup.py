@@ -148,7 +148,8 @@ def _marker_spec(t: Table) -> MarkerSpec:
     dictionary = t.string("dictionary", default=DEFAULT_DICTIONARY)
     names = aruco_dictionaries()
     if dictionary not in names:
-        raise t.error("dictionary", f"unknown ArUco dictionary {dictionary!r} (e.g. DICT_4X4_50)")
+        raise t.error("dictionary", f"unknown ArUco dictionary {dictionary!r} "
+                                    f"(e.g. {DEFAULT_DICTIONARY})")
     size = t.number("size_m", positive=True, maximum=MAX_MARKER_SIZE_M) if t.has("size_m") else None
     placements = []
     raw = t.array("placement") if t.has("placement") else []
