@@ -12,7 +12,7 @@ with default settings: world building, settling and laying the wrap, the pulse, 
 and the trace. Its level ends when nothing more can happen, so it simulates less time than the
 issue's plain run; the plain run is therefore timed for the 4.5 s the issue measured, and for
 exactly as long as the bench's level lasted (settling plus the trace), the like-for-like figure
-per simulated second. A wrapped unit is solved with `SimSettings.wrapped_solver_iterations` (50)
+per simulated second. A wrapped unit is solved with `SimSettings.solver_iterations` (50)
 where the issue's plain run has 20: the plain 4.5 s is also timed with as many, and with the
 iterations a new PyBullet world has (read from the engine: 50 in pybullet 3.2.7), plain PyBullet
 as it ships. The bench also runs with rigid boxes (`SimSettings.rigid_boxes`), and plain
@@ -191,7 +191,7 @@ def main(argv: list[str] | None = None) -> None:
     trace = run_level(load.layout(), PulseProfile(LEVEL_G),  # warm-up, and how long it lasts
                       wrap=WrapFormat.from_toml(WRAP, load.load_height_m))
     level_sim_s = SETTLE_S + float(trace.t_s[-1])
-    wrapped_iterations = SimSettings().wrapped_solver_iterations
+    wrapped_iterations = SimSettings().solver_iterations
     print(f"3-layer example (48 bundles), {LEVEL_G} g, dt 1/240 s; the bench's wrapped unit "
           f"{wrapped_iterations} solver iterations, a new PyBullet world "
           f"{pybullet_default_iterations()}; CPUs {sorted(os.sched_getaffinity(0))}")

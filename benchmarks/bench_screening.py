@@ -53,9 +53,9 @@ CANDIDATES = {
     "dt 1/160 s, end at first rest": SimSettings(timestep_s=1 / 160, simulate_stop=False),
     "dt 1/120 s, end at first rest": SimSettings(timestep_s=1 / 120, simulate_stop=False),
     # every case is wrapped: fewer iterations for a wrapped unit than its default 50
-    "30 iterations, end at first rest": SimSettings(wrapped_solver_iterations=30,
+    "30 iterations, end at first rest": SimSettings(solver_iterations=30,
                                                     simulate_stop=False),
-    "20 iterations, end at first rest": SimSettings(wrapped_solver_iterations=20,
+    "20 iterations, end at first rest": SimSettings(solver_iterations=20,
                                                     simulate_stop=False),
     "rigid boxes": SimSettings(rigid_boxes=True),
     "rigid boxes, screening()": replace(SimSettings.screening(), rigid_boxes=True),

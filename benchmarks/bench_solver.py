@@ -1,11 +1,11 @@
 """How converged must a wrapped unit's solve be? The same EUMOS sequences (one unit through
 0.2 -> 0.8 g) with Bullet's solver at several iteration counts and contact ERPs
-(`SimSettings.wrapped_solver_iterations`, `wrapped_contact_erp`): the machine's default Kraft
+(`SimSettings.solver_iterations`, `wrapped_contact_erp`): the machine's default Kraft
 program and the Kraft band example on the 3-layer example, the default LLDPE program on the
 2-layer one; then the heaviest program of the search space on a two-bundle unit at 0.3 g (the
 env tests' unit), which a stiffer solve can make blow up. Prints, per level, passed, elastic and
 total permanent displacement (mm), and the CPU time of the sequence. Each solve is held at its
-iterations (`max_wrapped_solver_iterations` too: no rerun with more).
+iterations (`max_solver_iterations` too: no rerun with more).
 
 `--heavy`: instead, programs heavier than the search's answers on the 2-layer example at 0.2 g
 (the Kraft default with 3, 10 and 20 top wraps, 20 the most a program takes, all at 800 N, and
@@ -48,8 +48,8 @@ def sequence(load: LoadUnit, wrap: WrapFormat, levels: list[float], solve: str) 
         settings, iterations, erp = SimSettings(), "default", "default"
     else:
         iterations, erp = solve.split(":")
-        settings = SimSettings(wrapped_solver_iterations=int(iterations),
-                               max_wrapped_solver_iterations=int(iterations),
+        settings = SimSettings(solver_iterations=int(iterations),
+                               max_solver_iterations=int(iterations),
                                wrapped_contact_erp=float(erp))
     t0 = time.process_time()
     run = run_levels(load, levels, settings, stop_at_failure=True, wrap=wrap)
@@ -85,7 +85,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     default = SimSettings()
     parser.add_argument("--solves", nargs="+", metavar="ITERATIONS:ERP",
-                        default=["20:0.08", "50:0.08", f"{default.wrapped_solver_iterations}:"
+                        default=["20:0.08", "50:0.08", f"{default.solver_iterations}:"
                                  f"{default.wrapped_contact_erp}", "100:0.05"])
     parser.add_argument("--heavy", action="store_true",
                         help="programs heavier than the search's answers instead")

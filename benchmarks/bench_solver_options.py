@@ -1,7 +1,7 @@
 """Does any other setting of Bullet's solver let a wrapped unit converge at 20 iterations?
 
 Issue 15 times the bench against plain PyBullet at 20 solver iterations; a wrapped unit needs 50
-(`SimSettings.wrapped_solver_iterations`: at 20 a squeezed stack creeps and comes to rest late).
+(`SimSettings.solver_iterations`: at 20 a squeezed stack creeps and comes to rest late).
 Here each engine parameter pybullet's `setPhysicsEngineParameter` offers for the contact solve
 is set, one at a time, on top of the bench's 20-iteration solve: the MLCP solvers (projected
 Gauss-Seidel and Dantzig's pivoting, which solve the contacts as one system), cone friction off,
@@ -85,7 +85,7 @@ def level(load: LoadUnit, wrap: WrapFormat, level_g: float, iterations: int,
           worlds: contextlib.AbstractContextManager[None]) -> tuple[float, float, bool]:
     """CPU s, the bundles' largest displacement along the motion (m), and whether it rested,
     with the bench's worlds built as `worlds` builds them meanwhile."""
-    settings = SimSettings(wrapped_solver_iterations=iterations)
+    settings = SimSettings(solver_iterations=iterations)
     with worlds:
         cpu, trace, dx = timed_level(load, wrap, level_g, settings)
     waited_out_s = PulseProfile(level_g).duration_s + settings.max_rest_wait_s

@@ -102,7 +102,7 @@ def level(load: LoadUnit, wrap: WrapFormat, level_g: float, iterations: int,
     """CPU s, largest and mean displacement (m) along the motion of the bundles."""
     with worlds_loaded_from(world):
         cpu, _, dx = timed_level(load, wrap, level_g,
-                                 SimSettings(wrapped_solver_iterations=iterations))
+                                 SimSettings(solver_iterations=iterations))
     return cpu, float(np.max(np.abs(dx))), float(np.mean(dx))
 
 
@@ -115,7 +115,7 @@ def main(argv: list[str] | None = None) -> None:
     with tempfile.TemporaryDirectory() as folder:
         plain = solver_mode_world(Path(folder), 0)
         warm = solver_mode_world(Path(folder), SOLVER_USE_ARTICULATED_WARMSTARTING)
-        default = SimSettings().wrapped_solver_iterations
+        default = SimSettings().solver_iterations
         for path, g in ((p, g) for p in WRAPS for g in args.levels):
             wrap = WrapFormat.from_toml(path, load.load_height_m)
             base = level(load, wrap, g, default, None)

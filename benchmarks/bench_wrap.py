@@ -87,9 +87,8 @@ def main() -> None:
     layout = load.layout()
     wraps = {name: WrapFormat.from_toml(path, load.load_height_m) for name, path in WRAPS.items()}
     settings = SimSettings()
-    print(f"3-layer example (48 bundles), dt 1/240 s, solver iterations "
-          f"{settings.solver_iterations} unwrapped, {settings.wrapped_solver_iterations} wrapped; "
-          "best of 2 (CPU time)")
+    print(f"3-layer example (48 bundles), dt 1/240 s, {settings.solver_iterations} solver "
+          "iterations; best of 2 (CPU time)")
     print(f"{'level':>5} {'wrap':>6} {'wall s':>7} {'CPU s':>6} {'level s':>7} {'real-time x':>11} "
           f"{'steps':>6} {'Bullet ms/step':>14} {'wrap ms/step':>12} {'other ms/step':>13} "
           f"{'CPU vs unwrapped':>16}")

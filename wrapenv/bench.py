@@ -51,14 +51,16 @@ class SimSettings:
     (tests/wrapenv/test_bench_mechanics.py) and are the ones the benchmarks report."""
 
     timestep_s: float = 1 / 240
-    solver_iterations: int = 20
-    #: A wrapped unit's solve: the wrap squeezes each layer, and 20 iterations leave such a
-    #: stack unconverged, creeping a few mm/s under static friction (the machine's default
-    #: Kraft program on the 3-layer example: 15-25 mm at 0.2 g, then failed; with 50 it passes
-    #: every level to 0.8 g, as with 100). A stack that does not creep also comes to rest, so
-    #: the level ends sooner: a wrapped sequence takes less CPU at 50 than at 20
-    #: (benchmarks/bench_solver.py).
-    wrapped_solver_iterations: int = 50
+    #: Every unit's solve. At 20 a stack is left unconverged: it creeps a few mm/s under static
+    #: friction. Wrapped, the wrap's squeeze makes that a creep of the whole stack (the
+    #: machine's default Kraft program on the 3-layer example: 15-25 mm at 0.2 g, then failed;
+    #: with 50 it passes every level to 0.8 g, as with 100). Unwrapped, the creep of a bundle
+    #: on a bundle past the stick speed flips its contact to sliding below its static friction
+    #: (a column of two PET bundles slid 43 mm at 0.25 g on static 0.28; at 50 and 100 it
+    #: holds: benchmarks/stacked_static.py). A stack that does not creep also comes to rest, so
+    #: a wrapped level ends sooner: a wrapped sequence takes less CPU at 50 than at 20
+    #: (benchmarks/bench_solver.py); an unwrapped one takes 1.3-2 x as much.
+    solver_iterations: int = 50
     #: A squeeze harder still (ten top wraps where the Kraft default lays three, all at its
     #: 800 N) leaves 50 iterations unconverged too: on the 2-layer example the stack crept 6.9 mm
     #: at 0.2 g and was still moving 3 s after the sled stopped, so more wrap looked worse than
@@ -67,7 +69,7 @@ class SimSettings:
     #: (benchmarks/training_invalid.py). So a wrapped sequence whose squeeze a level shows
     #: unsolved (`unconverged`) is run again from the start with twice the iterations, up to
     #: this many (`run_levels`; benchmarks/bench_solver.py).
-    max_wrapped_solver_iterations: int = 200
+    max_solver_iterations: int = 200
     #: A wrapped unit's contact ERP, the share of a penetration Bullet corrects per step
     #: (pybullet's default: 0.08). Converged under a squeeze of many times the bundles' weight,
     #: that correction kicks squeezed bodies apart: the search space's heaviest Kraft program
@@ -116,8 +118,7 @@ class SimSettings:
         for name in ("settle_s", "max_rest_wait_s"):   # 0: a replay waits for no rest
             if not (is_finite_number(value := getattr(self, name)) and value >= 0):
                 raise InputError("settings", name, f"must be a number >= 0 (got {value!r})")
-        for name in ("solver_iterations", "wrapped_solver_iterations",
-                     "max_wrapped_solver_iterations"):
+        for name in ("solver_iterations", "max_solver_iterations"):
             if not (is_whole_number(value := getattr(self, name)) and value >= 1):
                 raise InputError("settings", name, f"must be a whole number >= 1 (got {value!r})")
         if not (is_finite_number(self.wrapped_contact_erp) and 0 < self.wrapped_contact_erp <= 1):
@@ -189,9 +190,9 @@ class BenchUnit:
                  wrap: WrapFormat | None = None) -> None:
         self.layout, self.settings, self.wrapped = layout, settings, wrap is not None
         self.scene = BenchScene(layout)
-        iterations, erp = ((settings.wrapped_solver_iterations, settings.wrapped_contact_erp)
-                           if wrap is not None else (settings.solver_iterations, None))
-        self.world = BulletWorld(settings.timestep_s, iterations, erp, settings.rigid_boxes)
+        erp = settings.wrapped_contact_erp if wrap is not None else None
+        self.world = BulletWorld(settings.timestep_s, settings.solver_iterations, erp,
+                                 settings.rigid_boxes)
         speeds = (WRAPPED_SLIP_SPEED_MPS, WRAPPED_STICK_SPEED_MPS) if self.wrapped else ()
         #: The contact states, kept with the world: they say which contacts a level's start
         #: must rebuild.
@@ -259,7 +260,7 @@ def run_levels(
     stands, and the next starts from there.
     `on_level` hears each level's verdict as it is decided (progress for people).
     A wrapped sequence whose squeezed stack the solver did not converge (`unconverged`) is run
-    again with twice the solver iterations, up to `SimSettings.max_wrapped_solver_iterations`;
+    again with twice the solver iterations, up to `SimSettings.max_solver_iterations`;
     `BenchRun.solver_iterations` says how many the answer took; `on_rerun` hears of a run
     started again, with its iterations."""
     levels = tuple(levels)
@@ -268,11 +269,11 @@ def run_levels(
         run = _run_levels_once(load, levels, settings, orientation, stop_at_failure, wrap,
                                fresh, limits, on_level)
         why = unconverged(run) if wrap is not None else ""
-        doubled = 2 * settings.wrapped_solver_iterations
-        if not why or doubled > settings.max_wrapped_solver_iterations:
+        doubled = 2 * settings.solver_iterations
+        if not why or doubled > settings.max_solver_iterations:
             return replace(run, unsolved_at=unsolved)
-        unsolved += ((settings.wrapped_solver_iterations, why),)
-        settings = replace(settings, wrapped_solver_iterations=doubled)
+        unsolved += ((settings.solver_iterations, why),)
+        settings = replace(settings, solver_iterations=doubled)
         if on_rerun is not None:
             on_rerun(doubled)
 
@@ -323,10 +324,8 @@ def _run_levels_once(
             if unit is not None and (not trace.valid or trace.stopped_early):
                 break
     sequence = "fresh" if fresh else "cumulative"
-    iterations = settings.wrapped_solver_iterations if wrap is not None else \
-        settings.solver_iterations
     return BenchRun(Verdict(layout.load_height_m, tuple(verdicts), sequence), tuple(traces),
-                    iterations)
+                    settings.solver_iterations)
 
 
 def _build(world: BulletWorld, scene: BenchScene, mu: np.ndarray) -> None:
