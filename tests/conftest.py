@@ -12,7 +12,7 @@ import gc
 import json
 import math
 import os
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
@@ -30,6 +30,16 @@ BASE_LOAD: dict[str, Any] = {
     "bundle": {"length_m": 0.28, "width_m": 0.19, "height_m": 0.33, "mass_kg": 9.3},
     "stack": {"layers": 2, "pattern": "columnar"},
 }
+
+
+@pytest.fixture(autouse=True, scope="session")
+def _from_the_repository_root() -> Iterator[None]:
+    """The tests name the bundled examples as the README's commands do (`examples/...`), so
+    they run from the repository's root wherever pytest was started."""
+    started_in = Path.cwd()
+    os.chdir(Path(__file__).resolve().parent.parent)
+    yield
+    os.chdir(started_in)
 
 
 class Raw(str):

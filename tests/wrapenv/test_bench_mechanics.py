@@ -102,13 +102,19 @@ def test_permanent_slip_matches_closed_form_within_3_percent(level_g, settings):
 
 
 def test_kinetic_friction_governs_the_slide_not_static(settings):
-    # With mu_k = mu_s the slide would be shorter: the bench must use mu_k once sliding.
+    # Once sliding, mu_k alone sets the slide: mu_k 0.4 slides 2.36 x as far as mu_k 0.5 (the
+    # closed form above: 334 against 141 mm), the static coefficient the same in both. Each
+    # slide comes within a few % of its closed form (the test above), so their ratio within 8 %
+    # (rigid boxes: 2.50).
     profile = PulseProfile(0.6, ramp_s=0.0)
+    a, decel = 0.6 * G, profile.decel_ratio * 0.6 * G
+    expected = (slip_closed_form(a, 0.4, profile.dwell_s, decel)
+                / slip_closed_form(a, 0.5, profile.dwell_s, decel))
     slide_kinetic = -permanent_x(run_level(single_box(static=0.5, kinetic=0.4).layout(), profile,
                                            settings))
     slide_static = -permanent_x(run_level(single_box(static=0.5, kinetic=0.5).layout(), profile,
                                           settings))
-    assert slide_kinetic > 1.5 * slide_static
+    assert slide_kinetic / slide_static == pytest.approx(expected, rel=0.08)
 
 
 def test_pallet_slips_on_sled_as_one_block_per_closed_form(settings):

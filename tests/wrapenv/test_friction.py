@@ -165,6 +165,7 @@ def test_an_interlocked_stack_meets_its_resting_contacts_by_least_squares():
     interlocked = LoadUnit.from_toml(Path(__file__).resolve().parents[2] / "examples"
                                      / "pet_3layer_interlocked.toml").with_friction(FRICTION)
     ss = StickSlip(interlocked.layout())
+    assert len(products(ss)) > ss.n_bodies  # 61 resting pairs, 38 bodies: over-determined
     for (body, other), mu in products(ss).items():
         want = (FRICTION.sled_pallet if (body, other) == (1, 0) else
                 FRICTION.pallet_bundle if other == 1 else FRICTION.bundle_bundle).static
