@@ -59,7 +59,7 @@ class SimSettings:
     #: (a column of two PET bundles slid 43 mm at 0.25 g on static 0.28; at 50 and 100 it
     #: holds: benchmarks/stacked_static.py). A stack that does not creep also comes to rest, so
     #: a wrapped level ends sooner: a wrapped sequence takes less CPU at 50 than at 20
-    #: (benchmarks/bench_solver.py); an unwrapped one takes 1.3-2 x as much.
+    #: (benchmarks/bench_solver.py); an unwrapped one takes 1.3-2.1 x as much.
     solver_iterations: int = 50
     #: A squeeze harder still (ten top wraps where the Kraft default lays three, all at its
     #: 800 N) leaves 50 iterations unconverged too: on the 2-layer example the stack crept 6.9 mm
