@@ -71,7 +71,7 @@ def _face_affine(camera: SideCamera, centre: np.ndarray, rot: np.ndarray, sled_x
     p0 = centre + rot @ origin_local
     da, db = rot[:, 0] * sx, -rot[:, 2] * sz
     k = camera.px_per_m
-    u0, v0 = camera.origin_px  # type: ignore[misc]
+    u0, v0 = camera.origin_px
     return np.array([[k * da[0], k * db[0], u0 + k * (p0[0] + sled_x_m)],
                      [-k * da[2], -k * db[2], v0 - k * p0[2]]])
 

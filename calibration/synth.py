@@ -134,7 +134,7 @@ def synthesize(load: LoadUnit, out_dir: str | Path, *, wrap: WrapFormat | None =
             write_video(tmp / VIDEO_NAME, scene.frames(states, progress), fps, size)
             write_atomic(tmp / "template.png", png(scene.template(states)))
         write_profile(tmp, profile)
-        write_setup(tmp, fps, camera.px_per_m, camera.origin_px,  # type: ignore[arg-type]
+        write_setup(tmp, fps, camera.px_per_m, camera.origin_px,
                     markers, "template.png", levels_before_g)
         write_atomic(tmp / LOAD, load.to_toml().encode())
         if wrap is not None:

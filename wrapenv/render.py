@@ -45,11 +45,11 @@ class SideCamera:
     are OpenCV's: pixel (column c, row r) is centred on u = c, v = r.
     """
 
-    width: int = 1920
-    height: int = 1200
-    px_per_m: float = 500.0
-    #: None: centred horizontally, 85 % down the image (a loaded pallet fills the upper part)
-    origin_px: tuple[float, float] | None = None
+    width: int
+    height: int
+    px_per_m: float
+    #: (u0, v0): the pixel the sled frame's origin projects to
+    origin_px: tuple[float, float]
     distance_m: float = 5.0
 
     def __post_init__(self) -> None:
@@ -57,15 +57,13 @@ class SideCamera:
             raise ValueError(f"image size {self.width}x{self.height} is empty")
         if not (self.px_per_m > 0 and self.distance_m > 0):
             raise ValueError("px_per_m and distance_m must be positive")
-        if self.origin_px is None:
-            object.__setattr__(self, "origin_px", (self.width / 2, 0.85 * self.height))
-        else:
-            object.__setattr__(self, "origin_px", tuple(float(c) for c in self.origin_px))
+        u0, v0 = self.origin_px
+        object.__setattr__(self, "origin_px", (float(u0), float(v0)))
 
     def project(self, points_xyz: np.ndarray | Sequence, sled_x_m: float = 0.0) -> np.ndarray:
         """Pixels (n, 2) of points (n, 3) given in the sled frame; world x = x + sled_x_m."""
         p = np.asarray(points_xyz, float).reshape(-1, 3)
-        u0, v0 = self.origin_px  # type: ignore[misc]
+        u0, v0 = self.origin_px
         return np.stack([u0 + self.px_per_m * (p[:, 0] + sled_x_m),
                          v0 - self.px_per_m * p[:, 2]], axis=1)
 
@@ -87,7 +85,7 @@ class SideCamera:
         the camera to 8/3 d behind it is kept, nearer in front of farther.
         """
         w, h, s = self.width, self.height, self.px_per_m
-        u0, v0 = self.origin_px  # type: ignore[misc]
+        u0, v0 = self.origin_px
         m = np.array([[2 * s / w, 0, 0, 2 * u0 / w - 1],
                       [0, 2 * s / h, 0, 2 * (h - 1 - v0) / h - 1],
                       [0, 0, -0.5, 4 * self.distance_m],
@@ -256,11 +254,10 @@ class Renderer:
     video cost a render, not a rebuild. It owns a PyBullet client, so close it (or use it as a
     context manager); `close()` may be called more than once."""
 
-    def __init__(self, layout: Layout, camera: SideCamera | None = None,
-                 colours: bool = True) -> None:
+    def __init__(self, layout: Layout, camera: SideCamera, colours: bool = True) -> None:
         self.layout = layout
         self.scene = BenchScene(layout)
-        self.camera = camera if camera is not None else SideCamera()
+        self.camera = camera
         #: False: every body white, so a frame is the shading alone (textures are multiplied in)
         self.colours = colours
         self.world = BulletWorld(timestep_s=1 / 240, solver_iterations=1)
@@ -347,7 +344,8 @@ class Renderer:
 
 
 def fitting_camera(layout: Layout, width: int, height: int) -> SideCamera:
-    """A side camera of this size whose scale fits the unit, with room for it to move."""
+    """A side camera of this size whose scale fits the unit, with room for it to move: centred
+    horizontally, the deck 85 % down the image (a loaded pallet fills the upper part)."""
     origin = (width / 2, 0.85 * height)
     across = 0.8 * width / (layout.pallet_size_m[0] + 0.2)
     up = (origin[1] - 0.08 * height) / (layout.load_height_m + 0.05)

@@ -99,7 +99,7 @@ def test_neighbouring_bundles_of_a_layer_differ_in_colour(layout):
 def test_the_renderer_shows_the_scene_s_bodies_where_it_puts_them(layout):
     """Pixel by pixel, the renderer's body mask names the scene's body at its projected centre:
     the stopper, the pallet, a bundle; the deck below them."""
-    camera = SideCamera(width=400, height=200, px_per_m=100.0)
+    camera = SideCamera(width=400, height=200, px_per_m=100.0, origin_px=(200.0, 170.0))
     scene = BenchScene(layout)
     pos = np.array([scene.bodies[w].centre_m for w in scene.moving.tolist()])
     rot = np.repeat(np.eye(3)[None], len(pos), 0)
