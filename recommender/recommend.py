@@ -488,7 +488,7 @@ def _run_search(search: Any, state: SearchState, settings: SearchSettings,
               file=sys.stderr, disable=None) as bar:
         bar.update(len(state.history))
 
-        def progress(done: int, total: int, st: SearchState) -> None:
+        def progress(done: int, st: SearchState) -> None:
             bar.update(done - bar.n)
             best = st.best(settings.margin_goal)
             if best is not None:

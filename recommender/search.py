@@ -203,7 +203,8 @@ def weakest(trials: list[Trial], stop_when_decided: bool = False) -> Trial:
     return replace(worst, passed=all(t.passed for t in trials), simulations=len(trials))
 
 
-Progress = Callable[[int, int, SearchState], None]
+#: Called after each generation with the candidates tried so far and the state.
+Progress = Callable[[int, SearchState], None]
 
 
 class RobustSearch:
@@ -300,7 +301,7 @@ class RobustSearch:
                 self._generation(state, pool)
                 self.save()
                 if progress is not None:
-                    progress(len(state.history), s.max_candidates, state)
+                    progress(len(state.history), state)
         return state
 
     def save(self) -> None:
