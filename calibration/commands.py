@@ -464,7 +464,7 @@ def _fitted_and_written(args: argparse.Namespace, observations: list, held_out: 
     removed once the fit has ended, written or refused (`_refused` may keep a named one)."""
     from calibration.checkpoint import ReplayLog
     from calibration.fit import fit
-    from calibration.report import loss_png, overlay_png
+    from calibration.report import loss_figure, overlay_figure, png
     from calibration.validate import Unpredictable, validate
     from wrapenv.pool import ProcessPool
 
@@ -489,9 +489,9 @@ def _fitted_and_written(args: argparse.Namespace, observations: list, held_out: 
     paths = _outputs(args.out)
     write_together({
         paths["json"]: result_json(_cal_json(result, settings, checks)),
-        paths["loss"]: loss_png(result.curve, f"{result.method}: {result.simulations} "
-                                "simulations"),
-        paths["overlay"]: overlay_png(observations, result.fitted)})
+        paths["loss"]: png(loss_figure(result.curve, f"{result.method}: "
+                                       f"{result.simulations} simulations")),
+        paths["overlay"]: png(overlay_figure(observations, result.fitted))})
     checkpoint.unlink()
     print(_summary(result) + thin)
     if settings.max_residual_m > DEFAULT_MAX_RESIDUAL_M:

@@ -29,7 +29,7 @@ def png(fig: Figure) -> bytes:
     return buf.getvalue()
 
 
-def loss_png(curve: Sequence[tuple[int, float]], title: str = "") -> bytes:
+def loss_figure(curve: Sequence[tuple[int, float]], title: str = "") -> Figure:
     """Residual RMS (the square root of the loss) of the best point so far."""
     fig = Figure(figsize=(7, 3.6), layout="constrained")
     ax = fig.subplots()
@@ -43,11 +43,11 @@ def loss_png(curve: Sequence[tuple[int, float]], title: str = "") -> bytes:
     ax.set_ylabel("residual RMS, best so far [mm]")
     ax.set_title(title, fontsize=10)
     ax.grid(alpha=0.3)
-    return png(fig)
+    return fig
 
 
-def overlay_png(observations: Sequence[Observation],
-                fitted: Sequence[dict[str, np.ndarray] | None]) -> bytes:
+def overlay_figure(observations: Sequence[Observation],
+                   fitted: Sequence[dict[str, np.ndarray] | None]) -> Figure:
     """One panel per recording: the tracked (dots) and one fitted replay's (lines) slip of every
     compared body across its contact, over the frames the bench can predict."""
     n = len(observations)
@@ -69,4 +69,4 @@ def overlay_png(observations: Sequence[Observation],
         ax.set_ylabel("slip on its support [mm]")
         ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))
     axes[-1, 0].set_xlabel("time [s]")
-    return png(fig)
+    return fig
