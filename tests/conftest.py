@@ -30,6 +30,14 @@ BASE_LOAD: dict[str, Any] = {
     "bundle": {"length_m": 0.28, "width_m": 0.19, "height_m": 0.33, "mass_kg": 9.3},
     "stack": {"layers": 2, "pattern": "columnar"},
 }
+#: Two PET bundles side by side on one layer: a load that simulates in a fraction of a second
+#: (the commands' and the environment's tests run it).
+TINY_LOAD: dict[str, Any] = {
+    "name": "tiny",
+    "pallet": {"preset": "EUR"},
+    "bundle": {"preset": "PET6x1.5L"},
+    "stack": {"layers": 1, "pattern": "explicit", "positions": [[-0.2, 0.0], [0.2, 0.0]]},
+}
 
 
 @pytest.fixture(autouse=True, scope="session")

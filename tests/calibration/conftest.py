@@ -17,8 +17,9 @@ from calibration.synth import synthesize
 from wrapenv.load import LoadUnit
 from wrapenv.wrap import WrapFormat
 
-#: A 0.6 x 0.4 m pallet with 2 layers of 2 x 2 bundles: 8 bundles, 4 of them in row 1.
-SMALL_LOAD = {
+#: A 0.6 x 0.4 m pallet (a quarter pallet's footprint) with 2 layers of 2 x 2 bundles: 8
+#: bundles, 4 of them in row 1.
+QUARTER_PALLET_LOAD = {
     "name": "small test unit",
     "pallet": {"length_m": 0.6, "width_m": 0.4, "height_m": 0.12, "mass_kg": 10.0},
     "bundle": {"length_m": 0.28, "width_m": 0.19, "height_m": 0.33, "mass_kg": 9.3},
@@ -49,24 +50,24 @@ def inline_pool() -> InlinePool:
 
 
 @pytest.fixture(scope="session")
-def small_load() -> LoadUnit:
-    return LoadUnit.from_dict(SMALL_LOAD)
+def quarter_pallet_load() -> LoadUnit:
+    return LoadUnit.from_dict(QUARTER_PALLET_LOAD)
 
 
 @pytest.fixture(scope="session")
-def recording_dir(tmp_path_factory: pytest.TempPathFactory, small_load: LoadUnit) -> Path:
+def recording_dir(tmp_path_factory: pytest.TempPathFactory, quarter_pallet_load: LoadUnit) -> Path:
     out = tmp_path_factory.mktemp("synth") / "plain"
-    synthesize(small_load, out, seed=3, **SYNTH)
+    synthesize(quarter_pallet_load, out, seed=3, **SYNTH)
     return out
 
 
 @pytest.fixture(scope="session")
-def wrapped_dir(tmp_path_factory: pytest.TempPathFactory, small_load: LoadUnit) -> Path:
+def wrapped_dir(tmp_path_factory: pytest.TempPathFactory, quarter_pallet_load: LoadUnit) -> Path:
     wrap = WrapFormat.from_dict({
         "material": "kraft", "web_width_m": 0.5,
         "band": [{"from_m": 0.0, "to_m": 0.78, "layers": 2, "tension_n": 100.0}]})
     out = tmp_path_factory.mktemp("synth") / "wrapped"
-    synthesize(small_load, out, wrap=wrap, seed=4, **SYNTH)
+    synthesize(quarter_pallet_load, out, wrap=wrap, seed=4, **SYNTH)
     return out
 
 

@@ -17,6 +17,7 @@ from calibration.replay import observe
 from calibration.trajectories import ObjectPath, Trajectories
 from recommender.cli import main
 from tests.calibration.conftest import SLIDE_BUDGET
+from tests.cli import one_line
 from wrapenv import __version__
 from wrapenv.bench import SimSettings
 from wrapenv.config import InputError
@@ -151,9 +152,8 @@ def test_an_interrupted_calibration_resumes_to_the_cal_json_of_an_uninterrupted_
 
     _stopping_after(8, monkeypatch)
     assert main(["calibrate", *args, "--out", str(parts / "cal.json")]) == 130
-    err = [line for line in capsys.readouterr().err.strip().splitlines()
-           if ": warning: " not in line]
-    assert len(err) == 1 and "nothing written" in err[0] and "--resume" in err[0]
+    line = one_line(capsys.readouterr().err, warnings_aside=True)
+    assert "nothing written" in line and "--resume" in line
     checkpoint = parts / "cal.checkpoint.jsonl"
     kept = checkpoint.read_text().splitlines()
     assert not (parts / "cal.json").exists() and len(kept) > 8   # the header and the replays
@@ -170,8 +170,8 @@ def test_an_interrupted_calibration_resumes_to_the_cal_json_of_an_uninterrupted_
 def test_resume_without_a_checkpoint_is_refused_before_fitting(slide_dir, tmp_path, capsys):
     assert main(["calibrate", str(slide_dir), "--out", str(tmp_path / "cal.json"),
                  "--resume"]) == 2
-    err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and "cal.checkpoint.jsonl" in err[0] and "--resume" in err[0]
+    line = one_line(capsys.readouterr().err)
+    assert "cal.checkpoint.jsonl" in line and "--resume" in line
 
 
 def test_a_checkpoint_path_holding_a_user_s_file_is_refused_before_fitting(slide_dir, tmp_path,
@@ -181,6 +181,6 @@ def test_a_checkpoint_path_holding_a_user_s_file_is_refused_before_fitting(slide
     notes.write_text("my lab notes\n")
     assert main(["calibrate", str(slide_dir), "--out", str(tmp_path / "cal.json"),
                  "--checkpoint", str(notes)]) == 2
-    err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and "notes.txt" in err[0] and "not a wrapbench checkpoint" in err[0]
+    line = one_line(capsys.readouterr().err)
+    assert "notes.txt" in line and "not a wrapbench checkpoint" in line
     assert notes.read_text() == "my lab notes\n" and not (tmp_path / "cal.json").exists()

@@ -23,26 +23,25 @@ from calibration.trajectories import ObjectPath, Trajectories
 from calibration.validate import REPEATS, Check, Unpredictable, Validation
 from recommender.cli import main
 from tests.calibration.conftest import SLIDE_BUDGET
+from tests.cli import one_line
 from wrapenv.calibrated import Calibration
 from wrapenv.load import LoadUnit
 from wrapenv.pool import most_workers
 
 
 @pytest.fixture
-def load_path(tmp_path: Path, small_load: LoadUnit) -> Path:
+def load_path(tmp_path: Path, quarter_pallet_load: LoadUnit) -> Path:
     path = tmp_path / "load.toml"
-    path.write_text(small_load.to_toml())
+    path.write_text(quarter_pallet_load.to_toml())
     return path
 
 
 def _one_line_error(capsys: pytest.CaptureFixture, *needles: str) -> str:
-    """The one error line on stderr (warnings about the recording aside)."""
-    err = [line for line in capsys.readouterr().err.strip().splitlines()
-           if ": warning: " not in line]
-    assert len(err) == 1, err
+    """The one error line on stderr (warnings about the recording aside), holding each needle."""
+    line = one_line(capsys.readouterr().err, warnings_aside=True)
     for needle in needles:
-        assert needle in err[0], err[0]
-    return err[0]
+        assert needle in line, line
+    return line
 
 
 def test_synth_then_track_writes_a_recording_and_its_trajectories(tmp_path, load_path, capsys):
@@ -272,10 +271,10 @@ def test_calibrate_that_does_not_converge_writes_nothing(slide_dir, tmp_path, ca
     Trajectories(paths).to_csv(rec / "trajectories.csv")
     assert main(["calibrate", str(rec), "--out", str(out / "cal.json"), "--budget", "10"]) == 1
     captured = capsys.readouterr()
-    err = [line for line in captured.err.strip().splitlines() if ": warning: " not in line]
-    assert len(err) == 1 and "the fit is refused" in err[0] and "nothing written" in err[0], err
-    assert "unexplained > 10 mm" in err[0]
-    assert "a larger --max-residual-mm accepts it knowingly" in err[0]
+    line = one_line(captured.err, warnings_aside=True)
+    assert "the fit is refused" in line and "nothing written" in line, line
+    assert "unexplained > 10 mm" in line
+    assert "a larger --max-residual-mm accepts it knowingly" in line
     found = captured.out.splitlines()
     found = found[found.index("the refused fit (not written):"):]
     assert any(line.startswith("pallet_bundle ") for line in found)

@@ -23,10 +23,10 @@ from pathlib import Path
 from calibration.recording import Recording
 from calibration.synth import synthesize
 from calibration.track import track
-from tests.calibration.conftest import SLIDE_LOAD, SLIDE_SYNTH, SMALL_LOAD, SYNTH
+from tests.calibration.conftest import QUARTER_PALLET_LOAD, SLIDE_LOAD, SLIDE_SYNTH, SYNTH
 from wrapenv.load import LoadUnit
 from wrapenv.wrap import WrapFormat
-small = LoadUnit.from_dict(SMALL_LOAD)
+small = LoadUnit.from_dict(QUARTER_PALLET_LOAD)
 wrap = WrapFormat.from_dict({"material": "kraft", "web_width_m": 0.5,
                              "band": [{"from_m": 0.0, "to_m": 0.78, "layers": 2,
                                        "tension_n": 100.0}]})

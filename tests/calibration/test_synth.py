@@ -123,13 +123,13 @@ def test_wrapped_recording_shows_every_marker(wrapped_dir, frames_of):
                                     "tension_scale": 1.0}
 
 
-def test_same_seed_same_recording(tmp_path, small_load):
+def test_same_seed_same_recording(tmp_path, quarter_pallet_load):
     """Truth and frames are identical (byte for byte: the encoder is deterministic too);
     another seed changes the textures, not the physics."""
     args = {"level_g": 0.1, "size": (320, 200), "fps": 5.0, "pre_roll_s": 0.2}
-    a = synthesize(small_load, tmp_path / "a", seed=11, **args)
-    b = synthesize(small_load, tmp_path / "b", seed=11, **args)
-    c = synthesize(small_load, tmp_path / "c", seed=12, **args)
+    a = synthesize(quarter_pallet_load, tmp_path / "a", seed=11, **args)
+    b = synthesize(quarter_pallet_load, tmp_path / "b", seed=11, **args)
+    c = synthesize(quarter_pallet_load, tmp_path / "c", seed=12, **args)
     assert (a.folder / "truth.json").read_bytes() == (b.folder / "truth.json").read_bytes()
     assert a.video.read_bytes() == b.video.read_bytes()
     assert a.video.read_bytes() != c.video.read_bytes()
@@ -137,23 +137,24 @@ def test_same_seed_same_recording(tmp_path, small_load):
     np.testing.assert_array_equal(ta.objects["pallet"].x_m, tc.objects["pallet"].x_m)
 
 
-def test_friction_jitter_changes_the_true_friction_only(tmp_path, small_load):
-    rec = synthesize(small_load, tmp_path / "j", seed=5, friction_jitter=0.2, level_g=0.1,
+def test_friction_jitter_changes_the_true_friction_only(tmp_path, quarter_pallet_load):
+    rec = synthesize(quarter_pallet_load, tmp_path / "j", seed=5, friction_jitter=0.2, level_g=0.1,
                      size=(320, 200), fps=5.0, pre_roll_s=0.0)
     true = Truth.read(rec.folder).params["friction"]
-    nominal = small_load.friction.sled_pallet
+    nominal = quarter_pallet_load.friction.sled_pallet
     assert true["sled_pallet"]["static"] != nominal.static
     assert 0.8 <= true["sled_pallet"]["static"] / nominal.static <= 1.2
-    assert rec.load == small_load  # load.toml says what was given, truth what was simulated
+    # load.toml says what was given, truth what was simulated
+    assert rec.load == quarter_pallet_load
 
 
 def test_a_take_after_earlier_levels_says_so_and_starts_where_they_left_the_unit(
-        tmp_path, small_load):
+        tmp_path, quarter_pallet_load):
     """A lab films one unit level after level: a take at 0.1 g after 0.3 g, at which the small
     unit's top layer slides 0.13 m back, starts with it there; setup.toml and the truth say
     which levels came before."""
-    fresh = synthesize(small_load, tmp_path / "fresh", **TINY)
-    after = synthesize(small_load, tmp_path / "after", levels_before_g=(0.3,), **TINY)
+    fresh = synthesize(quarter_pallet_load, tmp_path / "fresh", **TINY)
+    after = synthesize(quarter_pallet_load, tmp_path / "after", levels_before_g=(0.3,), **TINY)
     assert (fresh.levels_before_g, after.levels_before_g) == ((), (0.3,))
     assert Truth.read(after.folder).params["levels_before_g"] == [0.3]
     start = {name: Truth.read(rec.folder).objects["L2C2R1"].x_m[0] for name, rec in
@@ -161,11 +162,11 @@ def test_a_take_after_earlier_levels_says_so_and_starts_where_they_left_the_unit
     assert start["fresh"] - start["after"] > 0.1
 
 
-def test_refuses_a_folder_in_use(tmp_path, small_load, assert_input_error):
+def test_refuses_a_folder_in_use(tmp_path, quarter_pallet_load, assert_input_error):
     (tmp_path / "busy").mkdir()
     (tmp_path / "busy" / "x").write_text("")
     with pytest.raises(InputError) as err:
-        synthesize(small_load, tmp_path / "busy", level_g=0.1, size=(320, 200))
+        synthesize(quarter_pallet_load, tmp_path / "busy", level_g=0.1, size=(320, 200))
     assert_input_error(err.value, str(tmp_path / "busy"), "")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["busy"]  # no temporary left
 
@@ -174,10 +175,11 @@ def test_refuses_a_folder_in_use(tmp_path, small_load, assert_input_error):
     ("pre_roll_s", -0.5), ("pre_roll_s", math.inf), ("marker_size_m", 0.0),
     ("marker_size_m", 0.2),   # wider than the sled's 0.1 m side
 ])
-def test_refuses_arguments_out_of_range_before_simulating(argument, value, tmp_path, small_load,
+def test_refuses_arguments_out_of_range_before_simulating(argument, value, tmp_path,
+                                                           quarter_pallet_load,
                                                            assert_input_error):
     with pytest.raises(InputError) as err:
-        synthesize(small_load, tmp_path / "rec", level_g=0.1, size=(320, 200),
+        synthesize(quarter_pallet_load, tmp_path / "rec", level_g=0.1, size=(320, 200),
                    **{argument: value})
     assert_input_error(err.value, "arguments", argument)
     assert not (tmp_path / "rec").exists()
@@ -186,7 +188,7 @@ def test_refuses_arguments_out_of_range_before_simulating(argument, value, tmp_p
 TINY = {"level_g": 0.1, "size": (320, 200), "fps": 5.0, "pre_roll_s": 0.0}
 
 
-def test_stale_staging_folders_are_cleaned_live_ones_kept(tmp_path, small_load):
+def test_stale_staging_folders_are_cleaned_live_ones_kept(tmp_path, quarter_pallet_load):
     """A run killed (SIGKILL) leaves its hidden staging folder; the next run in that folder
     removes it, but not the staging folder of a run still going (it holds a lock on it), nor
     other hidden folders."""
@@ -199,17 +201,17 @@ def test_stale_staging_folders_are_cleaned_live_ones_kept(tmp_path, small_load):
     fd = os.open(live, os.O_RDONLY)
     try:
         fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        synthesize(small_load, tmp_path / "rec", **TINY)
+        synthesize(quarter_pallet_load, tmp_path / "rec", **TINY)
     finally:
         os.close(fd)
     assert sorted(p.name for p in tmp_path.iterdir()) == sorted([live.name, mine.name, "rec"])
 
 
-def test_sigterm_leaves_no_staging_folder(tmp_path, small_load):
+def test_sigterm_leaves_no_staging_folder(tmp_path, quarter_pallet_load):
     """SIGTERM during the encoding (the staging folder exists) unwinds like Ctrl-C: exit 143
     (128 + SIGTERM), one line, no recording and no hidden folder."""
     load = tmp_path / "load.toml"
-    load.write_text(small_load.to_toml())
+    load.write_text(quarter_pallet_load.to_toml())
     out = tmp_path / "runs" / "rec"
     proc = subprocess.Popen([sys.executable, "-m", "recommender.cli", "synth", str(load),
                              "--out", str(out), "--size", "640x400", "--fps", "40"],
@@ -226,7 +228,7 @@ def test_sigterm_leaves_no_staging_folder(tmp_path, small_load):
     assert list((tmp_path / "runs").iterdir()) == []
 
 
-def test_a_recording_that_does_not_read_back_leaves_nothing(tmp_path, small_load,
+def test_a_recording_that_does_not_read_back_leaves_nothing(tmp_path, quarter_pallet_load,
                                                              monkeypatch):
     """The read-back check runs before the folder is put in place: a video at another rate
     than setup.toml's (as the container's whole rates made of --fps 29.97) used to leave the
@@ -237,14 +239,14 @@ def test_a_recording_that_does_not_read_back_leaves_nothing(tmp_path, small_load
     monkeypatch.setattr(synth, "write_video",
                         lambda path, frames, fps, size: write_video(path, frames, fps + 1, size))
     with pytest.raises(InputError, match="recording.fps"):
-        synthesize(small_load, tmp_path / "rec", **TINY)
+        synthesize(quarter_pallet_load, tmp_path / "rec", **TINY)
     assert list(tmp_path.iterdir()) == []
 
 
-def test_progress_is_reported_per_frame(tmp_path, small_load):
+def test_progress_is_reported_per_frame(tmp_path, quarter_pallet_load):
     calls = []
-    rec = synthesize(small_load, tmp_path / "rec", progress=lambda k, n: calls.append((k, n)),
-                     **TINY)
+    rec = synthesize(quarter_pallet_load, tmp_path / "rec",
+                     progress=lambda k, n: calls.append((k, n)), **TINY)
     frames = len(Truth.read(rec.folder).objects["sled"].t_s)
     assert calls == [(k, frames) for k in range(1, frames + 1)]
 

@@ -9,8 +9,9 @@ import pytest
 from recommender.problem import SearchSettings
 from wrapenv.load import LoadUnit
 
-#: Two layers of four PET bundles: each bench run takes a fraction of a second.
-SMALL: dict[str, Any] = {
+#: Two layers of four PET bundles on a EUR pallet, against the stop bar: each bench run takes
+#: a fraction of a second.
+TWO_LAYERS_OF_FOUR: dict[str, Any] = {
     "name": "small",
     "pallet": {"preset": "EUR"},
     "bundle": {"preset": "PET6x1.5L"},
@@ -32,5 +33,5 @@ FAST = SearchSettings(targets=(("long", 0.5),), samples=2, popsize=4, max_candid
 
 
 @pytest.fixture
-def small_load() -> LoadUnit:
-    return LoadUnit.from_dict(SMALL)
+def two_layers_of_four() -> LoadUnit:
+    return LoadUnit.from_dict(TWO_LAYERS_OF_FOUR)

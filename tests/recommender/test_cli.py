@@ -16,6 +16,8 @@ import pytest
 
 from recommender.cli import main
 from recommender.search import VERIFY_SEED
+from tests.cli import one_line, run
+from tests.conftest import TINY_LOAD
 from wrapenv.load import LoadUnit
 from wrapenv.profile import PulseProfile
 from wrapenv.uncertainty import Uncertainty
@@ -23,14 +25,6 @@ from wrapenv.uncertainty import Uncertainty
 EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
 
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
-
-#: Two PET bundles side by side on one layer: a load that simulates in a fraction of a second.
-TINY_LOAD = {
-    "name": "tiny",
-    "pallet": {"preset": "EUR"},
-    "bundle": {"preset": "PET6x1.5L"},
-    "stack": {"layers": 1, "pattern": "explicit", "positions": [[-0.2, 0.0], [0.2, 0.0]]},
-}
 
 #: One slender bundle (0.1 x 0.1 x 0.6 m) that cannot slide: it tips over well below 0.5 g
 #: (half width / height = 0.17).
@@ -47,22 +41,6 @@ LEVEL_KEYS = {"level_g", "passed", "elastic_max_m", "elastic_max_pct", "permanen
               "permanent_max_pct", "permanent_low20_m", "pallet_slip_m", "damage", "criteria",
               "bodies"}
 CRITERIA = {"permanent_5pct", "low20_4cm", "elastic_10pct", "no_damage"}
-
-
-def run(argv: list[str]) -> int:
-    """`main` returns the exit status, or argparse exits with it."""
-    try:
-        return main(argv)
-    except SystemExit as exc:
-        assert isinstance(exc.code, int), exc.code
-        return exc.code
-
-
-def one_line(err: str) -> str:
-    lines = err.strip("\n").splitlines()
-    assert len(lines) == 1, f"expected one line on stderr, got: {err!r}"
-    assert "Traceback" not in err
-    return lines[0]
 
 
 def written(tmp_path) -> list[str]:

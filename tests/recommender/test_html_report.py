@@ -23,6 +23,8 @@ import pytest
 from recommender.cli import main
 from recommender.html_page import Page
 from recommender.html_report import PAGE, check_report_folder, write_report
+from tests.conftest import TINY_LOAD, to_toml
+from tests.recommender.conftest import TWO_LAYERS_OF_FOUR
 from wrapenv.config import InputError
 
 #: Its simulated report is made once, in one test process (`--dist loadgroup`).
@@ -241,9 +243,7 @@ def simulated_report(tmp_path_factory) -> Path:
     two samples of what the bench does not know."""
     folder = tmp_path_factory.mktemp("simulate")
     load, wrap = folder / "load.toml", folder / "wrap.toml"
-    load.write_text(f"name = {json.dumps(HOSTILE)}\n[pallet]\npreset = 'EUR'\n[bundle]\n"
-                    "preset = 'PET6x1.5L'\n[stack]\nlayers = 1\npattern = 'explicit'\n"
-                    "positions = [[-0.2, 0.0], [0.2, 0.0]]\n")
+    load.write_text(to_toml({**TINY_LOAD, "name": HOSTILE}))
     wrap.write_text("material = 'kraft'\nweb_width_m = 0.5\n[program]\nbottom_wraps = 2\n"
                     "bottom_tension_n = 300.0\nup_overlap = 0.5\nmiddle_tension_n = 250.0\n"
                     "top_wraps = 1\ntop_tension_n = 250.0\n")
@@ -355,17 +355,11 @@ def test_the_report_opens_in_chromium_without_errors_showing_the_table_and_image
     assert pdf.startswith(b"%PDF") and len(re.findall(rb"/Type\s*/Page\b", pdf)) >= 2
 
 
-#: Two layers of four PET bundles against the stopper: a search of a few candidates in a minute.
-SMALL = ("name = 'small'\n[pallet]\npreset = 'EUR'\n[bundle]\npreset = 'PET6x1.5L'\n[stack]\n"
-         "layers = 2\npattern = 'explicit'\npositions = [[-0.15, -0.1], [0.15, -0.1], "
-         "[-0.15, 0.1], [0.15, 0.1]]\n[fixture]\npallet_stopper = true\n")
-
-
 @pytest.mark.slow
 @needs_chromium
 def test_recommend_report_adds_how_sure_and_the_search(tmp_path):
     load = tmp_path / "small.toml"
-    load.write_text(SMALL)
+    load.write_text(to_toml(TWO_LAYERS_OF_FOUR))   # a search of a few candidates in a minute
     code = main(["recommend", str(load), "--budget", "4", "--samples", "1", "--workers", "2",
                  "--orientation", "long", "--hours-since-wrapping", "0",
                  "--report", str(tmp_path / "report")])

@@ -12,6 +12,7 @@ import pytest
 from recommender.cli import main
 from recommender.parallel import RAY_OBJECT_STORE_BYTES, RayExecutor, executor, stop
 from recommender.search import Problem, RobustSearch, SearchSettings
+from tests.cli import one_line
 from wrapenv.config import InputError
 from wrapenv.load import LoadUnit
 from wrapenv.pool import ProcessPool
@@ -96,8 +97,7 @@ def test_ray_backend_without_ray_installed_says_how_to_install(monkeypatch, caps
         RayExecutor(1)
     monkeypatch.chdir(tmp_path)
     assert main(["recommend", "--backend", "ray", "--budget", "3", "--samples", "1"]) == 2
-    err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and "pip install .[ray]" in err[0]
+    assert "pip install .[ray]" in one_line(capsys.readouterr().err)
     assert list(tmp_path.iterdir()) == []
 
 

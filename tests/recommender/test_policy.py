@@ -52,6 +52,8 @@ from recommender.policy import (
     stamp,
     train,
 )
+from tests.cli import one_line
+from tests.conftest import TINY_LOAD
 from tests.recommender.conftest import LOOSE_CALIBRATION, LOOSE_WARNING
 from wrapenv.bench import SimSettings
 from wrapenv.calibrated import Calibration
@@ -67,9 +69,7 @@ from wrapenv.wrap import WrapFormat
 #: Its trained run is made once, in one test process (`--dist loadgroup`).
 pytestmark = pytest.mark.xdist_group("policy")
 
-#: One layer of two bundles (a fraction of a second per simulation), and a heavier bundle.
-TINY_LOAD = {"name": "tiny", "pallet": {"preset": "EUR"}, "bundle": {"preset": "PET6x1.5L"},
-             "stack": {"layers": 1, "pattern": "explicit", "positions": [[-0.2, 0.0], [0.2, 0.0]]}}
+#: TINY_LOAD's bundle, heavier (14 kg, not 9.3 kg).
 HEAVY_BUNDLE = {"length_m": 0.28, "width_m": 0.19, "height_m": 0.33, "mass_kg": 14.0}
 TINY = TrainSettings(timesteps=8, n_envs=1, n_steps=4, batch_size=4, checkpoint_every=4,
                      progress_bar=False)
@@ -604,8 +604,7 @@ def test_recommend_refuses_such_a_policy_before_warning_about_its_proposal(train
                                                      "env_id": "wrapenv/WrapBenchRandom-v2"})
     assert main(["recommend", "examples/pet_3layer_half_pallet.toml", "--method", "ppo",
                  "--policy", str(v2)]) == 2
-    err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and "env_id" in err[0], err
+    assert "env_id" in one_line(capsys.readouterr().err)
 
 
 def test_a_policy_file_is_read_once_and_loaded_from_the_bytes_that_were_checked(

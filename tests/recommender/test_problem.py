@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from recommender.problem import Problem, SearchSettings
-from tests.recommender.conftest import FAST, SMALL
+from tests.recommender.conftest import FAST, TWO_LAYERS_OF_FOUR
 from wrapenv.calibrated import Calibration
 from wrapenv.config import InputError
 from wrapenv.design import N_PARAMS
@@ -20,35 +20,35 @@ from wrapenv.load import LoadUnit
 from wrapenv.uncertainty import MASS_SPREAD
 
 
-def test_samples_stay_within_the_uncertainty_and_repeat_under_a_seed(small_load):
-    problem = Problem.build(small_load, FAST)
-    nominal = small_load.friction
-    samples = [problem.sample(seed).load(small_load) for seed in range(50)]
-    assert problem.sample(7).load(small_load) == problem.sample(7).load(small_load)
+def test_samples_stay_within_the_uncertainty_and_repeat_under_a_seed(two_layers_of_four):
+    problem = Problem.build(two_layers_of_four, FAST)
+    nominal = two_layers_of_four.friction
+    samples = [problem.sample(seed).load(two_layers_of_four) for seed in range(50)]
+    assert problem.sample(7).load(two_layers_of_four) == problem.sample(7).load(two_layers_of_four)
     for s in samples:
         for name in ("sled_pallet", "pallet_bundle", "bundle_bundle"):
             pair = s.friction.pair(name)
             assert pair.kinetic <= pair.static
             assert abs(pair.static - nominal.pair(name).static) < 5 * 0.03
-        assert abs(s.bundle.mass_kg / small_load.bundle.mass_kg - 1) <= MASS_SPREAD
+        assert abs(s.bundle.mass_kg / two_layers_of_four.bundle.mass_kg - 1) <= MASS_SPREAD
     assert len({s.friction.pallet_bundle.static for s in samples}) == 50
 
 
-def test_calibrated_std_widens_the_samples(small_load):
+def test_calibrated_std_widens_the_samples(two_layers_of_four):
     cal = Calibration.from_dict({"friction": {"pallet_bundle": {
         "static": 0.3, "kinetic": 0.25, "static_std": 0.1, "kinetic_std": 0.08}}})
-    wide = Problem.build(small_load, FAST, cal)
-    narrow = Problem.build(small_load, FAST)
-    spread = [np.std([p.sample(s).load(small_load).friction.pallet_bundle.static
+    wide = Problem.build(two_layers_of_four, FAST, cal)
+    narrow = Problem.build(two_layers_of_four, FAST)
+    spread = [np.std([p.sample(s).load(two_layers_of_four).friction.pallet_bundle.static
                       for s in range(200)]) for p in (wide, narrow)]
     assert spread[0] > 2 * spread[1]
 
 
-def test_any_failing_candidate_scores_worse_than_any_passing_one(small_load):
-    problem = Problem.build(small_load, FAST)
+def test_any_failing_candidate_scores_worse_than_any_passing_one(two_layers_of_four):
+    problem = Problem.build(two_layers_of_four, FAST)
     heaviest = problem.space.wrap(problem.space.high)
     lightest = problem.space.wrap(problem.space.low)
-    layout = small_load.layout()
+    layout = two_layers_of_four.layout()
     passing = problem.objective(heaviest, heaviest.material_used_on(layout).mass_kg, [0.3],
                                 [True])
     failing = problem.objective(lightest, lightest.material_used_on(layout).mass_kg, [-0.01],
@@ -78,22 +78,22 @@ def test_every_program_of_the_space_lays_web_and_scores_a_finite_number():
     assert score > problem.objective(least, mass, [0.3], [True])
 
 
-def test_the_objective_is_the_web_relative_to_the_machine_s_default_program(small_load):
-    problem = Problem.build(small_load, FAST)
+def test_the_objective_is_the_web_relative_to_the_machine_s_default_program(two_layers_of_four):
+    problem = Problem.build(two_layers_of_four, FAST)
     default = problem.space.laid(problem.space.machine_default())
-    mass = default.material_used_on(small_load.layout()).mass_kg
+    mass = default.material_used_on(two_layers_of_four.layout()).mass_kg
     assert mass == pytest.approx(problem.reference_mass_kg)
     # at half the yield force every tension is at the top of the searched range (5-50 %):
     # the tension price adds its whole 0.05
     assert problem.objective(default, mass, [0.5], [True]) == pytest.approx(1.0 + 0.05)
 
 
-def test_the_objective_adds_the_margin_shortfall_and_the_price_of_each_second(small_load):
+def test_the_objective_adds_the_margin_shortfall_and_the_price_of_each_second(two_layers_of_four):
     """A margin 0.1 short of the goal costs 10 x 0.1 = the web of one default program; a price
     on cycle time adds that price times the cycle's seconds; a failure in any sample adds the
     heaviest program's web."""
     timed = SearchSettings(**{**FAST.__dict__, "cycle_weight": 0.01})
-    problem = Problem.build(small_load, timed)
+    problem = Problem.build(two_layers_of_four, timed)
     default = problem.space.laid(problem.space.machine_default())
     mass = problem.reference_mass_kg
     short = problem.settings.margin_goal - 0.1
@@ -105,23 +105,23 @@ def test_the_objective_adds_the_margin_shortfall_and_the_price_of_each_second(sm
         base + problem.heaviest_ratio)
 
 
-def test_a_program_over_the_cycle_limit_pays_in_proportion_to_its_excess(small_load):
+def test_a_program_over_the_cycle_limit_pays_in_proportion_to_its_excess(two_layers_of_four):
     """At the limit it is within it; at 1.5 x the limit it scores 1e6 x 1.5."""
-    first = Problem.build(small_load, FAST)
+    first = Problem.build(two_layers_of_four, FAST)
     default = first.space.laid(first.space.machine_default())
 
     def limited(limit: float) -> Problem:
-        return Problem.build(small_load, SearchSettings(**{**FAST.__dict__,
+        return Problem.build(two_layers_of_four, SearchSettings(**{**FAST.__dict__,
                                                            "max_cycle_s": limit}))
 
     assert limited(default.cycle_time_s).too_slow(default) is None
     assert limited(default.cycle_time_s / 1.5).too_slow(default) == pytest.approx(1.5e6)
 
 
-def test_a_program_of_the_space_has_a_search_vector_that_lays_it_again(small_load):
+def test_a_program_of_the_space_has_a_search_vector_that_lays_it_again(two_layers_of_four):
     """Where a search starts from a policy's proposal: the vector of any program of the space
     lays that program (wraps as they are, the rest as fractions of their range)."""
-    problem = Problem.build(small_load, FAST)
+    problem = Problem.build(two_layers_of_four, FAST)
     rng = np.random.default_rng(3)
     for _ in range(20):
         x = rng.uniform(0.0, 1.0, 9)
@@ -134,30 +134,31 @@ def test_a_program_of_the_space_has_a_search_vector_that_lays_it_again(small_loa
         problem.vector(replace(wrap, program=None))
 
 
-def test_a_coordinate_whose_range_is_one_value_is_0_in_the_search_vector(small_load):
+def test_a_coordinate_whose_range_is_one_value_is_0_in_the_search_vector(two_layers_of_four):
     """A unit of one layer (0.474 m) is lower than the 0.5 m web: the reinforcement's lower
     edge (coordinate 4) has a single place, 0.024 m, and its coordinate is 0, not 0 / 0."""
-    one_layer = LoadUnit.from_dict({**SMALL, "stack": {**SMALL["stack"], "layers": 1}})
+    one_layer = LoadUnit.from_dict({**TWO_LAYERS_OF_FOUR,
+                                    "stack": {**TWO_LAYERS_OF_FOUR["stack"], "layers": 1}})
     problem = Problem.build(one_layer, FAST)
     assert problem.space.low[4] == problem.space.high[4]
     vector = problem.vector(problem.wrap(np.array([2, 2, 1] + [0.5] * 6)))
     assert vector[4] == 0.0 and all(map(math.isfinite, vector))
 
 
-def test_a_slow_program_scores_below_any_simulated_failure(small_load):
+def test_a_slow_program_scores_below_any_simulated_failure(two_layers_of_four):
     """A unit that topples fails far beyond its limits (margins of -8 were seen): a program
     over the cycle-time limit must still score worse, whatever the price on cycle time."""
     slow = SearchSettings(**{**FAST.__dict__, "max_cycle_s": 25.0, "cycle_weight": 1.0})
-    problem = Problem.build(small_load, slow)
+    problem = Problem.build(two_layers_of_four, slow)
     wrap = problem.wrap(np.full(N_PARAMS, 0.5))
     mass = wrap.material_used_on(problem.layout).mass_kg
     toppled = problem.objective(wrap, mass, [-8.0], [False])
     assert wrap.cycle_time_s > 25.0 and problem.too_slow(wrap) > toppled
 
 
-def test_target_above_the_bench_is_a_clear_error(small_load):
+def test_target_above_the_bench_is_a_clear_error(two_layers_of_four):
     with pytest.raises(InputError, match="10 m/s"):
-        Problem.build(small_load, SearchSettings(targets=(("long", 1.2),)))
+        Problem.build(two_layers_of_four, SearchSettings(targets=(("long", 1.2),)))
 
 
 def test_a_later_round_tries_each_candidate_in_one_more_sample_with_twice_the_budget():
@@ -172,10 +173,12 @@ def test_a_later_round_tries_each_candidate_in_one_more_sample_with_twice_the_bu
         FAST.in_round(0)
 
 
-def test_a_later_round_lays_every_zone_at_the_top_tension_and_changes_nothing_else(small_load):
+def test_a_later_round_lays_every_zone_at_the_top_tension_and_changes_nothing_else(
+        two_layers_of_four):
     """Tension costs no web: a later round searches wraps, overlap and the reinforcement's
     height, each zone at the top of the range, whatever the vector's tension coordinates."""
-    first, second = Problem.build(small_load, FAST), Problem.build(small_load, FAST).in_round(2)
+    first = Problem.build(two_layers_of_four, FAST)
+    second = Problem.build(two_layers_of_four, FAST).in_round(2)
     x = np.array([3.0, 2.0, 1.0, 0.4, 0.5, 0.2, 0.0, 0.4, 0.6])   # the zones ordered
     low, top = first.space.tension_range_n
     gentle, tight = first.wrap(x).program, second.wrap(x).program
@@ -190,12 +193,13 @@ def test_a_later_round_lays_every_zone_at_the_top_tension_and_changes_nothing_el
     assert "top_tension" not in first.settings.identity()
 
 
-def test_ordered_tensions_lay_the_bottom_and_top_at_least_as_tight_as_the_spiral(small_load):
+def test_ordered_tensions_lay_the_bottom_and_top_at_least_as_tight_as_the_spiral(
+        two_layers_of_four):
     """Ordered tensions (the default): a zone looser than the spiral is raised to it, a tighter
     one kept; the wraps, overlap, reinforcement and the vector's meaning are untouched against
     the free search (--no-ordered-tensions)."""
-    ordered = Problem.build(small_load, FAST)
-    free = Problem.build(small_load, replace(FAST, ordered_tensions=False))
+    ordered = Problem.build(two_layers_of_four, FAST)
+    free = Problem.build(two_layers_of_four, replace(FAST, ordered_tensions=False))
     low, top = free.space.tension_range_n
     at = [round(low + f * (top - low)) for f in (0.0, 0.2, 0.4, 0.6)]
     loose = np.array([3.0, 2.0, 1.0, 0.4, 0.5, 0.0, 0.4, 0.2, 0.6])  # bottom, top under spiral

@@ -42,7 +42,8 @@ from recommender.search import (
     verify,
     weakest,
 )
-from tests.recommender.conftest import FAST, LOOSE_CALIBRATION, LOOSE_WARNING, SMALL
+from tests.cli import one_line
+from tests.recommender.conftest import FAST, LOOSE_CALIBRATION, LOOSE_WARNING, TWO_LAYERS_OF_FOUR
 from wrapenv.bench import BenchRun
 from wrapenv.calibrated import Calibration
 from wrapenv.config import InputError
@@ -62,10 +63,10 @@ def two_verification_samples(monkeypatch) -> None:
     monkeypatch.setattr(recommend, "VERIFY_SAMPLES", 2)
 
 
-def test_among_passes_laying_the_same_web_the_lower_tension_ranks_first(small_load):
+def test_among_passes_laying_the_same_web_the_lower_tension_ranks_first(two_layers_of_four):
     """The tension price is the tie-breaker: the same program at 320 N and at 800 N, both with
     the margin goal, lay the same web; the gentler one is the answer, whatever its margin."""
-    problem = Problem.build(small_load, FAST)
+    problem = Problem.build(two_layers_of_four, FAST)
     search = RobustSearch(problem)
     tight, slack = (np.array(x, float) for x in TIGHT_PROGRAMS[:2])
     hard, soft = (search._evaluation(x, [m], [True], DEFAULT)
@@ -76,12 +77,12 @@ def test_among_passes_laying_the_same_web_the_lower_tension_ranks_first(small_lo
     assert hard.rank(FAST.margin_goal) < short.rank(FAST.margin_goal)
 
 
-def test_the_search_s_fixed_programs_are_what_their_names_say(small_load):
+def test_the_search_s_fixed_programs_are_what_their_names_say(two_layers_of_four):
     """On the small unit (Kraft on a 0.5 m web: 80-800 N, overlap 0-75 %, a reinforcement from
     0.1 to 0.304 m): the start lays 2 bottom wraps, a spiral at 25 % and 1 top wrap at mid
     tension (440 N); the tightest programs the least web (1, 0 %, 1) at 800, 440 and 80 N; the
     strongest every wrap, 75 % and 4 reinforcement wraps halfway up their range, at 800 N."""
-    problem = Problem.build(small_load, FAST)
+    problem = Problem.build(two_layers_of_four, FAST)
 
     def program(x: tuple[float, ...]) -> tuple:
         p = problem.wrap(np.array(x)).program
@@ -96,8 +97,8 @@ def test_the_search_s_fixed_programs_are_what_their_names_say(small_load):
     assert program(STRONGEST_PROGRAM) == (6, 0.75, 6, 800.0, 800.0, 800.0, [(4, 0.202, 800.0)])
 
 
-def test_wraps_are_integer_variables_of_the_search(small_load):
-    search = RobustSearch(Problem.build(small_load, FAST))
+def test_wraps_are_integer_variables_of_the_search(two_layers_of_four):
+    search = RobustSearch(Problem.build(two_layers_of_four, FAST))
     state = search.start()
     assert state.es.opts["integer_variables"] == [0, 1, 2]
     for x in state.es.ask():
@@ -105,10 +106,10 @@ def test_wraps_are_integer_variables_of_the_search(small_load):
         assert 1 <= x[0] <= 6 and 1 <= x[1] <= 6 and 0 <= x[2] <= 4
 
 
-def test_the_first_generation_also_tries_the_least_web_at_three_tensions(small_load):
+def test_the_first_generation_also_tries_the_least_web_at_three_tensions(two_layers_of_four):
     """One bottom wrap, a spiral with no overlap and one top wrap, at the top, middle and
     bottom of the tension range: the least web of the space, at the tensions to choose from."""
-    search = RobustSearch(Problem.build(small_load, FAST))
+    search = RobustSearch(Problem.build(two_layers_of_four, FAST))
     first = np.array(search.start().es.ask())
     lo, hi = search.problem.space.tension_range_n
     programs = [search.problem.space.program(search.problem.values(x)) for x in first[:3]]
@@ -116,15 +117,15 @@ def test_the_first_generation_also_tries_the_least_web_at_three_tensions(small_l
         assert (program.bottom_wraps, program.top_wraps, program.up_overlap) == (1, 1, 0.0)
         assert (program.bottom_tension_n == program.middle_tension_n == program.top_tension_n
                 == pytest.approx(tension, abs=0.1))
-    least = search.problem.wrap(first[0]).material_used_on(small_load.layout()).mass_kg
+    least = search.problem.wrap(first[0]).material_used_on(two_layers_of_four.layout()).mass_kg
     for x in first[3:]:  # CMA-ES's own samples lay more web
-        assert search.problem.wrap(x).material_used_on(small_load.layout()).mass_kg > least
+        assert search.problem.wrap(x).material_used_on(two_layers_of_four.layout()).mass_kg > least
 
 
-def test_programs_over_the_cycle_limit_are_not_simulated_and_score_worst(small_load):
+def test_programs_over_the_cycle_limit_are_not_simulated_and_score_worst(two_layers_of_four):
     # the start (2 bottom wraps, a spiral of 0.94 turns, 1 top wrap) takes 35 s at 12 rpm
     slow = SearchSettings(**{**FAST.__dict__, "max_cycle_s": 38.0, "max_candidates": 8})
-    problem = Problem.build(small_load, slow)
+    problem = Problem.build(two_layers_of_four, slow)
     state = RobustSearch(problem).run(RobustSearch(problem).start())
     over = [e for e in state.history if e.cycle_s > 38.0]
     under = [e for e in state.history if e.cycle_s <= 38.0]
@@ -141,7 +142,7 @@ def test_recommend_says_when_no_program_is_within_the_cycle_time_limit(tmp_path,
     not the EUMOS sequence, left no program. Nothing is written, and the search's checkpoint
     (kept beside --json while it runs) is gone: the search answered."""
     load = tmp_path / "small.toml"
-    load.write_text(tomli_w.dumps(SMALL))
+    load.write_text(tomli_w.dumps(TWO_LAYERS_OF_FOUR))
     assert main(["recommend", str(load), "--max-cycle-s", "1", "--budget", "3", "--samples",
                  "1", "--workers", "1", "--json", str(tmp_path / "rec.json")]) == 1
     assert [p.name for p in tmp_path.iterdir()] == ["small.toml"]
@@ -151,14 +152,14 @@ def test_recommend_says_when_no_program_is_within_the_cycle_time_limit(tmp_path,
     assert 10 < fastest < 60
 
 
-def test_search_finds_a_robust_pass_and_resumes_from_its_checkpoint(small_load, tmp_path):
+def test_search_finds_a_robust_pass_and_resumes_from_its_checkpoint(two_layers_of_four, tmp_path):
     ckpt = tmp_path / "search.json"
     one = SearchSettings(**{**FAST.__dict__, "max_candidates": 4})
-    first = RobustSearch(Problem.build(small_load, one), ckpt)
+    first = RobustSearch(Problem.build(two_layers_of_four, one), ckpt)
     stopped = first.run(first.start())  # "interrupted" after one generation
     saved = json.loads(ckpt.read_text())  # data, not a pickle
     assert saved["format"] == CHECKPOINT_FORMAT and len(saved["generations"]) == 1
-    search = RobustSearch(Problem.build(small_load, FAST), ckpt)
+    search = RobustSearch(Problem.build(two_layers_of_four, FAST), ckpt)
     replayed = search.resume()
     assert replayed.generation == 1 and replayed.history == stopped.history
     assert np.allclose(replayed.es.mean, stopped.es.mean) and replayed.es.sigma == stopped.es.sigma
@@ -169,7 +170,7 @@ def test_search_finds_a_robust_pass_and_resumes_from_its_checkpoint(small_load, 
     assert best is not None and best.robust_pass
 
 
-def test_a_search_counts_every_level_it_simulated(small_load, monkeypatch):
+def test_a_search_counts_every_level_it_simulated(two_layers_of_four, monkeypatch):
     """What `recommend` reports as simulations: every level run in every generation, counted
     here from the trials the search submitted to its pool."""
     submitted: list[Any] = []
@@ -181,7 +182,7 @@ def test_a_search_counts_every_level_it_simulated(small_load, monkeypatch):
 
     real = search_module._submit_sample
     monkeypatch.setattr(search_module, "_submit_sample", counting)
-    search = RobustSearch(Problem.build(small_load, FAST))
+    search = RobustSearch(Problem.build(two_layers_of_four, FAST))
     state = search.run(search.start())
     assert state.generation >= 2
     assert state.simulations == sum(f.result().simulations for f in submitted) > 0
@@ -201,13 +202,13 @@ def test_an_answer_holds_only_if_its_nominal_sequences_and_every_sample_pass():
     assert not verification(True, 7).holds and verification(True, 7).passed
 
 
-def test_the_answer_is_confirmed_at_the_default_fidelity_and_the_search_repeats(small_load,
+def test_the_answer_is_confirmed_at_the_default_fidelity_and_the_search_repeats(two_layers_of_four,
                                                                               tmp_path):
     """Candidates are screened; the best is a pass confirmed with the default settings, whose
     screened verdicts and margins it reproduces; the same seed gives the same checkpoint."""
     ckpts = [tmp_path / "a.json", tmp_path / "b.json"]
-    states = [RobustSearch(Problem.build(small_load, FAST), c).run(
-        RobustSearch(Problem.build(small_load, FAST), c).start()) for c in ckpts]
+    states = [RobustSearch(Problem.build(two_layers_of_four, FAST), c).run(
+        RobustSearch(Problem.build(two_layers_of_four, FAST), c).start()) for c in ckpts]
     assert ckpts[0].read_text() == ckpts[1].read_text()
     state = states[0]
     fidelities = [e.fidelity for e in state.history]
@@ -215,7 +216,7 @@ def test_the_answer_is_confirmed_at_the_default_fidelity_and_the_search_repeats(
     best = state.best(FAST.margin_goal)
     assert best is not None and best.fidelity == DEFAULT and best.robust_pass
     assert all(e.fidelity == DEFAULT for e in state.ranked(FAST.margin_goal))
-    search = RobustSearch(Problem.build(small_load, FAST))
+    search = RobustSearch(Problem.build(two_layers_of_four, FAST))
     index = state.history.index(best)
     seeds = [FAST.seed * 1_000_003 + (index // FAST.popsize) * 1009 + k
              for k in range(FAST.samples)]
@@ -229,7 +230,7 @@ def test_the_answer_is_confirmed_at_the_default_fidelity_and_the_search_repeats(
     assert all(len(e.passed) == FAST.screen_samples == 1 for e in screened_once)
 
 
-def test_a_screened_pass_that_fails_its_confirmation_is_recorded_as_failed(small_load,
+def test_a_screened_pass_that_fails_its_confirmation_is_recorded_as_failed(two_layers_of_four,
                                                                             tmp_path):
     class Stricter(RobustSearch):
         """A bench whose default fidelity fails everything the screening passed."""
@@ -242,7 +243,7 @@ def test_a_screened_pass_that_fails_its_confirmation_is_recorded_as_failed(small
             return out
 
     ckpt = tmp_path / "search.json"
-    search = Stricter(Problem.build(small_load, FAST), ckpt)
+    search = Stricter(Problem.build(two_layers_of_four, FAST), ckpt)
     state = search.run(search.start())
     confirmed = [e for e in state.history if e.fidelity == DEFAULT]
     assert confirmed, "the small load passes in screening"
@@ -253,7 +254,8 @@ def test_a_screened_pass_that_fails_its_confirmation_is_recorded_as_failed(small
     assert [f for g in saved for f in g["fidelity"]] == [e.fidelity for e in state.history]
 
 
-def test_a_confirmed_pass_short_of_the_margin_goal_does_not_end_the_confirmations(small_load):
+def test_a_confirmed_pass_short_of_the_margin_goal_does_not_end_the_confirmations(
+        two_layers_of_four):
     """Screening passes the generation's candidates with room to spare; confirmed, the first
     (the gentlest tension) passes short of the margin goal. The next, which meets it, is
     confirmed too: it ranks before the first. The interlocked example answered nothing with
@@ -275,14 +277,14 @@ def test_a_confirmed_pass_short_of_the_margin_goal_does_not_end_the_confirmation
                     for x, m in zip(xs, margins, strict=True)]
 
     settings = replace(FAST, max_candidates=FAST.popsize)    # one generation
-    search = ShortOfTheGoal(Problem.build(small_load, settings))
+    search = ShortOfTheGoal(Problem.build(two_layers_of_four, settings))
     state = search.run(search.start())
     assert search.confirmed[:2] == [0.1, 0.5]
     best = state.best(settings.margin_goal)
     assert best is not None and best.margin >= settings.margin_goal
 
 
-def test_an_answer_is_verified_from_the_confirmed_passes_then_the_screened_ones(small_load):
+def test_an_answer_is_verified_from_the_confirmed_passes_then_the_screened_ones(two_layers_of_four):
     """Confirmed, the gentlest of the first generation passes with the margin goal, and ends
     the confirmations: the screened passes rank after it. If its verification fails, the
     answer is sought among them, verified as they were never confirmed (on the bundled example
@@ -295,7 +297,7 @@ def test_an_answer_is_verified_from_the_confirmed_passes_then_the_screened_ones(
                     for x in xs]
 
     settings = replace(FAST, max_candidates=FAST.popsize)    # one generation
-    search = OneConfirmed(Problem.build(small_load, settings))
+    search = OneConfirmed(Problem.build(two_layers_of_four, settings))
     state = search.run(search.start())
     confirmed = state.ranked(settings.margin_goal)
     screened = [e for e in state.history if e.fidelity == SCREENING and e.robust_pass]
@@ -306,7 +308,7 @@ def test_an_answer_is_verified_from_the_confirmed_passes_then_the_screened_ones(
     assert ranks == sorted(ranks)
 
 
-def test_candidates_heavier_than_a_pass_with_the_margin_goal_are_not_simulated(small_load,
+def test_candidates_heavier_than_a_pass_with_the_margin_goal_are_not_simulated(two_layers_of_four,
                                                                                tmp_path):
     """Once a confirmed pass meets the margin goal, a heavier candidate cannot become the
     answer: nothing is simulated for it, and CMA-ES is told the objective it would have if it
@@ -320,7 +322,7 @@ def test_candidates_heavier_than_a_pass_with_the_margin_goal_are_not_simulated(s
             return super()._simulate(pool, xs, seeds, sim, fidelity)
 
     settings = replace(FAST, max_candidates=16, patience=4)
-    problem = Problem.build(small_load, settings)
+    problem = Problem.build(two_layers_of_four, settings)
     search = Watched(problem, tmp_path / "search.json")
     state = search.run(search.start())
     goal = settings.margin_goal
@@ -363,45 +365,46 @@ def test_a_sample_is_as_strong_as_its_weakest_orientation():
     ({"targets": (("long", 0.6),)}, "targets"), ({"seed": 3}, "seed"),
     ({"hours_since_wrapping": 16.0}, "hours_since_wrapping"), ({"screen": None}, "screen"),
     ({"screen_samples": 2}, "screen_samples"), ({"ordered_tensions": False}, "ordered_tensions")])
-def test_resume_refuses_another_search_s_checkpoint(small_load, tmp_path, other, field,
+def test_resume_refuses_another_search_s_checkpoint(two_layers_of_four, tmp_path, other, field,
                                                     assert_input_error):
     ckpt = tmp_path / "search.json"
     one = SearchSettings(**{**FAST.__dict__, "max_candidates": 4})
-    RobustSearch(Problem.build(small_load, one), ckpt).run(
-        RobustSearch(Problem.build(small_load, one), ckpt).start())
+    RobustSearch(Problem.build(two_layers_of_four, one), ckpt).run(
+        RobustSearch(Problem.build(two_layers_of_four, one), ckpt).start())
     mine = SearchSettings(**{**FAST.__dict__, **other})
     with pytest.raises(InputError) as info:
-        RobustSearch(Problem.build(small_load, mine), ckpt).resume()
+        RobustSearch(Problem.build(two_layers_of_four, mine), ckpt).resume()
     assert_input_error(info.value, str(ckpt), f"problem.{field}")
 
 
 def test_resume_refuses_a_checkpoint_of_a_search_with_a_setting_this_one_lacks(
-        small_load, tmp_path, assert_input_error):
+        two_layers_of_four, tmp_path, assert_input_error):
     """A setting recorded only when asked for (here a layer-shift limit) differs whichever side
     has it: a checkpoint judged with the limit is not replayed into a search without one."""
     ckpt = tmp_path / "search.json"
     limited = replace(FAST, max_candidates=4, limits=Limits(layer_shift_fraction=0.05))
-    RobustSearch(Problem.build(small_load, limited), ckpt).run(
-        RobustSearch(Problem.build(small_load, limited), ckpt).start())
+    RobustSearch(Problem.build(two_layers_of_four, limited), ckpt).run(
+        RobustSearch(Problem.build(two_layers_of_four, limited), ckpt).start())
     with pytest.raises(InputError) as info:
-        RobustSearch(Problem.build(small_load, replace(limited, limits=Limits())), ckpt).resume()
+        RobustSearch(Problem.build(two_layers_of_four, replace(limited, limits=Limits())),
+                     ckpt).resume()
     assert_input_error(info.value, str(ckpt), "problem.layer_shift_limit")
 
 
-def test_resume_refuses_a_file_that_is_no_checkpoint(small_load, tmp_path):
+def test_resume_refuses_a_file_that_is_no_checkpoint(two_layers_of_four, tmp_path):
     ckpt = tmp_path / "search.json"
     ckpt.write_text('{"format": "pickle"}')
     with pytest.raises(InputError, match="not a wrapbench search checkpoint"):
-        RobustSearch(Problem.build(small_load, FAST), ckpt).resume()
+        RobustSearch(Problem.build(two_layers_of_four, FAST), ckpt).resume()
 
 
-def test_resume_refuses_values_the_search_never_writes(small_load, tmp_path):
+def test_resume_refuses_values_the_search_never_writes(two_layers_of_four, tmp_path):
     """A NaN margin would rank first and the string "false" is true: a checkpoint edited into
     either is refused, naming the field, as one whose problem is no object."""
     ckpt = tmp_path / "search.json"
     one = SearchSettings(**{**FAST.__dict__, "max_candidates": 4})
-    RobustSearch(Problem.build(small_load, one), ckpt).run(
-        RobustSearch(Problem.build(small_load, one), ckpt).start())
+    RobustSearch(Problem.build(two_layers_of_four, one), ckpt).run(
+        RobustSearch(Problem.build(two_layers_of_four, one), ckpt).start())
     saved = json.loads(ckpt.read_text())
     nan_margin = json.loads(ckpt.read_text())
     nan_margin["generations"][0]["margins"][0][0] = float("nan")
@@ -425,17 +428,17 @@ def test_resume_refuses_values_the_search_never_writes(small_load, tmp_path):
                         ({**saved, "problem": []}, "problem")):
         ckpt.write_text(json.dumps(data))
         with pytest.raises(InputError) as info:
-            RobustSearch(Problem.build(small_load, FAST), ckpt).resume()
+            RobustSearch(Problem.build(two_layers_of_four, FAST), ckpt).resume()
         assert info.value.field == field, info.value
 
 
-def test_resume_refuses_a_checkpoint_of_another_calibration_s_give(small_load, tmp_path):
+def test_resume_refuses_a_checkpoint_of_another_calibration_s_give(two_layers_of_four, tmp_path):
     """The give's spread draws the samples as the friction's does."""
     ckpt = tmp_path / "search.json"
     one = SearchSettings(**{**FAST.__dict__, "max_candidates": 4})
-    narrow = Problem.build(small_load, one, Calibration({}, give_scale_std=0.05))
+    narrow = Problem.build(two_layers_of_four, one, Calibration({}, give_scale_std=0.05))
     RobustSearch(narrow, ckpt).run(RobustSearch(narrow, ckpt).start())
-    wide = Problem.build(small_load, one, Calibration({}, give_scale_std=0.6))
+    wide = Problem.build(two_layers_of_four, one, Calibration({}, give_scale_std=0.6))
     with pytest.raises(InputError, match="problem.give_std"):
         RobustSearch(wide, ckpt).resume()
 
@@ -454,11 +457,11 @@ def test_the_round_after_one_with_passes_starts_from_the_best_at_the_top_tension
     assert start == (2.0, 1.0, 0.0, 0.3, 0.5, 1.0, 1.0, 1.0, 1.0)
 
 
-def test_the_round_after_one_without_a_pass_starts_from_the_strongest_program(small_load):
+def test_the_round_after_one_without_a_pass_starts_from_the_strongest_program(two_layers_of_four):
     """A screened failure stops at a margin of about -1, so a round with no pass sees only
     that lighter failures cost less, and drifts light: the next starts at the other end."""
     assert next_start(_history((30.0, False), (90.0, False)), FAST) == STRONGEST_PROGRAM
-    problem = Problem.build(small_load, FAST)
+    problem = Problem.build(two_layers_of_four, FAST)
     strongest = problem.wrap(np.array(STRONGEST_PROGRAM))
     assert strongest.material_used_on(problem.layout).mass_kg == pytest.approx(
         problem.heaviest_ratio * problem.reference_mass_kg, rel=0.05)
@@ -466,31 +469,32 @@ def test_the_round_after_one_without_a_pass_starts_from_the_strongest_program(sm
     assert next_start(_history((30.0, False), (90.0, False)), slow) is None  # nothing to gain
 
 
-def test_a_later_round_first_tries_the_program_it_starts_from(small_load):
-    second = Problem.build(small_load, FAST).in_round(2)
+def test_a_later_round_first_tries_the_program_it_starts_from(two_layers_of_four):
+    second = Problem.build(two_layers_of_four, FAST).in_round(2)
     begun = Round(2, 8, 20, STRONGEST_PROGRAM)
     asked = np.array(RobustSearch(second, round_=begun).start().es.ask())
     assert np.allclose(asked[0], STRONGEST_PROGRAM)
     assert np.allclose(asked[1], TIGHT_PROGRAMS[0])    # the lightest, its tensions the top
 
 
-def test_a_checkpoint_keeps_its_round_and_what_the_earlier_rounds_spent(small_load, tmp_path):
+def test_a_checkpoint_keeps_its_round_and_what_the_earlier_rounds_spent(two_layers_of_four,
+                                                                        tmp_path):
     """A first round's checkpoint says nothing of rounds (as every checkpoint before them); a
     later round's is refused as another search's when resumed as the first round's."""
     ckpt = tmp_path / "search.json"
     one = SearchSettings(**{**FAST.__dict__, "max_candidates": 4})
-    first = RobustSearch(Problem.build(small_load, one), ckpt)
+    first = RobustSearch(Problem.build(two_layers_of_four, one), ckpt)
     first.run(first.start())
     assert "round" not in json.loads(ckpt.read_text()) and read_round(ckpt) == FIRST_ROUND
     spent = FIRST_ROUND.next(candidates=4, simulations=9, start=STRONGEST_PROGRAM)
     assert spent == Round(number=2, earlier_candidates=4, earlier_simulations=9,
                           start=STRONGEST_PROGRAM)
-    second = Problem.build(small_load, one).in_round(2)
+    second = Problem.build(two_layers_of_four, one).in_round(2)
     RobustSearch(second, ckpt, spent).save()
     assert read_round(ckpt) == spent
     assert RobustSearch(second, ckpt, spent).resume().history == []
     with pytest.raises(InputError, match="problem.samples"):
-        RobustSearch(Problem.build(small_load, one), ckpt).resume()
+        RobustSearch(Problem.build(two_layers_of_four, one), ckpt).resume()
 
 
 @pytest.mark.parametrize("round_, field", [
@@ -533,7 +537,7 @@ def _failing_first_rounds(monkeypatch, interrupt_second: bool = False) -> None:
 @pytest.mark.usefixtures("two_verification_samples")
 def test_a_round_whose_passes_all_fail_their_verification_is_followed_by_a_sturdier_one(
         monkeypatch, load_file, tmp_path, capsys):
-    load = load_file(base=SMALL)
+    load = load_file(base=TWO_LAYERS_OF_FOUR)
     _failing_first_rounds(monkeypatch)
     argv = ["recommend", str(load), "--budget", "4", "--samples", "1", "--workers", "2"]
     out, report = tmp_path / "rec.json", tmp_path / "report"
@@ -577,7 +581,7 @@ def test_a_round_that_found_no_pass_is_followed_by_one_from_the_strongest_progra
     """Film at 0.7 g on the small unit: the first round (the lightest program at three
     tensions) finds no pass; the second starts from the strongest program, every tension at
     the top, and answers. Without a second round, no program."""
-    load = load_file(base=SMALL)
+    load = load_file(base=TWO_LAYERS_OF_FOUR)
     argv = ["recommend", str(load), "--material", "lldpe", "--target", "0.7", "--budget", "3",
             "--samples", "1", "--workers", "2"]
     out = tmp_path / "rec.json"
@@ -603,7 +607,7 @@ def test_no_round_follows_one_without_a_pass_when_even_the_strongest_program_fai
     strongest program of the space, every tension at the top, fails its verification too. A
     round from it would search lighter, weaker programs: none is searched, and the answer is
     no."""
-    load = load_file({"stack.layers": 3}, base=SMALL)
+    load = load_file({"stack.layers": 3}, base=TWO_LAYERS_OF_FOUR)
     argv = ["recommend", str(load), "--material", "lldpe", "--target", "1.0", "--budget",
             "3", "--samples", "1", "--workers", "2"]
     assert main(argv) == 1
@@ -638,7 +642,7 @@ def test_the_strongest_program_must_hold_every_sample_for_a_round_to_start_from_
         return check
 
     monkeypatch.setattr(search, "verify", verify)
-    load = load_file(base=SMALL)
+    load = load_file(base=TWO_LAYERS_OF_FOUR)
     assert main(["recommend", str(load), "--material", "lldpe", "--target", "0.7", "--budget",
                  "3", "--samples", "1", "--workers", "2"]) == 1
     why = capsys.readouterr().out.strip().splitlines()[-2]
@@ -666,7 +670,7 @@ def test_an_interrupted_second_round_resumes_in_that_round(monkeypatch, load_fil
     first round is not searched again and the answer counts both rounds' candidates."""
     from recommender import search
 
-    load = load_file(base=SMALL)
+    load = load_file(base=TWO_LAYERS_OF_FOUR)
     argv = ["recommend", str(load), "--budget", "4", "--samples", "1", "--workers", "2",
             "--json", str(tmp_path / "rec.json")]
     real = search.holding
@@ -702,8 +706,8 @@ def test_a_second_round_interrupted_before_it_simulates_anything_resumes_in_that
 
     monkeypatch.setattr(recommend, "_run_search", run_search)
     _failing_first_rounds(monkeypatch)
-    assert main(["recommend", str(load_file(base=SMALL)), "--budget", "4", "--samples", "1",
-                 "--workers", "2", "--json", str(tmp_path / "rec.json")]) == 130
+    assert main(["recommend", str(load_file(base=TWO_LAYERS_OF_FOUR)), "--budget", "4",
+                 "--samples", "1", "--workers", "2", "--json", str(tmp_path / "rec.json")]) == 130
     assert "--resume continues it" in capsys.readouterr().err
     kept = read_round(tmp_path / "rec.checkpoint.json")
     assert kept.number == 2 and 0 < kept.earlier_candidates <= 4
@@ -717,20 +721,20 @@ def test_a_search_interrupted_without_a_checkpoint_says_nothing_was_written(
         raise KeyboardInterrupt
 
     monkeypatch.setattr(recommend, "_run_search", interrupted)
-    assert main(["recommend", str(load_file(base=SMALL)), "--budget", "4", "--samples", "1",
-                 "--workers", "2"]) == 130
+    assert main(["recommend", str(load_file(base=TWO_LAYERS_OF_FOUR)), "--budget", "4",
+                 "--samples", "1", "--workers", "2"]) == 130
     assert capsys.readouterr().err == "wrapbench recommend: interrupted, nothing written\n"
 
 
-def test_resume_without_a_checkpoint_is_a_clear_error(small_load, tmp_path):
-    search = RobustSearch(Problem.build(small_load, FAST), tmp_path / "none.ckpt")
+def test_resume_without_a_checkpoint_is_a_clear_error(two_layers_of_four, tmp_path):
+    search = RobustSearch(Problem.build(two_layers_of_four, FAST), tmp_path / "none.ckpt")
     with pytest.raises(InputError, match="no checkpoint"):
         search.resume()
 
 
 def test_recommend_writes_the_contract_json_and_a_wrap_simulate_accepts(load_file, tmp_path,
                                                                         capsys):
-    load = load_file(base=SMALL)
+    load = load_file(base=TWO_LAYERS_OF_FOUR)
     out, wrap = tmp_path / "rec.json", tmp_path / "rec_wrap.toml"
     code = main(["recommend", str(load), "--budget", "8", "--samples", "2", "--workers", "2",
                  "--json", str(out), "--wrap-out", str(wrap)])
@@ -797,7 +801,7 @@ def test_recommend_answers_for_the_web_and_machine_of_a_wrap_file(load_file, tmp
     """--web: the answer is a program for that card, width and machine (tensions from 5 % of
     its 4.5e5 x 0.008 x 0.75 = 2700 N yield force, 0.75 m a revolution, timed at 10 rpm), and
     the WRAP.toml it writes keeps all three."""
-    load, web = load_file(base=SMALL), tmp_path / "ours.toml"
+    load, web = load_file(base=TWO_LAYERS_OF_FOUR), tmp_path / "ours.toml"
     web.write_text(OWN_WEB)
     out, wrap = tmp_path / "rec.json", tmp_path / "rec_wrap.toml"
     assert main(["recommend", str(load), "--web", str(web), "--orientation", "long",
@@ -822,7 +826,7 @@ def test_recommend_answers_for_the_web_and_machine_of_a_wrap_file(load_file, tmp
 def test_a_web_file_goes_with_a_search_alone(argv, says, load_file, tmp_path, capsys):
     web = tmp_path / "ours.toml"
     web.write_text(OWN_WEB)
-    code = main(["recommend", str(load_file(base=SMALL)),
+    code = main(["recommend", str(load_file(base=TWO_LAYERS_OF_FOUR)),
                  *(str(web) if a == "WEB" else a for a in argv)])
     err = capsys.readouterr().err.strip()
     assert code == 2 and "\n" not in err and says in err, err
@@ -840,7 +844,7 @@ def test_a_bad_web_file_is_named_with_its_field(old, new, field, says, load_file
                                                 capsys):
     web = tmp_path / "ours.toml"
     web.write_text(OWN_WEB.replace(old, new))
-    assert main(["recommend", str(load_file(base=SMALL)), "--web", str(web)]) == 2
+    assert main(["recommend", str(load_file(base=TWO_LAYERS_OF_FOUR)), "--web", str(web)]) == 2
     err = capsys.readouterr().err.strip()
     assert err.startswith(f"wrapbench recommend: {web}: {field}: ") and says in err
     assert "\n" not in err
@@ -861,7 +865,7 @@ def test_a_bad_web_file_is_named_with_its_field(old, new, field, says, load_file
     (["--rounds", "0"], "--rounds"),
 ])
 def test_bad_recommend_arguments_exit_2_with_one_line(argv, field, load_file, tmp_path, capsys):
-    load = load_file(base=SMALL)
+    load = load_file(base=TWO_LAYERS_OF_FOUR)
     code = main(["recommend", str(load), *argv, "--checkpoint", str(tmp_path / "none.json"),
                  "--json", str(tmp_path / "out.json")])
     err = capsys.readouterr().err.strip()
@@ -896,7 +900,7 @@ def test_ppo_method_answers_from_a_policy_and_verifies_it(load_file, tmp_path, c
     """The program in the middle of the policy's range (4 bottom wraps, a 38 % spiral, 2
     reinforcement and 4 top wraps at 440 N) passes the small unit in every sample, with a
     margin of about 0.9: it is recommended, as a search's answer would be, and written."""
-    load = load_file(base=SMALL)
+    load = load_file(base=TWO_LAYERS_OF_FOUR)
     policy = fixed_policy(load, 0.0, tmp_path / "middle.zip")
     out = tmp_path / "ppo.json"
     code = main(["recommend", str(load), "--method", "ppo", "--policy", str(policy),
@@ -925,7 +929,7 @@ def test_a_recommendation_says_which_calibration_it_was_judged_with(load_file, t
                                                                     capsys):
     """As `simulate` does: the values CAL.json put in place are printed before any program is
     judged with them, and the JSON on file names the calibration (a new user found neither)."""
-    load = load_file(base=SMALL)
+    load = load_file(base=TWO_LAYERS_OF_FOUR)
     policy = fixed_policy(load, 0.0, tmp_path / "middle.zip")
     cal, out = tmp_path / "cal.json", tmp_path / "rec.json"
     cal.write_text(json.dumps({"friction": {"pallet_bundle": {
@@ -948,7 +952,7 @@ def test_ordered_tensions_hold_for_a_search_s_answer_and_a_policy_s_proposal(loa
     whichever method answered; the policy's proposal (bottom wraps at the range's foot, every
     other zone in its middle) is raised to the spiral's tension. With --no-ordered-tensions the
     same proposal is verified as the policy gave it."""
-    load = load_file(base=SMALL)
+    load = load_file(base=TWO_LAYERS_OF_FOUR)
     policy = fixed_policy(load, [0.0] * 5 + [-1.0, 0.0, 0.0, 0.0], tmp_path / "loose.zip")
     runs = {"cmaes": ["--budget", "8"], "ppo": ["--policy", str(policy), "--rounds", "1"],
             "free": ["--method", "ppo", "--policy", str(policy), "--rounds", "1",
@@ -982,7 +986,7 @@ def test_a_proposal_that_does_not_hold_is_searched_from(load_file, tmp_path, cap
     proposal is round 1: the second searches from it, every tension at the top, and answers
     (the JSON says the policy's method, in 2 rounds). With --rounds 1 the proposal is all
     there is: nothing is written."""
-    load = load_file(base=SMALL)
+    load = load_file(base=TWO_LAYERS_OF_FOUR)
     policy = fixed_policy(load, -0.6, tmp_path / "weak.zip", material="lldpe")
     argv = ["recommend", str(load), "--material", "lldpe", "--target", "0.7", "--orientation",
             "short", "--method", "ppo", "--policy", str(policy), "--samples", "1", "--workers",
@@ -1028,7 +1032,7 @@ def test_a_failing_proposal_is_followed_by_as_many_search_rounds_as_a_search_has
         return real(problem, wrap, samples, workers)
 
     monkeypatch.setattr(search, "holding", holding)
-    load = load_file(base=SMALL)
+    load = load_file(base=TWO_LAYERS_OF_FOUR)
     policy = fixed_policy(load, -1.0, tmp_path / "light.zip", material="lldpe")
     argv = ["recommend", str(load), "--material", "lldpe", "--target", "0.7", "--method", "ppo",
             "--policy", str(policy), "--budget", "3", "--samples", "1", "--workers", "2"]
@@ -1060,7 +1064,7 @@ def test_no_round_follows_a_proposal_when_even_the_strongest_program_fails(
     """Film at 1 g on the small unit stacked 3 high, where nothing holds (a search says so
     above): the policy's proposal fails, and so does the strongest program of the space, so no
     round searches lighter programs from the proposal, and the answer is no."""
-    load = load_file({"stack.layers": 3}, base=SMALL)
+    load = load_file({"stack.layers": 3}, base=TWO_LAYERS_OF_FOUR)
     policy = fixed_policy(load, -0.6, tmp_path / "weak.zip", material="lldpe")
     assert main(["recommend", str(load), "--material", "lldpe", "--target", "1.0", "--method",
                  "ppo", "--policy", str(policy), "--samples", "1", "--workers", "2"]) == 1
@@ -1076,8 +1080,8 @@ def test_no_round_follows_a_proposal_when_even_the_strongest_program_fails(
 def test_recommend_warns_once_of_a_target_below_the_first_eumos_level(load_file, capsys):
     """Both sides at 0.1 g, one warning (as `simulate` gives it); nothing simulated here: no
     program is within a 1 s cycle."""
-    assert main(["recommend", str(load_file(base=SMALL)), "--target", "0.1", "--max-cycle-s",
-                 "1", "--budget", "3", "--samples", "1", "--workers", "1"]) == 1
+    assert main(["recommend", str(load_file(base=TWO_LAYERS_OF_FOUR)), "--target", "0.1",
+                 "--max-cycle-s", "1", "--budget", "3", "--samples", "1", "--workers", "1"]) == 1
     assert capsys.readouterr().err.splitlines() == [
         "wrapbench recommend: warning: a target of 0.1 g lies below EUMOS 40509's first level "
         "(0.2 g): the sequence is that one level, a check short of the standard"]
@@ -1087,7 +1091,7 @@ def test_recommend_warns_of_a_calibration_accepted_under_a_looser_bound(load_fil
                                                                         capsys):
     """As `simulate` does (tests/calibration/test_commands.py), whatever the search answers:
     here that no program is within a 1 s cycle, nothing simulated."""
-    load = load_file(base=SMALL)
+    load = load_file(base=TWO_LAYERS_OF_FOUR)
     cal = tmp_path / "cal.json"
     cal.write_text(json.dumps(LOOSE_CALIBRATION))
     assert main(["recommend", str(load), "--calibration", str(cal), "--max-cycle-s", "1",
@@ -1100,7 +1104,7 @@ def test_a_policy_file_is_refused_before_the_calibration_is_said(policy, load_fi
                                                                  capsys):
     """Checked with the other inputs: a refused --policy prints its one line alone, not
     after "calibrated by ..." (it was checked only when the proposal was asked for)."""
-    load = load_file(base=SMALL)
+    load = load_file(base=TWO_LAYERS_OF_FOUR)
     cal = tmp_path / "cal.json"
     cal.write_text(json.dumps({"friction": {"pallet_bundle": {
         "static": 0.5, "kinetic": 0.4, "static_std": 0.02, "kinetic_std": 0.02}}}))
@@ -1109,7 +1113,7 @@ def test_a_policy_file_is_refused_before_the_calibration_is_said(policy, load_fi
     assert main(["recommend", str(load), "--method", "ppo", *given,
                  "--calibration", str(cal)]) == 2
     out, err = capsys.readouterr()
-    assert out == "" and len(err.strip().splitlines()) == 1 and "--policy" in err
+    assert out == "" and "--policy" in one_line(err)
 
 
 def test_a_policy_used_with_a_calibration_it_was_not_trained_on_is_warned_about(
@@ -1117,7 +1121,7 @@ def test_a_policy_used_with_a_calibration_it_was_not_trained_on_is_warned_about(
     """And the unit is judged as the policy observes it, calibrated, against the units it was
     trained on: the calibrated pallet-bundle 0.5 against the defaults' spread (it used to be
     the load file's 0.3 against a spread about the calibration, which no policy saw)."""
-    load = load_file(base=SMALL)
+    load = load_file(base=TWO_LAYERS_OF_FOUR)
     policy = fixed_policy(load, -1.0, tmp_path / "light.zip")
     cal = tmp_path / "cal.json"
     cal.write_text(json.dumps({"friction": {"pallet_bundle": {
@@ -1133,7 +1137,7 @@ def test_a_policy_asked_for_a_target_it_was_not_trained_for_is_warned_about(
         load_file, tmp_path, capsys):
     """The target is one of the policy's observations: asked for 0.3 g, one trained for 0.5 g
     extrapolates, as for a unit unlike its training units (it used to say nothing)."""
-    load = load_file(base=SMALL)
+    load = load_file(base=TWO_LAYERS_OF_FOUR)
     policy = fixed_policy(load, -1.0, tmp_path / "light.zip")
     main(["recommend", str(load), "--method", "ppo", "--policy", str(policy), "--samples", "1",
           "--workers", "2", "--orientation", "long", "--target", "0.3"])
@@ -1332,24 +1336,24 @@ def test_a_load_that_passes_long_but_fails_short_gets_a_program_that_passes_both
     (["--layer-shift-limit-pct", "0"], "--layer-shift-limit-pct"),
 ])
 def test_bad_orientation_targets_and_hours_exit_2(argv, field, load_file, tmp_path, capsys):
-    code = main(["recommend", str(load_file(base=SMALL)), *argv,
+    code = main(["recommend", str(load_file(base=TWO_LAYERS_OF_FOUR)), *argv,
                  "--json", str(tmp_path / "out.json")])
     err = capsys.readouterr().err.strip()
     assert code == 2 and "\n" not in err and field in err
     assert not (tmp_path / "out.json").exists()
 
 
-def test_the_budget_is_the_most_candidates_ever_tried(small_load):
+def test_the_budget_is_the_most_candidates_ever_tried(two_layers_of_four):
     """A generation that would pass the budget is not started (a budget of 10 at 8 a
     generation tries 8, not 16)."""
     ten = SearchSettings(**{**FAST.__dict__, "popsize": 4, "max_candidates": 6})
-    problem = Problem.build(small_load, ten)
+    problem = Problem.build(two_layers_of_four, ten)
     state = RobustSearch(problem).run(RobustSearch(problem).start())
     assert len(state.history) == 4
 
 
 def test_too_many_workers_and_absurd_arguments_exit_2(load_file, tmp_path, capsys):
-    load = load_file(base=SMALL)
+    load = load_file(base=TWO_LAYERS_OF_FOUR)
     code = main(["recommend", str(load), "--workers", "1000", "--json", str(tmp_path / "o")])
     err = capsys.readouterr().err.strip()
     assert code == 2 and "--workers" in err and "\n" not in err
@@ -1364,7 +1368,7 @@ def test_the_most_workers_a_backend_takes_are_taken_and_one_more_is_refused(
         backend, most, load_file, capsys):
     """At the limit the next check speaks (a --policy a search does not use, refused before any
     simulation, as is everything here); one worker more is refused under --workers."""
-    load = str(load_file(base=SMALL))
+    load = str(load_file(base=TWO_LAYERS_OF_FOUR))
     for workers, named in ((most, "--policy"), (most + 1, "--workers")):
         code = main(["recommend", load, "--backend", backend, "--workers", str(workers),
                      "--policy", "p.zip"])
@@ -1374,7 +1378,7 @@ def test_the_most_workers_a_backend_takes_are_taken_and_one_more_is_refused(
 
 
 def test_only_a_budget_too_small_says_what_the_first_generation_tries(load_file, capsys):
-    load = str(load_file(base=SMALL))
+    load = str(load_file(base=TWO_LAYERS_OF_FOUR))
     assert main(["recommend", load, "--budget", "2"]) == 2
     assert capsys.readouterr().err.strip().endswith(
         "--budget: must be >= 3 (got 2): the first generation tries the lightest program at "
@@ -1391,9 +1395,9 @@ def test_a_generation_is_8_programs_or_the_whole_budget_when_it_is_smaller(budge
 
 
 
-def test_verification_runs_one_unit_like_a_lab_and_judges_the_asked_layer_shift(small_load):
+def test_verification_runs_one_unit_like_a_lab_and_judges_the_asked_layer_shift(two_layers_of_four):
     settings = replace(FAST, targets=(("long", 0.3),), limits=Limits(layer_shift_fraction=1e-6))
-    problem = Problem.build(small_load, settings)
+    problem = Problem.build(two_layers_of_four, settings)
     check = verify(problem, problem.space.wrap(problem.space.high), samples=1, workers=1)
     verdict = check.runs["long"].verdict
     assert verdict.sequence == "cumulative"
@@ -1405,7 +1409,7 @@ def test_verification_runs_one_unit_like_a_lab_and_judges_the_asked_layer_shift(
     assert "layer_shift_limit" not in FAST.identity()  # older checkpoints stay valid
 
 
-def test_an_answer_s_verification_is_verify_s_and_ends_at_its_first_failure(small_load,
+def test_an_answer_s_verification_is_verify_s_and_ends_at_its_first_failure(two_layers_of_four,
                                                                            monkeypatch, tmp_path):
     """`holding` gives a program that holds the very verification `verify` gives, and None
     for one that fails, its other simulations stopped and its workers gone (here one worker,
@@ -1415,7 +1419,7 @@ def test_an_answer_s_verification_is_verify_s_and_ends_at_its_first_failure(smal
 
     from recommender import search
 
-    problem = Problem.build(small_load, replace(FAST, targets=(("long", 0.3),)))
+    problem = Problem.build(two_layers_of_four, replace(FAST, targets=(("long", 0.3),)))
     strongest = problem.space.wrap(problem.space.high)
     full, held = (check(problem, strongest, 3, workers=2) for check in (verify, search.holding))
     assert full.holds and held is not None

@@ -9,36 +9,20 @@ from pathlib import Path
 import pytest
 
 from recommender import report
-from recommender.cli import main
+from tests.cli import one_line, run
+from tests.conftest import TINY_LOAD
 from tests.wrapenv.conftest import weak_wrap_on_a_slick_unit
 from wrapenv.bench import run_levels
 
 EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
-#: Two PET bundles side by side on one layer (conftest's base load changed): a load that
-#: simulates in a fraction of a second.
-TINY = {"stack.layers": 1, "stack.pattern": "explicit",
-        "stack.positions": [[-0.2, 0.0], [0.2, 0.0]]}
-
-
-def run(argv: list[str]) -> int:
-    try:
-        return main(argv)
-    except SystemExit as exc:
-        return int(exc.code or 0)
-
-
-def one_line(err: str) -> str:
-    lines = err.strip("\n").splitlines()
-    assert len(lines) == 1 and "Traceback" not in err, err
-    return lines[0]
 
 
 def test_the_default_kraft_program_maps_the_tiny_unit_and_does_not_tear_it(load_file, tmp_path,
                                                                            capsys):
     """800 N of Kraft squeezes the two bundles together (they start 12 cm apart): that once
     tore the top ring through a hull that crossed itself; it must not."""
-    load = load_file(TINY)
+    load = load_file(base=TINY_LOAD)
     out_json, out_png = tmp_path / "verdict.json", tmp_path / "map.png"
     code = run(["simulate", str(load), "--wrap", str(EXAMPLES / "program_kraft_default.toml"),
                 "--level", "0.3", "--json", str(out_json), "--tension-map", str(out_png)])
@@ -56,7 +40,7 @@ def test_the_default_kraft_program_maps_the_tiny_unit_and_does_not_tear_it(load_
 ])
 def test_a_map_that_cannot_be_made_exits_2_before_any_work(argv, field, load_file, tmp_path,
                                                            capsys):
-    load = load_file(TINY)
+    load = load_file(base=TINY_LOAD)
     wrap = EXAMPLES / "program_kraft_default.toml"
     args = [a.format(tmp=tmp_path, wrap=wrap) for a in argv]
     code = run(["simulate", str(load), "--level", "0.3", "--json", str(tmp_path / "v.json"),

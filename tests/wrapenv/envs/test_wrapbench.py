@@ -19,7 +19,7 @@ from gymnasium.utils.env_checker import check_env as gym_check_env
 from stable_baselines3.common.env_checker import check_env as sb3_check_env
 
 import wrapenv
-from tests.conftest import rss_kb
+from tests.conftest import TINY_LOAD, rss_kb, to_toml
 from wrapenv.bench import SimSettings, run_levels
 from wrapenv.calibrated import CalibratedPair, Calibration
 from wrapenv.config import InputError
@@ -30,16 +30,6 @@ from wrapenv.load import Friction, FrictionPair, LoadUnit
 
 ENV_ID = "wrapenv/WrapBench-v3"
 RANDOM_ID = "wrapenv/WrapBenchRandom-v3"
-TINY_LOAD = """name = "tiny"
-[pallet]
-preset = "EUR"
-[bundle]
-preset = "PET6x1.5L"
-[stack]
-layers = 1
-pattern = "explicit"
-positions = [[-0.2, 0.0], [0.2, 0.0]]
-"""
 #: One bottom and one top wrap (the least of the space), a touching spiral, every tension at
 #: the lowest; everything at its maximum.
 CHEAP = -np.ones(N_PARAMS, np.float32)
@@ -55,7 +45,7 @@ INFO_KEYS = {"format", "verdict", "material_used", "cycle_time_s", "passed", "ma
 @pytest.fixture(scope="module")
 def tiny(tmp_path_factory) -> Path:
     path = tmp_path_factory.mktemp("env") / "LOAD.toml"
-    path.write_text(TINY_LOAD)
+    path.write_text(to_toml(TINY_LOAD))
     return path
 
 
