@@ -114,10 +114,8 @@ class Sample:
     def wrap(self, wrap: WrapFormat) -> WrapFormat:
         """The wrap as this sample lays it: stiffness and tension scaled, then relaxed (the
         tension it loses is scaled by the sample's relaxation draw)."""
-        laid = wrap.scaled(self.stiffness_scale, self.tension_scale)
-        kept = wrap.material.relaxation.retained(self.hours_since_wrapping)
-        lost = min(1.0, (1.0 - kept) * self.relaxation_scale)
-        return laid.scaled(tension_scale=1.0 - lost)
+        return wrap.scaled(self.stiffness_scale, self.tension_scale).relaxed(
+            self.hours_since_wrapping, self.relaxation_scale)
 
     def to_json(self) -> dict[str, object]:
         return {"friction": {k: asdict(v) for k, v in self.friction.items()},

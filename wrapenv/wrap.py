@@ -320,11 +320,15 @@ class WrapFormat:
         bands = tuple(replace(b, tension_n=b.tension_n * tension_scale) for b in self.bands)
         return replace(self, material=material, bands=bands)
 
-    def relaxed(self, hours: float) -> WrapFormat:
+    def relaxed(self, hours: float, loss_scale: float = 1.0) -> WrapFormat:
         """The wrap after standing `hours` since wrapping: every band's tension scaled by the
-        material's relaxation law (the web's length and stiffness are what they were)."""
+        material's relaxation law (the web's length and stiffness are what they were). With a
+        `loss_scale` (an uncertainty sample's draw), the tension the law loses is scaled by it,
+        never past all of it; at 1 the law's own share is kept exactly."""
         check_hours_since_wrapping(hours)
         kept = self.material.relaxation.retained(hours)
+        if loss_scale != 1.0:
+            kept = 1.0 - min(1.0, (1.0 - kept) * loss_scale)
         return replace(self, bands=tuple(replace(b, tension_n=b.tension_n * kept)
                                          for b in self.bands))
 

@@ -45,6 +45,20 @@ def test_a_relaxed_wrap_keeps_its_web_and_loses_tension_in_every_band():
     assert wrap.relaxed(8760.0).bands[0].tension_n < wrap.bands[0].tension_n
 
 
+def test_a_scaled_loss_scales_what_the_law_takes_never_past_all_the_tension():
+    """An uncertainty sample draws how much of the law's loss its wrap loses: film keeps 74 %
+    after 30 days, so 1.5 x its loss keeps 61 %, and 5 x would lose more than all (none is
+    left, never a negative tension). At 1 the law's own share is kept bit for bit."""
+    height = LoadUnit.from_toml(EXAMPLES / "pet_3layer_columnar.toml").load_height_m
+    wrap = WrapFormat.from_toml(EXAMPLES / "program_lldpe_default.toml", height)
+    lost = 1.0 - FILM_RELAXATION.retained(720.0)
+    assert lost == pytest.approx(0.26, abs=0.005)
+    assert [b.tension_n for b in wrap.relaxed(720.0, 1.5).bands] == pytest.approx(
+        [(1.0 - 1.5 * lost) * b.tension_n for b in wrap.bands])
+    assert all(b.tension_n == 0.0 for b in wrap.relaxed(720.0, 5.0).bands)
+    assert wrap.relaxed(720.0, 1.0) == wrap.relaxed(720.0)
+
+
 def test_film_after_30_days_holds_the_load_less_than_fresh_film():
     load = LoadUnit.from_toml(EXAMPLES / "pet_3layer_columnar.toml")
     wrap = WrapFormat.from_toml(EXAMPLES / "program_lldpe_default.toml", load.load_height_m)
