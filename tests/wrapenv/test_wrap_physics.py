@@ -461,14 +461,19 @@ def test_under_a_weak_card_a_corner_tears_where_the_faces_hold(edge_factor):
 # -- the wrapped unit on the bench ---------------------------------------------------------
 
 
-def middle_push(tension_n: float | None) -> float:
-    """Sideways displacement of the middle of three bundles in a row under a 36 N push."""
+def pushed_row(tension_n: float | None) -> np.ndarray:
+    """Bundle positions (frames, 3, 3) of three 0.28 m bundles in a row along x, 2 mm apart,
+    the middle one pushed sideways with 36 N = 1.3 x its static grip on the pallet
+    (0.3 x 9.3 kg x g = 27.4 N); one Kraft web over the layer at `tension_n`, or none."""
     layout = one_layer([[-0.282, 0.0], [0.0, 0.0], [0.282, 0.0]]).layout()
     wrap = None if tension_n is None else wrap_format("kraft", [(0.0, 0.474, 1, tension_n)])
-    # 36 N = 1.3 x the static friction under the bundle (0.3 x 9.3 kg x g)
     push = Push(layout.bundles[1].name, (0.0, 36.0))
-    trace = run_level(layout, PulseProfile(0.01), wrap=wrap, push=push)
-    return float(np.ptp(trace.bundle_pos_m[:, 1, 1]))
+    return run_level(layout, PulseProfile(0.01), wrap=wrap, push=push).bundle_pos_m
+
+
+def middle_push(tension_n: float | None) -> float:
+    """Sideways displacement of the middle bundle of `pushed_row`."""
+    return float(np.ptp(pushed_row(tension_n)[:, 1, 1]))
 
 
 def test_pretension_squeezes_a_layer_so_it_resists_a_larger_push():
@@ -478,6 +483,25 @@ def test_pretension_squeezes_a_layer_so_it_resists_a_larger_push():
     assert unwrapped > 0.10       # slides away
     assert slack > 0.02           # held only where it bulges out of the envelope
     assert wrapped < 0.005        # held by friction against its squeezed neighbours
+
+
+def test_a_web_squeezes_the_row_only_above_the_tension_whose_pull_beats_the_end_bundles_grip():
+    """By hand: each of the layer's two rings stands for 0.165 m of the 0.5 m web, so it holds
+    0.33 x the web's tension, and pulls each end bundle inward with 2 x that (its two corners
+    there): 4 x 0.33 x T in all, against the end bundle's static grip on the pallet, 27.4 N.
+    So the wrap closes the row's 2 mm gaps as it is laid only above T* = 27.4 N x 0.5 m /
+    (4 x 0.165 m) = 20.7 N. Just below, the middle bundle is not squeezed, and the push slides
+    it as far as under a barely tensioned web; a fifth above, the gaps are shut and it holds."""
+    threshold_n = 0.3 * 9.3 * 9.81 * 0.5 / (4 * 0.165)
+    below, above = pushed_row(0.95 * threshold_n), pushed_row(1.2 * threshold_n)
+
+    def gaps_m(pos: np.ndarray) -> np.ndarray:
+        return np.diff(pos[0, :, 0]) - 0.28   # as the level starts, the wrap laid
+
+    assert gaps_m(below) == pytest.approx([0.002, 0.002], abs=1e-4)
+    assert gaps_m(above) == pytest.approx([0.0, 0.0], abs=2e-4)  # shut: 0.08 mm into each other
+    assert np.ptp(below[:, 1, 1]) == pytest.approx(middle_push(5.0), rel=0.1)
+    assert np.ptp(above[:, 1, 1]) < 0.005
 
 
 def elastic_max(load: LoadUnit, wrap: WrapFormat, level_g: float) -> float:
