@@ -345,7 +345,8 @@ class Renderer:
 
 def fitting_camera(layout: Layout, width: int, height: int) -> SideCamera:
     """A side camera of this size whose scale fits the unit, with room for it to move: centred
-    horizontally, the deck 85 % down the image (a loaded pallet fills the upper part)."""
+    horizontally, the sled frame's origin 85 % down the image (a loaded pallet fills the upper
+    part)."""
     origin = (width / 2, 0.85 * height)
     across = 0.8 * width / (layout.pallet_size_m[0] + 0.2)
     up = (origin[1] - 0.08 * height) / (layout.load_height_m + 0.05)
