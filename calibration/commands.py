@@ -610,6 +610,11 @@ def _summary(result: FitResult) -> str:
         lines.append(f"{'accepted' if result.converged else 'refused'}: the least explained "
                      f"recording, {shown_path(v.source)}, {1e3 * v.rms_m:.2f} mm unexplained by "
                      f"{v.by}{excused}")
+    if result.refined_on:
+        lines.append(f"refined: the search's estimate left {shown_path(result.refined_on)} "
+                     "unexplained; the coefficients of the pairs its bodies rest on were moved "
+                     "to where one of the search's replays made it, within the estimate's "
+                     "uncertainty, and their standard deviations widened to the move")
     if result.converged:
         lines += [f"warning: {shown_path(source)} is a take near a threshold: the fitted values' "
                   "final replays left it unexplained until more were made; a fit can move the "

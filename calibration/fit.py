@@ -12,7 +12,9 @@ static coefficient the recordings support and the test that would identify them
 Methods: "surrogate" (the default, `calibration.surrogate`) fits the bench's mean response and
 weighs each feature by how much replays scatter, which a whole unit near its slip threshold
 needs; "cmaes" and "momentum" (`calibration.descent`) minimise the loss of single replays,
-which suits bodies that slide on their own.
+which suits bodies that slide on their own. Where the surrogate's values leave a bare take
+unexplained, the fit is refined once towards the search's nearest replay that made it
+(`_refined`) before it is refused.
 """
 
 from __future__ import annotations
@@ -26,7 +28,7 @@ from functools import partial
 
 import numpy as np
 
-from calibration import acceptance, identify
+from calibration import acceptance, features, identify
 from calibration.checkpoint import ReplayLog
 from calibration.descent import UNIFORM_STD, descend, least_points
 from calibration.objective import Model, Objective, Param, Progress, loss
@@ -101,7 +103,8 @@ class FitSettings:
     #: would report resolved costs its probes on top (`_probe`: 2 x the final replays of each
     #: bare recording, up to twice that when the other values are refitted), and so does a
     #: recording the final replays, or a probe's, leave unexplained (up to
-    #: `UNEXPLAINED_REPLAYS` in all); `calibrate` raises its default where it is spread thin
+    #: `UNEXPLAINED_REPLAYS` in all), and a refinement of values they refuse (`_refined`:
+    #: as many again); `calibrate` raises its default where it is spread thin
     #: (`default_budget`)
     budget: int = DEFAULT_BUDGET
     workers: int = max(1, os.cpu_count() or 1)
@@ -145,13 +148,17 @@ class FitResult:
     #: (`Calibration.known`) or the material card's and load file's
     fitted_scales: tuple[str, ...] = ()
     #: `simulations` by what they were for: the search (`budget` less the final replays), the
-    #: final replays, more replays of recordings those left unexplained, and the probes
+    #: final replays, more replays of recordings those left unexplained, a refinement's
+    #: (`_refined`) and the probes
     simulations_by_part: dict[str, int] = field(default_factory=dict)
     #: the recordings near a threshold (`near_threshold`)
     near_threshold: tuple[str, ...] = ()
     #: per recording near a threshold, the pairs that slipped in it and in no other
     #: (`sole_slips`): fitted without it, they would be left at a bound
     sole_slips: dict[str, tuple[str, ...]] = field(default_factory=dict)
+    #: the bare recording the search's estimate left unexplained, for which the values were
+    #: moved to where one of the search's replays made it (`_refined`); "" if they were not
+    refined_on: str = ""
 
 
 @dataclass
@@ -169,6 +176,11 @@ class _Fitted:
     unphysical: int = 0
     #: the surrogate's friction stage: its box's coordinates and its fit (for `_profiled`)
     friction_fit: tuple[Model, SurrogateFit] | None = None
+    #: the bare recording the final replays left unexplained and `_refined` then explained
+    refined_on: str = ""
+    #: the friction stage's points and their residuals over the bare recordings, unphysical
+    #: ones left out (for `_refined`)
+    friction_points: list[tuple[np.ndarray, np.ndarray]] = field(default_factory=list)
 
 
 def _friction_params(observations: Sequence[Observation], slipped: frozenset[str],
@@ -227,6 +239,8 @@ def fit(observations: Sequence[Observation], settings: FitSettings,
         progress.spend(repeats * len(observations), "final_replays")
         replays = _replayed_more(observations, found.friction, found.scales, settings, replays,
                                  pool, progress, "unexplained_replays")
+        replays = _refined(observations, bare, found, settings, repeats, replays, pool,
+                           progress)
         _probe(bare, _bracketed(bare, settings), found, settings, repeats, pool, progress)
     return _result(observations, bare, settings, slipped, found, replays, progress)
 
@@ -459,18 +473,89 @@ def _final_replays(settings: FitSettings, recordings: int) -> int:
     return min(FINAL_REPLAYS, max(3, settings.budget // (3 * recordings)))
 
 
+def _refined(observations: Sequence[Observation], bare: Sequence[Observation], found: _Fitted,
+             settings: FitSettings, repeats: int,
+             replays: list[list[dict[str, np.ndarray] | None]], pool: ProcessPoolExecutor,
+             progress: Progress) -> list[list[dict[str, np.ndarray] | None]]:
+    """The final replays, or, where they leave a bare recording unexplained, those of the
+    fitted values moved to where the search once saw it made (`_refinement`), if the acceptance
+    test takes them; the values are then the moved ones (`found`), each standard deviation at
+    least the move. The search fits the bench's mean response, and a take near a threshold is
+    an outcome the mean can miss by a little: the 3-layer unit's 1-layer 0.5 g take, refused
+    at pallet-bundle 0.461 / 0.387 (truth 0.477 / 0.400), one replay in 12 making it, was
+    taken at 0.480 / 0.393 (docs/calibration.md, "A refused fit refined")."""
+    verdict = acceptance.worst(observations, replays)
+    if verdict.rms_m <= settings.max_residual_m:
+        return replays
+    moved = _refinement(bare, found, verdict.source, settings.max_residual_m)
+    if moved is None:
+        return replays
+    runs = [[pool.submit(replay, o, moved, found.scales, resettled(settings.sim, k))
+             for k in range(repeats)] for o in observations]
+    out = [[f.result() for f in fs] for fs in runs]
+    progress.spend(repeats * len(observations), "refinement")
+    out = _replayed_more(observations, moved, found.scales, settings, out, pool, progress,
+                         "refinement")
+    if acceptance.worst(observations, out).rms_m > settings.max_residual_m:
+        return replays
+    for name in PAIRS:
+        was, now = found.friction.pair(name), moved.pair(name)
+        for kind, shift in (("static", now.static - was.static),
+                            ("kinetic", now.kinetic - was.kinetic)):
+            if (kind, name) in found.stds:
+                found.stds[kind, name] = max(found.stds[kind, name], abs(shift))
+    found.friction, found.refined_on = moved, verdict.source
+    return out
+
+
+def _refinement(bare: Sequence[Observation], found: _Fitted, source: str,
+                max_residual_m: float) -> Friction | None:
+    """The fitted friction with the coefficients of the pairs under the recording `source`'s
+    bodies taken from the search's point nearest the estimate whose one replay explained that
+    recording, if that point lies within the estimate's uncertainty (a squared Mahalanobis
+    distance over those coordinates no larger than their number, its mean for a point drawn
+    from the estimate): a refinement, not another answer. None when the search has no such
+    point (the surrogate only). Farther points were tried: the tests' small unit's seed 4
+    moved 2.7 standard deviations to a point its takes accept but whose held-out level it
+    missed by +91 %, where the estimate refused had every coefficient within 0.015."""
+    take = next((i for i, o in enumerate(bare) if o.source == source), None)
+    if take is None or found.friction_fit is None:
+        return None
+    model, result = found.friction_fit
+    pairs = {body.pair for body in bare[take].bodies.values()}
+    coords = [i for i, p in enumerate(model.params) if p.pair in pairs]
+    widths = [2 * sum(o.frames.values()) for o in bare]
+    start, spans = sum(widths[:take]), features.spans(bare[take].frames)
+    precision = np.linalg.pinv(result.cov[np.ix_(coords, coords)])
+    nearest, least = None, float(len(coords))
+    for u, r in found.friction_points:
+        made = acceptance.by_residuals(r[None, start:start + widths[take]], spans)
+        d = (u - result.u)[coords]
+        if made.rms_m <= max_residual_m and (d2 := float(d @ precision @ d)) <= least:
+            nearest, least = u, d2
+    if nearest is None:
+        return None
+    moved = result.u.copy()
+    moved[coords] = nearest[coords]
+    return model.decode(moved)[0]
+
+
 def _run_stage(objective: Objective, settings: FitSettings, limit: int, progress: Progress,
                found: _Fitted) -> None:
     """One stage's parameters by the asked method; updates `found`."""
     model = objective.model
     u0 = model.encode(model.base, model.scales)
     progress.new_stage()
+    friction_stage = not any(p.is_scale for p in model.params)
     if settings.method == "surrogate":
         spp = objective.sims_per_point
 
         def evaluate(us: Sequence[np.ndarray]) -> list[np.ndarray | None]:
             rs = objective.residuals(us)
             progress.record(us, [loss(r) for r in rs], len(us) * spp)
+            if friction_stage:
+                found.friction_points += [(np.array(u), r) for u, r in zip(us, rs, strict=True)
+                                          if r is not None]
             return rs
 
         by_pair = objective.pair_features()
@@ -478,7 +563,7 @@ def _run_stage(objective: Objective, settings: FitSettings, limit: int, progress
         result = surrogate(evaluate, len(u0), (limit - progress.simulations) // spp,
                            settings.seed, shared=objective.shared_noise, informed_by=informed_by)
         u, cov = result.u, result.cov
-        if not any(p.is_scale for p in model.params):
+        if friction_stage:
             found.friction_fit = (model, result)
         found.stages.extend(result.stages)
     else:
@@ -569,7 +654,7 @@ def _result(observations: Sequence[Observation], bare: Sequence[Observation],
                      [runs[0] for runs in replays], not reason, spread_rms, replay_rms, reason,
                      advice, tuple(found.stages), verdict,
                      tuple(name for name in WRAP_PARAMS if (name, "") in found.stds),
-                     dict(progress.parts), near, sole_slips(bare, near))
+                     dict(progress.parts), near, sole_slips(bare, near), found.refined_on)
 
 
 def _friction_advice(bare: Sequence[Observation], found: _Fitted, calibration: Calibration,

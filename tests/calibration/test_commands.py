@@ -662,7 +662,7 @@ def test_a_wrap_only_fit_prints_no_empty_friction_table():
         calibration=Calibration({}, stiffness_scale=1.4, stiffness_scale_std=0.2),
         fitted_scales=("stiffness",), advice={}, residual_rms_m=0.002, spread_rms_m=0.0,
         replay_rms_m=0.003, verdict=Unexplained("rec", 0.001), converged=True,
-        near_threshold=())
+        near_threshold=(), refined_on="")
     lines = _summary(result).splitlines()
     assert lines[0] == "friction: not fitted (the load file's values)"
     assert lines[1].startswith("wrap: stiffness scale 1.40 ± 0.20")
@@ -674,9 +674,19 @@ def _near_threshold_lines(converged: bool, least_explained: str, takes: int,
         calibration=Calibration({}), fitted_scales=(), advice={}, residual_rms_m=0.002,
         spread_rms_m=0.0, replay_rms_m=0.003, verdict=Unexplained(least_explained, 0.009),
         converged=converged, near_threshold=("takes/0.45g",), fitted=[None] * takes,
-        sole_slips={"takes/0.45g": sole})
+        sole_slips={"takes/0.45g": sole}, refined_on="")
     summary = _summary(cast(FitResult, result))
     return [line for line in summary.splitlines() if "near a threshold" in line]
+
+
+def test_a_refined_fit_says_which_take_refined_it_and_what_moved():
+    result = SimpleNamespace(
+        calibration=Calibration({}), fitted_scales=(), advice={}, residual_rms_m=0.002,
+        spread_rms_m=0.0, replay_rms_m=0.003, verdict=Unexplained("takes/0.3g", 0.004),
+        converged=True, near_threshold=(), refined_on="takes/0.5g")
+    (line,) = [x for x in _summary(cast(FitResult, result)).splitlines()
+               if x.startswith("refined:")]
+    assert "left takes/0.5g unexplained" in line and "widened to the move" in line
 
 
 def test_a_written_fit_warns_of_a_take_near_a_threshold_and_how_to_keep_it_apart():

@@ -19,6 +19,8 @@ from calibration.fit import (
     _friction_params,
     _probe,
     _profiled,
+    _refined,
+    _refinement,
     _replayed_more,
     _shifted,
     _stage_points,
@@ -293,8 +295,9 @@ def _stand_in_acceptance(monkeypatch, allowed, replays_needed: int = 1) -> None:
     monkeypatch.setattr(fit_module, "replay", lambda obs, friction, scales, sim: friction)
     monkeypatch.setattr(fit_module.acceptance, "recording",
                         lambda obs, runs: SimpleNamespace(rms_m=rms(runs)))
-    monkeypatch.setattr(fit_module.acceptance, "worst", lambda obs, replays: SimpleNamespace(
-        rms_m=max(rms(runs) for runs in replays)))
+    monkeypatch.setattr(fit_module.acceptance, "worst", lambda obs, replays: max(
+        (SimpleNamespace(rms_m=rms(runs), source=getattr(o, "source", ""))
+         for o, runs in zip(obs, replays, strict=True)), key=lambda v: v.rms_m))
 
 
 def test_a_probe_is_judged_as_the_fit_is_on_up_to_24_replays(monkeypatch, inline_pool):
@@ -313,6 +316,79 @@ def test_a_probe_is_judged_as_the_fit_is_on_up_to_24_replays(monkeypatch, inline
     assert found.stds["static", "bundle_bundle"] == pytest.approx(0.0375)
     assert found.unrefused["bundle_bundle"] == pytest.approx([-0.075, 0.075])
     assert progress.simulations == pool.submitted == 2 * 2 * UNEXPLAINED_REPLAYS
+
+
+#: Two bare takes of one body each (4 features: 2 frames of slip and turn): the first's rests
+#: on the pallet, the second's on a bundle.
+TWO_TAKES = [SimpleNamespace(source=f"takes/{g}g", slipped=frozenset({pair}), frames={"b": 2},
+                             bodies={"b": SimpleNamespace(pair=pair)})
+             for g, pair in ((0.5, "pallet_bundle"), (0.3, "bundle_bundle"))]
+
+
+def _searched(*points: tuple[list[float], float]) -> _Fitted:
+    """A friction fit at the unit box's centre, each coordinate +-0.1 (one standard deviation),
+    whose search replayed `points` (unit box, and how far the first take's one replay of it
+    was from the recording, m; the second take's always 0.05 m off)."""
+    params = (Param("static", "pallet_bundle", 0.3, 0.7), Param("ratio", "pallet_bundle",
+                                                                0.5, 1.0),
+              Param("static", "bundle_bundle", 0.3, 0.7), Param("ratio", "bundle_bundle",
+                                                                0.5, 1.0))
+    model, centre = Model(params, Friction()), np.full(4, 0.5)
+    fitted = SurrogateFit(centre, 0.01 * np.eye(4), (), 0)
+    found = _Fitted(model.decode(centre)[0], friction_fit=(model, fitted),
+                    stds={(kind, name): 0.01 for kind in ("static", "kinetic")
+                          for name in ("pallet_bundle", "bundle_bundle")})
+    found.friction_points = [(np.array(u), np.r_[np.full(4, off), np.full(4, 0.05)])
+                             for u, off in points]
+    return found
+
+
+def test_a_refused_fit_is_refined_towards_the_nearest_replay_that_made_its_take():
+    """Of the search's points whose replay made the first take (0 m off), the nearest within
+    the estimate's uncertainty (squared distance over the take's two coordinates at most 2:
+    0.5 here, 1.6 the farther) gives the coefficients of the pair the take's body rests on;
+    the other pair's are kept, wherever that point had them. A nearer point that missed the
+    take (0.05 m) does not count; one 2.2 standard deviations away (4.8) is not a
+    refinement; a take that is not bare (a wrapped one) gets none."""
+    made, missed, farther, far = ([0.55, 0.55, 0.9, 0.1], 0.0), ([0.52, 0.5, 0.5, 0.5], 0.05), \
+        ([0.6, 0.6, 0.5, 0.5], 0.0), ([0.7, 0.4, 0.5, 0.5], 0.0)
+    found = _searched(far, farther, missed, made)
+    moved = _refinement(TWO_TAKES, found, "takes/0.5g", 0.01)
+    assert moved is not None
+    assert moved.pallet_bundle.static == pytest.approx(0.3 + 0.4 * 0.55)
+    assert moved.pallet_bundle.kinetic / moved.pallet_bundle.static == pytest.approx(0.775)
+    assert moved.bundle_bundle == found.friction.bundle_bundle
+    assert _refinement(TWO_TAKES, _searched(missed, far), "takes/0.5g", 0.01) is None
+    assert _refinement(TWO_TAKES, found, "takes/wrapped-0.5g", 0.01) is None
+    assert _refinement(TWO_TAKES, _Fitted(found.friction), "takes/0.5g", 0.01) is None
+
+
+def test_refined_values_are_taken_only_if_the_acceptance_test_takes_them(monkeypatch,
+                                                                         inline_pool):
+    """A stand-in bench that explains both takes with pallet-bundle's static coefficient within
+    0.01 of 0.52: the fitted 0.50 is refused on the first take, the refined 0.52 is replayed 6
+    times per take and taken, its standard deviation widened to the move (0.02), the take it
+    was refined on named. Where the stand-in explains only 0.60, the refined values are
+    refused too (on 24 replays, as the fit's own are) and the fit stays as it was."""
+    for truth, taken in ((0.52, True), (0.60, False)):
+        _stand_in_acceptance(monkeypatch,
+                             lambda f, t=truth: abs(f.pallet_bundle.static - t) <= 0.01)
+        found = _searched(([0.55, 0.5, 0.5, 0.5], 0.0))
+        fitted, progress = found.friction, Progress()
+        final = [[fitted] * 6 for _ in TWO_TAKES]
+        out = _refined(TWO_TAKES, TWO_TAKES, found, FitSettings(), 6, final, inline_pool,
+                       progress)
+        # 6 replays per take; refused, each take is replayed up to 24 times first
+        replays = 6 if taken else UNEXPLAINED_REPLAYS
+        assert progress.parts == {"refinement": len(TWO_TAKES) * replays}
+        if taken:
+            assert found.friction.pallet_bundle.static == pytest.approx(0.52)
+            assert out == [[found.friction] * 6 for _ in TWO_TAKES]
+            assert found.stds["static", "pallet_bundle"] == pytest.approx(0.02)
+            assert found.stds["static", "bundle_bundle"] == 0.01
+            assert found.refined_on == "takes/0.5g"
+        else:
+            assert (found.friction, out, found.refined_on) == (fitted, final, "")
 
 
 def test_a_take_replayed_beyond_the_final_replays_is_reported_near_a_threshold():
