@@ -299,11 +299,12 @@ def report(name: str, method: str, result: FitResult, truth: Truth, wall: float,
 
 def _least_explained(result: FitResult) -> str:
     """'; least explained: TAKE, 4.2 mm by replay 9', for an accepted fit (a refused one's
-    reason names it)."""
+    reason names it), and '; refined on TAKE' for a fit the refinement made acceptable."""
     v = result.verdict
     if not result.converged or not v.source:
         return ""
-    return f"; least explained: {Path(v.source).name}, {1e3 * v.rms_m:.1f} mm by {v.by}"
+    refined = (f"; refined on {Path(result.refined_on).name}" if result.refined_on else "")
+    return f"; least explained: {Path(v.source).name}, {1e3 * v.rms_m:.1f} mm by {v.by}{refined}"
 
 
 @dataclass(frozen=True)
