@@ -31,7 +31,7 @@ import numpy as np
 from calibration import acceptance, features, identify
 from calibration.checkpoint import ReplayLog
 from calibration.descent import UNIFORM_STD, descend, least_points
-from calibration.objective import Model, Objective, Param, Progress, loss
+from calibration.objective import Model, Objective, Param, Progress, loss, offsets
 from calibration.replay import Observation, replay, resettled, residuals
 from calibration.surrogate import (
     MAX_STAGES,
@@ -232,11 +232,8 @@ def fit(observations: Sequence[Observation], settings: FitSettings,
             objective = Objective([observations[i] for i in indices], model, pool, settings.sim,
                                   log)
             _run_stage(objective, settings, limit, progress, found)
-        runs = [[pool.submit(replay, o, found.friction, found.scales,
-                             resettled(settings.sim, k)) for k in range(repeats)]
-                for o in observations]
-        replays = [[f.result() for f in fs] for fs in runs]
-        progress.spend(repeats * len(observations), "final_replays")
+        replays = _replays(observations, found.friction, found.scales, settings, repeats, pool,
+                           progress, "final_replays")
         replays = _replayed_more(observations, found.friction, found.scales, settings, replays,
                                  pool, progress, "unexplained_replays")
         replays = _refined(observations, bare, found, settings, repeats, replays, pool,
@@ -441,6 +438,19 @@ def default_budget(observations: Sequence[Observation], settings: FitSettings) -
     return max(budget, min_budget(observations, settings))
 
 
+def _replays(observations: Sequence[Observation], friction: Friction,
+             scales: dict[str, float], settings: FitSettings, repeats: int,
+             pool: ProcessPoolExecutor, progress: Progress, part: str
+             ) -> list[list[dict[str, np.ndarray] | None]]:
+    """`repeats` replays of each recording with these values (all in parallel), each settling
+    a little longer (`resettled`), counted as `part`."""
+    runs = [[pool.submit(replay, o, friction, scales, resettled(settings.sim, k))
+             for k in range(repeats)] for o in observations]
+    out = [[f.result() for f in fs] for fs in runs]
+    progress.spend(repeats * len(observations), part)
+    return out
+
+
 def _replayed_more(observations: Sequence[Observation], friction: Friction,
                    scales: dict[str, float], settings: FitSettings,
                    replays: list[list[dict[str, np.ndarray] | None]],
@@ -490,10 +500,8 @@ def _refined(observations: Sequence[Observation], bare: Sequence[Observation], f
     moved = _refinement(bare, found, verdict.source, settings.max_residual_m)
     if moved is None:
         return replays
-    runs = [[pool.submit(replay, o, moved, found.scales, resettled(settings.sim, k))
-             for k in range(repeats)] for o in observations]
-    out = [[f.result() for f in fs] for fs in runs]
-    progress.spend(repeats * len(observations), "refinement")
+    out = _replays(observations, moved, found.scales, settings, repeats, pool, progress,
+                   "refinement")
     out = _replayed_more(observations, moved, found.scales, settings, out, pool, progress,
                          "refinement")
     if acceptance.worst(observations, out).rms_m > settings.max_residual_m:
@@ -524,12 +532,12 @@ def _refinement(bare: Sequence[Observation], found: _Fitted, source: str,
     model, result = found.friction_fit
     pairs = {body.pair for body in bare[take].bodies.values()}
     coords = [i for i, p in enumerate(model.params) if p.pair in pairs]
-    widths = [2 * sum(o.frames.values()) for o in bare]
-    start, spans = sum(widths[:take]), features.spans(bare[take].frames)
+    start, end = offsets(bare)[take:take + 2]
+    spans = features.spans(bare[take].frames)
     precision = np.linalg.pinv(result.cov[np.ix_(coords, coords)])
     nearest, least = None, float(len(coords))
     for u, r in found.friction_points:
-        made = acceptance.by_residuals(r[None, start:start + widths[take]], spans)
+        made = acceptance.by_residuals(r[None, start:end], spans)
         d = (u - result.u)[coords]
         if made.rms_m <= max_residual_m and (d2 := float(d @ precision @ d)) <= least:
             nearest, least = u, d2

@@ -8,6 +8,7 @@ the base-2 logarithm of the scale.
 
 from __future__ import annotations
 
+import itertools
 import math
 from collections.abc import Callable, Mapping, Sequence
 from concurrent.futures import Executor, Future
@@ -23,6 +24,12 @@ from wrapenv.load import PAIRS, Friction, FrictionPair
 
 #: Loss given to a candidate whose simulation became unphysical (m^2: a 1 m residual).
 INVALID_LOSS = 1.0
+
+
+def offsets(observations: Sequence[Observation]) -> list[int]:
+    """Where each recording's features start in `Objective.residuals`' vectors (per body its
+    slip's and turn's frames, `features.spans`), and, last, where the vectors end."""
+    return [0, *itertools.accumulate(2 * sum(o.frames.values()) for o in observations)]
 
 
 def loss(r: np.ndarray | None) -> float:
@@ -192,21 +199,18 @@ class Objective:
         """Indices into `residuals`' vectors of the features of each contact pair: the slips
         and turns of the bodies resting on it (a slip isolates its pair)."""
         out: dict[str, list[np.ndarray]] = {}
-        start = 0
-        for obs in self.observations:
+        for obs, start in zip(self.observations, offsets(self.observations)[:-1], strict=True):
             for name, idx in features.spans(obs.frames).items():
                 out.setdefault(obs.bodies[name].pair, []).append(start + idx)
-            start += 2 * sum(obs.frames.values())
         return {pair: np.concatenate(idx) for pair, idx in out.items()}
 
     @property
     def shared_noise(self) -> list[np.ndarray]:
         """Indices into `residuals`' vectors of each body's slip and of its turn: each counted
         from the body's first tracked frame, so that frame's tracker error is shared by all."""
-        out, start = [], 0
-        for obs in self.observations:
+        out = []
+        for obs, start in zip(self.observations, offsets(self.observations)[:-1], strict=True):
             for idx in features.spans(obs.frames).values():
                 half = len(idx) // 2
                 out += [start + idx[:half], start + idx[half:]]
-            start += 2 * sum(obs.frames.values())
         return out
