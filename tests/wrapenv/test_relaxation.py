@@ -60,6 +60,8 @@ def test_a_scaled_loss_scales_what_the_law_takes_never_past_all_the_tension():
 
 
 def test_film_after_30_days_holds_the_load_less_than_fresh_film():
+    """On the example; where relaxation takes a web below a tension derived by hand, see
+    test_wrap_physics.py, `test_film_relaxed_below_that_tension_no_longer_squeezes_...`."""
     load = LoadUnit.from_toml(EXAMPLES / "pet_3layer_columnar.toml")
     wrap = WrapFormat.from_toml(EXAMPLES / "program_lldpe_default.toml", load.load_height_m)
     # at 0.6 g the default film program works near its limit (measured: 54 mm elastic fresh,

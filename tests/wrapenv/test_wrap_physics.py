@@ -461,19 +461,29 @@ def test_under_a_weak_card_a_corner_tears_where_the_faces_hold(edge_factor):
 # -- the wrapped unit on the bench ---------------------------------------------------------
 
 
-def pushed_row(tension_n: float | None) -> np.ndarray:
+def row_web(tension_n: float, material: str = "kraft") -> WrapFormat:
+    """One web over the layer of `pushed_row`."""
+    return wrap_format(material, [(0.0, 0.474, 1, tension_n)])
+
+
+def pushed_row(web: float | WrapFormat | None) -> np.ndarray:
     """Bundle positions (frames, 3, 3) of three 0.28 m bundles in a row along x, 2 mm apart,
     the middle one pushed sideways with 36 N = 1.3 x its static grip on the pallet
-    (0.3 x 9.3 kg x g = 27.4 N); one Kraft web over the layer at `tension_n`, or none."""
+    (0.3 x 9.3 kg x g = 27.4 N); `web` a wrap, a Kraft `row_web`'s tension, or None."""
     layout = one_layer([[-0.282, 0.0], [0.0, 0.0], [0.282, 0.0]]).layout()
-    wrap = None if tension_n is None else wrap_format("kraft", [(0.0, 0.474, 1, tension_n)])
+    wrap = row_web(web) if isinstance(web, float) else web
     push = Push(layout.bundles[1].name, (0.0, 36.0))
     return run_level(layout, PulseProfile(0.01), wrap=wrap, push=push).bundle_pos_m
 
 
-def middle_push(tension_n: float | None) -> float:
+def middle_push(web: float | WrapFormat | None) -> float:
     """Sideways displacement of the middle bundle of `pushed_row`."""
-    return float(np.ptp(pushed_row(tension_n)[:, 1, 1]))
+    return float(np.ptp(pushed_row(web)[:, 1, 1]))
+
+
+#: The web tension above which the row's wrap shuts its gaps as it is laid (derived in
+#: `test_a_web_squeezes_the_row_only_above_the_tension_whose_pull_beats_the_end_bundles_grip`).
+ROW_SQUEEZE_N = 0.3 * 9.3 * 9.81 * 0.5 / (4 * 0.165)
 
 
 def test_pretension_squeezes_a_layer_so_it_resists_a_larger_push():
@@ -492,8 +502,7 @@ def test_a_web_squeezes_the_row_only_above_the_tension_whose_pull_beats_the_end_
     So the wrap closes the row's 2 mm gaps as it is laid only above T* = 27.4 N x 0.5 m /
     (4 x 0.165 m) = 20.7 N. Just below, the middle bundle is not squeezed, and the push slides
     it as far as under a barely tensioned web; a fifth above, the gaps are shut and it holds."""
-    threshold_n = 0.3 * 9.3 * 9.81 * 0.5 / (4 * 0.165)
-    below, above = pushed_row(0.95 * threshold_n), pushed_row(1.2 * threshold_n)
+    below, above = pushed_row(0.95 * ROW_SQUEEZE_N), pushed_row(1.2 * ROW_SQUEEZE_N)
 
     def gaps_m(pos: np.ndarray) -> np.ndarray:
         return np.diff(pos[0, :, 0]) - 0.28   # as the level starts, the wrap laid
@@ -502,6 +511,28 @@ def test_a_web_squeezes_the_row_only_above_the_tension_whose_pull_beats_the_end_
     assert gaps_m(above) == pytest.approx([0.0, 0.0], abs=2e-4)  # shut: 0.08 mm into each other
     assert np.ptp(below[:, 1, 1]) == pytest.approx(middle_push(5.0), rel=0.1)
     assert np.ptp(above[:, 1, 1]) < 0.005
+
+
+def test_film_relaxed_below_that_tension_no_longer_squeezes_the_row_and_above_it_still_does():
+    """By hand: film keeps 74 % of its tension after 30 days (Dunno & Symanski, the relaxation
+    law's own figure). Laid at 1.2 T* it keeps 0.89 T*, below the squeeze threshold T* of the
+    test above: the row's gaps stay open, and the middle bundle, held only where it bulges out
+    of the envelope, slides as under a slack web (more than 20 mm, `test_pretension_...`).
+    Laid at 1.5 T* it keeps 1.11 T*: the gaps shut and it holds, as the fresh web does at
+    either tension."""
+    kept = MATERIALS["lldpe"].relaxation.retained(720.0)
+    assert kept == pytest.approx(0.74, abs=0.005)
+    for laid in (1.2, 1.5):
+        web = row_web(laid * ROW_SQUEEZE_N, "lldpe")
+        assert middle_push(web) < 0.005, laid
+        month = pushed_row(web.relaxed(720.0))
+        gaps_m = np.diff(month[0, :, 0]) - 0.28
+        if laid * kept < 1.0:
+            assert gaps_m == pytest.approx([0.002, 0.002], abs=1e-4)
+            assert np.ptp(month[:, 1, 1]) > 0.02
+        else:
+            assert gaps_m == pytest.approx([0.0, 0.0], abs=2e-4)
+            assert np.ptp(month[:, 1, 1]) < 0.005
 
 
 def elastic_max(load: LoadUnit, wrap: WrapFormat, level_g: float) -> float:
@@ -534,19 +565,74 @@ def test_strain_past_break_tears_the_wrap_and_fails_the_verdict():
     assert verdict.to_json()["wrap"]["torn"] is True
 
 
+def tether_pull_n(layout, wrap: WrapFormat, dx_m: float) -> np.ndarray:
+    """The wrap's force on the one bundle of `layout`, laid at rest and then the bundle moved
+    `dx_m` along x in one go (a monotonic stretch: the plastic part as the pulse leaves it)."""
+    net = WrapNet(wrap, layout)
+    pos, rot = rest_state(layout)
+    net.freeze(pos, rot)
+    moved = pos.copy()
+    moved[1, 0] += dx_m
+    zero = np.zeros_like(pos)
+    return net.forces(moved, rot, zero, zero)[0][1]
+
+
+def test_a_tethered_bundle_sways_as_a_mass_on_a_spring_as_stiff_as_its_layers_make_it():
+    """The tethered bundle below, its web elastic, at 0.4 g: by hand a mass on a spring K (the
+    tether's slope, probed on the net) under a step push of (0.4 - mu_k) m g, the pulse's
+    0.5 s dwell twice its period or more. It sways at least to where static friction alone
+    can hold it, (0.4 - mu_s) m g / K, and at most to twice the step's static deflection,
+    2 (0.4 - mu_k) m g / K (undamped); between, the same step on a stiffer spring sways less
+    as 1 / K (within 10 %: the ramp is a larger part of a shorter period). Each layer adds
+    stiffness in parallel, less the give of the bundle's corners in series: up to n x."""
+    layout = one_layer([[0.0, 0.0]], pallet_bundle=(0.1, 0.08)).layout()
+    mass_kg = layout.bundles[0].mass_kg
+    sway_m, k_n_per_m = [], []
+    for layers in (1, 2, 4):
+        wrap = wrap_format(custom(2e3, 0.5), [(0.0, 0.474, layers, 1.0)])
+        k = tether_pull_n(layout, wrap, -0.001)[0] / 0.001
+        assert 2 * math.pi * math.sqrt(mass_kg / k) < 0.5 / 2
+        trace = run_level(layout, PulseProfile(0.4, decel_ratio=0.1), wrap=wrap)
+        sway = -np.min(trace.bundle_pos_m[:, 0, 0] - trace.bundle_pos_m[0, 0, 0])
+        assert (0.4 - 0.1) * mass_kg * 9.81 / k <= sway <= 2 * (0.4 - 0.08) * mass_kg * 9.81 / k
+        sway_m.append(sway)
+        k_n_per_m.append(k)
+    assert k_n_per_m[0] < k_n_per_m[1] < k_n_per_m[2] <= 4 * k_n_per_m[0]
+    assert [sway / sway_m[0] for sway in sway_m] == pytest.approx(
+        [k_n_per_m[0] / k for k in k_n_per_m], rel=0.1)
+
+
 def test_strain_past_yield_leaves_permanent_displacement_after_the_pulse():
-    """One bundle tethered to the pallet by the wrap; a gentle stop (0.04 g, below the 0.08 g
-    kinetic friction) so nothing but the wrap brings it back."""
+    """One bundle (9.3 kg) tethered to the pallet by one web, on a slick pallet (static 0.10,
+    kinetic 0.08): the pulse slides it back; the stop (0.04 g, below either coefficient) never
+    pushes it harder than friction resists, so nothing but the wrap brings it back. By hand,
+    with the tether's pull P(x) probed on the wrap's net and K its elastic slope:
+    - an elastic web is a spring with Coulomb friction: the bundle comes to rest where the
+      spring no longer beats static friction, |x_end| <= mu_s (m g + |P_z|) / K (1.4 mm);
+    - a yielding web gives back from the peak x_pk only its elastic energy, P(x_pk)^2 / 2K,
+      against at least (mu_k - 0.04) m g of friction: the bundle returns at most that energy
+      over that force and stays at least |x_pk| - return from home (16 of 28 mm)."""
     load = one_layer([[0.0, 0.0]], pallet_bundle=(0.1, 0.08))
+    layout = load.layout()
+    weight_n = layout.bundles[0].mass_kg * 9.81
     profile = PulseProfile(0.4, decel_ratio=0.1)
-    results = {}
     for name, yield_strain in (("yielding", 0.005), ("elastic", 0.5)):  # 0.5: a card's most
         wrap = wrap_format(custom(2e3, yield_strain), [(0.0, 0.474, 1, 1.0)])
-        trace = run_level(load.layout(), profile, wrap=wrap)
-        results[name] = (evaluate(trace).permanent_max_m, trace.wrap.plastic_strain_max)
-    assert results["yielding"][1] > 0.01 and results["elastic"][1] == 0.0
-    assert results["yielding"][0] > 5 * results["elastic"][0]
-    assert results["yielding"][0] > 0.01
+        trace = run_level(layout, profile, wrap=wrap)
+        x_m = trace.bundle_pos_m[:, 0, 0] - trace.bundle_pos_m[0, 0, 0]
+        pull = tether_pull_n(layout, wrap, -0.001)
+        k_n_per_m = pull[0] / 0.001
+        assert tether_pull_n(layout, wrap, 0.001)[0] == pytest.approx(-pull[0], rel=0.01)
+        if name == "elastic":
+            assert trace.wrap.plastic_strain_max == 0.0
+            assert abs(x_m[-1]) <= 0.1 * (weight_n + abs(pull[2])) / k_n_per_m
+        else:
+            assert trace.wrap.plastic_strain_max > yield_strain
+            peak_m = x_m.min()
+            energy_j = tether_pull_n(layout, wrap, peak_m)[0] ** 2 / (2 * k_n_per_m)
+            back_m = energy_j / ((0.08 - 0.04) * weight_n)
+            assert -x_m[-1] >= -peak_m - back_m > 10 * 0.1 * weight_n / k_n_per_m
+            assert evaluate(trace).permanent_max_m == pytest.approx(-x_m[-1], abs=1e-3)
 
 
 def test_three_layer_example_fails_unwrapped_where_the_example_wraps_pass():
