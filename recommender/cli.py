@@ -416,17 +416,22 @@ def main(argv: Sequence[str] | None = None) -> int:
 def run() -> int:
     """The `wrapbench` command: `main`, then, if it was interrupted, a Ctrl-C that comes while
     the process winds down (the interpreter joins the worker pool's threads at exit) ignored
-    too. `main` itself restores its caller's handlers, as an in-process caller needs."""
+    too. `main` itself restores its caller's handlers, as an in-process caller needs; a second
+    Ctrl-C that lands just as it has, or one while it reads its arguments (before it sets its
+    own), ends the command quietly with Ctrl-C's status: the first already said what it left."""
     try:
         code = main()
+        if code in (128 + signal.SIGINT, 128 + signal.SIGTERM):
+            signal.signal(signal.SIGINT, signal.SIG_IGN)
+    except KeyboardInterrupt:
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+        return 128 + signal.SIGINT
     except BrokenPipeError:
         # stdout's reader went away (`wrapbench simulate ... | head`): end as a Unix tool does
         # on SIGPIPE, without a traceback; stdout goes to devnull so the exit's flush cannot
         # raise again (Python's documented way, library/signal.html)
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 128 + signal.SIGPIPE
-    if code in (128 + signal.SIGINT, 128 + signal.SIGTERM):
-        signal.signal(signal.SIGINT, signal.SIG_IGN)
     return code
 
 
