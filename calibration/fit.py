@@ -176,8 +176,10 @@ class _Fitted:
     unphysical: int = 0
     #: the surrogate's friction stage: its box's coordinates and its fit (for `_profiled`)
     friction_fit: tuple[Model, SurrogateFit] | None = None
-    #: the bare recording the final replays left unexplained and `_refined` then explained
+    #: the bare recording the final replays left unexplained and `_refined` then explained,
+    #: and the move that did it in the friction stage's unit box (for `_profiled`)
     refined_on: str = ""
+    refinement_u: np.ndarray | None = None
     #: the friction stage's points and their residuals over the bare recordings, unphysical
     #: ones left out (for `_refined`)
     friction_points: list[tuple[np.ndarray, np.ndarray]] = field(default_factory=list)
@@ -342,7 +344,9 @@ def _profiled(found: _Fitted, name: str, delta: float) -> Friction | None:
     without an emulator (the descents), or beyond the pair's prior or every local box. Kept,
     values that are off themselves can refuse a shift the recordings allow: the 2-layer unit
     with a 0.30 g take, seed 1 at 600 simulations, whose bundle-bundle probe 0.075 lower (0.005
-    from the truth) left 14.5 mm unexplained with the others kept, 7.5 mm with them refitted."""
+    from the truth) left 14.5 mm unexplained with the others kept, 7.5 mm with them refitted.
+    A refined fit's others move by the refinement too (`_refined`): the emulator's best is
+    where the final replays missed the take that the refinement made."""
     if found.friction_fit is None:
         return None
     model, result = found.friction_fit
@@ -353,7 +357,11 @@ def _profiled(found: _Fitted, name: str, delta: float) -> Friction | None:
     if not param.low <= static <= param.high:
         return None
     u = profile(result, index, param.unit(static))
-    return None if u is None else model.decode(u)[0]
+    if u is None:
+        return None
+    if found.refinement_u is not None:
+        u = u + np.where(np.arange(len(u)) == index, 0.0, found.refinement_u)
+    return model.decode(u)[0]
 
 
 def _shifted(friction: Friction, name: str, delta: float) -> Friction:
@@ -497,9 +505,11 @@ def _refined(observations: Sequence[Observation], bare: Sequence[Observation], f
     verdict = acceptance.worst(observations, replays)
     if verdict.rms_m <= settings.max_residual_m:
         return replays
-    moved = _refinement(bare, found, verdict.source, settings.max_residual_m)
-    if moved is None:
+    moved_u = _refinement(bare, found, verdict.source, settings.max_residual_m)
+    if moved_u is None or found.friction_fit is None:
         return replays
+    model, result = found.friction_fit
+    moved = model.decode(moved_u)[0]
     out = _replays(observations, moved, found.scales, settings, repeats, pool, progress,
                    "refinement")
     out = _replayed_more(observations, moved, found.scales, settings, out, pool, progress,
@@ -513,19 +523,20 @@ def _refined(observations: Sequence[Observation], bare: Sequence[Observation], f
             if (kind, name) in found.stds:
                 found.stds[kind, name] = max(found.stds[kind, name], abs(shift))
     found.friction, found.refined_on = moved, verdict.source
+    found.refinement_u = moved_u - result.u
     return out
 
 
 def _refinement(bare: Sequence[Observation], found: _Fitted, source: str,
-                max_residual_m: float) -> Friction | None:
-    """The fitted friction with the coefficients of the pairs under the recording `source`'s
-    bodies taken from the search's point nearest the estimate whose one replay explained that
-    recording, if that point lies within the estimate's uncertainty (a squared Mahalanobis
-    distance over those coordinates no larger than their number, its mean for a point drawn
-    from the estimate): a refinement, not another answer. None when the search has no such
-    point (the surrogate only). Farther points were tried: the tests' small unit's seed 4
-    moved 2.7 standard deviations to a point its takes accept but whose held-out level it
-    missed by +91 %, where the estimate refused had every coefficient within 0.015."""
+                max_residual_m: float) -> np.ndarray | None:
+    """The friction stage's estimate (in its unit box) with the coordinates of the pairs under
+    the recording `source`'s bodies taken from the search's point nearest the estimate whose
+    one replay explained that recording, if that point lies within the estimate's uncertainty
+    (a squared Mahalanobis distance over those coordinates no larger than their number, its
+    mean for a point drawn from the estimate): a refinement, not another answer. None when the
+    search has no such point (the surrogate only). Farther points were tried: the tests' small
+    unit's seed 4 moved 2.7 standard deviations to a point its takes accept but whose held-out
+    level it missed by +91 %, where the estimate refused had every coefficient within 0.015."""
     take = next((i for i, o in enumerate(bare) if o.source == source), None)
     if take is None or found.friction_fit is None:
         return None
@@ -545,7 +556,7 @@ def _refinement(bare: Sequence[Observation], found: _Fitted, source: str,
         return None
     moved = result.u.copy()
     moved[coords] = nearest[coords]
-    return model.decode(moved)[0]
+    return moved
 
 
 def _run_stage(objective: Objective, settings: FitSettings, limit: int, progress: Progress,

@@ -265,6 +265,30 @@ def test_a_profile_refits_the_other_values_to_the_shifted_one():
     assert _profiled(_Fitted(_sum_pinned().friction), "bundle_bundle", -0.075) is None
 
 
+def test_a_refined_fit_s_profile_keeps_the_refinement_in_the_others_not_in_the_held_one():
+    """Refined by +0.02 in pallet-bundle's static coordinate (+0.01, the box 0.5 wide) and
+    +0.04 in its ratio's (+0.02), then bundle-bundle's static probed 0.075 lower: the emulator
+    puts pallet-bundle's static at 0.475 and its ratio at 0.8, and the refinement moves them on
+    to 0.485 and 0.82. Refined in bundle-bundle's own coordinate (+0.01), the probe holds it at
+    the refined value less 0.075, and the emulator's best for that is pallet-bundle 0.465."""
+    found = _sum_pinned()
+    model, fitted = found.friction_fit or (None, None)
+    assert model is not None and fitted is not None
+    found.refinement_u = np.array([0.02, 0.04, 0.0, 0.0])
+    profiled = _profiled(found, "bundle_bundle", -0.075)
+    assert profiled is not None
+    assert profiled.bundle_bundle.static == pytest.approx(0.325)
+    assert profiled.pallet_bundle.static == pytest.approx(0.485, abs=0.005)
+    assert profiled.pallet_bundle.kinetic / profiled.pallet_bundle.static == pytest.approx(
+        0.82, abs=0.01)
+    found.refinement_u = np.array([0.0, 0.0, 0.02, 0.0])
+    found.friction = model.decode(fitted.u + found.refinement_u)[0]
+    profiled = _profiled(found, "bundle_bundle", -0.075)
+    assert profiled is not None
+    assert profiled.bundle_bundle.static == pytest.approx(0.335)
+    assert profiled.pallet_bundle.static == pytest.approx(0.465, abs=0.005)
+
+
 def test_a_shift_the_others_can_make_up_for_is_allowed(monkeypatch, inline_pool):
     """A stand-in bench whose acceptance test allows any values whose static coefficients sum
     to 0.80 (within 0.01): either probe of bundle-bundle is refused with pallet-bundle kept and
@@ -353,8 +377,9 @@ def test_a_refused_fit_is_refined_towards_the_nearest_replay_that_made_its_take(
     made, missed, farther, far = ([0.55, 0.55, 0.9, 0.1], 0.0), ([0.52, 0.5, 0.5, 0.5], 0.05), \
         ([0.6, 0.6, 0.5, 0.5], 0.0), ([0.7, 0.4, 0.5, 0.5], 0.0)
     found = _searched(far, farther, missed, made)
-    moved = _refinement(TWO_TAKES, found, "takes/0.5g", 0.01)
-    assert moved is not None
+    moved_u = _refinement(TWO_TAKES, found, "takes/0.5g", 0.01)
+    assert moved_u is not None and found.friction_fit is not None
+    moved = found.friction_fit[0].decode(moved_u)[0]
     assert moved.pallet_bundle.static == pytest.approx(0.3 + 0.4 * 0.55)
     assert moved.pallet_bundle.kinetic / moved.pallet_bundle.static == pytest.approx(0.775)
     assert moved.bundle_bundle == found.friction.bundle_bundle
@@ -368,8 +393,9 @@ def test_refined_values_are_taken_only_if_the_acceptance_test_takes_them(monkeyp
     """A stand-in bench that explains both takes with pallet-bundle's static coefficient within
     0.01 of 0.52: the fitted 0.50 is refused on the first take, the refined 0.52 is replayed 6
     times per take and taken, its standard deviation widened to the move (0.02), the take it
-    was refined on named. Where the stand-in explains only 0.60, the refined values are
-    refused too (on 24 replays, as the fit's own are) and the fit stays as it was."""
+    was refined on named, the move kept for the probes' profiles. Where the stand-in explains
+    only 0.60, the refined values are refused too (on 24 replays, as the fit's own are) and the
+    fit stays as it was."""
     for truth, taken in ((0.52, True), (0.60, False)):
         _stand_in_acceptance(monkeypatch,
                              lambda f, t=truth: abs(f.pallet_bundle.static - t) <= 0.01)
@@ -387,8 +413,10 @@ def test_refined_values_are_taken_only_if_the_acceptance_test_takes_them(monkeyp
             assert found.stds["static", "pallet_bundle"] == pytest.approx(0.02)
             assert found.stds["static", "bundle_bundle"] == 0.01
             assert found.refined_on == "takes/0.5g"
+            assert found.refinement_u == pytest.approx([0.05, 0.0, 0.0, 0.0])  # for probes
         else:
             assert (found.friction, out, found.refined_on) == (fitted, final, "")
+            assert found.refinement_u is None
 
 
 def test_a_take_replayed_beyond_the_final_replays_is_reported_near_a_threshold():
