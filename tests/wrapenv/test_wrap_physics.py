@@ -611,7 +611,8 @@ def test_strain_past_yield_leaves_permanent_displacement_after_the_pulse():
       spring no longer beats static friction, |x_end| <= mu_s (m g + |P_z|) / K (1.4 mm);
     - a yielding web gives back from the peak x_pk only its elastic energy, P(x_pk)^2 / 2K,
       against at least (mu_k - 0.04) m g of friction: the bundle returns at most that energy
-      over that force and stays at least |x_pk| - return from home (16 of 28 mm)."""
+      over that force and stays at least |x_pk| - return from home (16 of 28 mm), over ten
+      times the elastic web's band."""
     load = one_layer([[0.0, 0.0]], pallet_bundle=(0.1, 0.08))
     layout = load.layout()
     weight_n = layout.bundles[0].mass_kg * 9.81
