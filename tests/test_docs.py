@@ -5,6 +5,7 @@ every benchmark the README names is in `benchmarks/`. A renamed flag breaks this
 from __future__ import annotations
 
 import argparse
+import functools
 import re
 import shlex
 from pathlib import Path
@@ -21,9 +22,12 @@ MENTION = re.compile(rf"wrapbench ({'|'.join(COMMANDS)})\b([^`\n]*)")
 FLAG = re.compile(r"(?<![\w-])(--[a-z][a-z0-9-]*)")
 
 
-def _flags(command: str) -> set[str]:
+@functools.cache
+def _flags(command: str) -> frozenset[str]:
+    """The command's flags (its parser built once, not once a flag mentioned)."""
     sub = next(a for a in build_parser()._actions if isinstance(a, argparse._SubParsersAction))
-    return {flag for action in sub.choices[command]._actions for flag in action.option_strings}
+    return frozenset(flag for action in sub.choices[command]._actions
+                     for flag in action.option_strings)
 
 
 def _shown_in_full(doc: Path) -> list[list[str]]:
