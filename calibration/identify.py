@@ -141,10 +141,7 @@ def advice_static(name: str, observations: Sequence[Observation], std: float,
     first = min(o.peak_accel_g[0] for o in observations if name in o.slipped)
     low = max((o.peak_accel_g[0] for o in observations
                if name not in o.slipped and o.peak_accel_g[0] < first), default=None)
-    why = ""
-    if unrefused:
-        shifts = " or ".join(f"{d:+.3f}" for d in sorted(unrefused))
-        why = f"; the recordings do not refuse it shifted {shifts}"
+    why = _not_refused(unrefused)
     if low is None:
         return (f"static coefficient not resolved (± {std:.3f}{why}): a level below "
                 f"{first:.2f} g, where it starts to slip, would bracket it")
@@ -153,23 +150,34 @@ def advice_static(name: str, observations: Sequence[Observation], std: float,
             "below rock (then the slip above is set by their rocking)")
 
 
+def _not_refused(unrefused: Sequence[float]) -> str:
+    """The shifts of a fitted value the acceptance test allowed, as the advice says them."""
+    if not unrefused:
+        return ""
+    return "; the recordings do not refuse it shifted " + " or ".join(
+        f"{d:+.3f}" for d in sorted(unrefused))
+
+
 def highest_slipped_g(name: str, observations: Sequence[Observation]) -> float:
     """The highest level (peak acceleration, g) of the recordings in which the pair slipped."""
     return max(o.peak_accel_g[0] for o in observations if name in o.slipped)
 
 
-def advice_kinetic(name: str, observations: Sequence[Observation], std: float) -> str:
+def advice_kinetic(name: str, observations: Sequence[Observation], std: float,
+                   unrefused: Sequence[float] = ()) -> str:
     """For a pair that slipped whose kinetic coefficient the recordings do not resolve: how far
     a slip runs pins it, and a higher level makes it run farther. Slipped at one level, a later
     onset and a freer slide run as far (the one-layer unit at 0.50 g: the truth with its static
     coefficient 0.03 higher and its kinetic one 0.04 lower leaves 2.2 mm unexplained). A level
     where a front row slides off its support still pins it through the bundles behind, which
     slide on (a body is judged until its centre leaves what it rests on,
-    `calibration.features`; docs/calibration.md, "Pallet–bundle's ridge")."""
+    `calibration.features`; docs/calibration.md, "Pallet–bundle's ridge"). `unrefused`: shifts
+    of the fitted value the acceptance test allowed, the others refitted (`fit._probe`)."""
+    why = _not_refused(unrefused)
     levels = {round(o.peak_accel_g[0], 3) for o in observations if name in o.slipped}
     trade = (", but slipping at one level only, a later onset and a freer slide run as far "
              "(its static coefficient trades against it)" if len(levels) == 1 else "")
-    return (f"kinetic coefficient not resolved (± {std:.3f}): how far a slip runs pins "
+    return (f"kinetic coefficient not resolved (± {std:.3f}{why}): how far a slip runs pins "
             f"it{trade}; a level above {highest_slipped_g(name, observations):.2f} g, where it "
             "runs farther, would narrow it while some bundle that slips on it keeps its support "
             "there")

@@ -17,12 +17,14 @@ from calibration.fit import (
     _calibration,
     _Fitted,
     _friction_params,
+    _kinetic_profiled,
     _probe,
     _profiled,
     _refined,
     _refinement,
     _replayed_more,
     _shifted,
+    _shifted_kinetic,
     _stage_points,
     _value_stds,
     default_budget,
@@ -305,6 +307,88 @@ def test_a_shift_the_others_can_make_up_for_is_allowed(monkeypatch, inline_pool)
     # shifts, which 6 left unexplained
     assert progress.simulations == pool.submitted == 2 * (2 * 2 * 6) + 2 * 2 * 18
     assert progress.parts == {"probes": progress.simulations}
+
+
+def _ridge() -> _Fitted:
+    """A friction fit of one pair slipped at one level only, whose recordings pin only kinetic
+    + static = 0.72 (a later onset and a freer slide run as far), emulated over the friction
+    stage's box, and fitted at 0.40 / 0.32, its kinetic coefficient claimed at +-0.015."""
+    params = (Param("static", "pallet_bundle", 0.05, 0.55),
+              Param("ratio", "pallet_bundle", 0.5, 1.0))
+    model = Model(params, Friction())
+    rng = np.random.default_rng(5)
+    lo, hi = np.array([0.5, 0.1]), np.array([0.9, 0.9])
+    u = lo + (hi - lo) * rng.random((40, 2))
+    static = 0.05 + 0.5 * u[:, 0]
+    r = (static * (0.5 + 0.5 * u[:, 1]) + static - 0.72)[:, None]
+    mid, scale = (lo + hi) / 2, (hi - lo) / 2
+    estimate = np.array([0.7, 0.6])
+    stage = Stage(mid, scale, 40, 40, estimate, np.zeros(2), Emulator((u - mid) / scale, r))
+    return _Fitted(model.decode(estimate)[0],
+                   stds={("static", "pallet_bundle"): 0.03, ("kinetic", "pallet_bundle"): 0.015},
+                   friction_fit=(model, SurrogateFit(estimate, np.eye(2), (stage,), 0)))
+
+
+def test_a_kinetic_coefficient_moved_along_the_ridge_refits_the_static_one_to_it():
+    """Kinetic 0.045 lower than the fitted 0.32 on the ridge kinetic + static = 0.72: static
+    0.445, reached by setting the ratio again from the static coefficient the emulator puts
+    beside it (0.275 / 0.40 first, which the emulator answers with 0.427, then 0.275 / 0.427,
+    ...). Kept, the static coefficient stays at 0.40 and the kinetic one within half of it."""
+    profiled = _kinetic_profiled(_ridge(), "pallet_bundle", -0.045)
+    assert profiled is not None
+    assert profiled.pallet_bundle.kinetic == pytest.approx(0.275, abs=0.002)
+    assert profiled.pallet_bundle.static == pytest.approx(0.445, abs=0.005)
+    assert _kinetic_profiled(_Fitted(_ridge().friction), "pallet_bundle", -0.045) is None
+    friction = Friction(pallet_bundle=FrictionPair(0.40, 0.32))
+    assert _shifted_kinetic(friction, "pallet_bundle", -0.045).pallet_bundle == FrictionPair(
+        0.40, pytest.approx(0.275))
+    assert _shifted_kinetic(friction, "pallet_bundle", -0.2).pallet_bundle.kinetic == 0.20
+    assert _shifted_kinetic(friction, "pallet_bundle", +0.2).pallet_bundle.kinetic == 0.40
+
+
+@pytest.mark.parametrize("emulated, widened", [(True, 0.0225), (False, 0.015)])
+def test_a_kinetic_claim_must_survive_the_acceptance_test_along_its_ridge(
+        monkeypatch, inline_pool, emulated, widened):
+    """A stand-in bench whose acceptance test allows any values on the ridge kinetic + static
+    = 0.72 (within 0.005): the kinetic claim (+-0.015) probed 0.045 either side with the
+    static coefficient refitted lies on the ridge and is allowed, so its standard deviation
+    becomes half the shift; kept (no emulator, the descents), the probes leave the ridge and
+    the claim stands. The static coefficient, unresolved (+-0.03), is not probed."""
+    _stand_in_acceptance(monkeypatch, lambda f: abs(
+        f.pallet_bundle.kinetic + f.pallet_bundle.static - 0.72) <= 0.005)
+    found = _ridge() if emulated else dataclasses.replace(_ridge(), friction_fit=None)
+    takes = [SimpleNamespace(slipped=frozenset())] * 2
+    pool, progress = inline_pool, Progress()
+    _probe(takes, ("pallet_bundle",), found, FitSettings(), 6, pool, progress)
+    assert found.stds["kinetic", "pallet_bundle"] == pytest.approx(widened, abs=0.001)
+    assert found.stds["static", "pallet_bundle"] == 0.03
+    assert found.unrefused == {}
+    assert len(found.kinetic_unrefused.get("pallet_bundle", [])) == (2 if emulated else 0)
+    # 6 replays per take of each probe, 18 more per take of each refused
+    assert progress.simulations == pool.submitted == 2 * 2 * 6 + (0 if emulated else 2 * 2 * 18)
+
+
+def test_an_unresolved_kinetic_coefficient_is_not_probed(monkeypatch, inline_pool):
+    """Reported at +-0.025 (as a 2-layer unit's pallet-bundle fit was, 0.051 off): already
+    unresolved, so no probe is replayed, whatever the recordings would allow."""
+    found = _ridge()
+    found.stds["kinetic", "pallet_bundle"] = 0.025
+    _stand_in_acceptance(monkeypatch, lambda f: True)
+    progress = Progress()
+    _probe([SimpleNamespace(slipped=frozenset())], ("pallet_bundle",), found, FitSettings(), 6,
+           inline_pool, progress)
+    assert found.stds["kinetic", "pallet_bundle"] == 0.025
+    assert found.kinetic_unrefused == {}
+    assert progress.simulations == inline_pool.submitted == 0
+
+
+def test_a_kinetic_probe_along_the_ridge_goes_as_far_as_the_ratio_s_prior_lets_it():
+    """Asked 0.084 lower, the ridge would put the ratio below its prior (0.236 / 0.484 <
+    0.5): the probe stops at the last ratio within it, short of the shift asked."""
+    farthest = _kinetic_profiled(_ridge(), "pallet_bundle", -0.084)
+    assert farthest is not None
+    assert farthest.pallet_bundle.kinetic / farthest.pallet_bundle.static >= 0.5
+    assert 0.032 < 0.32 - farthest.pallet_bundle.kinetic < 0.084
 
 
 def _stand_in_acceptance(monkeypatch, allowed, replays_needed: int = 1) -> None:

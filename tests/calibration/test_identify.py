@@ -166,6 +166,15 @@ def test_advice_on_a_bracketed_coefficient_names_the_shifts_the_recordings_allow
     assert "between 0.30 and 0.35 g" in text
 
 
+def test_advice_on_a_kinetic_coefficient_names_the_ridge_shifts_the_recordings_allow():
+    """Slipped at one level only, and a probe 0.084 lower along the ridge was not refused
+    (`fit._probe`): the advice gives the shift beside the trade that explains it."""
+    obs = [_obs(0.35, set()), _obs(0.45, {"pallet_bundle"})]
+    text = advice_kinetic("pallet_bundle", obs, 0.042, unrefused=[-0.084])
+    assert text.startswith("kinetic coefficient not resolved (± 0.042; the recordings do not "
+                           "refuse it shifted -0.084): how far a slip runs pins it, but ")
+
+
 def test_a_single_layer_has_no_bundle_on_bundle_pair():
     assert pairs_present([_obs(0.4, set(), layers=1)]) == ("sled_pallet", "pallet_bundle")
     assert pairs_present([_obs(0.4, set())])[-1] == "bundle_bundle"
