@@ -163,6 +163,12 @@ def highest_slipped_g(name: str, observations: Sequence[Observation]) -> float:
     return max(o.peak_accel_g[0] for o in observations if name in o.slipped)
 
 
+def slipped_at_one_level(name: str, observations: Sequence[Observation]) -> bool:
+    """Whether the recordings in which the pair slipped were all made at one level: then a
+    later onset and a freer slide run as far, and its two coefficients trade along a ridge."""
+    return len({round(o.peak_accel_g[0], 3) for o in observations if name in o.slipped}) == 1
+
+
 def advice_kinetic(name: str, observations: Sequence[Observation], std: float,
                    unrefused: Sequence[float] = ()) -> str:
     """For a pair that slipped whose kinetic coefficient the recordings do not resolve: how far
@@ -174,9 +180,9 @@ def advice_kinetic(name: str, observations: Sequence[Observation], std: float,
     `calibration.features`; docs/calibration.md, "Pallet–bundle's ridge"). `unrefused`: shifts
     of the fitted value the acceptance test allowed, the others refitted (`fit._probe`)."""
     why = _not_refused(unrefused)
-    levels = {round(o.peak_accel_g[0], 3) for o in observations if name in o.slipped}
     trade = (", but slipping at one level only, a later onset and a freer slide run as far "
-             "(its static coefficient trades against it)" if len(levels) == 1 else "")
+             "(its static coefficient trades against it)"
+             if slipped_at_one_level(name, observations) else "")
     return (f"kinetic coefficient not resolved (± {std:.3f}{why}): how far a slip runs pins "
             f"it{trade}; a level above {highest_slipped_g(name, observations):.2f} g, where it "
             "runs farther, would narrow it while some bundle that slips on it keeps its support "

@@ -329,6 +329,14 @@ def _ridge() -> _Fitted:
                    friction_fit=(model, SurrogateFit(estimate, np.eye(2), (stage,), 0)))
 
 
+def _one_level_takes(*levels_g: float) -> list[SimpleNamespace]:
+    """Two takes, pallet-bundle held at 0.35 g and slipped at 0.45 g, and more where it
+    slipped at `levels_g`."""
+    return [SimpleNamespace(slipped=frozenset(), peak_accel_g=(0.35, 0.1)),
+            *(SimpleNamespace(slipped=frozenset({"pallet_bundle"}), peak_accel_g=(g, 0.1))
+              for g in (0.45, *levels_g))]
+
+
 def test_a_kinetic_coefficient_moved_along_the_ridge_refits_the_static_one_to_it():
     """Kinetic 0.045 lower than the fitted 0.32 on the ridge kinetic + static = 0.72: static
     0.445, reached by setting the ratio again from the static coefficient the emulator puts
@@ -357,7 +365,7 @@ def test_a_kinetic_claim_must_survive_the_acceptance_test_along_its_ridge(
     _stand_in_acceptance(monkeypatch, lambda f: abs(
         f.pallet_bundle.kinetic + f.pallet_bundle.static - 0.72) <= 0.005)
     found = _ridge() if emulated else dataclasses.replace(_ridge(), friction_fit=None)
-    takes = [SimpleNamespace(slipped=frozenset())] * 2
+    takes = _one_level_takes()
     pool, progress = inline_pool, Progress()
     _probe(takes, ("pallet_bundle",), found, FitSettings(), 6, pool, progress)
     assert found.stds["kinetic", "pallet_bundle"] == pytest.approx(widened, abs=0.001)
@@ -368,16 +376,19 @@ def test_a_kinetic_claim_must_survive_the_acceptance_test_along_its_ridge(
     assert progress.simulations == pool.submitted == 2 * 2 * 6 + (0 if emulated else 2 * 2 * 18)
 
 
-def test_an_unresolved_kinetic_coefficient_is_not_probed(monkeypatch, inline_pool):
+@pytest.mark.parametrize("std, also_slipped_at_g", [(0.025, ()), (0.015, (0.55,))])
+def test_a_kinetic_coefficient_is_probed_only_if_claimed_and_slipped_at_one_level(
+        monkeypatch, inline_pool, std, also_slipped_at_g):
     """Reported at +-0.025 (as a 2-layer unit's pallet-bundle fit was, 0.051 off): already
-    unresolved, so no probe is replayed, whatever the recordings would allow."""
+    unresolved. Claimed (+-0.015), but slipped at 0.45 and 0.55 g: two slides pin it, there is
+    no ridge. Neither is probed, whatever the recordings would allow."""
     found = _ridge()
-    found.stds["kinetic", "pallet_bundle"] = 0.025
+    found.stds["kinetic", "pallet_bundle"] = std
     _stand_in_acceptance(monkeypatch, lambda f: True)
     progress = Progress()
-    _probe([SimpleNamespace(slipped=frozenset())], ("pallet_bundle",), found, FitSettings(), 6,
+    _probe(_one_level_takes(*also_slipped_at_g), ("pallet_bundle",), found, FitSettings(), 6,
            inline_pool, progress)
-    assert found.stds["kinetic", "pallet_bundle"] == 0.025
+    assert found.stds["kinetic", "pallet_bundle"] == std
     assert found.kinetic_unrefused == {}
     assert progress.simulations == inline_pool.submitted == 0
 
