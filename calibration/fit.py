@@ -77,13 +77,13 @@ RESOLVED_LOG2_SCALE_STD = math.log2(1.2)
 #: at +-0.014 and +-0.019 while 0.067 and 0.070 off, which the probe 0.075 lower catches
 #: (docs/calibration.md, issue 13).
 PROBE_STATIC = 3 * RESOLVED_STATIC_STD
-#: A bracketed pair's kinetic coefficient claimed resolved is replayed this far either side of
-#: its fitted value, along the ridge the emulator sees (`_kinetic_profiled`), as a static claim
-#: is (`PROBE_STATIC`); a shift the acceptance test does not refuse makes its standard
-#: deviation at least half the shift. A pair that slipped at one level only trades its static
-#: coefficient against its kinetic one, and the local covariance sees only part of that ridge:
-#: the 2-layer unit's three bare takes reported pallet-bundle's kinetic coefficient at +-0.025
-#: while 0.051 off (docs/calibration.md, "A kinetic claim probed along its ridge").
+#: A kinetic coefficient claimed resolved, of a pair that slipped at one level only, is replayed
+#: this far either side of its fitted value along the ridge the emulator sees
+#: (`_kinetic_profiled`), as a static claim is (`PROBE_STATIC`); a shift the acceptance test does
+#: not refuse makes its standard deviation at least half the shift. At one level a later onset
+#: and a freer slide run as far, and the local covariance sees only part of that ridge: the
+#: tests' small unit claimed bundle-bundle's at +-0.009 where its takes allow it 0.045 either
+#: way (docs/calibration.md, "A kinetic claim probed along its ridge").
 PROBE_KINETIC = 3 * RESOLVED_KINETIC_STD
 #: Held to a kinetic coefficient, the ratio is set again from the static coefficient the
 #: emulator put beside it, up to this many times, until their product is within
