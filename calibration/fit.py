@@ -189,10 +189,11 @@ class _Fitted:
     #: the stages' replays, and those of them that became unphysical
     replays: int = 0
     unphysical: int = 0
-    #: the surrogate's friction stage: its box's coordinates and its fit (for `_profiled`)
+    #: the surrogate's friction stage: its box's coordinates and its fit (for the
+    #: probes' profiles, `_held`, and `_refined`)
     friction_fit: tuple[Model, SurrogateFit] | None = None
     #: the bare recording the final replays left unexplained and `_refined` then explained,
-    #: and the move that did it in the friction stage's unit box (for `_profiled`)
+    #: and the move that did it in the friction stage's unit box (for `_held`)
     refined_on: str = ""
     refinement_u: np.ndarray | None = None
     #: the friction stage's points and their residuals over the bare recordings, unphysical
@@ -417,8 +418,9 @@ def _kinetic_profiled(found: _Fitted, name: str, delta: float) -> Friction | Non
     if found.friction_fit is None:
         return None
     model = found.friction_fit[0]
-    index = model.index().get(("ratio", name))
-    if index is None or ("static", name) not in model.index():
+    coords = model.index()
+    index = coords.get(("ratio", name))
+    if index is None or ("static", name) not in coords:
         return None
     param, pair = model.params[index], found.friction.pair(name)
     target, static = pair.kinetic + delta, pair.static
