@@ -32,7 +32,7 @@ from calibration import acceptance, features, identify
 from calibration.checkpoint import ReplayLog
 from calibration.descent import UNIFORM_STD, descend, least_points
 from calibration.objective import Model, Objective, Param, Progress, loss, offsets
-from calibration.replay import Observation, replay, resettled, residuals
+from calibration.replay import VALUE_DECIMALS, Observation, replay, resettled, residuals
 from calibration.surrogate import (
     MAX_STAGES,
     Stage,
@@ -882,22 +882,24 @@ def _calibration(found: _Fitted, slipped: frozenset[str], bounds: dict[str, iden
     unidentified (not at all if nothing loaded it: a profile without braking never loads a
     stopped pallet's sled contact); one that slipped at every level (`throughout`) with the
     static coefficient's standard deviation `static_std_above` allows at least; the known wrap
-    scales as given."""
+    scales as given. Values and standard deviations to `replay.VALUE_DECIMALS`, as the bench
+    replayed them: their last bits would be the processor's."""
+    r = partial(round, ndigits=VALUE_DECIMALS)
     pairs = {}
     for name in present:
         pair = found.friction.pair(name)
         if name not in slipped:
             if (bound := bounds[name].demand_g) > 0:
-                pairs[name] = CalibratedPair(bound, bound * pair.kinetic / pair.static,
+                pairs[name] = CalibratedPair(r(bound), r(bound * pair.kinetic / pair.static),
                                              identified=False)
             continue
         std = found.stds["static", name]
         if name in throughout:
             std = max(std, static_std_above(pair, throughout[name].demand_g))
-        pairs[name] = CalibratedPair(pair.static, pair.kinetic, std,
-                                     found.stds["kinetic", name])
-    scales = {name: found.scales.get(name, 1.0) for name in WRAP_PARAMS}
-    stds = {name: found.stds.get((name, ""), 0.0) for name in WRAP_PARAMS}
+        pairs[name] = CalibratedPair(r(pair.static), r(pair.kinetic), r(std),
+                                     r(found.stds["kinetic", name]))
+    scales = {name: r(found.scales.get(name, 1.0)) for name in WRAP_PARAMS}
+    stds = {name: r(found.stds.get((name, ""), 0.0)) for name in WRAP_PARAMS}
     return Calibration(pairs, scales["stiffness"], scales["tension"], stds["stiffness"],
                        stds["tension"], scales["give"], stds["give"], known)
 

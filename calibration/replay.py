@@ -25,7 +25,7 @@ from calibration.recording import Recording, image_angle_rad
 from calibration.trajectories import ObjectPath, Trajectories
 from wrapenv.bench import BenchUnit, SimSettings, run_level
 from wrapenv.config import InputError
-from wrapenv.load import Friction, Layout, LoadUnit
+from wrapenv.load import PAIRS, Friction, FrictionPair, Layout, LoadUnit
 from wrapenv.profile import G, MeasuredProfile, PulseProfile
 from wrapenv.trace import Trace
 from wrapenv.wrap import WrapFormat
@@ -57,6 +57,18 @@ WRAP_SCALES: dict[str, Callable[[LoadUnit, WrapFormat, float], tuple[LoadUnit, W
     "tension": lambda load, wrap, s: (load, wrap.scaled(tension_scale=s)),
     "give": lambda load, wrap, s: (load.with_give(s), wrap),
 }
+#: A fit's values reach the bench rounded to these many decimals (a millionth of a friction
+#: coefficient or of a wrap scale), and its residuals leave the replay rounded to a nanometre.
+#: A search's arithmetic rounds its last bits differently from one processor to another
+#: (numpy's AVX-512 loops against its AVX2 ones, OpenBLAS's kernels): on the 2-layer unit the
+#: same fit's tracked slips differed by 1e-16 m, its surrogate's next points by 1e-13, and a
+#: point 6e-13 apart became another run on the chaotic bench, so the fit ended elsewhere
+#: (pallet-bundle's kinetic coefficient 0.435 against 0.436, bundle-bundle's 0.296 against
+#: 0.293). Rounded, every processor replays the same points and fits the same numbers
+#: (tests/calibration/test_determinism.py; docs/calibration.md, "The same fit on every
+#: processor"). `wrapenv.bullet` rounds what the bench hands Bullet for the same reason.
+VALUE_DECIMALS = 6
+RESIDUAL_DECIMALS = 9
 
 
 @dataclass(frozen=True)
@@ -154,15 +166,23 @@ def upright_slide_m(slip: np.ndarray, angle_rad: np.ndarray) -> float:
                default=0.0)
 
 
+def rounded(friction: Friction) -> Friction:
+    """The coefficients of every pair to `VALUE_DECIMALS`."""
+    return Friction(**{name: FrictionPair(round(friction.pair(name).static, VALUE_DECIMALS),
+                                          round(friction.pair(name).kinetic, VALUE_DECIMALS))
+                       for name in PAIRS})
+
+
 def replay(obs: Observation, friction: Friction, scales: Mapping[str, float] | None = None,
            settings: SimSettings | None = None) -> dict[str, np.ndarray] | None:
     """Simulated displacements and rotations (n, 3) of the observed objects at their frame
     times, from the first one (as `Observation.states`), until the last window's end; None when
-    the simulation became unphysical. `scales` maps `WRAP_SCALES` names to values."""
-    load, wrap = obs.load.with_friction(friction), obs.wrap
+    the simulation became unphysical. `scales` maps `WRAP_SCALES` names to values. Both are
+    replayed rounded to `VALUE_DECIMALS`."""
+    load, wrap = obs.load.with_friction(rounded(friction)), obs.wrap
     if wrap is not None:
         for name, value in (scales or {}).items():
-            load, wrap = WRAP_SCALES[name](load, wrap, value)
+            load, wrap = WRAP_SCALES[name](load, wrap, round(value, VALUE_DECIMALS))
     layout = load.layout()
     t, a = obs.profile.t_s, obs.profile.accel_mps2
     keep = t <= obs.end_s + (t[1] - t[0])
@@ -205,6 +225,7 @@ def resettled(settings: SimSettings, k: int) -> SimSettings:
 
 
 def residuals(obs: Observation, simulated: Mapping[str, np.ndarray]) -> np.ndarray:
-    """Simulated minus recorded features (`calibration.features`), in one vector."""
+    """Simulated minus recorded features (`calibration.features`), in one vector, rounded to
+    `RESIDUAL_DECIMALS` (metres)."""
     states = {name: (t, simulated[name]) for name, (t, _) in obs.states.items()}
-    return features.vector(states, obs.bodies, obs.frames) - obs.target
+    return (features.vector(states, obs.bodies, obs.frames) - obs.target).round(RESIDUAL_DECIMALS)

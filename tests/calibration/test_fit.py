@@ -37,7 +37,7 @@ from calibration.fit import (
 from calibration.identify import Bound
 from calibration.objective import Model, Param, Progress
 from calibration.recording import Recording, Truth
-from calibration.replay import SLIP_M, observe, replay, residuals, upright_slide_m
+from calibration.replay import SLIP_M, VALUE_DECIMALS, observe, replay, residuals, upright_slide_m
 from calibration.surrogate import Emulator, Stage, SurrogateFit
 from calibration.track import track
 from calibration.trajectories import ObjectPath, Trajectories
@@ -778,9 +778,23 @@ def test_cal_json_reports_each_pair_as_the_recordings_know_it():
         0.1125, pytest.approx(0.1), identified=False)
     assert cal.friction["pallet_bundle"] == CalibratedPair(0.45, 0.38, 0.01, 0.005)
     assert cal.friction["bundle_bundle"] == CalibratedPair(
-        0.36, 0.30, pytest.approx(0.06 / math.sqrt(12)), 0.004)
+        0.36, 0.30, round(0.06 / math.sqrt(12), VALUE_DECIMALS), 0.004)
     assert (cal.stiffness_scale, cal.tension_scale, cal.give_scale) == (1.0, 1.0, 1.0)
     assert (cal.stiffness_scale_std, cal.tension_scale_std, cal.give_scale_std) == (0, 0, 0)
+
+
+def test_cal_json_carries_the_values_the_bench_replayed():
+    """A fit's values reach the bench to a millionth (`replay.VALUE_DECIMALS`), and CAL.json
+    says those: the bits below are the processor's arithmetic (on another processor the same
+    fit's last digits differed by 5e-13), not the recordings'."""
+    found = _Fitted(Friction(pallet_bundle=FrictionPair(0.45 + 3e-13, 0.38 - 5e-13)),
+                    scales={"stiffness": 1.3 + 2e-13},
+                    stds={("static", "pallet_bundle"): 0.01 + 1e-14,
+                          ("kinetic", "pallet_bundle"): 0.0051234567, ("stiffness", ""): 0.2})
+    bounds = {"pallet_bundle": Bound(0.45, "level")}
+    cal = _calibration(found, frozenset({"pallet_bundle"}), bounds, {}, ("pallet_bundle",), ())
+    assert cal.friction["pallet_bundle"] == CalibratedPair(0.45, 0.38, 0.01, 0.005123)
+    assert (cal.stiffness_scale, cal.stiffness_scale_std) == (1.3, 0.2)
 
 
 def test_a_pair_nothing_loaded_is_not_reported():

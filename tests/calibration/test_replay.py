@@ -18,7 +18,7 @@ from calibration.synth import synthesize
 from calibration.trajectories import ObjectPath, Trajectories
 from wrapenv.bench import SimSettings
 from wrapenv.config import InputError
-from wrapenv.load import LoadUnit
+from wrapenv.load import Friction, FrictionPair, LoadUnit
 from wrapenv.profile import MeasuredProfile, PulseProfile
 from wrapenv.wrap import WrapFormat
 
@@ -139,6 +139,24 @@ def test_a_wrapped_replay_runs_the_wrap_and_load_as_the_scales_correct_them(monk
         [0.5 * b.tension_n for b in wrap.bands])
     replay_module.replay(obs, obs.load.friction, {"give": 2.0})
     assert seen["wrap"] == wrap
+
+
+def test_a_replay_runs_a_fit_s_values_to_a_millionth_and_gives_residuals_to_a_nanometre(
+        monkeypatch):
+    """Below those, the digits are the processor's arithmetic (`replay.VALUE_DECIMALS`): a
+    surrogate's points 6e-13 apart were another run on the bench, its tracked slips 1e-16 m
+    apart another fit."""
+    seen: dict = {}
+    monkeypatch.setattr(replay_module, "run_level", _fake_level(seen))
+    wrap = WrapFormat.from_toml(ROOT / "examples" / "wrap_kraft_2layer.toml")
+    obs = _observation(wrap)
+    friction = Friction(pallet_bundle=FrictionPair(0.41 + 6e-13, 0.33 - 6e-13))
+    simulated = replay_module.replay(obs, friction, {"stiffness": 1.5 + 4e-13})
+    assert seen["layout"].friction == Friction(pallet_bundle=FrictionPair(0.41, 0.33))
+    assert seen["wrap"] == wrap.scaled(stiffness_scale=1.5)
+    r = replay_module.residuals(obs, simulated)
+    assert np.abs(r).max() > 1e-3
+    assert np.array_equal(r, r.round(replay_module.RESIDUAL_DECIMALS))
 
 
 def test_a_replay_that_became_unphysical_is_no_prediction(monkeypatch):
