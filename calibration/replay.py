@@ -61,10 +61,10 @@ WRAP_SCALES: dict[str, Callable[[LoadUnit, WrapFormat, float], tuple[LoadUnit, W
 #: coefficient or of a wrap scale), and its residuals leave the replay rounded to a nanometre.
 #: A search's arithmetic rounds its last bits differently from one processor to another
 #: (numpy's AVX-512 loops against its AVX2 ones, OpenBLAS's kernels): on the 2-layer unit the
-#: same fit's tracked slips differed by 1e-16 m, its surrogate's next points by 1e-13, and a
+#: same fit's replayed slips differed by 1e-16 m, its surrogate's next points by 1e-13, and a
 #: point 6e-13 apart became another run on the chaotic bench, so the fit ended elsewhere
-#: (pallet-bundle's kinetic coefficient 0.435 against 0.436, bundle-bundle's 0.296 against
-#: 0.293). Rounded, every processor replays the same points and fits the same numbers
+#: (pallet-bundle's kinetic coefficient 0.4355 against 0.4366, bundle-bundle's 0.2962 against
+#: 0.2933). Rounded, every processor replays the same points and fits the same numbers
 #: (tests/calibration/test_determinism.py; docs/calibration.md, "The same fit on every
 #: processor"). `wrapenv.bullet` rounds what the bench hands Bullet for the same reason.
 VALUE_DECIMALS = 6
@@ -166,7 +166,7 @@ def upright_slide_m(slip: np.ndarray, angle_rad: np.ndarray) -> float:
                default=0.0)
 
 
-def rounded(friction: Friction) -> Friction:
+def _rounded(friction: Friction) -> Friction:
     """The coefficients of every pair to `VALUE_DECIMALS`."""
     return Friction(**{name: FrictionPair(round(friction.pair(name).static, VALUE_DECIMALS),
                                           round(friction.pair(name).kinetic, VALUE_DECIMALS))
@@ -179,7 +179,7 @@ def replay(obs: Observation, friction: Friction, scales: Mapping[str, float] | N
     times, from the first one (as `Observation.states`), until the last window's end; None when
     the simulation became unphysical. `scales` maps `WRAP_SCALES` names to values. Both are
     replayed rounded to `VALUE_DECIMALS`."""
-    load, wrap = obs.load.with_friction(rounded(friction)), obs.wrap
+    load, wrap = obs.load.with_friction(_rounded(friction)), obs.wrap
     if wrap is not None:
         for name, value in (scales or {}).items():
             load, wrap = WRAP_SCALES[name](load, wrap, round(value, VALUE_DECIMALS))
