@@ -29,7 +29,10 @@ from wrapenv.load import Friction
 
 #: Every version of the format starts so: what an existing file must be to be overwritten.
 FORMAT_FAMILY = "wrapbench-calibration-replays/"
-CHECKPOINT_FORMAT = FORMAT_FAMILY + "1"
+#: 2 since 2026-12-05: replays run the fit's values to a millionth and give residuals to a
+#: nanometre (`replay.VALUE_DECIMALS`); a version-1 file's replays are not what this bench
+#: would return, and a fit resumed from them would not write the uninterrupted fit's CAL.json.
+CHECKPOINT_FORMAT = FORMAT_FAMILY + "2"
 
 
 def recording_key(obs: Observation) -> str:

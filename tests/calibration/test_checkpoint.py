@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 import calibration.fit
-from calibration.checkpoint import CHECKPOINT_FORMAT, ReplayLog, recording_key
+from calibration.checkpoint import CHECKPOINT_FORMAT, FORMAT_FAMILY, ReplayLog, recording_key
 from calibration.recording import Recording, Truth
 from calibration.replay import observe
 from calibration.trajectories import ObjectPath, Trajectories
@@ -104,6 +104,12 @@ def test_a_checkpoint_of_other_recordings_or_another_version_or_none_is_refused(
         ReplayLog(path, [slide_obs], resume=True)
     path.write_text(json.dumps({"format": "wrapbench-search/2"}) + "\n")
     with pytest.raises(InputError, match="not a wrapbench calibration checkpoint"):
+        ReplayLog(path, [slide_obs], resume=True)
+    # version 1's replays ran a fit's values and gave residuals unrounded (`CHECKPOINT_FORMAT`)
+    path.write_text(json.dumps(head | {"format": FORMAT_FAMILY + "1",
+                                       "wrapbench_version": __version__}) + "\n")
+    with pytest.raises(InputError, match="format: not a wrapbench calibration checkpoint of "
+                                         "this version"):
         ReplayLog(path, [slide_obs], resume=True)
     with pytest.raises(InputError, match="no checkpoint to resume from"):
         ReplayLog(tmp_path / "none.jsonl", [slide_obs], resume=True)
