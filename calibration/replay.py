@@ -168,9 +168,10 @@ def upright_slide_m(slip: np.ndarray, angle_rad: np.ndarray) -> float:
 
 def _rounded(friction: Friction) -> Friction:
     """The coefficients of every pair to `VALUE_DECIMALS`."""
-    return Friction(**{name: FrictionPair(round(friction.pair(name).static, VALUE_DECIMALS),
-                                          round(friction.pair(name).kinetic, VALUE_DECIMALS))
-                       for name in PAIRS})
+    pairs = {name: friction.pair(name) for name in PAIRS}
+    return Friction(**{name: FrictionPair(round(p.static, VALUE_DECIMALS),
+                                          round(p.kinetic, VALUE_DECIMALS))
+                       for name, p in pairs.items()})
 
 
 def replay(obs: Observation, friction: Friction, scales: Mapping[str, float] | None = None,
